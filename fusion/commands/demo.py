@@ -1,0 +1,33 @@
+"""``fusion demo [--out DIR]``: run every pipeline on built-in simulated scenarios."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from fusion.demo import run_demo
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    """Add the ``demo`` subcommand."""
+    p = sub.add_parser(
+        "demo",
+        help="run every pipeline on built-in simulated scenarios",
+        description="Run every pipeline on built-in scenarios; write results, figures and a summary.",
+    )
+    p.add_argument("--out", type=Path, default=Path("fusion-demo"), help="output folder")
+    p.add_argument("--seed", type=int, default=0, help="scenario seed (default 0)")
+    p.add_argument("--part", action="append", default=None, help="run only this part (repeatable)")
+    p.set_defaults(handler=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the demo; print one line per part; exit 1 if a part failed."""
+    results = run_demo(args.out, seed=args.seed, parts=args.part)
+    for r in results:
+        status = "ok" if r.ok else "FAILED"
+        nums = ", ".join(f"{k}={v}" for k, v in r.summary.items())
+        print(f"{r.name:<18} {status:<6} {r.seconds:6.1f} s  {nums}", file=sys.stdout)
+    print(f"results in {args.out}/ (summary.md, summary.json)", file=sys.stdout)
+    return 0 if all(r.ok for r in results) else 1

@@ -1,0 +1,24 @@
+"""Seeded scenario generators; ``fusion simulate KIND`` writes their files.
+
+Each kind's ``write_scenario(out_dir, *, seed) -> list[Path]`` writes the scenario in the
+project's file formats plus its ground truth. The same generators serve tests, examples,
+benchmarks and ``fusion demo``.
+"""
+
+from __future__ import annotations
+
+import importlib
+from collections.abc import Callable
+from pathlib import Path
+
+#: Scenario kind -> "module:function" of its writer.
+SIMULATORS: dict[str, str] = {
+}
+
+
+def get_writer(kind: str) -> Callable[..., list[Path]]:
+    """The ``write_scenario`` function of a scenario kind."""
+    if kind not in SIMULATORS:
+        raise ValueError(f"unknown scenario kind {kind!r} (choose from {', '.join(SIMULATORS)})")
+    module, func = SIMULATORS[kind].split(":")
+    return getattr(importlib.import_module(module), func)
