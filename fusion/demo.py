@@ -22,6 +22,7 @@ logger = logging.getLogger(__name__)
 
 #: (part name, "module:function") in the order the demo runs them.
 PARTS: list[tuple[str, str]] = [
+    ("clicks-scenario", "fusion.simulate.clicks:run_demo"),
 ]
 
 

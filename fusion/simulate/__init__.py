@@ -13,6 +13,8 @@ from pathlib import Path
 
 #: Scenario kind -> "module:function" of its writer.
 SIMULATORS: dict[str, str] = {
+    "clicks": "fusion.simulate.clicks:write_scenario",
+    "bearings": "fusion.simulate.bearings:write_scenario",
 }
 
 

@@ -1,0 +1,1 @@
+"""Readers of recorded data sets used to test the library against reality."""

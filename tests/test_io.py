@@ -1,0 +1,308 @@
+"""Tests of fusion.io: validation of every reader, round trips, atomic writes."""
+
+import json
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose, assert_array_equal
+
+from fusion.geometry import SensorArray
+from fusion.io import (
+    Cube,
+    atomic_output,
+    iter_audio_blocks,
+    read_amplitudes,
+    read_array,
+    read_audio,
+    read_bearings,
+    read_cube,
+    read_detections,
+    read_json,
+    read_ownship,
+    read_table,
+    read_tma_bearings,
+    write_array,
+    write_audio,
+    write_cube,
+    write_json,
+    write_table,
+)
+
+READERS = {
+    "bearings": (read_bearings, "track_id,time,bearing_deg\n1,0,10\n1,10,11\n"),
+    "amplitudes": (read_amplitudes, "track_id,time,amplitude,residual\n1,0,3.2,0.1\n1,1,2.5,-0.2\n"),
+    "detections": (read_detections, "event,time,x,y\n0,0,10,20\n1,60,11,21\n"),
+    "ownship": (read_ownship, "time,x,y\n0,0,0\n10,5,0\n"),
+    "tma_bearings": (read_tma_bearings, "time,bearing_deg\n0,45\n10,46\n"),
+}
+
+
+def _write(tmp_path, text, name="t.csv"):
+    p = tmp_path / name
+    p.write_text(text)
+    return p
+
+
+@pytest.mark.parametrize("kind", sorted(READERS))
+def test_reader_accepts_valid_file(tmp_path, kind):
+    """Each reader reads its minimal valid file with the right row count."""
+    reader, text = READERS[kind]
+    t = reader(_write(tmp_path, text))
+    assert len(t) == 2
+
+
+@pytest.mark.parametrize("kind", sorted(READERS))
+def test_reader_missing_file(tmp_path, kind):
+    """A missing file names the path."""
+    with pytest.raises(FileNotFoundError, match="nope.csv: no such file"):
+        READERS[kind][0](tmp_path / "nope.csv")
+
+
+@pytest.mark.parametrize("kind", sorted(READERS))
+def test_reader_empty_file(tmp_path, kind):
+    """An empty file is an error naming the file."""
+    p = _write(tmp_path, "")
+    with pytest.raises(ValueError, match=r"t\.csv: file is empty"):
+        READERS[kind][0](p)
+
+
+@pytest.mark.parametrize("kind", sorted(READERS))
+def test_reader_header_only(tmp_path, kind):
+    """A header with no rows is an error."""
+    header = READERS[kind][1].splitlines()[0]
+    with pytest.raises(ValueError, match="no data rows"):
+        READERS[kind][0](_write(tmp_path, header + "\n"))
+
+
+@pytest.mark.parametrize("kind", sorted(READERS))
+def test_reader_missing_column(tmp_path, kind):
+    """Dropping the last required column is reported by name."""
+    reader, text = READERS[kind]
+    lines = [",".join(line.split(",")[:-1]) for line in text.splitlines()]
+    missing = text.splitlines()[0].split(",")[-1]
+    with pytest.raises(ValueError, match=f"missing required column.*{missing}"):
+        reader(_write(tmp_path, "\n".join(lines) + "\n"))
+
+
+@pytest.mark.parametrize("kind", sorted(READERS))
+@pytest.mark.parametrize("bad", ["abc", "nan", "inf", ""])
+def test_reader_bad_value(tmp_path, kind, bad):
+    """Non-numeric values, NaN and infinities are rejected with line and column."""
+    reader, text = READERS[kind]
+    lines = text.splitlines()
+    cells = lines[2].split(",")
+    cells[-1] = bad
+    lines[2] = ",".join(cells)
+    with pytest.raises(ValueError, match="line 3, column"):
+        reader(_write(tmp_path, "\n".join(lines) + "\n"))
+
+
+def test_read_table_extra_columns_and_optional(tmp_path):
+    """Extra columns are ignored; optional columns are kept only when present."""
+    p = _write(tmp_path, "event,time,x,y,junk,score\n0,0,1,2,zz,0.5\n")
+    t = read_detections(p)
+    assert "junk" not in t and "score" in t and "snr_db" not in t
+    assert_allclose(t["score"], [0.5])
+    assert t["event"].dtype == np.int64
+
+
+def test_read_table_ragged_and_integer(tmp_path):
+    """Short rows and fractional integers are errors."""
+    with pytest.raises(ValueError, match="line 2 has 2 fields"):
+        read_bearings(_write(tmp_path, "track_id,time,bearing_deg\n1,0\n"))
+    with pytest.raises(ValueError, match="not a whole number"):
+        read_bearings(_write(tmp_path, "track_id,time,bearing_deg\n1.5,0,3\n"))
+
+
+def test_semantic_checks(tmp_path):
+    """Scores outside [0, 1], negative amplitudes and time going backwards are errors."""
+    with pytest.raises(ValueError, match="score"):
+        read_detections(_write(tmp_path, "event,time,x,y,score\n0,0,1,2,1.5\n"))
+    with pytest.raises(ValueError, match="negative"):
+        read_amplitudes(_write(tmp_path, "track_id,time,amplitude,residual\n1,0,-1,0\n"))
+    with pytest.raises(ValueError, match="strictly increasing"):
+        read_ownship(_write(tmp_path, "time,x,y\n1,0,0\n0,0,0\n"))
+    with pytest.raises(ValueError, match="non-decreasing"):
+        read_detections(_write(tmp_path, "event,time,x,y\n2,0,1,2\n1,0,1,2\n"))
+
+
+def test_binary_file_is_not_csv(tmp_path):
+    """A binary file is reported, not decoded into garbage."""
+    p = tmp_path / "b.csv"
+    p.write_bytes(b"\xff\xfe\x00\x81\x82")
+    with pytest.raises(ValueError, match="b.csv"):
+        read_bearings(p)
+
+
+def test_table_round_trip(tmp_path):
+    """write_table then read_table returns the same numbers and strings."""
+    rng = np.random.default_rng(0)
+    cols = {"track_id": np.arange(5), "time": rng.uniform(0, 100, 5), "bearing_deg": rng.uniform(0, 360, 5),
+            "kind": np.array(["a", "b", "a", "c", "b"])}
+    p = write_table(tmp_path / "o.csv", cols, float_format="%.10f")
+    t = read_table(p, required=("track_id", "time", "bearing_deg", "kind"), integer=("track_id",),
+                   text=("kind",))
+    assert_array_equal(t["track_id"], cols["track_id"])
+    assert_allclose(t["time"], cols["time"], atol=1e-9)
+    assert_array_equal(t["kind"], cols["kind"])
+
+
+def test_atomic_output_leaves_nothing_on_failure(tmp_path):
+    """An exception inside atomic_output leaves neither the file nor a temporary behind."""
+    dest = tmp_path / "out.csv"
+    with pytest.raises(RuntimeError), atomic_output(dest) as tmp:
+        tmp.write_text("half")
+        raise RuntimeError("boom")
+    assert list(tmp_path.iterdir()) == []
+    with pytest.raises(ValueError, match="different lengths"):
+        write_table(dest, {"a": [1, 2], "b": [1]})
+    assert not dest.exists()
+
+
+def _array_doc(**over):
+    doc = {"sound_speed": 1500.0, "sensors": [
+        {"id": "H1", "x": 0.0, "y": 0.0, "z": -1500.0},
+        {"id": "H2", "x": 3200.0, "y": 150.0, "z": -1610.0},
+        {"id": "H3", "x": 900.0, "y": 2800.0, "z": -1550.0}]}
+    doc.update(over)
+    return doc
+
+
+def test_array_round_trip(tmp_path):
+    """write_array then read_array gives the same array."""
+    a = SensorArray(np.array([[0, 0, -1500], [3200, 150, -1610], [900, 2800, -1550.0]]), 1490.0,
+                    ("A", "B", "C"))
+    b = read_array(write_array(tmp_path / "array.json", a))
+    assert b.ids == a.ids and b.sound_speed == a.sound_speed
+    assert_allclose(b.positions, a.positions)
+
+
+@pytest.mark.parametrize(
+    ("doc", "match"),
+    [
+        ({"sensors": []}, "non-empty"),
+        ({"sensors": _array_doc()["sensors"][:2]}, "at least 3"),
+        ({"sensors": [{"x": 0, "y": 0, "z": 0}, {"x": 1, "y": 1, "z": 1}, {"x": 2, "y": 2, "z": 2}]},
+         "collinear"),
+        ({"sensors": [{"x": 0, "y": 0}] * 3}, "no 'z'"),
+        ({"sensors": [{"x": "a", "y": 0, "z": 0}] * 3}, "not a finite number"),
+        ({"sound_speed": -3}, "sound_speed"),
+    ],
+)
+def test_array_bad_input(tmp_path, doc, match):
+    """Every malformed array file gives a message naming the file and the problem."""
+    p = tmp_path / "array.json"
+    p.write_text(json.dumps(_array_doc(**doc)))
+    with pytest.raises(ValueError, match=match):
+        read_array(p)
+
+
+def test_array_nan_and_malformed_json(tmp_path):
+    """NaN coordinates and broken JSON are errors."""
+    p = tmp_path / "array.json"
+    p.write_text(json.dumps(_array_doc()).replace("3200.0", "NaN"))
+    with pytest.raises(ValueError, match="not a finite number"):
+        read_array(p)
+    p.write_text("{\"sensors\": [")
+    with pytest.raises(ValueError, match="malformed JSON"):
+        read_array(p)
+    p.write_text("")
+    with pytest.raises(ValueError, match="empty"):
+        read_json(p)
+
+
+@pytest.mark.parametrize("suffix", [".wav", ".flac"])
+def test_audio_round_trip_and_channels(tmp_path, suffix):
+    """Audio round-trips within 24-bit quantisation; a channel mismatch is an error."""
+    rng = np.random.default_rng(1)
+    x = rng.uniform(-0.5, 0.5, (4000, 3))
+    p = write_audio(tmp_path / f"a{suffix}", x, 96000)
+    y, fs = read_audio(p, n_channels=3)
+    assert fs == 96000 and y.shape == x.shape
+    assert_allclose(y, x, atol=2 ** -22)
+    with pytest.raises(ValueError, match="3 channel.*array has 4 sensors"):
+        read_audio(p, n_channels=4)
+
+
+def test_audio_bad_input(tmp_path):
+    """Not-audio files, wrong suffixes and NaN samples are errors."""
+    p = tmp_path / "x.wav"
+    p.write_text("not audio")
+    with pytest.raises(ValueError, match="not a readable"):
+        read_audio(p)
+    with pytest.raises(ValueError, match=".wav or .flac"):
+        write_audio(tmp_path / "x.mp3", np.zeros((10, 1)), 1000)
+    with pytest.raises(ValueError, match="NaN"):
+        write_audio(tmp_path / "y.wav", np.full((10, 1), np.nan), 1000)
+    assert not (tmp_path / "y.wav").exists()
+
+
+def test_audio_blocks_cover_recording(tmp_path):
+    """Windowed reading yields windows at the hop whose samples match the whole file."""
+    rng = np.random.default_rng(2)
+    x = rng.uniform(-0.5, 0.5, (10000, 3))
+    p = write_audio(tmp_path / "a.wav", x, 1000)
+    whole, _ = read_audio(p)
+    starts = []
+    for t0, block, fs in iter_audio_blocks(p, block_s=3.0, hop_s=2.0, n_channels=3):
+        i0 = int(round(t0 * fs))
+        assert_allclose(block, whole[i0 : i0 + len(block)])
+        starts.append(t0)
+    assert starts[:3] == [0.0, 2.0, 4.0]
+
+
+def _cube(**over):
+    rng = np.random.default_rng(0)
+    kw = {"power": rng.exponential(1.0, (6, 8, 4)), "freqs": np.array([100.0, 101, 102, 103]),
+          "scan_period": 10.0, "aperture": 30.0, "sound_speed": 1500.0}
+    kw.update(over)
+    return kw
+
+
+def test_cube_round_trip(tmp_path):
+    """write_cube then read_cube gives the same arrays and scalars."""
+    c = Cube(**_cube())
+    d = read_cube(write_cube(tmp_path / "c.npz", c))
+    assert_allclose(d.power, c.power)
+    assert (d.n_scans, d.n_beams, d.n_bins) == (6, 8, 4)
+    assert d.scan_period == 10.0 and d.aperture == 30.0
+
+
+@pytest.mark.parametrize(
+    ("over", "match"),
+    [
+        ({"power": np.ones((6, 8))}, "shape"),
+        ({"freqs": np.array([1.0, 2.0])}, "frequencies"),
+        ({"power": np.full((6, 8, 4), np.nan)}, "NaN"),
+        ({"scan_period": 0.0}, "scan_period"),
+        ({"freqs": np.array([4.0, 3, 2, 1])}, "increasing"),
+    ],
+)
+def test_cube_bad_input(tmp_path, over, match):
+    """Malformed cubes are rejected with a message naming the file."""
+    p = tmp_path / "c.npz"
+    np.savez(p, **_cube(**over))
+    with pytest.raises(ValueError, match=match):
+        read_cube(p)
+
+
+def test_cube_missing_array_and_not_npz(tmp_path):
+    """A cube without 'power', or not an npz at all, is an error."""
+    p = tmp_path / "c.npz"
+    kw = _cube()
+    del kw["power"]
+    np.savez(p, **kw)
+    with pytest.raises(ValueError, match="missing array.*power"):
+        read_cube(p)
+    p.write_text("nope")
+    with pytest.raises(ValueError, match="not a readable"):
+        read_cube(p)
+
+
+def test_json_round_trip_numpy(tmp_path):
+    """numpy scalars and arrays serialise; NaN is refused rather than written as invalid JSON."""
+    p = write_json(tmp_path / "r.json", {"a": np.float64(1.5), "b": np.arange(3), "c": np.int64(2)})
+    assert read_json(p) == {"a": 1.5, "b": [0, 1, 2], "c": 2}
+    with pytest.raises(ValueError):
+        write_json(tmp_path / "n.json", {"a": float("nan")})
+    assert not (tmp_path / "n.json").exists()
