@@ -36,6 +36,12 @@ from fusion.geometry import SensorArray
 
 __all__ = [
     "Cube",
+    "LocalizationResult",
+    "LocalizationWindow",
+    "SourceEstimate",
+    "TdoaRecord",
+    "read_localization",
+    "write_localization",
     "Table",
     "atomic_output",
     "iter_audio_blocks",
@@ -45,7 +51,12 @@ __all__ = [
     "read_bearings",
     "read_cube",
     "read_detections",
+    "read_alerts",
     "read_json",
+    "read_smoothed",
+    "read_tma_result",
+    "read_tqi",
+    "read_tracks",
     "read_ownship",
     "read_table",
     "read_tma_bearings",
@@ -298,6 +309,72 @@ def read_tma_bearings(path: PathLike) -> Table:
     if np.any(np.diff(t["time"]) <= 0):
         raise ValueError(f"{t.source}: column 'time' must be strictly increasing")
     return t
+
+
+TQI_STATES = ("lost", "uncertain", "low_snr", "strong")
+TRACK_STATUSES = ("tentative", "confirmed", "deleted")
+ALERT_KINDS = ("predicted", "detected")
+
+
+def _require_values(table: Table, col: str, allowed: Sequence[str]) -> None:
+    bad = sorted(set(table[col].tolist()) - set(allowed))
+    if bad:
+        raise ValueError(
+            f"{table.source}: column {col!r} has value(s) {', '.join(bad)} (allowed: {', '.join(allowed)})"
+        )
+
+
+def read_tqi(path: PathLike) -> Table:
+    """Output of ``fusion tqi``: the amplitude columns plus ``tqi`` (lost/uncertain/low_snr/strong)."""
+    t = read_table(
+        path,
+        required=("track_id", "time", "amplitude", "residual", "tqi"),
+        integer=("track_id",),
+        text=("tqi",),
+    )
+    _require_values(t, "tqi", TQI_STATES)
+    return t
+
+
+def read_tracks(path: PathLike) -> Table:
+    """Output of ``fusion track``: ``track_id,event,time,x,y,vx,vy,status``."""
+    t = read_table(
+        path,
+        required=("track_id", "event", "time", "x", "y", "vx", "vy", "status"),
+        integer=("track_id", "event"),
+        text=("status",),
+    )
+    _require_values(t, "status", TRACK_STATUSES)
+    return t
+
+
+def read_alerts(path: PathLike) -> Table:
+    """Output of ``fusion crossings``: ``time,track_a,track_b,t_cross,kind``."""
+    t = read_table(
+        path,
+        required=("time", "track_a", "track_b", "t_cross", "kind"),
+        integer=("track_a", "track_b"),
+        text=("kind",),
+    )
+    _require_values(t, "kind", ALERT_KINDS)
+    return t
+
+
+def read_smoothed(path: PathLike) -> Table:
+    """Output of ``fusion smooth``.
+
+    Columns ``track_id,time,bearing_deg,bearing_rate_deg_per_min,sigma_bearing_deg``.
+    """
+    return read_table(
+        path,
+        required=("track_id", "time", "bearing_deg", "bearing_rate_deg_per_min", "sigma_bearing_deg"),
+        integer=("track_id",),
+    )
+
+
+def read_tma_result(path: PathLike) -> Table:
+    """Output of ``fusion tma``: ``time,x,y,vx,vy,sigma_x,sigma_y,range``."""
+    return read_table(path, required=("time", "x", "y", "vx", "vy", "sigma_x", "sigma_y", "range"))
 
 
 def _format_cell(v: Any, float_format: str) -> str:
@@ -662,3 +739,125 @@ def write_cube(path: PathLike, cube: Cube) -> Path:
             sound_speed=cube.sound_speed,
         )
     return Path(path)
+
+
+# --------------------------------------------------------------------------------------------
+# localization results (``fusion localize``)
+# --------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class TdoaRecord:
+    """One measured TDOA of a processing window.
+
+    Attributes
+    ----------
+    pair : tuple of int
+        0-based sensor indices ``(i, j)``.
+    tau : float
+        Arrival time at sensor i minus at sensor j, s.
+    valid : bool
+        Whether validation accepted it.
+    llr : float
+        Validation log-likelihood ratio.
+    """
+
+    pair: tuple[int, int]
+    tau: float
+    valid: bool
+    llr: float
+
+
+@dataclass(frozen=True)
+class SourceEstimate:
+    """One localized source of a processing window (position in m, covariance in m^2)."""
+
+    x: float
+    y: float
+    z: float
+    cov: tuple[tuple[float, float, float], ...]
+    tdoas_used: int
+
+
+@dataclass(frozen=True)
+class LocalizationWindow:
+    """TDOAs and sources of one processing window (``t_start``/``t_end`` in s from the audio start)."""
+
+    t_start: float
+    t_end: float
+    tdoas: tuple[TdoaRecord, ...]
+    sources: tuple[SourceEstimate, ...]
+
+
+@dataclass(frozen=True)
+class LocalizationResult:
+    """Result of ``fusion localize``: windows and tracks (``tracks``: id -> points (t, x, y, z))."""
+
+    windows: tuple[LocalizationWindow, ...]
+    tracks: tuple[tuple[int, tuple[tuple[float, float, float, float], ...]], ...] = ()
+
+
+def write_localization(path: PathLike, result: LocalizationResult) -> Path:
+    """Write a localization result as JSON (atomic)."""
+    doc = {
+        "windows": [
+            {
+                "t_start": w.t_start,
+                "t_end": w.t_end,
+                "tdoas": [
+                    {"pair": list(d.pair), "tau": d.tau, "valid": d.valid, "llr": d.llr}
+                    for d in w.tdoas
+                ],
+                "sources": [
+                    {"x": s.x, "y": s.y, "z": s.z, "cov": [list(r) for r in s.cov],
+                     "tdoas_used": s.tdoas_used}
+                    for s in w.sources
+                ],
+            }
+            for w in result.windows
+        ],
+        "tracks": [
+            {"id": tid, "points": [{"t": t, "x": x, "y": y, "z": z} for t, x, y, z in pts]}
+            for tid, pts in result.tracks
+        ],
+    }
+    return write_json(path, doc)
+
+
+def _num(v: Any, where: str) -> float:
+    if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+        raise ValueError(f"{where}: {v!r} is not a finite number")
+    return float(v)
+
+
+def read_localization(path: PathLike) -> LocalizationResult:
+    """Read and validate a localization result JSON."""
+    p = Path(path)
+    doc = read_json(p)
+    if not isinstance(doc, dict) or not isinstance(doc.get("windows"), list):
+        raise ValueError(f"{p}: expected an object with a 'windows' list")
+    try:
+        windows = []
+        for k, w in enumerate(doc["windows"]):
+            where = f"{p}: window {k}"
+            tdoas = tuple(
+                TdoaRecord((int(d["pair"][0]), int(d["pair"][1])), _num(d["tau"], where),
+                           bool(d["valid"]), _num(d["llr"], where))
+                for d in w["tdoas"]
+            )
+            sources = []
+            for s in w["sources"]:
+                cov = np.asarray(s["cov"], dtype=float)
+                if cov.shape != (3, 3) or not np.all(np.isfinite(cov)):
+                    raise ValueError(f"{where}: 'cov' must be a finite 3x3 matrix")
+                sources.append(SourceEstimate(
+                    _num(s["x"], where), _num(s["y"], where), _num(s["z"], where),
+                    tuple(tuple(float(v) for v in r) for r in cov), int(s["tdoas_used"])))
+            windows.append(LocalizationWindow(_num(w["t_start"], where), _num(w["t_end"], where),
+                                              tdoas, tuple(sources)))
+        tracks = tuple(
+            (int(t["id"]), tuple((_num(q["t"], str(p)), _num(q["x"], str(p)), _num(q["y"], str(p)),
+                                  _num(q["z"], str(p))) for q in t["points"]))
+            for t in doc.get("tracks", [])
+        )
+    except (KeyError, TypeError, IndexError) as e:
+        raise ValueError(f"{p}: malformed localization result (missing or bad {e})") from None
+    return LocalizationResult(tuple(windows), tracks)

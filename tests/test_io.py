@@ -9,8 +9,13 @@ from numpy.testing import assert_allclose, assert_array_equal
 from fusion.geometry import SensorArray
 from fusion.io import (
     Cube,
+    LocalizationResult,
+    LocalizationWindow,
+    SourceEstimate,
+    TdoaRecord,
     atomic_output,
     iter_audio_blocks,
+    read_alerts,
     read_amplitudes,
     read_array,
     read_audio,
@@ -18,13 +23,19 @@ from fusion.io import (
     read_cube,
     read_detections,
     read_json,
+    read_localization,
     read_ownship,
+    read_smoothed,
     read_table,
     read_tma_bearings,
+    read_tma_result,
+    read_tqi,
+    read_tracks,
     write_array,
     write_audio,
     write_cube,
     write_json,
+    write_localization,
     write_table,
 )
 
@@ -306,3 +317,63 @@ def test_json_round_trip_numpy(tmp_path):
     with pytest.raises(ValueError):
         write_json(tmp_path / "n.json", {"a": float("nan")})
     assert not (tmp_path / "n.json").exists()
+
+
+OUTPUT_READERS = {
+    "tqi": (read_tqi, "track_id,time,amplitude,residual,tqi\n1,0,3,0.1,strong\n", "tqi", "great"),
+    "tracks": (read_tracks, "track_id,event,time,x,y,vx,vy,status\n0,1,60,1,2,0.1,0.2,confirmed\n",
+               "status", "maybe"),
+    "alerts": (read_alerts, "time,track_a,track_b,t_cross,kind\n100,1,2,130,predicted\n", "kind", "soon"),
+}
+
+
+@pytest.mark.parametrize("kind", sorted(OUTPUT_READERS))
+def test_output_readers_check_categories(tmp_path, kind):
+    """Output CSVs read back; an unknown category value is named in the error."""
+    reader, text, col, bad = OUTPUT_READERS[kind]
+    assert len(reader(_write(tmp_path, text))) == 1
+    good = text.splitlines()[1].split(",")[-1]
+    with pytest.raises(ValueError, match=f"column '{col}' has value.*{bad}"):
+        reader(_write(tmp_path, text.replace(good, bad)))
+
+
+def test_smoothed_and_tma_outputs(tmp_path):
+    """The smooth and tma outputs read back with their required columns."""
+    s = read_smoothed(_write(tmp_path, "track_id,time,bearing_deg,bearing_rate_deg_per_min,"
+                                       "sigma_bearing_deg\n1,0,10,0.5,0.2\n"))
+    assert s["bearing_rate_deg_per_min"][0] == 0.5
+    with pytest.raises(ValueError, match="range"):
+        read_tma_result(_write(tmp_path, "time,x,y,vx,vy,sigma_x,sigma_y\n0,1,2,3,4,5,6\n"))
+
+
+def _localization():
+    w = LocalizationWindow(
+        0.0, 12.0,
+        (TdoaRecord((0, 1), 0.4012, True, 5.2), TdoaRecord((1, 2), -0.1, False, -3.0)),
+        (SourceEstimate(10.0, -20.0, -900.0, ((1.0, 0.0, 0.0), (0.0, 2.0, 0.0), (0.0, 0.0, 3.0)), 7),),
+    )
+    return LocalizationResult((w,), ((0, ((6.0, 10.0, -20.0, -900.0),)),))
+
+
+def test_localization_round_trip(tmp_path):
+    """A localization result survives write and read unchanged."""
+    r = _localization()
+    assert read_localization(write_localization(tmp_path / "r.json", r)) == r
+
+
+def test_localization_bad_input(tmp_path):
+    """Missing keys, bad covariances and NaN positions are errors naming the file."""
+    p = write_localization(tmp_path / "r.json", _localization())
+    doc = json.loads(p.read_text())
+    del doc["windows"][0]["tdoas"][0]["tau"]
+    p.write_text(json.dumps(doc))
+    with pytest.raises(ValueError, match="r.json: malformed localization result"):
+        read_localization(p)
+    doc = json.loads(write_localization(tmp_path / "r.json", _localization()).read_text())
+    doc["windows"][0]["sources"][0]["cov"] = [[1, 0], [0, 1]]
+    p.write_text(json.dumps(doc))
+    with pytest.raises(ValueError, match="3x3"):
+        read_localization(p)
+    p.write_text(json.dumps({"windows": [{"t_start": None, "t_end": 1.0, "tdoas": [], "sources": []}]}))
+    with pytest.raises(ValueError, match="not a finite number"):
+        read_localization(p)
