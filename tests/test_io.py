@@ -377,3 +377,13 @@ def test_localization_bad_input(tmp_path):
     p.write_text(json.dumps({"windows": [{"t_start": None, "t_end": 1.0, "tdoas": [], "sources": []}]}))
     with pytest.raises(ValueError, match="not a finite number"):
         read_localization(p)
+
+
+def test_written_files_have_usual_permissions(tmp_path):
+    """Atomic writes give new files the permissions the umask allows, not mkstemp's private 0600."""
+    import os
+
+    umask = os.umask(0)
+    os.umask(umask)
+    p = write_json(tmp_path / "r.json", {"a": 1})
+    assert (p.stat().st_mode & 0o777) == (0o666 & ~umask)
