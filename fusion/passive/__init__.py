@@ -1,0 +1,1 @@
+"""Passive narrowband processing: acquisition, bearing tracking, track quality, crossings."""

@@ -1,0 +1,636 @@
+"""Seeded bearing-time scenarios: targets in straight-line motion seen from a moving platform.
+
+Each target moves in a straight line at constant speed; the platform (own ship) does too. The
+true bearing of a target is the compass bearing from the platform to the target, so bearing
+histories have the curvature of real bearing-time records (the bearing rate of a straight-line
+relative motion is ``h / R(t)**2`` with ``h`` the constant relative angular momentum). The
+scenario is built from pairs of tracks with known relations:
+
+- *crossing pairs*: the second target is put on the first one's line of sight at a chosen time
+  ``t_c`` at another range, with a different bearing rate, so the bearings cross at ``t_c``;
+  some of them cross where the bearing wraps (north, 0/360 deg in files, or south, +-180 deg
+  inside the library);
+- *near-miss pairs*: the second target is put ``delta`` degrees off the first one's line of
+  sight with the same bearing rate at that moment, so the bearings approach to about ``delta``
+  and draw apart again without crossing (checked over the whole duration);
+- *parallel pairs*: the second target's relative position is the first one's rotated about the
+  platform by a fixed angle (and scaled in range), so the two bearing tracks keep an exactly
+  constant offset (equal bearing rates at all times);
+- *free tracks* fill the rest.
+
+Every crossing between any two tracks (planned or not) is found from the true geometry and
+listed in the ground truth; measurements are the true bearings plus Gaussian noise, sampled
+every ``sample_period_s`` with detection probability ``p_detect``, plus optional uniformly
+distributed detections of unknown origin (``track_id`` = -1).
+
+Files (``write_scenario``): ``bearings.csv`` (``track_id,time,bearing_deg``, bearings in
+[0, 360) deg clockwise from north), ``truth.json`` and ``truth_bearings.csv``.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import NamedTuple
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.optimize import brentq
+
+from fusion.geometry import wrap_angle
+from fusion.io import write_json, write_table
+
+__all__ = [
+    "BearingScenario",
+    "TrueCrossing",
+    "find_true_crossings",
+    "simulate_bearings",
+    "write_scenario",
+]
+
+logger = logging.getLogger(__name__)
+
+#: Attempts at placing one pair of tracks before giving up.
+_MAX_ATTEMPTS = 2000
+
+
+class TrueCrossing(NamedTuple):
+    """A true bearing crossing of two tracks.
+
+    Attributes
+    ----------
+    track_a, track_b : int
+        Track ids, ``track_a < track_b``.
+    t_cross : float
+        Time at which the two true bearings are equal, s.
+    """
+
+    track_a: int
+    track_b: int
+    t_cross: float
+
+
+@dataclass(frozen=True)
+class BearingScenario:
+    """Bearing measurements of several tracks and their ground truth.
+
+    Attributes
+    ----------
+    track_id : ndarray of int64, shape (m,)
+        Track of each measurement; -1 marks a detection of unknown origin (clutter).
+    time : ndarray, shape (m,)
+        Measurement times, s (rows sorted by time, then track id).
+    bearing_deg : ndarray, shape (m,)
+        Measured bearings, deg clockwise from north, in [0, 360).
+    true_bearing_deg : ndarray, shape (m,)
+        True bearing of each row's target, deg in [0, 360); NaN for clutter rows.
+    track_ids : ndarray of int64, shape (n_tracks,)
+        Ids of the tracks (0 .. n_tracks - 1).
+    truth_time : ndarray, shape (n_t,)
+        Sample times, s (``k * sample_period_s``).
+    truth_bearing_deg : ndarray, shape (n_tracks, n_t)
+        True bearing of each track at each sample time, deg in [0, 360).
+    truth_bearing_rate_deg_per_s : ndarray, shape (n_tracks, n_t)
+        True bearing rate, deg/s.
+    ownship_xy : ndarray, shape (n_t, 2)
+        Platform positions, m (x east, y north).
+    target_xy : ndarray, shape (n_tracks, n_t, 2)
+        Target positions, m.
+    crossings : tuple of TrueCrossing
+        Every true crossing of any two tracks within ``[0, duration_s]``, sorted by time.
+    non_crossing_pairs : tuple of (int, int)
+        Pairs ``(a, b)``, ``a < b``, whose bearings never cross within ``[0, duration_s]``.
+    near_miss_pairs : tuple of (int, int)
+        Planned pairs that come close (``min_miss_deg`` .. ``max_miss_deg``) but never cross.
+    parallel_pairs : tuple of (int, int)
+        Planned pairs with exactly equal bearing rates at all times.
+    planned_crossing_pairs : tuple of (int, int)
+        Pairs built to cross (their crossings are in `crossings`).
+    planned_crossings : tuple of TrueCrossing
+        The crossing each planned pair was built for (a pair may cross again elsewhere).
+    sample_period_s : float
+        Sample period K, s.
+    noise_deg : float
+        Standard deviation of the bearing noise, deg.
+    duration_s : float
+        Scenario length, s.
+    seed : int
+        Seed that produced the scenario.
+    """
+
+    track_id: NDArray[np.int64]
+    time: NDArray[np.float64]
+    bearing_deg: NDArray[np.float64]
+    true_bearing_deg: NDArray[np.float64]
+    track_ids: NDArray[np.int64]
+    truth_time: NDArray[np.float64]
+    truth_bearing_deg: NDArray[np.float64]
+    truth_bearing_rate_deg_per_s: NDArray[np.float64]
+    ownship_xy: NDArray[np.float64]
+    target_xy: NDArray[np.float64]
+    crossings: tuple[TrueCrossing, ...]
+    non_crossing_pairs: tuple[tuple[int, int], ...]
+    near_miss_pairs: tuple[tuple[int, int], ...]
+    parallel_pairs: tuple[tuple[int, int], ...]
+    planned_crossing_pairs: tuple[tuple[int, int], ...]
+    planned_crossings: tuple[TrueCrossing, ...]
+    sample_period_s: float
+    noise_deg: float
+    duration_s: float
+    seed: int
+
+    @property
+    def n_tracks(self) -> int:
+        """Number of tracks."""
+        return int(self.track_ids.size)
+
+
+@dataclass(frozen=True)
+class _Motion:
+    """Straight-line relative motion ``D(t) = d0 + u t`` of a target about the platform."""
+
+    d0: NDArray[np.float64]  # (2,) relative position at t = 0, m
+    u: NDArray[np.float64]  # (2,) relative velocity, m/s
+
+    def rel(self, t: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Relative positions, shape (len(t), 2), m."""
+        return self.d0 + np.multiply.outer(np.asarray(t, dtype=float), self.u)
+
+    def bearing(self, t: NDArray[np.float64] | float) -> NDArray[np.float64]:
+        """Compass bearing, rad (unwrapped by arctan2 into (-pi, pi])."""
+        d = self.rel(np.atleast_1d(t))
+        return np.arctan2(d[:, 0], d[:, 1])
+
+    def bearing_rate(self, t: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Bearing rate, rad/s: (Dy ux - Dx uy) / R^2 for theta = atan2(Dx, Dy)."""
+        d = self.rel(t)
+        return (d[:, 1] * self.u[0] - d[:, 0] * self.u[1]) / np.sum(d * d, axis=1)
+
+
+def _unit(theta: float) -> NDArray[np.float64]:
+    """Unit vector of compass bearing `theta` (rad), (east, north)."""
+    return np.array([np.sin(theta), np.cos(theta)])
+
+
+def _tangent(theta: float) -> NDArray[np.float64]:
+    """d(unit)/d(theta): direction of increasing compass bearing."""
+    return np.array([np.cos(theta), -np.sin(theta)])
+
+
+def _check_positive(name: str, value: float, *, allow_zero: bool = False) -> None:
+    ok = value >= 0 if allow_zero else value > 0
+    if not np.isfinite(value) or not ok:
+        raise ValueError(f"{name} must be {'>= 0' if allow_zero else '> 0'}, got {value!r}")
+
+
+def _check_interval(name: str, lo_hi: tuple[float, float], *, positive: bool = True) -> None:
+    lo, hi = lo_hi
+    if not (np.isfinite(lo) and np.isfinite(hi)) or lo > hi or (positive and lo <= 0):
+        raise ValueError(f"{name} must be an interval (lo, hi) with 0 < lo <= hi, got {lo_hi!r}")
+
+
+def find_true_crossings(
+    motions_bearing: Sequence[Callable[[NDArray[np.float64]], NDArray[np.float64]]],
+    *,
+    duration_s: float,
+    step_s: float,
+) -> list[TrueCrossing]:
+    """Every time two bearing functions become equal (mod 360 deg) within ``[0, duration_s]``.
+
+    Parameters
+    ----------
+    motions_bearing : list of callable
+        ``f_k(t) -> bearing`` (rad) for each track ``k``, vectorised over a 1-D time array.
+    duration_s : float
+        End of the search interval, s.
+    step_s : float
+        Grid step of the search, s; each sign change of the wrapped bearing difference on the
+        grid is refined with Brent's method. Sign changes where the difference jumps across
+        +-180 deg (tracks on opposite bearings) are not crossings and are skipped.
+
+    Returns
+    -------
+    list of TrueCrossing
+        Sorted by time.
+    """
+    grid = np.linspace(0.0, duration_s, int(np.ceil(duration_s / step_s)) + 1)
+    theta = np.array([f(grid) for f in motions_bearing])  # (n, n_grid) rad
+    out: list[TrueCrossing] = []
+    n = len(motions_bearing)
+    for a in range(n):
+        for b in range(a + 1, n):
+            d = np.asarray(wrap_angle(theta[b] - theta[a]))
+            pos = d >= 0.0
+            k = np.flatnonzero((pos[:-1] != pos[1:]) & (np.abs(d[:-1]) < np.pi / 2)
+                               & (np.abs(d[1:]) < np.pi / 2))
+            fa, fb = motions_bearing[a], motions_bearing[b]
+
+            def diff(t: float, fa=fa, fb=fb) -> float:
+                return float(wrap_angle(fb(np.array([t]))[0] - fa(np.array([t]))[0]))
+
+            for j in k:
+                if d[j] == 0.0:
+                    tc = float(grid[j])
+                else:
+                    tc = float(brentq(diff, grid[j], grid[j + 1], xtol=1e-9))
+                out.append(TrueCrossing(a, b, tc))
+    out.sort(key=lambda c: (c.t_cross, c.track_a, c.track_b))
+    return out
+
+
+class _Builder:
+    """Draws target motions under the scenario's constraints (rejection sampling)."""
+
+    def __init__(
+        self,
+        rng: np.random.Generator,
+        *,
+        ownship_v: NDArray[np.float64],
+        duration_s: float,
+        range_m: tuple[float, float],
+        target_speed_mps: tuple[float, float],
+        min_range_m: float,
+    ) -> None:
+        self.rng = rng
+        self.v_o = ownship_v
+        self.duration_s = duration_s
+        self.range_m = range_m
+        self.speed = target_speed_mps
+        self.min_range_m = min_range_m
+        self.check_t = np.linspace(0.0, duration_s, 361)
+
+    def random_velocity(self) -> NDArray[np.float64]:
+        """A target velocity over ground, m/s, random heading and speed in range."""
+        return self.rng.uniform(*self.speed) * _unit(self.rng.uniform(0.0, 2 * np.pi))
+
+    def motion(self, t_ref: float, theta: float, r: float, v: NDArray[np.float64]) -> _Motion:
+        """Motion that is at bearing `theta`, range `r` at `t_ref` with ground velocity `v`."""
+        u = v - self.v_o
+        return _Motion(r * _unit(theta) - u * t_ref, u)
+
+    def plausible(self, m: _Motion) -> bool:
+        """Target keeps at least ``min_range_m`` from the platform over the whole scenario."""
+        d = m.rel(self.check_t)
+        return bool(np.min(np.hypot(d[:, 0], d[:, 1])) >= self.min_range_m)
+
+    def speed_ok(self, m: _Motion) -> bool:
+        s = float(np.hypot(*(m.u + self.v_o)))
+        return self.speed[0] * 0.5 <= s <= self.speed[1] * 1.5
+
+    def free(self) -> _Motion:
+        for _ in range(_MAX_ATTEMPTS):
+            m = self.motion(
+                self.duration_s / 2,
+                self.rng.uniform(0.0, 2 * np.pi),
+                self.rng.uniform(*self.range_m),
+                self.random_velocity(),
+            )
+            if self.plausible(m):
+                return m
+        raise ValueError("could not place a free track; widen range_m or lower target speeds")
+
+    def crossing(
+        self, *, theta_c: float | None, min_rate_diff: float, window: tuple[float, float]
+    ) -> tuple[_Motion, _Motion, float]:
+        """Two motions whose bearings are equal at a random time in `window`."""
+        for _ in range(_MAX_ATTEMPTS):
+            t_c = self.rng.uniform(*window)
+            th = self.rng.uniform(0.0, 2 * np.pi) if theta_c is None else theta_c
+            r_a = self.rng.uniform(*self.range_m)
+            s = self.rng.uniform(0.5, 0.8) if self.rng.random() < 0.5 else self.rng.uniform(1.25, 2.0)
+            a = self.motion(t_c, th, r_a, self.random_velocity())
+            b = self.motion(t_c, th, s * r_a, self.random_velocity())
+            rates = [m.bearing_rate(np.array([t_c]))[0] for m in (a, b)]
+            if abs(rates[0] - rates[1]) < min_rate_diff:
+                continue
+            if self.plausible(a) and self.plausible(b):
+                return a, b, t_c
+        raise ValueError("could not place a crossing pair; lower min_crossing_rate_deg_per_min")
+
+    def near_miss(
+        self, *, miss: tuple[float, float], window: tuple[float, float], grid: NDArray[np.float64]
+    ) -> tuple[_Motion, _Motion]:
+        """Two motions whose bearings come within `miss` (rad) of each other but never cross."""
+        for _ in range(_MAX_ATTEMPTS):
+            t_m = self.rng.uniform(*window)
+            th = self.rng.uniform(0.0, 2 * np.pi)
+            r_a = self.rng.uniform(*self.range_m)
+            a = self.motion(t_m, th, r_a, self.random_velocity())
+            delta = self.rng.uniform(*miss) * self.rng.choice([-1.0, 1.0])
+            r_b = r_a * self.rng.uniform(0.6, 1.6)
+            th_b = th + delta
+            # Same bearing rate as `a` at t_m: tangential relative speed = rate * range.
+            rate_a = a.bearing_rate(np.array([t_m]))[0]
+            radial = self.rng.uniform(-self.speed[1], self.speed[1])
+            u_b = rate_a * r_b * _tangent(th_b) + radial * _unit(th_b)
+            b = _Motion(r_b * _unit(th_b) - u_b * t_m, u_b)
+            if not (self.speed_ok(b) and self.plausible(a) and self.plausible(b)):
+                continue
+            d = np.asarray(wrap_angle(b.bearing(grid) - a.bearing(grid)))
+            if np.all(np.sign(d) == np.sign(delta)) and np.min(np.abs(d)) >= miss[0]:
+                return a, b
+        raise ValueError("could not place a near-miss pair; widen max_miss_deg")
+
+    def parallel(self, *, offset: tuple[float, float]) -> tuple[_Motion, _Motion]:
+        """Two motions with a constant bearing offset (one rotated about the platform)."""
+        for _ in range(_MAX_ATTEMPTS):
+            a = self.free()
+            alpha = self.rng.uniform(*offset) * self.rng.choice([-1.0, 1.0])
+            s = self.rng.uniform(0.6, 1.6)
+            # Clockwise rotation by alpha in (east, north) coordinates adds alpha to the bearing.
+            rot = s * np.array([[np.cos(alpha), np.sin(alpha)], [-np.sin(alpha), np.cos(alpha)]])
+            b = _Motion(rot @ a.d0, rot @ a.u)
+            if self.speed_ok(b) and self.plausible(b):
+                return a, b
+        raise ValueError("could not place a parallel pair; widen target_speed_mps")
+
+
+def simulate_bearings(
+    *,
+    seed: int,
+    n_tracks: int = 6,
+    duration_s: float = 1800.0,
+    sample_period_s: float = 10.0,
+    noise_deg: float = 0.5,
+    n_crossing_pairs: int = 2,
+    n_wrap_crossings: int = 1,
+    n_near_miss_pairs: int = 1,
+    n_parallel_pairs: int = 0,
+    p_detect: float = 1.0,
+    clutter_rate: float = 0.0,
+    ownship_speed_mps: float = 3.0,
+    range_m: tuple[float, float] = (3000.0, 12000.0),
+    target_speed_mps: tuple[float, float] = (2.0, 8.0),
+    min_range_m: float = 1000.0,
+    min_crossing_rate_deg_per_min: float = 1.5,
+    miss_deg: tuple[float, float] = (3.0, 8.0),
+    parallel_offset_deg: tuple[float, float] = (3.0, 15.0),
+    event_window: tuple[float, float] = (0.2, 0.8),
+) -> BearingScenario:
+    """Simulate bearing tracks with crossings, near misses and parallel tracks.
+
+    Parameters
+    ----------
+    seed : int
+        Seed of ``np.random.default_rng``; the same arguments give the same scenario.
+    n_tracks : int, optional
+        Number of tracks (at least ``2 * (n_crossing_pairs + n_near_miss_pairs +
+        n_parallel_pairs)``; the rest are free tracks).
+    duration_s : float, optional
+        Scenario length, s.
+    sample_period_s : float, optional
+        Sample period K of the bearing measurements, s.
+    noise_deg : float, optional
+        Standard deviation of the Gaussian bearing noise, deg.
+    n_crossing_pairs : int, optional
+        Pairs built to cross once at a known time.
+    n_wrap_crossings : int, optional
+        How many of the crossing pairs cross where the bearing wraps, alternately at north
+        (0/360 deg, the wrap of the files) and south (+-180 deg, the wrap of wrapped radians).
+    n_near_miss_pairs : int, optional
+        Pairs that approach within `miss_deg` and draw apart without crossing.
+    n_parallel_pairs : int, optional
+        Pairs with a constant bearing offset in `parallel_offset_deg` (equal rates).
+    p_detect : float, optional
+        Probability that a track is measured at a sample time, in (0, 1].
+    clutter_rate : float, optional
+        Mean number of detections of unknown origin (``track_id`` -1, bearing uniform) per
+        sample time.
+    ownship_speed_mps : float, optional
+        Platform speed, m/s (straight line, random heading).
+    range_m : (float, float), optional
+        Range interval of targets at their reference time, m.
+    target_speed_mps : (float, float), optional
+        Target speed interval, m/s.
+    min_range_m : float, optional
+        Closest any target may come to the platform, m.
+    min_crossing_rate_deg_per_min : float, optional
+        Smallest difference of the two bearing rates at a planned crossing, deg/min.
+    miss_deg : (float, float), optional
+        Closest approach of near-miss pairs, deg.
+    parallel_offset_deg : (float, float), optional
+        Constant bearing offset of parallel pairs, deg.
+    event_window : (float, float), optional
+        Planned crossings and closest approaches happen in this fraction of the duration.
+
+    Returns
+    -------
+    BearingScenario
+
+    Raises
+    ------
+    ValueError
+        Bad counts, probabilities or intervals, or constraints that cannot be met.
+
+    Notes
+    -----
+    Bearings are compass bearings ``atan2(dx, dy)`` from the platform; the bearing rate of a
+    straight-line relative motion ``D(t) = D0 + u t`` is ``(D_y u_x - D_x u_y) / |D|^2``. True
+    crossings are the zeros of the wrapped bearing difference, found on a grid of
+    ``min(1, K / 4)`` s and refined with Brent's method (``find_true_crossings``); the +-180 deg
+    jumps of the difference (targets on opposite bearings) are not crossings.
+
+    Examples
+    --------
+    >>> sc = simulate_bearings(seed=1, n_tracks=6)
+    >>> sc.bearing_deg.shape == sc.time.shape
+    True
+    """
+    for name, v in (("n_tracks", n_tracks), ("n_crossing_pairs", n_crossing_pairs),
+                    ("n_wrap_crossings", n_wrap_crossings), ("n_near_miss_pairs", n_near_miss_pairs),
+                    ("n_parallel_pairs", n_parallel_pairs)):
+        if int(v) != v or v < 0:
+            raise ValueError(f"{name} must be a non-negative integer, got {v!r}")
+    if n_wrap_crossings > n_crossing_pairs:
+        raise ValueError(
+            f"n_wrap_crossings ({n_wrap_crossings}) must not exceed n_crossing_pairs "
+            f"({n_crossing_pairs})"
+        )
+    n_planned = 2 * (n_crossing_pairs + n_near_miss_pairs + n_parallel_pairs)
+    if n_tracks < max(n_planned, 1):
+        raise ValueError(f"n_tracks ({n_tracks}) must be at least {max(n_planned, 1)} for the pairs asked")
+    _check_positive("duration_s", duration_s)
+    _check_positive("sample_period_s", sample_period_s)
+    if sample_period_s > duration_s:
+        raise ValueError("sample_period_s must not exceed duration_s")
+    _check_positive("noise_deg", noise_deg, allow_zero=True)
+    if not 0.0 < p_detect <= 1.0:
+        raise ValueError(f"p_detect must lie in (0, 1], got {p_detect!r}")
+    _check_positive("clutter_rate", clutter_rate, allow_zero=True)
+    _check_positive("ownship_speed_mps", ownship_speed_mps, allow_zero=True)
+    _check_positive("min_range_m", min_range_m)
+    _check_positive("min_crossing_rate_deg_per_min", min_crossing_rate_deg_per_min, allow_zero=True)
+    _check_interval("range_m", range_m)
+    _check_interval("target_speed_mps", target_speed_mps)
+    _check_interval("miss_deg", miss_deg)
+    _check_interval("parallel_offset_deg", parallel_offset_deg)
+    if not 0.0 <= event_window[0] <= event_window[1] <= 1.0:
+        raise ValueError(f"event_window must satisfy 0 <= lo <= hi <= 1, got {event_window!r}")
+
+    rng = np.random.default_rng(seed)
+    ownship_v = ownship_speed_mps * _unit(rng.uniform(0.0, 2 * np.pi))
+    builder = _Builder(
+        rng,
+        ownship_v=ownship_v,
+        duration_s=float(duration_s),
+        range_m=range_m,
+        target_speed_mps=target_speed_mps,
+        min_range_m=min_range_m,
+    )
+    window = (event_window[0] * duration_s, event_window[1] * duration_s)
+    step = min(1.0, sample_period_s / 4.0)
+    fine = np.linspace(0.0, duration_s, int(np.ceil(duration_s / step)) + 1)
+
+    motions: list[_Motion] = []
+    planned_cross: list[tuple[int, int]] = []
+    planned_tc: list[TrueCrossing] = []
+    near: list[tuple[int, int]] = []
+    parallel: list[tuple[int, int]] = []
+    wrap_bearings = (0.0, np.pi)
+    for k in range(n_crossing_pairs):
+        theta_c = None
+        if k < n_wrap_crossings:
+            theta_c = wrap_bearings[k % 2] + rng.uniform(-0.5, 0.5) * np.pi / 180.0
+        a, b, t_c = builder.crossing(
+            theta_c=theta_c,
+            min_rate_diff=np.radians(min_crossing_rate_deg_per_min) / 60.0,
+            window=window,
+        )
+        planned_cross.append((len(motions), len(motions) + 1))
+        planned_tc.append(TrueCrossing(len(motions), len(motions) + 1, float(t_c)))
+        motions += [a, b]
+    for _ in range(n_near_miss_pairs):
+        a, b = builder.near_miss(miss=tuple(np.radians(miss_deg)), window=window, grid=fine)
+        near.append((len(motions), len(motions) + 1))
+        motions += [a, b]
+    for _ in range(n_parallel_pairs):
+        a, b = builder.parallel(offset=tuple(np.radians(parallel_offset_deg)))
+        parallel.append((len(motions), len(motions) + 1))
+        motions += [a, b]
+    while len(motions) < n_tracks:
+        motions.append(builder.free())
+
+    # Ground truth: every crossing of every pair.
+    crossings = find_true_crossings(
+        [m.bearing for m in motions], duration_s=float(duration_s), step_s=step
+    )
+    crossing_pairs = {(c.track_a, c.track_b) for c in crossings}
+    all_pairs = [(a, b) for a in range(n_tracks) for b in range(a + 1, n_tracks)]
+    non_crossing = tuple(p for p in all_pairs if p not in crossing_pairs)
+
+    # Truth on the sample grid.
+    n_t = int(np.floor(duration_s / sample_period_s + 1e-9)) + 1
+    t_grid = np.arange(n_t) * float(sample_period_s)
+    ownship_xy = np.multiply.outer(t_grid, ownship_v)
+    rel = np.array([m.rel(t_grid) for m in motions])  # (n, n_t, 2)
+    target_xy = rel + ownship_xy[None]
+    truth_bearing = np.mod(np.degrees(np.arctan2(rel[..., 0], rel[..., 1])), 360.0)
+    truth_rate = np.degrees(np.array([m.bearing_rate(t_grid) for m in motions]))
+
+    # Measurements: detected rows plus clutter rows, sorted by (time, track_id).
+    detected = rng.random((n_tracks, n_t)) < p_detect
+    noise = rng.normal(0.0, noise_deg, size=(n_tracks, n_t))
+    tid_grid = np.broadcast_to(np.arange(n_tracks)[:, None], (n_tracks, n_t))
+    time_grid = np.broadcast_to(t_grid[None, :], (n_tracks, n_t))
+    track_id = tid_grid[detected]
+    time = time_grid[detected]
+    true_b = truth_bearing[detected]
+    meas_b = np.mod(true_b + noise[detected], 360.0)
+    n_clutter = rng.poisson(clutter_rate, size=n_t) if clutter_rate > 0 else np.zeros(n_t, int)
+    c_time = np.repeat(t_grid, n_clutter)
+    c_b = rng.uniform(0.0, 360.0, size=c_time.size)
+    track_id = np.concatenate([track_id, np.full(c_time.size, -1)]).astype(np.int64)
+    time = np.concatenate([time, c_time])
+    meas_b = np.concatenate([meas_b, c_b])
+    true_b = np.concatenate([true_b, np.full(c_time.size, np.nan)])
+    order = np.lexsort((track_id, time))
+    logger.debug(
+        "bearing scenario seed=%d: %d tracks, %d crossings, %d rows (%d clutter)",
+        seed, n_tracks, len(crossings), order.size, c_time.size,
+    )
+    return BearingScenario(
+        track_id=track_id[order],
+        time=time[order],
+        bearing_deg=meas_b[order],
+        true_bearing_deg=true_b[order],
+        track_ids=np.arange(n_tracks, dtype=np.int64),
+        truth_time=t_grid,
+        truth_bearing_deg=truth_bearing,
+        truth_bearing_rate_deg_per_s=truth_rate,
+        ownship_xy=ownship_xy,
+        target_xy=target_xy,
+        crossings=tuple(crossings),
+        non_crossing_pairs=non_crossing,
+        near_miss_pairs=tuple(near),
+        parallel_pairs=tuple(parallel),
+        planned_crossing_pairs=tuple(planned_cross),
+        planned_crossings=tuple(planned_tc),
+        sample_period_s=float(sample_period_s),
+        noise_deg=float(noise_deg),
+        duration_s=float(duration_s),
+        seed=int(seed),
+    )
+
+
+def write_scenario(out_dir: Path, *, seed: int) -> list[Path]:
+    """Write a bearing scenario: ``bearings.csv``, ``truth.json``, ``truth_bearings.csv``.
+
+    Parameters
+    ----------
+    out_dir : pathlib.Path
+        Output folder (created if missing).
+    seed : int
+        Scenario seed.
+
+    Returns
+    -------
+    list of pathlib.Path
+        The written files.
+
+    Notes
+    -----
+    The scenario has 8 tracks over 1800 s sampled every 10 s with 0.5 deg noise: two crossing
+    pairs (one through north), a near-miss pair, a parallel pair and two free tracks, plus
+    clutter (0.2 detections of unknown origin per sample time).
+    """
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    sc = simulate_bearings(
+        seed=seed, n_tracks=8, n_crossing_pairs=2, n_wrap_crossings=1, n_near_miss_pairs=1,
+        n_parallel_pairs=1, clutter_rate=0.2,
+    )
+    paths = [
+        write_table(
+            out_dir / "bearings.csv",
+            {"track_id": sc.track_id, "time": sc.time, "bearing_deg": sc.bearing_deg},
+        ),
+        write_table(
+            out_dir / "truth_bearings.csv",
+            {
+                "track_id": np.repeat(sc.track_ids, sc.truth_time.size),
+                "time": np.tile(sc.truth_time, sc.n_tracks),
+                "bearing_deg": sc.truth_bearing_deg.ravel(),
+                "bearing_rate_deg_per_min": 60.0 * sc.truth_bearing_rate_deg_per_s.ravel(),
+            },
+        ),
+        write_json(
+            out_dir / "truth.json",
+            {
+                "kind": "bearings",
+                "seed": sc.seed,
+                "sample_period_s": sc.sample_period_s,
+                "noise_deg": sc.noise_deg,
+                "duration_s": sc.duration_s,
+                "track_ids": sc.track_ids,
+                "crossings": [c._asdict() for c in sc.crossings],
+                "planned_crossings": [c._asdict() for c in sc.planned_crossings],
+                "near_miss_pairs": [list(p) for p in sc.near_miss_pairs],
+                "parallel_pairs": [list(p) for p in sc.parallel_pairs],
+                "non_crossing_pairs": [list(p) for p in sc.non_crossing_pairs],
+                "truth_file": "truth_bearings.csv",
+            },
+        ),
+    ]
+    return paths
