@@ -1,0 +1,380 @@
+"""Tests of high bearing-rate acquisition (best line through the IBW BTR)."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+
+from fusion.geometry import (
+    beam_from_bearing,
+    beam_rate_from_bearing_rate,
+    bearing_from_beam,
+    bearing_rate_from_beam_rate,
+)
+from fusion.io import Cube, write_cube
+from fusion.passive.acquisition import (
+    HAMMING_ENBW,
+    Acquisition,
+    acquire,
+    band_noise_level,
+    beamwidth_deg,
+    best_lines_in_fans,
+    expected_median_fraction,
+    ibw_bins,
+    normalize_spectra,
+    slope_grid,
+)
+from fusion.simulate.cube import simulate_cube
+
+
+def half_beamwidth_deg(theta_deg: float, wavelength: float, aperture: float) -> float:
+    """Half the bearing width of the cosine interval cos(theta) +- 0.443 lambda / L."""
+    w = 0.886 * wavelength / aperture
+    u = math.cos(math.radians(theta_deg))
+    return 0.5 * math.degrees(math.acos(max(-1, u - w / 2)) - math.acos(min(1, u + w / 2)))
+
+
+# ------------------------------------------------------------------------------------------
+# conversions (program segment 54, eqs. 5-11)
+# ------------------------------------------------------------------------------------------
+class TestConversions:
+    def test_edge_beams(self):
+        """Beam 0 is forward endfire (0), beam N-1 aft endfire (pi), the middle beam broadside."""
+        assert bearing_from_beam(0, 64) == 0.0
+        assert bearing_from_beam(63, 64) == pytest.approx(math.pi)
+        assert bearing_from_beam(32, 65) == pytest.approx(math.pi / 2)
+        assert beam_from_bearing(0.0, 64) == 0.0
+        assert beam_from_bearing(math.pi, 64) == pytest.approx(63.0)
+
+    def test_round_trip(self):
+        """bearing -> beam -> bearing is the identity over [0, pi]."""
+        theta = np.linspace(0.0, math.pi, 181)
+        assert_allclose(bearing_from_beam(beam_from_bearing(theta, 64), 64), theta, atol=1e-7)
+
+    def test_rates_match_numerical_derivative(self):
+        """Beam rate <-> bearing rate agree with d(beam)/d(theta) by central differences."""
+        rng = np.random.default_rng(0)
+        for theta in rng.uniform(0.2, math.pi - 0.2, 20):
+            h = 1e-6
+            db_dtheta = (beam_from_bearing(theta + h, 64) - beam_from_bearing(theta - h, 64)) / (2 * h)
+            rate = 0.01  # rad/s
+            assert beam_rate_from_bearing_rate(theta, rate, 64) == pytest.approx(db_dtheta * rate)
+            b = beam_from_bearing(theta, 64)
+            assert bearing_rate_from_beam_rate(b, db_dtheta * rate, 64) == pytest.approx(rate)
+
+    def test_edge_beam_rates_finite(self):
+        """At the endfire beams the bearing rate stays finite (floored sine)."""
+        for b in (0, 63):
+            r = bearing_rate_from_beam_rate(b, 0.1, 64)
+            assert np.isfinite(r) and r > 0
+
+
+# ------------------------------------------------------------------------------------------
+# normalisation (program segment 22)
+# ------------------------------------------------------------------------------------------
+class TestNormalize:
+    @pytest.mark.parametrize("n", [3, 4, 9, 14, 15, 60])
+    def test_expected_median_exponential_closed_form(self, n):
+        """For exponential noise E[median] equals the harmonic-number order statistics formula."""
+        h = np.concatenate([[0.0], np.cumsum(1.0 / np.arange(1, n + 1))])
+        k = n // 2
+        want = h[n] - h[n - (n + 1) // 2] if n % 2 else 0.5 * ((h[n] - h[n - k]) + (h[n] - h[n - k - 1]))
+        assert expected_median_fraction(n, 2.0) == pytest.approx(want, rel=1e-9)
+
+    def test_expected_median_gamma_monte_carlo(self):
+        """For averaged looks (gamma, 8 dof) E[median] matches a Monte Carlo estimate."""
+        rng = np.random.default_rng(1)
+        x = rng.gamma(4.0, 0.25, size=(200_000, 14))
+        assert expected_median_fraction(14, 8.0) == pytest.approx(np.median(x, axis=1).mean(), rel=3e-3)
+
+    @pytest.mark.parametrize("pool", [None, 10])
+    def test_unit_mean_on_coloured_noise(self, pool):
+        """Noise whose level varies across beams and bins comes out with mean 1 in every beam."""
+        rng = np.random.default_rng(2)
+        level = np.exp(rng.normal(size=(1, 8, 1))) * np.linspace(1.0, 2.0, 24)[None, None, :]
+        p = level * rng.exponential(size=(300, 8, 24))
+        z = normalize_spectra(p, pool_scans=pool)
+        assert_allclose(z.mean(axis=(0, 2)), 1.0, atol=0.05)
+
+    def test_per_update_level_unbiased(self):
+        """Per-update windows (pool_scans=1): the noise level estimate itself is unbiased."""
+        rng = np.random.default_rng(5)
+        p = 3.0 * rng.exponential(size=(4000, 2, 16))
+        z = normalize_spectra(p, pool_scans=1, bins=[8])
+        level = p[:, :, 8] / z[:, :, 0]
+        assert level.mean() == pytest.approx(3.0, rel=0.02)
+
+    def test_line_bin_and_gap_neighbours_unbiased(self):
+        """A strong line is left out of its own and its gap neighbours' windows: those stay unbiased."""
+        rng = np.random.default_rng(3)
+        p = rng.exponential(size=(200, 4, 16))
+        p[:, :, 8] += 100.0
+        z = normalize_spectra(p, gap_bins=1)
+        assert z[:, :, 8].mean() == pytest.approx(101.0, rel=0.05)
+        assert z[:, :, [7, 9]].mean() == pytest.approx(1.0, abs=0.03)
+        # bins with the line inside their window: the median moves by at most one rank
+        others = np.delete(z, [7, 8, 9], axis=2)
+        assert 0.8 < others.mean() < 1.0
+
+    def test_subset_of_bins_equals_full(self):
+        """Normalising only some bins gives exactly the corresponding bins of the full result."""
+        p = np.random.default_rng(4).exponential(size=(10, 5, 16))
+        assert_allclose(normalize_spectra(p, bins=[3, 7]), normalize_spectra(p)[:, :, [3, 7]])
+
+    def test_bad_input(self):
+        """Too few bins for a window, NaN, wrong shape raise ValueError."""
+        with pytest.raises(ValueError, match="window"):
+            normalize_spectra(np.ones((4, 4, 3)))
+        bad = np.ones((4, 4, 16))
+        bad[0, 0, 0] = np.nan
+        with pytest.raises(ValueError, match="NaN"):
+            normalize_spectra(bad)
+        with pytest.raises(ValueError, match="shape"):
+            normalize_spectra(np.ones((4, 16)))
+
+
+# ------------------------------------------------------------------------------------------
+# fan search (program segments 46-48, rateest)
+# ------------------------------------------------------------------------------------------
+def rateest_loop(btr_rev, anchor, slopes, min_scans):
+    """Literal loop transcription of the method's rateest (segments 62-70), rounding floor(x+.5)."""
+    n_scans, n_beams = btr_rev.shape
+    est, sav, used = 0.0, 0.0, 0
+    for a in slopes:
+        total, iscan = 0.0, 0
+        while iscan < n_scans:
+            ibeam = math.floor(a * iscan + anchor + 0.5)
+            if ibeam >= n_beams or ibeam < 0:
+                break
+            total += btr_rev[iscan, ibeam]
+            iscan += 1
+        if iscan >= min_scans:
+            cur = total / iscan
+            if cur > sav:
+                est, sav, used = a, cur, iscan
+    return est, sav, used
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_fan_search_equals_brute_force(seed):
+    """The vectorised fan search returns the loop implementation's slope, SPN and scans used."""
+    rng = np.random.default_rng(seed)
+    n_scans, n_beams = int(rng.integers(5, 14)), int(rng.integers(6, 16))
+    btr = rng.exponential(size=(n_scans, n_beams))
+    anchors = np.arange(n_beams)  # every fan, edges included
+    # an irregular grid: positions a * k never land on exact half beams, where the loop's
+    # floor(a k + anchor + 0.5) and the cached floor(a k + 0.5) + anchor may round apart
+    slopes = slope_grid(-1.3 - rng.uniform(0, 0.01), 1.3, 0.05 + rng.uniform(0, 0.001))
+    min_scans = int(rng.integers(2, n_scans + 1))
+    fans = best_lines_in_fans(btr, anchors, slopes, min_scans=min_scans)
+    for i, anc in enumerate(anchors):
+        est, sav, used = rateest_loop(btr, int(anc), slopes, min_scans)
+        assert fans.slope[i] == pytest.approx(est, abs=1e-12)
+        assert fans.signal_plus_noise[i] == pytest.approx(sav, rel=1e-12)
+        assert fans.n_used[i] == used
+        assert bool(fans.found[i]) == (sav > 0)
+
+
+def test_fan_search_edge_rule():
+    """With minscan = numscans a line leaving the BTR is never chosen; a shorter minscan allows it."""
+    btr = np.ones((10, 8))
+    # a bright trace from beam 1 (latest) going off the edge toward beam -2 in the past
+    for k in range(10):
+        b = round(1 - 0.3 * k)
+        if b >= 0:
+            btr[k, b] = 9.0
+    slopes = slope_grid(-1.0, 1.0, 0.1)
+    full = best_lines_in_fans(btr, [1], slopes, min_scans=10)
+    short = best_lines_in_fans(btr, [1], slopes, min_scans=3)
+    assert full.n_used[0] == 10 and full.signal_plus_noise[0] < 9.0
+    # lines that follow the trace off the edge now qualify: mean 9, cut before 10 scans; of the
+    # equally bright ones the first in slope order wins (the method's strict ">")
+    assert short.signal_plus_noise[0] == pytest.approx(9.0)
+    assert short.n_used[0] < 10
+    assert short.slope[0] == pytest.approx(-0.5)
+
+
+# ------------------------------------------------------------------------------------------
+# whole acquisition
+# ------------------------------------------------------------------------------------------
+def _straight_line_cube(slope_per_scan: float, end_beam: int, *, level: float = 5.0) -> Cube:
+    """Noise-free normalised cube: ones, and a line of `level` in bin 2 along a straight beam track."""
+    n_scans, n_beams = 30, 40
+    power = np.ones((n_scans, n_beams, 5))
+    for s in range(n_scans):
+        b = math.floor(end_beam + slope_per_scan * (s - (n_scans - 1)) + 0.5)
+        power[s, b, 2] = level
+    return Cube(power=power, freqs=100.0 + np.arange(5.0), scan_period=2.0, aperture=30.0,
+                sound_speed=1500.0)
+
+
+def test_known_answer_straight_line():
+    """A noise-free straight trace gives its slope, end beam, SPN 5, noise 1, SNR 4 exactly."""
+    cube = _straight_line_cube(0.4, 25)
+    res = Acquisition(normalize=False, slope_step=0.05, max_slope=1.2).acquire(cube, beam=25, freq_hz=102.0)
+    bl = res.best_line
+    assert bl.anchor_beam == 25 and bl.end_scan == 29 and bl.start_scan == 0
+    assert bl.beam_rate_per_scan == pytest.approx(0.4)
+    assert bl.signal_plus_noise == pytest.approx(5.0)
+    assert res.band_noise_level == pytest.approx(1.0)
+    assert res.snr_ibw == pytest.approx(4.0)
+    assert not res.default_used
+    mid = 25 - 0.4 * 29 / 2
+    want = math.degrees(bearing_rate_from_beam_rate(mid, 0.4 / 2.0, 40)) * 60.0
+    assert res.bearing_rate_deg_per_min == pytest.approx(want)
+    assert res.bearing_deg == pytest.approx(math.degrees(bearing_from_beam(25, 40)))
+    # eq. 4: SNR(1 Hz) = snr_ibw * nbins_ibw * dfbin * 1.3
+    assert res.snr_db == pytest.approx(10 * math.log10(4.0 * 1 * 1.0 * HAMMING_ENBW))
+
+
+def test_anchor_within_tolerance_of_click():
+    """A click one beam off still finds the trace through a neighbouring anchor beam."""
+    cube = _straight_line_cube(-0.3, 20)
+    res = Acquisition(normalize=False, slope_step=0.05, max_slope=1.2).acquire(cube, beam=21, freq_hz=102.0)
+    assert res.beam_tolerance >= 2 and 20 in res.anchor_beams
+    assert res.best_line.anchor_beam == 20
+    assert res.best_line.beam_rate_per_scan == pytest.approx(-0.3)
+
+
+def test_lag_correction():
+    """The lag moves the bearing by rate x lag; zero rate leaves it unchanged."""
+    cube = _straight_line_cube(0.4, 25)
+    base = Acquisition(normalize=False, slope_step=0.05, max_slope=1.2).acquire(cube, beam=25, freq_hz=102.0)
+    lagged = Acquisition(normalize=False, slope_step=0.05, max_slope=1.2, lag_s=6.0).acquire(
+        cube, beam=25, freq_hz=102.0)
+    assert lagged.bearing_uncorrected_deg == pytest.approx(base.bearing_deg)
+    assert lagged.bearing_deg == pytest.approx(
+        base.bearing_deg + base.bearing_rate_deg_per_min / 60.0 * 6.0)
+
+
+@pytest.mark.parametrize(("seed", "b0", "rate"), [(1, 50.0, 35.0), (2, 130.0, -35.0), (3, 75.0, 20.0)])
+def test_known_answer_high_rate(seed, b0, rate):
+    """A high-rate line at 10 dB per bin: rate within 25 %, bearing within half a beamwidth."""
+    sc = simulate_cube(seed=seed, bearing0_deg=b0, bearing_rate_deg_per_min=rate, snr_db=10.0)
+    res = Acquisition().acquire(sc.cube, beam=sc.click_beam, freq_hz=sc.click_freq)
+    assert not res.default_used
+    assert res.bearing_rate_deg_per_min == pytest.approx(rate, rel=0.25)
+    hb = half_beamwidth_deg(sc.latest_bearing_deg, 5.0, 50.0)
+    assert abs(res.bearing_deg - sc.latest_bearing_deg) <= hb
+
+
+def test_known_answer_zero_rate():
+    """A stationary line at broadside at 10 dB: rate within 2 deg/min, bearing near 90 deg."""
+    sc = simulate_cube(seed=4, bearing0_deg=90.0, bearing_rate_deg_per_min=0.0, snr_db=10.0)
+    res = Acquisition().acquire(sc.cube, beam=sc.click_beam, freq_hz=sc.click_freq)
+    assert not res.default_used
+    assert abs(res.bearing_rate_deg_per_min) <= 2.0
+    assert abs(res.bearing_deg - 90.0) <= half_beamwidth_deg(90.0, 5.0, 50.0)
+
+
+def test_lagged_scenario_corrected():
+    """With a 4 s display lag at 35 deg/min the correction moves the bearing toward the truth."""
+    sc = simulate_cube(seed=6, bearing0_deg=55.0, bearing_rate_deg_per_min=35.0, snr_db=10.0,
+                       lag_s=4.0)
+    plain = Acquisition().acquire(sc.cube, beam=sc.click_beam, freq_hz=sc.click_freq)
+    fixed = Acquisition(lag_s=4.0).acquire(sc.cube, beam=sc.click_beam, freq_hz=sc.click_freq)
+    step = fixed.bearing_deg - plain.bearing_deg
+    assert step == pytest.approx(plain.bearing_rate_deg_per_min * 4.0 / 60.0)
+    assert step > 0
+
+
+def test_defaults_on_noise_only_cube():
+    """Noise only: defaults (rate 0, clicked beam's bearing, eq. 4 of the default SNR)."""
+    sc = simulate_cube(seed=5, snr_db=-200.0)
+    res = Acquisition().acquire(sc.cube, beam=20, freq_hz=float(sc.cube.freqs[8]))
+    assert res.default_used
+    assert res.snr_ibw <= 1.0
+    assert res.bearing_rate_deg_per_min == 0.0
+    assert res.bearing_deg == pytest.approx(math.degrees(bearing_from_beam(20, 64)))
+    assert res.snr_db == pytest.approx(10 * math.log10(1.0 * 1 * 1.0 * 1.3))
+    assert res.to_json()["default_used"] is True
+
+
+def test_same_input_same_output_and_function_form():
+    """Deterministic, and acquire() equals Acquisition().acquire()."""
+    sc = simulate_cube(seed=8, bearing0_deg=60.0, bearing_rate_deg_per_min=25.0)
+    a = Acquisition(ibw_hz=3.0).acquire(sc.cube, beam=sc.click_beam, freq_hz=sc.click_freq)
+    b = acquire(sc.cube, beam=sc.click_beam, freq_hz=sc.click_freq, ibw_hz=3.0)
+    assert a.to_json() == b.to_json()
+    assert np.array_equal(a.btr, b.btr)
+    assert a.ibw_bins == tuple(ibw_bins(sc.cube.freqs, sc.click_freq, 3.0)) and len(a.ibw_bins) == 3
+
+
+def test_beamwidth_and_noise_level_helpers():
+    """Beamwidth at broadside is 2 asin(0.443 lambda / L); noise level skips the trace."""
+    assert beamwidth_deg(32, 65, wavelength=5.0, aperture=50.0) == pytest.approx(
+        2 * math.degrees(math.asin(0.0443)))
+    btr = np.ones((6, 12))
+    btr[:, 5] = 50.0
+    assert band_noise_level(btr, 5, 0.0, exclude_beams=1.0) == pytest.approx(1.0)
+
+
+class TestBadInput:
+    @pytest.fixture
+    def cube(self):
+        return simulate_cube(seed=9).cube
+
+    @pytest.mark.parametrize("beam", [-1, 64, 2.5])
+    def test_beam_outside(self, cube, beam):
+        """A beam outside the cube or not an integer raises ValueError."""
+        with pytest.raises(ValueError, match="beam"):
+            Acquisition().acquire(cube, beam=beam, freq_hz=float(cube.freqs[3]))
+
+    @pytest.mark.parametrize("freq", [10.0, 1e4, float("nan")])
+    def test_frequency_outside(self, cube, freq):
+        """A frequency outside the cube's band raises ValueError."""
+        with pytest.raises(ValueError, match="frequency"):
+            Acquisition().acquire(cube, beam=3, freq_hz=freq)
+
+    def test_not_a_cube_and_bad_shapes(self):
+        """Not a Cube, a 2-D power array, NaN power: ValueError."""
+        with pytest.raises(ValueError, match="Cube"):
+            Acquisition().acquire(np.ones((4, 4, 4)), beam=0, freq_hz=1.0)
+        with pytest.raises(ValueError, match="shape"):
+            Cube(power=np.ones((4, 4)), freqs=[1.0], scan_period=1.0, aperture=1.0)
+        p = np.ones((4, 4, 4))
+        p[1, 1, 1] = np.nan
+        with pytest.raises(ValueError, match="NaN"):
+            Cube(power=p, freqs=[1.0, 2, 3, 4], scan_period=1.0, aperture=1.0)
+
+    @pytest.mark.parametrize(
+        ("kwargs", "match"),
+        [({"ibw_hz": -1.0}, "ibw_hz"), ({"min_scans": 1}, "min_scans"),
+         ({"rate_at": "start"}, "rate_at"), ({"slope_step": 0.0}, "slope_step")],
+    )
+    def test_bad_options(self, kwargs, match):
+        """Bad constructor options raise ValueError naming the option."""
+        with pytest.raises(ValueError, match=match):
+            Acquisition(**kwargs)
+
+
+class TestCli:
+    def test_prints_json(self, tmp_path, run_cli):
+        """``fusion acquire`` prints the four keys of the file-format contract."""
+        sc = simulate_cube(seed=10, bearing0_deg=60.0, bearing_rate_deg_per_min=30.0, snr_db=10.0)
+        write_cube(tmp_path / "c.npz", sc.cube)
+        code, out, err = run_cli("acquire", "--cube", tmp_path / "c.npz", "--beam", sc.click_beam,
+                                 "--freq", sc.click_freq, "--lag", "1.0")
+        assert code == 0, err
+        got = json.loads(out)
+        assert sorted(got) == ["bearing_deg", "bearing_rate_deg_per_min", "default_used", "snr_db"]
+        assert got["bearing_rate_deg_per_min"] == pytest.approx(30.0, rel=0.25)
+
+    @pytest.mark.parametrize("args", [("--beam", "99", "--freq", "300"),
+                                      ("--beam", "3", "--freq", "5")])
+    def test_bad_click_exit_2(self, tmp_path, run_cli, args):
+        """A click outside the cube: exit 2, one line on stderr, nothing on stdout."""
+        write_cube(tmp_path / "c.npz", simulate_cube(seed=11).cube)
+        code, out, err = run_cli("acquire", "--cube", tmp_path / "c.npz", *args)
+        assert code == 2 and out == ""
+        assert len(err.strip().splitlines()) == 1 and "c.npz" in err
+
+    def test_missing_file_exit_2(self, tmp_path, run_cli):
+        """A missing cube: exit 2, one line."""
+        code, out, err = run_cli("acquire", "--cube", tmp_path / "no.npz", "--beam", "1",
+                                 "--freq", "300")
+        assert code == 2 and len(err.strip().splitlines()) == 1
