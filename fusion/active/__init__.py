@@ -1,0 +1,1 @@
+"""Multistatic active sonar: fuzzy association, clutter map and tracker."""
