@@ -1,0 +1,196 @@
+"""Benchmark of bearing-rate smoothing: RTS equality, outliers, crossings, iSAM2, real data.
+
+Prints one JSON line of measured metrics (human lines on stderr)::
+
+    python benchmarks/bench_smoothing.py [--seeds N] [--min-crossings M] [--tracks T]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+from filterpy.kalman import KalmanFilter, rts_smoother
+
+from factors.motion import transition_matrix, wna_covariance
+from fusion.passive.smoothing import (
+    BearingSmoother,
+    MultiTrackSmoother,
+    NearestNeighbourTracker,
+    OnlineBearingSmoother,
+    TrackPrior,
+    identity_swaps,
+)
+from fusion.simulate.bearings import simulate_bearings
+
+REALDATA = Path("/work/shared/realdata/autoferry_sensor_fusion")
+
+
+def _log(msg: str) -> None:
+    print(msg, file=sys.stderr, flush=True)
+
+
+def _track(rng, n, sig):
+    t = np.cumsum(rng.uniform(2.0, 8.0, n))
+    s = t - t[0]
+    theta = 0.2 + 0.001 * s + 1e-6 * s**2
+    return t, theta, theta + rng.normal(0, sig, n)
+
+
+def _rts(t, z, prior, sig, q):
+    kf = KalmanFilter(dim_x=2, dim_z=1)
+    kf.x, kf.P = prior.mean.copy(), prior.covariance.copy()
+    kf.H, kf.R = np.array([[1.0, 0.0]]), np.array([[sig**2]])
+    xs, ps, fs, qs = [], [], [np.eye(2)], [np.zeros((2, 2))]
+    for k in range(t.size):
+        if k:
+            F, Q = transition_matrix(t[k] - t[k - 1], 1), wna_covariance(t[k] - t[k - 1], q, 1)
+            kf.predict(F=F, Q=Q)
+            fs.append(F)
+            qs.append(Q)
+        kf.update(np.array([z[k]]))
+        xs.append(kf.x.copy())
+        ps.append(kf.P.copy())
+    # filterpy applies Fs[k], Qs[k] between steps k and k + 1
+    return rts_smoother(np.array(xs), np.array(ps), fs[1:] + [np.eye(2)],
+                        qs[1:] + [np.zeros((2, 2))])[0]
+
+
+def bench_rts(seeds: int, sig=0.01, q=1e-8) -> dict:
+    worst = 0.0
+    for s in range(seeds):
+        t, _, z = _track(np.random.default_rng(s), 100, sig)
+        prior = TrackPrior(bearing=z[0], rate=0.0, sigma_bearing=0.05, sigma_rate=0.01)
+        r = BearingSmoother(sigma_bearing=sig, q=q).smooth(t, z, prior=prior)
+        worst = max(worst, float(np.max(np.abs(r.bearing - _rts(t, z, prior, sig, q)[:, 0]))))
+    return {"rts_max_abs_diff_rad": worst}
+
+
+def bench_outliers(seeds: int, sig=0.01, q=1e-8, frac=0.10) -> dict:
+    e = {"rts": [], "huber": [], "cauchy": []}
+    for s in range(seeds):
+        rng = np.random.default_rng(1000 + s)
+        t, theta, z = _track(rng, 100, sig)
+        out = rng.random(t.size) < frac
+        z[out] = rng.uniform(-np.pi, np.pi, out.sum())  # false bearings, uniform
+        prior = TrackPrior(bearing=theta[0], rate=0.0, sigma_bearing=0.05, sigma_rate=0.01)
+        xs = _rts(t, z, prior, sig, q)
+        e["rts"].append(np.mean(np.angle(np.exp(1j * (xs[:, 0] - theta))) ** 2))
+        for loss in ("huber", "cauchy"):
+            r = BearingSmoother(sigma_bearing=sig, q=q, robust=loss).smooth(t, z)
+            e[loss].append(np.mean(np.angle(np.exp(1j * (r.bearing - theta))) ** 2))
+    rm = {k: float(np.sqrt(np.mean(v))) for k, v in e.items()}
+    return {"outlier_rmse_rts_rad": rm["rts"], "outlier_rmse_huber_rad": rm["huber"],
+            "outlier_rmse_cauchy_rad": rm["cauchy"],
+            "outlier_ratio_cauchy_to_rts": rm["cauchy"] / rm["rts"],
+            "outlier_ratio_huber_to_rts": rm["huber"] / rm["rts"]}
+
+
+def bench_crossings(min_crossings: int, q=1e-9) -> dict:
+    n = s_em = s_nn = 0
+    seed, secs = 0, 0.0
+    while n < min_crossings:
+        sc = simulate_bearings(seed=500 + seed, n_tracks=6, n_crossing_pairs=3,
+                               n_near_miss_pairs=0, clutter_rate=0.2, p_detect=0.9)
+        seed += 1
+        t, z, sig = sc.time, np.radians(sc.bearing_deg), np.radians(sc.noise_deg)
+        cr = [(c.track_a, c.track_b, c.t_cross) for c in sc.crossings]
+        nn = NearestNeighbourTracker(sigma_bearing=sig, q=q).run(t, z)
+        t0 = time.perf_counter()
+        em = MultiTrackSmoother(sigma_bearing=sig, q=q,
+                                clutter_density=0.2 / (2 * np.pi)).run(t, z)
+        secs += time.perf_counter() - t0
+        kw = {"guard_s": 15 * sc.sample_period_s, "window_s": 20 * sc.sample_period_s}
+        s_em += int(identity_swaps(sc.track_id, em.labels, t, cr, **kw).sum())
+        s_nn += int(identity_swaps(sc.track_id, nn.labels, t, cr, **kw).sum())
+        n += len(cr)
+        _log(f"crossings {n}: swaps em {s_em}, nn {s_nn}")
+    if n == 0:
+        return {}
+    return {"crossings": n, "scenarios": seed, "swap_rate_em": s_em / n, "swap_rate_nn": s_nn / n,
+            "em_seconds_per_scenario": secs / seed}
+
+
+def bench_isam(n_tracks: int, n_scans=20, sig=0.01, q=1e-8) -> dict:
+    rng = np.random.default_rng(3)
+    b0 = rng.uniform(-np.pi, np.pi, n_tracks)
+    r0 = rng.normal(0, 0.002, n_tracks)
+    sms = [OnlineBearingSmoother(prior=TrackPrior(bearing=b, rate=0.0, sigma_bearing=0.05,
+                                                  sigma_rate=0.01), t0=0.0, sigma_bearing=sig, q=q)
+           for b in b0]
+    per = []
+    for k in range(1, n_scans + 1):
+        z = b0 + r0 * k * 10.0 + rng.normal(0, sig, n_tracks)
+        t0 = time.perf_counter()
+        for sm, zz in zip(sms, z, strict=True):
+            sm.step(k * 10.0, [zz])
+        per.append(time.perf_counter() - t0)
+    return {"isam2_ms_per_scan": 1e3 * float(np.median(per)), "isam2_tracks": n_tracks}
+
+
+def bench_real(scenario: str = "scenario2") -> dict:
+    from fusion.datasets.autoferry import Sensor, load_autoferry
+
+    rec = load_autoferry(REALDATA / scenario)
+    b = rec.bearings(sensors=(Sensor.EO,))
+    truth = rec.true_bearings()
+    t, z = b["time"], np.radians(b["bearing_deg"])
+    order = np.argsort(t, kind="stable")
+    t, z = t[order], z[order]
+    t0 = time.perf_counter()
+    res = MultiTrackSmoother(sigma_bearing=np.radians(1.0), q=1e-4, clutter_density=0.5,
+                             p_detect=0.8, init_sigma_rate=0.05, min_length=20).run(t, z)
+    secs = time.perf_counter() - t0
+    out = {"real_scenario": scenario, "real_tracks": len(res.tracks), "real_seconds": secs}
+    for tid in np.unique(truth["track_id"]):
+        sel = truth["track_id"] == tid
+        tt, tb = truth["time"][sel], np.radians(truth["bearing_deg"][sel])
+        best = None
+        for tr in res.tracks:  # the output track closest to this target
+            m = (tt >= tr.times[0]) & (tt <= tr.times[-1])
+            if m.sum() < 20:
+                continue
+            est = np.angle(np.interp(tt[m], tr.times, np.cos(tr.bearing))
+                           + 1j * np.interp(tt[m], tr.times, np.sin(tr.bearing)))
+            err = np.angle(np.exp(1j * (est - tb[m])))
+            rmse = float(np.degrees(np.sqrt(np.mean(err**2))))
+            cover = float(m.sum() / sel.sum())
+            if best is None or rmse < best[0]:
+                best = (rmse, cover, tr.track_id)
+        if best is not None:
+            out[f"real_target{int(tid)}_rmse_deg"] = best[0]
+            out[f"real_target{int(tid)}_coverage"] = best[1]
+    raw = []  # raw bearing error: every EO bearing vs the nearest true bearing at its time
+    for tid in np.unique(truth["track_id"]):
+        sel = truth["track_id"] == tid
+        raw.append(np.interp(t, truth["time"][sel], np.unwrap(np.radians(truth["bearing_deg"][sel]))))
+    d = np.min(np.abs(np.angle(np.exp(1j * (z[None] - np.array(raw))))), axis=0)
+    out["real_raw_median_abs_err_deg"] = float(np.degrees(np.median(d)))
+    return out
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seeds", type=int, default=10, help="seeds of the single-track parts")
+    ap.add_argument("--min-crossings", type=int, default=100, help="crossings to score")
+    ap.add_argument("--tracks", type=int, default=100, help="tracks of the iSAM2 timing")
+    ap.add_argument("--skip-real", action="store_true", help="skip the real-data part")
+    a = ap.parse_args(argv)
+    out = {}
+    for name, fn in (("rts", lambda: bench_rts(a.seeds)), ("outliers", lambda: bench_outliers(a.seeds)),
+                     ("isam", lambda: bench_isam(a.tracks)),
+                     ("real", (lambda: {}) if a.skip_real else bench_real),
+                     ("crossings", lambda: bench_crossings(a.min_crossings))):
+        t0 = time.perf_counter()
+        out.update(fn())
+        _log(f"{name}: {time.perf_counter() - t0:.1f} s")
+    print(json.dumps(out))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

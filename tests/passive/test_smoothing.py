@@ -1,0 +1,208 @@
+"""Tests of fusion.passive.smoothing: batch, online, robust and multi-track smoothing."""
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from filterpy.kalman import KalmanFilter, rts_smoother
+from numpy.testing import assert_allclose
+
+from factors.motion import transition_matrix, wna_covariance
+from fusion.cli import main
+from fusion.passive.smoothing import (
+    BearingSmoother,
+    MultiTrackSmoother,
+    NearestNeighbourTracker,
+    OnlineBearingSmoother,
+    TrackPrior,
+    crossing_time,
+    identity_swaps,
+)
+
+SIG, Q = 0.01, 1e-8
+
+
+def _linear_track(seed, n=40):
+    rng = np.random.default_rng(seed)
+    t = np.cumsum(rng.uniform(2.0, 8.0, n))
+    theta = 0.2 + 0.001 * (t - t[0]) + 1e-6 * (t - t[0]) ** 2
+    return t, theta, theta + rng.normal(0, SIG, n)
+
+
+def _rts(t, z, prior):
+    kf = KalmanFilter(dim_x=2, dim_z=1)
+    kf.x, kf.P = prior.mean.copy(), prior.covariance.copy()
+    kf.H, kf.R = np.array([[1.0, 0.0]]), np.array([[SIG**2]])
+    xs, ps, fs, qs = [], [], [np.eye(2)], [np.zeros((2, 2))]
+    for k in range(t.size):
+        if k:
+            F, Qk = transition_matrix(t[k] - t[k - 1], 1), wna_covariance(t[k] - t[k - 1], Q, 1)
+            kf.predict(F=F, Q=Qk)
+            fs.append(F)
+            qs.append(Qk)
+        kf.update(np.array([z[k]]))
+        xs.append(kf.x.copy())
+        ps.append(kf.P.copy())
+    fs.append(np.eye(2))
+    qs.append(np.zeros((2, 2)))
+    return rts_smoother(np.array(xs), np.array(ps), fs[1:], qs[1:])
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_batch_equals_rts(seed):
+    """On linear-Gaussian data the batch graph equals filterpy's RTS smoother (1e-6 rad)."""
+    t, _, z = _linear_track(seed)
+    prior = TrackPrior(bearing=z[0], rate=0.0, sigma_bearing=0.05, sigma_rate=0.01)
+    res = BearingSmoother(sigma_bearing=SIG, q=Q).smooth(t, z, prior=prior)
+    xs, ps, _, _ = _rts(t, z, prior)
+    assert_allclose(res.bearing, xs[:, 0], atol=1e-6)
+    assert_allclose(res.rate, xs[:, 1], atol=1e-8)
+    assert_allclose(res.sigma_bearing, np.sqrt(ps[:, 0, 0]), rtol=1e-4)
+
+
+def test_bearing_wraps_across_south():
+    """A track crossing +-180 deg is smoothed with wrapped output and the right rate."""
+    t = np.arange(30) * 5.0
+    theta = np.pi - 0.05 + 0.002 * t
+    z = np.mod(theta + np.random.default_rng(3).normal(0, SIG, t.size) + np.pi, 2 * np.pi) - np.pi
+    res = BearingSmoother(sigma_bearing=SIG, q=Q).smooth(t, z)
+    assert np.all((res.bearing >= -np.pi) & (res.bearing < np.pi))
+    assert_allclose(np.angle(np.exp(1j * (res.bearing - theta))), 0, atol=4 * SIG)
+    assert_allclose(res.rate[5:-5], 0.002, atol=3e-4)
+
+
+def test_robust_beats_gaussian_with_outliers():
+    """With 15 % uniform outlier bearings the Huber graph's error is far below the Gaussian's."""
+    rng = np.random.default_rng(11)
+    t, theta, z = _linear_track(11, n=60)
+    out = rng.random(t.size) < 0.15
+    z[out] = rng.uniform(-np.pi, np.pi, out.sum())
+    errs = {}
+    for loss in ("none", "huber", "cauchy"):
+        r = BearingSmoother(sigma_bearing=SIG, q=Q, robust=loss).smooth(t, z)
+        errs[loss] = np.sqrt(np.mean(np.angle(np.exp(1j * (r.bearing - theta))) ** 2))
+    assert errs["huber"] < 0.5 * errs["none"]
+    assert errs["cauchy"] < 0.5 * errs["none"]
+    assert errs["cauchy"] < 3 * SIG
+
+
+def test_online_matches_batch():
+    """iSAM2 grown scan by scan ends at the batch solution with the same prior."""
+    t, _, z = _linear_track(4, n=25)
+    prior = TrackPrior(bearing=z[0], rate=0.0, sigma_bearing=0.05, sigma_rate=0.01)
+    batch = BearingSmoother(sigma_bearing=SIG, q=Q).smooth(t, z, prior=prior)
+    on = OnlineBearingSmoother(prior=prior, t0=t[0], sigma_bearing=SIG, q=Q)
+    on.step(t[0], [z[0]])
+    for k in range(1, t.size):
+        on.step(t[k], [z[k]])
+    res = on.result()
+    assert_allclose(res.bearing, batch.bearing, atol=1e-6)
+    assert_allclose(res.sigma_bearing, batch.sigma_bearing, rtol=1e-4)
+    assert on.covariance().shape == (2, 2)
+
+
+def test_crossing_time_eq2():
+    """t_c = (B0_2 - B0_1)/(B'_1 - B'_2), wrapped; parallel tracks never cross."""
+    assert crossing_time(0.0, 0.01, 0.1, 0.0) == pytest.approx(10.0)
+    assert crossing_time(np.pi - 0.05, 0.01, -np.pi + 0.05, 0.0) == pytest.approx(10.0)
+    assert crossing_time(0.0, 0.01, 0.1, 0.01) == np.inf
+
+
+def _crossing_scene(seed, n=60):
+    """Two straight bearing tracks crossing at scan 30 plus uniform clutter."""
+    rng = np.random.default_rng(seed)
+    t_s = np.arange(n) * 10.0
+    truth = np.vstack([0.5 + 0.004 * (t_s - 300), 0.5 - 0.003 * (t_s - 300)])
+    rows = []
+    for k in range(n):
+        for a in (0, 1):
+            rows.append((t_s[k], truth[a, k] + rng.normal(0, SIG), a))
+        for _ in range(rng.poisson(0.2)):
+            rows.append((t_s[k], rng.uniform(-np.pi, np.pi), -1))
+    t, z, lab = (np.array(c) for c in zip(*rows, strict=True))
+    return t, z, lab.astype(int), truth, t_s
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_identity_survives_crossing(seed):
+    """Unlabeled detections of two crossing tracks: two tracks, identities kept, low RMSE."""
+    t, z, lab, truth, t_s = _crossing_scene(seed)
+    ms = MultiTrackSmoother(sigma_bearing=SIG, q=1e-9, clutter_density=0.2 / (2 * np.pi))
+    res = ms.run(t, z)
+    assert len(res.tracks) == 2
+    swaps = identity_swaps(lab, res.labels, t, [(0, 1, 300.0)], guard_s=60.0, window_s=200.0)
+    assert not swaps.any()
+    assert res.shared.sum() > 0
+    for tr in res.tracks:  # each output track follows one true track throughout
+        k = np.searchsorted(t_s, tr.times)
+        errs = [np.sqrt(np.mean((tr.bearing - truth[a, k]) ** 2)) for a in (0, 1)]
+        assert min(errs) < 2 * SIG
+
+
+def test_identity_swaps_metric():
+    """The swap metric flags exchanged labels and not kept ones."""
+    t = np.repeat(np.arange(10.0), 2)
+    true = np.tile([0, 1], 10)
+    kept = true.copy()
+    swapped = true.copy()
+    swapped[t > 5] = 1 - swapped[t > 5]
+    assert not identity_swaps(true, kept, t, [(0, 1, 5.0)], guard_s=0.5, window_s=4)[0]
+    assert identity_swaps(true, swapped, t, [(0, 1, 5.0)], guard_s=0.5, window_s=4)[0]
+
+
+def test_tracker_baseline_runs():
+    """The plain nearest-neighbour tracker finds both tracks and labels most detections."""
+    t, z, lab, _, _ = _crossing_scene(2)
+    r = NearestNeighbourTracker(sigma_bearing=SIG, q=1e-9).run(t, z)
+    assert r.n_tracks >= 2
+    assert np.mean(r.labels[lab >= 0] >= 0) > 0.9
+
+
+def test_bad_input():
+    """Bad options and data raise ValueError naming the problem."""
+    with pytest.raises(ValueError, match="sigma_bearing"):
+        BearingSmoother(sigma_bearing=0.0, q=Q)
+    with pytest.raises(ValueError, match="robust"):
+        BearingSmoother(sigma_bearing=SIG, q=Q, robust="tukeyish")
+    with pytest.raises(ValueError, match="non-decreasing"):
+        BearingSmoother(sigma_bearing=SIG, q=Q).smooth([1.0, 0.0], [0.1, 0.2])
+    with pytest.raises(ValueError, match="finite"):
+        BearingSmoother(sigma_bearing=SIG, q=Q).smooth([0.0, 1.0], [0.1, np.nan])
+    with pytest.raises(ValueError, match="prior sigma_rate"):
+        TrackPrior(bearing=0.0, rate=0.0, sigma_bearing=1.0, sigma_rate=-1.0)
+    with pytest.raises(ValueError, match="p_detect"):
+        MultiTrackSmoother(sigma_bearing=SIG, q=Q, p_detect=1.5)
+
+
+def test_cli_smooth(tmp_path):
+    """fusion smooth writes formats.md section 7 columns for labelled and unknown rows."""
+    t, z, lab, _, _ = _crossing_scene(0, n=40)
+    keep = lab >= 0
+    src = tmp_path / "b.csv"
+    ids = np.where(np.arange(t.size) % 2 == 0, -1, -1)
+    lines = ["track_id,time,bearing_deg"]
+    lines += [f"{i},{a},{b}" for i, a, b in zip(ids[keep], t[keep], np.degrees(z[keep]),
+                                                 strict=True)]
+    lines += ["7,0.0,10.0", "7,10.0,10.5", "7,20.0,11.0"]
+    src.write_text("\n".join(lines) + "\n")
+    out = tmp_path / "s.csv"
+    assert main(["smooth", "--bearings", str(src), "--out", str(out),
+                 "--sigma-bearing-deg", str(np.degrees(SIG))]) == 0
+    head, *rows = out.read_text().splitlines()
+    assert head == "track_id,time,bearing_deg,bearing_rate_deg_per_min,sigma_bearing_deg"
+    tids = {int(r.split(",")[0]) for r in rows}
+    assert 7 in tids and len(tids) == 3
+    r7 = [list(map(float, r.split(","))) for r in rows if r.startswith("7,")]
+    assert_allclose([r[3] for r in r7], 3.0, atol=0.05)  # 0.05 deg/s = 3 deg/min
+
+
+def test_cli_bad_input_exit_2(tmp_path):
+    """A missing column gives exit code 2 and one line on stderr."""
+    src = tmp_path / "b.csv"
+    src.write_text("track_id,time\n0,1.0\n")
+    p = subprocess.run([sys.executable, "-m", "fusion", "smooth", "--bearings", str(src),
+                        "--out", str(tmp_path / "o.csv")], capture_output=True, text=True)
+    assert p.returncode == 2
+    assert len(p.stderr.strip().splitlines()) == 1 and "bearing_deg" in p.stderr
+    assert not (tmp_path / "o.csv").exists()
