@@ -1,0 +1,170 @@
+"""Bearing from a known platform position to an unknown constant-velocity target.
+
+The target state is a GTSAM ``Vector4`` ``s = [x, y, vx, vy]`` (m, m/s; x east, y north). A
+platform (own-ship) at the known position ``o = (x_o, y_o)`` measures the true bearing of the
+target, clockwise from north::
+
+    beta(s) = atan2(x + vx dt - x_o, y + vy dt - y_o)
+
+where ``dt`` (s, default 0) lets one state at a reference time serve a bearing taken ``dt``
+seconds later (the classical single-state target motion analysis). With ``(dx, dy)`` the target
+position relative to the platform at the bearing time and ``r^2 = dx^2 + dy^2``::
+
+    d beta / d(x, y)   = [dy, -dx] / r^2
+    d beta / d(vx, vy) = dt [dy, -dx] / r^2
+
+This is the bearing factor of the project's design notes ("Factor graphs", bearings-only target
+motion analysis). The residual is wrapped by :func:`fusion.geometry.wrap_angle`, so bearings near
+±180° (a target due south) are handled.
+"""
+
+from __future__ import annotations
+
+import gtsam
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from fusion.geometry import wrap_angle
+
+__all__ = ["target_bearing", "target_bearing_factor", "target_bearing_jacobian"]
+
+#: Smallest squared range (m^2) used in the Jacobian, guarding a target on top of the platform.
+MIN_RANGE_SQ = 1e-12
+
+
+def _relative(
+    states: NDArray[np.float64], platform_xy: NDArray[np.float64], dt: NDArray[np.float64]
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    dx = states[..., 0] + states[..., 2] * dt - platform_xy[..., 0]
+    dy = states[..., 1] + states[..., 3] * dt - platform_xy[..., 1]
+    return dx, dy
+
+
+def target_bearing(
+    states: ArrayLike, platform_xy: ArrayLike, *, dt: ArrayLike = 0.0
+) -> NDArray[np.float64]:
+    """True bearing of target states from platform positions (vectorised).
+
+    Parameters
+    ----------
+    states : array_like, shape (..., 4)
+        Target states ``[x, y, vx, vy]``, m and m/s.
+    platform_xy : array_like, shape (..., 2)
+        Platform positions ``[x, y]``, m, broadcast against `states`.
+    dt : float or array_like, shape (...), keyword-only
+        Time from the state's epoch to the bearing time, s.
+
+    Returns
+    -------
+    ndarray, shape (...)
+        Bearing, rad, clockwise from north, in ``[-pi, pi)``.
+
+    Examples
+    --------
+    >>> float(np.degrees(target_bearing([100.0, 0.0, 0.0, 0.0], [0.0, 0.0])))
+    90.0
+    """
+    s = np.asarray(states, dtype=float)
+    o = np.asarray(platform_xy, dtype=float)
+    dx, dy = _relative(s, o, np.asarray(dt, dtype=float))
+    return np.asarray(wrap_angle(np.arctan2(dx, dy)), dtype=float)  # beta = atan2(dx, dy)
+
+
+def target_bearing_jacobian(
+    states: ArrayLike, platform_xy: ArrayLike, *, dt: ArrayLike = 0.0
+) -> NDArray[np.float64]:
+    """Derivative of :func:`target_bearing` with respect to the state (vectorised).
+
+    Parameters
+    ----------
+    states : array_like, shape (..., 4)
+        Target states ``[x, y, vx, vy]``, m and m/s.
+    platform_xy : array_like, shape (..., 2)
+        Platform positions, m.
+    dt : float or array_like, shape (...), keyword-only
+        Time from the state's epoch to the bearing time, s.
+
+    Returns
+    -------
+    ndarray, shape (..., 4)
+        ``d beta / d s``, rad/m and rad/(m/s).
+    """
+    s = np.asarray(states, dtype=float)
+    o = np.asarray(platform_xy, dtype=float)
+    dt_arr = np.asarray(dt, dtype=float)
+    dx, dy = _relative(s, o, dt_arr)
+    r2 = np.maximum(dx * dx + dy * dy, MIN_RANGE_SQ)
+    d_dx = dy / r2  # d atan2(dx, dy) / d dx
+    d_dy = -dx / r2  # d atan2(dx, dy) / d dy
+    dt_b = np.broadcast_to(dt_arr, d_dx.shape)
+    return np.stack([d_dx, d_dy, d_dx * dt_b, d_dy * dt_b], axis=-1)
+
+
+def target_bearing_factor(
+    noise: gtsam.noiseModel.Base,
+    key: int,
+    platform_xy: ArrayLike,
+    bearing: float,
+    *,
+    dt: float = 0.0,
+) -> gtsam.CustomFactor:
+    """Factor on a target state ``[x, y, vx, vy]`` from one true bearing taken at a known place.
+
+    Parameters
+    ----------
+    noise : gtsam.noiseModel.Base
+        Noise model of dimension 1 (rad), e.g. ``gtsam.noiseModel.Isotropic.Sigma(1, sigma)`` or
+        a ``gtsam.noiseModel.Robust`` around it.
+    key : int
+        Key of the ``Vector4`` target state.
+    platform_xy : array_like, shape (2,)
+        Platform (own-ship) position at the bearing time, m.
+    bearing : float
+        Measured true bearing, rad, clockwise from north.
+    dt : float, keyword-only
+        Bearing time minus the state's epoch, s (0 when the state is at the bearing time).
+
+    Returns
+    -------
+    gtsam.CustomFactor
+        Error ``wrap(beta(s) - bearing)``, rad, shape (1,); Jacobian shape (1, 4).
+
+    Raises
+    ------
+    ValueError
+        If the noise model is not 1-D or an input is not finite.
+
+    Examples
+    --------
+    >>> noise = gtsam.noiseModel.Isotropic.Sigma(1, 0.01)
+    >>> f = target_bearing_factor(noise, 0, [0.0, 0.0], np.pi / 2)
+    >>> v = gtsam.Values(); v.insert(0, np.array([100.0, 0.0, 1.0, 0.0]))
+    >>> float(abs(f.unwhitenedError(v)[0])) < 1e-12
+    True
+    """
+    if int(noise.dim()) != 1:
+        raise ValueError(f"noise model dimension must be 1, got {noise.dim()}")
+    o = np.asarray(platform_xy, dtype=float)
+    if o.shape != (2,) or not np.all(np.isfinite(o)):
+        raise ValueError(f"platform_xy must be 2 finite numbers (m), got {platform_xy!r}")
+    z = float(bearing)
+    dt = float(dt)
+    if not np.isfinite(z):
+        raise ValueError(f"bearing must be finite (rad), got {bearing!r}")
+    if not np.isfinite(dt):
+        raise ValueError(f"dt must be finite (s), got {dt!r}")
+
+    def error_func(
+        this: gtsam.CustomFactor, values: gtsam.Values, jacobians: list[np.ndarray] | None
+    ) -> np.ndarray:
+        s = values.atVector(this.keys()[0])
+        dx = s[0] + s[2] * dt - o[0]
+        dy = s[1] + s[3] * dt - o[1]
+        error = np.array([wrap_angle(np.arctan2(dx, dy) - z)])  # e = wrap(beta(s) - z)
+        if jacobians is not None:
+            r2 = max(dx * dx + dy * dy, MIN_RANGE_SQ)
+            g = np.array([dy / r2, -dx / r2])  # d beta / d (x, y)
+            jacobians[0] = np.array([[g[0], g[1], g[0] * dt, g[1] * dt]])
+        return error
+
+    return gtsam.CustomFactor(noise, [int(key)], error_func)
