@@ -37,13 +37,15 @@ from fusion.passive.quality import TrackQuality, TrackQualityIndicator
 from fusion.simulate.amplitudes import condition_snr_db, draw_amplitudes, draw_residuals
 
 
-def stability(kind: str, *, n_tracks: int, n_updates: int, rng: np.random.Generator) -> dict:
-    snr = condition_snr_db(kind) + rng.uniform(-0.5, 0.5, size=n_tracks)
+def stability(kind: str, *, n_tracks: int, n_updates: int, rng: np.random.Generator,
+              snr0_db: float = 3.0, snr1_db: float = 10.0) -> dict:
+    snr = condition_snr_db(kind, snr0_db=snr0_db, snr1_db=snr1_db) + rng.uniform(-0.5, 0.5, size=n_tracks)
     snr = np.broadcast_to(snr, (n_updates, n_tracks))
     amp = draw_amplitudes(snr, rng=rng)
     res = draw_residuals(snr, rng=rng)
-    with_h = TrackQualityIndicator().run(amp, res).n_changes()
-    without = TrackQualityIndicator(hysteresis=False).run(amp, res).n_changes()
+    design = {"snr0_db": snr0_db, "snr1_db": snr1_db}
+    with_h = TrackQualityIndicator(**design).run(amp, res).n_changes()
+    without = TrackQualityIndicator(hysteresis=False, **design).run(amp, res).n_changes()
     return {"changes_hysteresis": int(with_h.sum()), "changes_single": int(without.sum()),
             "ratio": float(with_h.sum() / max(without.sum(), 1))}
 
@@ -128,6 +130,15 @@ def main(argv: list[str] | None = None) -> int:
     stab["all"] = {"changes_hysteresis": tot_h, "changes_single": tot_1,
                    "ratio": tot_h / max(tot_1, 1)}
     out["stability"] = stab
+    # Not a target: how the ratio depends on the design SNRs, i.e. on the per-update deflections
+    # p_i = C_i / O_i against the fixed hysteresis widths LH and SH.
+    sens = {}
+    for s0, s1 in ((0.0, 6.0), (3.0, 10.0), (6.0, 12.0)):
+        parts = [stability(kind, n_tracks=a.tracks // 2, n_updates=a.updates, rng=rng,
+                           snr0_db=s0, snr1_db=s1) for kind in ("near_strong", "near_lost")]
+        sens[f"{s0:g}/{s1:g} dB"] = sum(p["changes_hysteresis"] for p in parts) / max(
+            sum(p["changes_single"] for p in parts), 1)
+    out["ratio_vs_design_snr"] = sens
     out["loss"] = loss_lag(n_tracks=a.tracks, n_updates=a.updates, rng=rng)
     out["ramp"] = ramp(n_tracks=a.tracks, n_updates=a.updates, rng=rng)
     out["speed"] = speed(n_tracks=a.speed_tracks, reps=a.speed_reps, rng=rng)
