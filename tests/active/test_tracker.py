@@ -1,0 +1,357 @@
+"""Tests of the multistatic tracker (fusion.active.tracker) and ``fusion track``."""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+from filterpy.kalman import KalmanFilter
+from numpy.testing import assert_allclose
+from scipy.stats import chi2, multivariate_normal
+
+from fusion.active.rulebase import default_association_system, default_variables
+from fusion.active.tracker import (
+    EDGE_LIKELIHOOD,
+    Ping,
+    Tracker,
+    assign,
+    cv_model,
+    derived_min_rank,
+    equivalent_aspect_deg,
+    gate_threshold,
+    kf_predict,
+    kf_update,
+    neutral_value,
+    pair_statistics,
+    pings_from_table,
+    track_status,
+)
+from fusion.io import Table, read_table, write_table
+
+
+def _random_track(rng):
+    x = rng.normal(0, 1000, 4)
+    A = rng.normal(0, 1, (4, 4))
+    return x, A @ A.T * 100 + np.eye(4)
+
+
+def test_predict_update_equal_filterpy():
+    """Vectorised predict/update equal filterpy's KalmanFilter for several tracks."""
+    rng = np.random.default_rng(3)
+    F, Q = cv_model(75.0, 0.04)
+    R = np.diag([90.0**2, 120.0**2])
+    xs, Ps = zip(*(_random_track(rng) for _ in range(5)), strict=True)
+    z = rng.normal(0, 1000, (5, 2))
+    x1, P1 = kf_predict(np.array(xs), np.array(Ps), F, Q)
+    x2, P2 = kf_update(x1, P1, z, R)
+    for i in range(5):
+        kf = KalmanFilter(dim_x=4, dim_z=2)
+        kf.x, kf.P, kf.F, kf.Q, kf.R = xs[i].copy(), Ps[i].copy(), F, Q, R
+        kf.H = np.array([[1.0, 0, 0, 0], [0, 1.0, 0, 0]])
+        kf.predict()
+        assert_allclose(x1[i], kf.x, rtol=1e-12)
+        assert_allclose(P1[i], kf.P, rtol=1e-10)
+        kf.update(z[i])
+        assert_allclose(x2[i], kf.x, rtol=1e-9, atol=1e-9)
+        assert_allclose(P2[i], kf.P, rtol=1e-8, atol=1e-8)
+
+
+def test_cv_model_known_answer():
+    """F and Q of the constant-velocity model for dt = 2 s, q = 3."""
+    F, Q = cv_model(2.0, 3.0)
+    assert_allclose(F[:2, 2:], 2 * np.eye(2))
+    assert_allclose(Q[0, 0], 3 * 8 / 3)
+    assert_allclose(Q[0, 2], 3 * 2)
+    assert_allclose(Q[2, 2], 3 * 2)
+    with pytest.raises(ValueError, match="time step"):
+        cv_model(-1.0, 1.0)
+
+
+def test_likelihood_equals_scipy():
+    """Pair log-likelihoods equal scipy.stats.multivariate_normal; L = exp(-d2/2)."""
+    rng = np.random.default_rng(4)
+    xs, Ps = zip(*(_random_track(rng) for _ in range(3)), strict=True)
+    x, P = np.array(xs), np.array(Ps)
+    z = rng.normal(0, 1000, (7, 2))
+    R = np.eye(2) * 100.0**2
+    st = pair_statistics(x, P, z, R)
+    for t in range(3):
+        mvn = multivariate_normal(mean=x[t, :2], cov=P[t, :2, :2] + R)
+        assert_allclose(st.log_pdf[t], mvn.logpdf(z), rtol=1e-10)
+        d = z - x[t, :2]
+        d2 = np.einsum("ni,ij,nj->n", d, np.linalg.inv(P[t, :2, :2] + R), d)
+        assert_allclose(st.d2[t], d2, rtol=1e-10)
+    assert_allclose(st.likelihood_ratio, np.exp(-st.d2 / 2))
+
+
+def test_gate_keeps_the_stated_fraction():
+    """The chi-square gate keeps ~99 % of detections drawn from the innovation covariance."""
+    assert_allclose(gate_threshold(0.99), chi2.ppf(0.99, 2))
+    rng = np.random.default_rng(5)
+    x, P = _random_track(rng)
+    R = np.eye(2) * 50.0**2
+    z = rng.multivariate_normal(x[:2], P[:2, :2] + R, 20000)
+    st = pair_statistics(x[None], P[None], z, R)
+    assert abs(np.mean(st.d2 <= gate_threshold(0.99)) - 0.99) < 0.003
+    with pytest.raises(ValueError, match="gate probability"):
+        gate_threshold(1.0)
+
+
+def _brute_force(score, valid):
+    n, m = score.shape
+    best = 0.0
+    for k in range(min(n, m) + 1):
+        for rows in itertools.combinations(range(n), k):
+            for cols in itertools.permutations(range(m), k):
+                if all(valid[r, c] for r, c in zip(rows, cols, strict=True)):
+                    best = max(best, sum(score[r, c] for r, c in zip(rows, cols, strict=True)))
+    return best
+
+
+@pytest.mark.parametrize("seed", range(25))
+def test_assignment_equals_brute_force(seed):
+    """assign() reaches the brute-force maximum summed score, each row/column at most once."""
+    rng = np.random.default_rng(seed)
+    n, m = rng.integers(1, 5, 2)
+    score = rng.uniform(0, 1, (n, m))
+    valid = rng.uniform(0, 1, (n, m)) < 0.6
+    r, c = assign(score, valid)
+    assert len(set(r)) == len(r) and len(set(c)) == len(c)
+    assert valid[r, c].all()
+    assert_allclose(score[r, c].sum(), _brute_force(score, valid), rtol=1e-12)
+
+
+def test_assignment_without_conflict_takes_each_best():
+    """Without conflicts each row takes its highest valid column."""
+    score = np.array([[0.9, 0.1, 0.3], [0.2, 0.4, 0.8]])
+    r, c = assign(score, np.ones_like(score, dtype=bool))
+    assert r.tolist() == [0, 1] and c.tolist() == [0, 2]
+    with pytest.raises(ValueError, match="same shape|one shape"):
+        assign(score, np.ones((1, 1), dtype=bool))
+
+
+@pytest.mark.parametrize("history, expected", [
+    ([True], "tentative"),
+    ([True, True], "tentative"),
+    ([True, True, True], "confirmed"),
+    ([True, False, True, True], "confirmed"),
+    ([True, False, False], "deleted"),
+    ([True, True, False, False], "deleted"),
+    ([True, True, True] + [False] * 4, "confirmed"),
+    ([True, True, True] + [False] * 5, "deleted"),
+    ([True, True, True, False, False, True, False, False, False, False], "confirmed"),
+])
+def test_confirmation_and_deletion_table(history, expected):
+    """3-of-4 confirmation and deletion after 5 consecutive misses, by table."""
+    assert track_status(history, m=3, n=4, max_misses=5) == expected
+
+
+@pytest.mark.parametrize("heading, expected", [
+    ((0.0, 1.0), 90.0), ((0.0, -1.0), 90.0), ((1.0, 0.0), 0.0), ((-1.0, 0.0), 180.0),
+    ((1.0, 1.0), 45.0),
+])
+def test_aspect_known_answers_monostatic(heading, expected):
+    """Source and receiver together to the east: north/south headings are specular (90 deg)."""
+    a = equivalent_aspect_deg([0.0, 0.0], heading, [5000.0, 0.0], [5000.0, 0.0])
+    assert_allclose(a, expected, atol=1e-5)
+
+
+def test_aspect_bistatic_bisector():
+    """Source north, receiver east: bisector points north-east; heading north-west is 90 deg."""
+    a = equivalent_aspect_deg([0, 0], [[-1, 1], [1, 1], [0, 1]], [0, 3000], [3000, 0])
+    assert_allclose(a, [90.0, 0.0, 45.0], atol=1e-5)
+    assert np.isnan(equivalent_aspect_deg([0, 0], [0, 0], [0, 1000], [1000, 0]))
+
+
+def _hotspot_scenario(seed, n_pings=12):
+    """Target crossing at 3 m/s, specular-ish, good scores; two strong fixed hotspots."""
+    rng = np.random.default_rng(seed)
+    rows = {k: [] for k in ("event", "time", "x", "y", "snr_db", "score", "aspect_deg")}
+    hot = np.array([[3000.0, 3000.0], [-2000.0, 4000.0]])
+    for k in range(n_pings):
+        t = 90.0 * k
+        pts = [np.array([-3000.0 + 3.0 * t, 0.0]) + rng.normal(0, 60, 2)]
+        clues = [(rng.uniform(14, 22), rng.uniform(0.7, 1.0), rng.uniform(80, 100))]
+        for h in hot:
+            pts.append(h + rng.normal(0, 60, 2))
+            clues.append((rng.uniform(22, 28), rng.uniform(0.2, 0.5), rng.uniform(0, 50)))
+        pts.append(rng.uniform(-8000, 8000, 2))
+        clues.append((rng.uniform(10, 13), rng.uniform(0.0, 0.4), rng.uniform(0, 180)))
+        for p, (snr, sc, asp) in zip(pts, clues, strict=True):
+            for key, v in zip(rows, (k, t, p[0], p[1], snr, sc, asp), strict=True):
+                rows[key].append(v)
+    cols = {k: np.asarray(v, dtype=float) for k, v in rows.items()}
+    cols["event"] = cols["event"].astype(np.int64)
+    return Table(cols), hot
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_fuzzy_confirms_target_not_hotspots(seed):
+    """Fuzzy mode confirms the target and no hotspot; Kalman mode confirms the hotspots too."""
+    table, hot = _hotspot_scenario(seed)
+    for mode in ("fuzzy", "kalman"):
+        cols = Tracker(mode=mode).run(table).columns()
+        conf = cols["status"] == "confirmed"
+        xy = np.column_stack([cols["x"], cols["y"]])[conf]
+        near_hot = np.min(np.linalg.norm(xy[:, None] - hot[None], axis=2), axis=1) < 500
+        on_target = np.abs(xy[:, 1]) < 500
+        assert on_target.any(), mode
+        if mode == "fuzzy":
+            assert not near_hot.any()
+        else:
+            assert near_hot.any()
+
+
+def test_positions_only_still_tracks_and_skips_rules():
+    """Without clue columns the tracker runs on the likelihood (and hotspot) rules alone."""
+    table, _ = _hotspot_scenario(0)
+    bare = Table({k: table[k] for k in ("event", "time", "x", "y")})
+    cols = Tracker().run(bare).columns()
+    conf = cols["status"] == "confirmed"
+    assert np.any(conf & (np.abs(cols["y"]) < 500))
+
+
+def test_step_equals_run_and_is_deterministic():
+    """Streaming step() equals batch run(); two runs give identical output."""
+    table, _ = _hotspot_scenario(3, n_pings=6)
+    a = Tracker().run(table).columns()
+    b = Tracker().run(table).columns()
+    tr = Tracker()
+    pings = [tr.step(p) for p in pings_from_table(table)]
+    c = np.concatenate([p.state for p in pings])
+    for k in a:
+        np.testing.assert_array_equal(a[k], b[k])
+    assert_allclose(np.column_stack([a["x"], a["y"], a["vx"], a["vy"]]), c)
+
+
+def test_missing_event_counts_as_empty_ping():
+    """An event number absent from the table becomes an empty ping at an interpolated time."""
+    t = Table({"event": np.array([0, 2]), "time": np.array([0.0, 100.0]),
+               "x": np.array([0.0, 1.0]), "y": np.array([0.0, 1.0])})
+    pings = pings_from_table(t)
+    assert [p.event for p in pings] == [0, 1, 2]
+    assert pings[1].n == 0 and pings[1].time == 50.0
+
+
+def test_bad_inputs():
+    """Bad options and pings raise ValueError."""
+    with pytest.raises(ValueError, match="mode"):
+        Tracker(mode="nearest")
+    with pytest.raises(ValueError, match="unknown clue"):
+        Tracker(clues=["colour"])
+    with pytest.raises(ValueError, match="confirm_hits"):
+        Tracker(confirm_hits=5, confirm_window=4)
+    with pytest.raises(ValueError, match="clue 'snr_db'"):
+        Ping(0, 0.0, np.zeros((2, 2)), {"snr_db": np.zeros(3)})
+    tr = Tracker()
+    tr.step(Ping(0, 10.0, np.zeros((1, 2))))
+    with pytest.raises(ValueError, match="goes back"):
+        tr.step(Ping(1, 5.0, np.zeros((1, 2))))
+
+
+def test_cli_round_trip(tmp_path, run_cli):
+    """fusion track writes the formats.md columns; kalman mode too; notes absent clues once."""
+    table, _ = _hotspot_scenario(0)
+    src = tmp_path / "d.csv"
+    write_table(src, {k: table[k] for k in ("event", "time", "x", "y", "snr_db", "score")})
+    out = tmp_path / "t.csv"
+    code, _, err = run_cli("track", "--detections", src, "--out", out)
+    assert code == 0
+    assert err.count("note") == 1 and "aspect_deg" in err
+    t = read_table(out, required=("track_id", "event", "time", "x", "y", "vx", "vy", "status"),
+                   text=("status",))
+    assert set(t["status"]) <= {"tentative", "confirmed", "deleted"}
+    assert "confirmed" in set(t["status"])
+    code, _, _ = run_cli("track", "--detections", src, "--out", tmp_path / "k.csv",
+                         "--mode", "kalman", "--confirmed-only")
+    assert code == 0
+
+
+def test_cli_bad_input_exit_2(tmp_path, run_cli):
+    """Missing column, missing file and a bad option: exit 2 with one line, no output file."""
+    bad = tmp_path / "bad.csv"
+    bad.write_text("event,time,x\n0,0,1\n")
+    out = tmp_path / "t.csv"
+    code, _, err = run_cli("track", "--detections", bad, "--out", out)
+    assert code == 2 and len(err.strip().splitlines()) == 1 and "column" in err
+    code, _, err = run_cli("track", "--detections", tmp_path / "none.csv", "--out", out)
+    assert code == 2 and len(err.strip().splitlines()) == 1
+    good = tmp_path / "g.csv"
+    good.write_text("event,time,x,y\n0,0,1,1\n")
+    code, _, err = run_cli("track", "--detections", good, "--out", out, "--min-rank", "2")
+    assert code == 2 and "min_rank" in err and len(err.strip().splitlines()) == 1
+    assert not out.exists()
+
+
+def _union_centroid(low, medium, high):
+    """Centroid of max(min(low, tri(0,0,.5)), min(medium, tri(0,.5,1)), min(high, tri(.5,1,1)))
+    by a dense trapezoid rule (independent of the engine's exact integration)."""
+    y = np.linspace(0.0, 1.0, 400001)
+    mu = np.maximum.reduce([np.minimum(low, np.clip(1 - y / 0.5, 0, 1)),
+                            np.minimum(medium, np.clip(1 - np.abs(y - 0.5) / 0.5, 0, 1)),
+                            np.minimum(high, np.clip((y - 0.5) / 0.5, 0, 1))])
+    return np.trapezoid(y * mu, y) / np.trapezoid(mu, y)
+
+
+def test_neutral_values_are_the_crossovers():
+    """Neutral clue values: where the default terms are 1/2 (score 0.65, aspect 70 deg,
+    SNR 16 dB, hotspot 300 m)."""
+    names = [v.name for v in default_variables()]
+    values = {n: neutral_value(v) for n, v in zip(names, default_variables(), strict=True)}
+    assert values["score"] == pytest.approx(0.65)
+    assert values["aspect_deg"] == pytest.approx(70.0)
+    assert values["snr_db"] == pytest.approx(16.0)
+    assert values["hotspot_distance_m"] == pytest.approx(300.0)
+
+
+def test_threshold_derivation_known_ranks():
+    """The derived threshold is the documented rank at L = 0.25 with neutral clues:
+    likelihood alone: unlikely = somewhat_likely = 1/2 -> 0.4405; with the hotspot clue at
+    300 m (near = 1/2, rule weight 0.8): low = 0.9, medium = 0.5 -> 0.3977."""
+    system = default_association_system()
+    assert EDGE_LIKELIHOOD == 0.25
+    alone = derived_min_rank(system, [])
+    assert alone == pytest.approx(_union_centroid(0.5, 0.5, 0.0), abs=1e-6)
+    assert round(alone, 4) == 0.4405
+    hot = derived_min_rank(system, ["hotspot_distance_m"])
+    assert hot == pytest.approx(_union_centroid(0.9, 0.5, 0.0), abs=1e-6)
+    assert round(hot, 4) == 0.3977
+    # All clues (rules 4, 6, 7 at 1/2 strength): low 0.5 + 0.3 + 0.4 -> 1, medium 0.5,
+    # high 0.2 + 0.3 = 0.5.
+    every = derived_min_rank(system, ["score", "snr_db", "aspect_deg", "hotspot_distance_m"])
+    assert every == pytest.approx(_union_centroid(1.0, 0.5, 0.5), abs=1e-6)
+    # A detection exactly at the edge with neutral clues is accepted; a little further, not.
+    for present, limit in (([], alone), (["hotspot_distance_m"], hot)):
+        inputs = {"likelihood": np.array([0.25, 0.2])}
+        if present:
+            inputs["hotspot_distance_m"] = np.array([300.0, 300.0])
+        r = system.evaluate(inputs).crisp
+        assert r[0] >= limit - 1e-12 and r[1] < limit
+    with pytest.raises(ValueError, match="edge_likelihood"):
+        derived_min_rank(system, [], edge_likelihood=0.0)
+
+
+def test_tracker_threshold_follows_the_clues():
+    """Positions-only data get the positions-only threshold, all-clue data the all-clue one."""
+    table, _ = _hotspot_scenario(0)
+    tr = Tracker()
+    tr.run(Table({k: table[k] for k in ("event", "time", "x", "y")}))
+    assert set(tr._thresholds) == {frozenset({"hotspot_distance_m"})}
+    tr = Tracker()
+    tr.run(table)
+    assert set(tr._thresholds) == {frozenset(("score", "snr_db", "aspect_deg",
+                                              "hotspot_distance_m"))}
+    assert Tracker(min_rank=0.6).threshold(["score"]) == 0.6
+
+
+def test_tentative_track_on_a_hotspot_is_dropped():
+    """A fixed echo on every ping starts a track on ping 0 that is dropped when the map flags
+    the echo (its third ping, index 2), before 3-of-4 confirmation; Kalman mode confirms it."""
+    rng = np.random.default_rng(0)
+    pings = [Ping(k, 90.0 * k, np.array([[5000.0, 5000.0]]) + rng.normal(0, 30, (1, 2)))
+             for k in range(6)]
+    fuzzy = Tracker().run(pings)
+    assert fuzzy.confirmed_ids().size == 0
+    assert fuzzy.pings[2].status[0] == "deleted"
+    assert Tracker(mode="kalman").run(pings).confirmed_ids().size == 1
