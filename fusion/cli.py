@@ -19,6 +19,12 @@ from fusion import __version__
 COMMAND_MODULES: list[str] = [
     "fusion.commands.simulate",
     "fusion.commands.demo",
+    "fusion.commands.acquire",
+    "fusion.commands.crossings",
+    "fusion.commands.tqi",
+    "fusion.commands.tma",
+    "fusion.commands.smooth",
+    "fusion.commands.track",
 ]
 
 #: Exit code for bad input or bad options.

@@ -13,8 +13,12 @@ from pathlib import Path
 
 #: Scenario kind -> "module:function" of its writer.
 SIMULATORS: dict[str, str] = {
+    "cube": "fusion.simulate.cube:write_scenario",
     "clicks": "fusion.simulate.clicks:write_scenario",
     "bearings": "fusion.simulate.bearings:write_scenario",
+    "amplitudes": "fusion.simulate.amplitudes:write_scenario",
+    "tma": "fusion.simulate.tma:write_scenario",
+    "multistatic": "fusion.simulate.multistatic:write_scenario",
 }
 
 
