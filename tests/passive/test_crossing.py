@@ -468,3 +468,17 @@ def test_cli_bad_input_exit_2_one_line(tmp_path, capsys, content, extra, match):
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and match in err
     assert not out.exists()
+
+
+def test_demo_part_colours_tracks_by_quality(tmp_path):
+    """The crossings demo writes alerts and a TQI per bearing row; the faded-out track ends lost."""
+    from fusion.commands.crossings import run_demo
+
+    summary = run_demo(tmp_path, seed=3)
+    q = read_table(tmp_path / "tqi.csv", required=("track_id", "time", "tqi"), integer=("track_id",),
+                   text=("tqi",))
+    assert set(q["tqi"]) <= {"lost", "uncertain", "low_snr", "strong"}
+    last = q.select(q["track_id"] == 0)
+    assert last["tqi"][np.argmax(last["time"])] == "lost"
+    assert abs(sum(summary["tqi_fraction"].values()) - 1.0) < 0.01
+    assert (tmp_path / "crossings.png").stat().st_size > 10_000
