@@ -14,7 +14,7 @@ import gtsam
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["analytic_jacobians", "check_jacobians", "numerical_jacobians"]
+__all__ = ["analytic_jacobians", "assert_jacobians", "numerical_jacobians"]
 
 _MANIFOLD_ACCESSORS = ("atPose2", "atPose3", "atRot2", "atRot3")
 
@@ -112,7 +112,7 @@ def analytic_jacobians(
     return out
 
 
-def check_jacobians(
+def assert_jacobians(
     factor: gtsam.NonlinearFactor,
     values: gtsam.Values,
     *,

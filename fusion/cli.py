@@ -31,6 +31,11 @@ COMMAND_MODULES: list[str] = [
 EXIT_BAD_INPUT = 2
 
 
+def emit(text: str, *, err: bool = False) -> None:
+    """Write one line of command output: stdout for results, stderr (``err=True``) for notes."""
+    print(text, file=sys.stderr if err else sys.stdout)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser with every registered subcommand."""
     parser = argparse.ArgumentParser(

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 from pathlib import Path
 
+from fusion.cli import emit
 from fusion.io import read_cube
 from fusion.passive.acquisition import Acquisition
 
@@ -47,5 +47,5 @@ def run(args: argparse.Namespace) -> int:
         res = acq.acquire(cube, beam=args.beam, freq_hz=args.freq)
     except ValueError as e:
         raise ValueError(f"{args.cube}: {e}") from None
-    print(json.dumps(res.to_json()), file=sys.stdout)
+    emit(json.dumps(res.to_json()))
     return 0

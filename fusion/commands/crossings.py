@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import argparse
 import logging
-import sys
 from pathlib import Path
 
 import numpy as np
 
+from fusion.cli import emit
 from fusion.io import read_bearings, write_table
 from fusion.passive.crossing import detect_crossings, estimate_period
 
@@ -80,10 +80,9 @@ def run(args: argparse.Namespace) -> int:
         },
     )
     n_pred = sum(a.kind == "predicted" for a in alerts)
-    print(
+    emit(
         f"{len(alerts)} alert(s) ({n_pred} predicted, {len(alerts) - n_pred} detected), "
-        f"K={period:g} s, J={args.window} -> {args.out}",
-        file=sys.stdout,
+        f"K={period:g} s, J={args.window} -> {args.out}"
     )
     return 0
 

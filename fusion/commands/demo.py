@@ -3,9 +3,9 @@
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 
+from fusion.cli import emit
 from fusion.demo import run_demo
 
 
@@ -28,6 +28,6 @@ def run(args: argparse.Namespace) -> int:
     for r in results:
         status = "ok" if r.ok else "FAILED"
         nums = ", ".join(f"{k}={v}" for k, v in r.summary.items())
-        print(f"{r.name:<18} {status:<6} {r.seconds:6.1f} s  {nums}", file=sys.stdout)
-    print(f"results in {args.out}/ (summary.md, summary.json)", file=sys.stdout)
+        emit(f"{r.name:<18} {status:<6} {r.seconds:6.1f} s  {nums}")
+    emit(f"results in {args.out}/ (summary.md, summary.json)")
     return 0 if all(r.ok for r in results) else 1

@@ -3,9 +3,9 @@
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 
+from fusion.cli import emit
 from fusion.simulate import SIMULATORS, get_writer
 
 
@@ -26,5 +26,5 @@ def run(args: argparse.Namespace) -> int:
     """Write the scenario; print the written paths."""
     paths = get_writer(args.kind)(args.out, seed=args.seed)
     for path in paths:
-        print(path, file=sys.stdout)
+        emit(str(path))
     return 0

@@ -7,7 +7,7 @@ from filterpy.common import Q_continuous_white_noise
 from numpy.testing import assert_allclose
 
 from factors.motion import constant_velocity_factor, transition_matrix, wna_covariance
-from factors.testing import check_jacobians
+from factors.testing import assert_jacobians
 
 
 def _values(*xs):
@@ -43,7 +43,7 @@ def test_jacobians_many_states(d):
         x0 = rng.normal(size=2 * d)
         x0[:d] = rng.choice([-1, 1]) * np.pi * rng.uniform(0.97, 1.0, d)
         x1 = rng.normal(size=2 * d)
-        check_jacobians(f, _values(x0, x1))
+        assert_jacobians(f, _values(x0, x1))
 
 
 def test_error_and_wrap():

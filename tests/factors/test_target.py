@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
 from factors.target import target_bearing, target_bearing_factor, target_bearing_jacobian
-from factors.testing import check_jacobians
+from factors.testing import assert_jacobians
 from fusion.geometry import compass_bearing_deg
 
 SIGMA = np.radians(1.0)
@@ -44,7 +44,7 @@ def test_jacobian_matches_central_differences_random_geometries():
         state, own, dt = _random_geometry(rng)
         z = float(target_bearing(state, own, dt=dt)) + rng.normal(0, 0.05)
         f = target_bearing_factor(_noise(), 7, own, z, dt=dt)
-        check_jacobians(f, _values(7, state), delta=1e-4, rtol=1e-5, atol=1e-9)
+        assert_jacobians(f, _values(7, state), delta=1e-4, rtol=1e-5, atol=1e-9)
 
 
 @pytest.mark.parametrize("side", [-1.0, 1.0])
@@ -58,7 +58,7 @@ def test_jacobian_and_error_target_due_south(side):
     f = target_bearing_factor(_noise(), 1, own, z)
     err = f.unwhitenedError(_values(1, state))
     assert abs(err[0]) < 2e-4
-    check_jacobians(f, _values(1, state), delta=1e-4, rtol=1e-5, atol=1e-9)
+    assert_jacobians(f, _values(1, state), delta=1e-4, rtol=1e-5, atol=1e-9)
 
 
 def test_zero_error_at_truth():

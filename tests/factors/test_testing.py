@@ -4,7 +4,7 @@ import gtsam
 import numpy as np
 import pytest
 
-from factors.testing import analytic_jacobians, check_jacobians, numerical_jacobians
+from factors.testing import analytic_jacobians, assert_jacobians, numerical_jacobians
 
 
 def _factor(scale: float = 1.0) -> gtsam.CustomFactor:
@@ -30,7 +30,7 @@ def test_correct_jacobians_pass(seed):
     v = gtsam.Values()
     v.insert(1, rng.normal(size=2))
     v.insert(2, gtsam.Pose2(*rng.normal(size=3)))
-    check_jacobians(_factor(), v)
+    assert_jacobians(_factor(), v)
     num = numerical_jacobians(_factor(), v)
     ana = analytic_jacobians(_factor(), v)
     assert [h.shape for h in num] == [(2, 2), (2, 3)] == [h.shape for h in ana]
@@ -42,4 +42,4 @@ def test_wrong_jacobian_fails():
     v.insert(1, np.array([0.3, 0.5]))
     v.insert(2, gtsam.Pose2(1, 2, 0.7))
     with pytest.raises(AssertionError, match="Jacobian for key"):
-        check_jacobians(_factor(scale=1.01), v)
+        assert_jacobians(_factor(scale=1.01), v)
