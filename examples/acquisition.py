@@ -28,12 +28,15 @@ def main(argv: list[str] | None = None) -> dict[str, float | bool]:
     acquisition = Acquisition(lag_s=args.lag)
     result = acquisition.acquire(scenario.cube, beam=scenario.click_beam,
                                  freq_hz=scenario.click_freq)
+    best = result.best_line  # constant-bearing-rate trace: fan search, then sub-beam refinement
     summary = {
         **result.to_json(),
         "true_bearing_deg": scenario.latest_bearing_deg,
         "true_bearing_rate_deg_per_min": scenario.bearing_rate_deg_per_min,
         "clicked_beam": scenario.click_beam,
-        "best_line_anchor_beam": result.best_line.anchor_beam if result.best_line else None,
+        "best_line_anchor_beam": best.anchor_beam if best else None,
+        "fan_search_bearing_rate_deg_per_min": best.coarse_bearing_rate_deg_per_min if best else None,
+        "refined_end_beam": best.end_beam if best and best.refined else None,
     }
     print(json.dumps(summary, indent=1))
     return summary

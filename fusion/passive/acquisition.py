@@ -1,4 +1,4 @@
-"""Acquisition of narrowband targets with high bearing rates: best line through an IBW BTR.
+"""Acquisition of narrowband targets with high bearing rates: best trace through an IBW BTR.
 
 Implements *Acquisition system particularly suited for tracking targets having high bearing rates*
 (US 6,980,486; the project's method text ``acquisition-high-bearing-rate``). An operator clicks a
@@ -15,22 +15,29 @@ step  program segment of the method                               here
 40    approximate beamwidth of the clicked beam                   :func:`beamwidth_deg`
 42    beam tolerance (beams within half a beamwidth, >= 2)        :func:`fusion.geometry.beam_tolerance`
 44    anchor beams ``click - tol .. click + tol``                 :meth:`Acquisition.acquire`
-46    best line in a fan (``rateest``, segments 62-70)            :func:`best_lines_in_fans`
-48    best line in every other fan                                :func:`best_lines_in_fans`
+46    best line in a fan (``rateest``, segments 62-70)            :func:`best_traces_in_fans`
+                                                                  (``trace="beam"``:
+                                                                  :func:`best_lines_in_fans`)
+48    best line in every other fan                                the same, all fans at once
 50    overall best line                                           :meth:`Acquisition.acquire`
 52    band noise level, IBW SNR, defaults, SNR in 1 Hz (eq. 4)    :func:`band_noise_level`
+--    sub-beam refinement of the best line (added)                :func:`refine_trace`
 54    beam -> bearing, beam rate -> bearing rate (eqs. 5-11),     :mod:`fusion.geometry`,
       lag correction                                              :meth:`Acquisition.acquire`
 ====  ==========================================================  =================================
 
-Where the text is silent or garbled the choices are documented on :class:`Acquisition`.
+The fans' lines are constant-bearing-rate traces by default (:func:`constant_rate_traces`): the
+method's straight lines in beam number, generalised to the cosine beam spacing the method itself
+assumes (eqs. 5-11), in which a target at a constant bearing rate draws a curve; each trace is read
+at the nearest beam, as ``rateest`` reads its lines. ``trace="beam"`` keeps the literal straight
+lines. Where the text is silent or garbled the choices are documented on :class:`Acquisition`.
 """
 
 from __future__ import annotations
 
 import logging
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import lru_cache
 from typing import Literal
 
@@ -51,14 +58,20 @@ __all__ = [
     "AcquisitionResult",
     "BestLine",
     "FanSearch",
+    "RefinedTrace",
+    "TraceFanSearch",
     "acquire",
     "band_noise_level",
     "beamwidth_deg",
     "best_lines_in_fans",
+    "best_traces_in_fans",
+    "constant_rate_traces",
     "expected_median_fraction",
     "ibw_bins",
     "ibw_btr",
+    "matched_trace_score",
     "normalize_spectra",
+    "refine_trace",
     "slope_grid",
 ]
 
@@ -449,10 +462,473 @@ def best_lines_in_fans(
 
 
 # --------------------------------------------------------------------------------------------
+# program segments 46-48 generalised: fans of constant-bearing-rate traces in cosine-spaced beams
+# --------------------------------------------------------------------------------------------
+def constant_rate_traces(
+    end_beams: ArrayLike,
+    rates_rad_s: ArrayLike,
+    *,
+    n_scans: int,
+    n_beams: int,
+    scan_period: float,
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """Fractional beam positions of constant-bearing-rate traces, latest update first.
+
+    Parameters
+    ----------
+    end_beams : array_like
+        Beam of each trace at the latest update (fractional allowed, in ``[0, n_beams - 1]``).
+    rates_rad_s : array_like
+        Bearing rate of each trace, rad/s, forward in time (positive: toward aft endfire);
+        broadcast against `end_beams`.
+    n_scans, n_beams : int
+        BTR shape.
+    scan_period : float
+        Time between scans, s.
+
+    Returns
+    -------
+    positions : ndarray, shape (..., n_scans)
+        Fractional beam of the trace ``iscan`` updates before the latest,
+        ``beam_from_bearing(theta_end - rate * iscan * scan_period)`` (eq. 5).
+    n_used : ndarray of int, shape (...)
+        Scans the trace spans before its bearing first leaves ``[0, pi]`` (the trace's step off
+        the BTR, the method's ``break``).
+
+    Notes
+    -----
+    The method's lines ``fbeam = a * iscan + anchor`` are straight in beam number; a target with
+    a constant bearing rate moves along ``b(t) = (N - 1) (1 - cos theta(t)) / 2`` in the cosine
+    beam spacing the method assumes (eqs. 5-11), a curve whose slope ``db/dt`` is eq. 11. These
+    traces are the method's lines with that spacing taken into account: a fan is the set of
+    traces through its anchor beam at the latest update, one per candidate bearing rate.
+    """
+    if int(n_beams) != n_beams or n_beams < 2:
+        raise ValueError(f"n_beams must be an integer >= 2, got {n_beams!r}")
+    if int(n_scans) != n_scans or n_scans < 1:
+        raise ValueError(f"n_scans must be a positive integer, got {n_scans!r}")
+    if not np.isfinite(scan_period) or scan_period <= 0:
+        raise ValueError(f"scan_period must be positive, got {scan_period!r}")
+    end, rate = np.broadcast_arrays(np.asarray(end_beams, dtype=float),
+                                    np.asarray(rates_rad_s, dtype=float))
+    theta_end = np.arccos(np.clip(1.0 - 2.0 * end / (n_beams - 1), -1.0, 1.0))  # eq. 6
+    tau = np.arange(n_scans) * float(scan_period)  # time back from the latest update
+    theta = theta_end[..., None] - rate[..., None] * tau
+    eps = 1e-12
+    inside = (theta >= -eps) & (theta <= math.pi + eps)
+    n_used = np.where(inside.all(axis=-1), n_scans, np.argmin(inside, axis=-1)).astype(np.int64)
+    positions = (n_beams - 1) * (1.0 - np.cos(theta)) / 2.0  # eq. 5
+    return positions, n_used
+
+
+def _sample_indices(
+    positions: NDArray[np.float64], n_used: NDArray[np.int64], n_beams: int, sampling: str
+) -> tuple[NDArray[np.int32], NDArray[np.float64] | None]:
+    """Flat indices (and linear weights) of trace samples in a BTR flattened with a zero appended.
+
+    Scans at or beyond a trace's ``n_used`` point at the appended zero (weight 0), so a sum over
+    all scans is the sum over the scans used.
+    """
+    n_scans = positions.shape[-1]
+    sentinel = n_scans * n_beams
+    row = np.arange(n_scans) * n_beams
+    used = np.arange(n_scans) < n_used[..., None]
+    if sampling == "nearest":
+        ibeam = np.clip(np.floor(positions + 0.5), 0, n_beams - 1).astype(np.int64)
+        return np.where(used, row + ibeam, sentinel).astype(np.int32), None
+    lo = np.clip(np.floor(positions), 0, n_beams - 2).astype(np.int64)
+    w = np.where(used, positions - lo, 0.0)
+    return np.where(used, row + lo, sentinel).astype(np.int32), w
+
+
+@dataclass(frozen=True)
+class _TraceTensors:
+    """Sample indices of one fan's traces (see :func:`_sample_indices`) and their scans used."""
+
+    index: NDArray[np.int32]  # (n_rates, n_scans)
+    weight: NDArray[np.float64] | None  # (n_rates, n_scans), linear sampling only
+    n_used: NDArray[np.int64]  # (n_rates,)
+
+
+@lru_cache(maxsize=128)
+def _trace_tensors(
+    n_scans: int, n_beams: int, anchor: int, rates_bytes: bytes, scan_period: float, sampling: str
+) -> _TraceTensors:
+    rates = np.frombuffer(rates_bytes, dtype=np.float64)
+    pos, n_used = constant_rate_traces(float(anchor), rates, n_scans=n_scans, n_beams=n_beams,
+                                       scan_period=scan_period)
+    index, weight = _sample_indices(pos, n_used, n_beams, sampling)
+    for arr in (index, weight, n_used):
+        if arr is not None:
+            arr.setflags(write=False)
+    return _TraceTensors(index=index, weight=weight, n_used=n_used)
+
+
+def _sum_along(flat_btr: NDArray[np.float64], index: NDArray[np.int32],
+               weight: NDArray[np.float64] | None) -> NDArray[np.float64]:
+    lo = flat_btr[index]
+    if weight is None:
+        return lo.sum(axis=-1)
+    hi = flat_btr[np.minimum(index + 1, flat_btr.size - 1)]
+    return (lo + weight * (hi - lo)).sum(axis=-1)
+
+
+@dataclass(frozen=True)
+class TraceFanSearch:
+    """Best constant-bearing-rate trace of each fan.
+
+    Attributes
+    ----------
+    anchors : ndarray of int, shape (n_fans,)
+        Anchor beam of each fan (the beam its traces pass through at the latest update).
+    rate_rad_s : ndarray, shape (n_fans,)
+        Bearing rate of the best trace, rad/s forward in time (0 when no trace qualified).
+    signal_plus_noise : ndarray, shape (n_fans,)
+        Mean BTR value along the best trace (0 when no trace qualified).
+    n_used : ndarray of int, shape (n_fans,)
+        Scans the best trace spans before its bearing leaves ``[0, pi]`` (0 when none qualified).
+    found : ndarray of bool, shape (n_fans,)
+        Whether any trace of the fan met the minimum-scan rule with a positive mean.
+    """
+
+    anchors: NDArray[np.int64]
+    rate_rad_s: NDArray[np.float64]
+    signal_plus_noise: NDArray[np.float64]
+    n_used: NDArray[np.int64]
+    found: NDArray[np.bool_]
+
+
+def best_traces_in_fans(
+    btr_latest_first: ArrayLike,
+    anchors: ArrayLike,
+    rates_rad_s: ArrayLike,
+    *,
+    scan_period: float,
+    min_scans: int,
+    sampling: Literal["nearest", "linear"] = "nearest",
+) -> TraceFanSearch:
+    """Search each anchor beam's fan of constant-bearing-rate traces for the largest mean.
+
+    Parameters
+    ----------
+    btr_latest_first : array_like, shape (n_scans, n_beams)
+        IBW BTR with row 0 the latest update.
+    anchors : array_like of int, shape (n_fans,)
+        Anchor beams.
+    rates_rad_s : array_like, shape (n_rates,)
+        Candidate bearing rates, rad/s forward in time, increasing.
+    scan_period : float
+        Time between scans, s.
+    min_scans : int
+        The method's ``minscan``: fewest scans a trace must span before its bearing leaves
+        ``[0, pi]``.
+    sampling : {"nearest", "linear"}
+        How a trace reads the BTR at its fractional beam: the nearest beam, ``floor(b + 0.5)``,
+        the method's rounding (default); or linear interpolation between the two beams around it.
+
+    Returns
+    -------
+    TraceFanSearch
+
+    Notes
+    -----
+    ``rateest`` (segments 62-70) with the straight line ``fbeam = a * iscan + anchor`` replaced
+    by the trace of :func:`constant_rate_traces`: the mean over the scans a trace spans, the
+    minimum-scan rule, the strictly largest mean winning (the first trace in rate order on ties),
+    the running maximum starting at 0. The sample indices of a fan depend only on the BTR's shape,
+    the anchor, the rates and the scan period, and are cached; all traces of all fans are read
+    with one gather.
+    """
+    btr = np.asarray(btr_latest_first, dtype=float)
+    if btr.ndim != 2:
+        raise ValueError(f"btr must be 2-D (scans, beams), got shape {btr.shape}")
+    if sampling not in ("nearest", "linear"):
+        raise ValueError(f"sampling must be 'nearest' or 'linear', got {sampling!r}")
+    n_scans, n_beams = btr.shape
+    anc = np.asarray(anchors, dtype=np.int64).reshape(-1)
+    rates = np.ascontiguousarray(np.asarray(rates_rad_s, dtype=float).reshape(-1))
+    if rates.size == 0 or not np.all(np.isfinite(rates)):
+        raise ValueError("candidate rates must be finite and not empty")
+    if int(min_scans) != min_scans or not 1 <= min_scans <= n_scans:
+        raise ValueError(f"min_scans must be an integer in [1, {n_scans}], got {min_scans!r}")
+    if anc.size and (anc.min() < 0 or anc.max() >= n_beams):
+        raise ValueError(f"anchor beams must lie in [0, {n_beams - 1}]")
+    key = rates.tobytes()
+    fans = [_trace_tensors(n_scans, n_beams, int(a), key, float(scan_period), sampling)
+            for a in anc]
+    flat = np.append(btr.ravel(), 0.0)
+    means = np.full((anc.size, rates.size), -np.inf)
+    for i, t in enumerate(fans):  # a few fans; each is one gather over all its traces and scans
+        ok = t.n_used >= min_scans
+        sums = _sum_along(flat, t.index[ok], None if t.weight is None else t.weight[ok])
+        means[i, ok] = sums / t.n_used[ok]
+    best = np.argmax(means, axis=1) if rates.size else np.zeros(anc.size, dtype=np.int64)
+    rows = np.arange(anc.size)
+    best_mean = means[rows, best]
+    found = best_mean > 0.0
+    n_used = np.array([t.n_used[b] for t, b in zip(fans, best, strict=True)], dtype=np.int64)
+    return TraceFanSearch(
+        anchors=anc,
+        rate_rad_s=np.where(found, rates[best], 0.0),
+        signal_plus_noise=np.where(found, best_mean, 0.0),
+        n_used=np.where(found, n_used, 0).astype(np.int64),
+        found=found,
+    )
+
+
+# --------------------------------------------------------------------------------------------
+# refinement of the overall best trace (between segments 52 and 54)
+# --------------------------------------------------------------------------------------------
+#: Sub-beam step of the tabulated matched score, beams (linear interpolation in between).
+MATCHED_STEP_BEAMS = 1.0 / 16.0
+
+
+@lru_cache(maxsize=32)
+def _lobe_taps(
+    n_beams: int, lobe_beams: float
+) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.float64]]:
+    """Main-lobe taps of the positions ``p * MATCHED_STEP_BEAMS``: beams, weights, ``sum w^2``.
+
+    ``beams[t, p]`` and ``weights[t, p]`` list the beams within the main lobe of position ``p``
+    (weight 0 beyond the lobe or the edges of the BTR).
+    """
+    n_pos = int(round((n_beams - 1) / MATCHED_STEP_BEAMS)) + 1
+    x = np.arange(n_pos) * MATCHED_STEP_BEAMS
+    half = int(math.ceil(lobe_beams))
+    j = np.floor(x).astype(np.int64)[None, :] + np.arange(-half + 1, half + 1)[:, None]
+    u = (j - x[None, :]) / lobe_beams
+    w = np.where((np.abs(u) < 1.0) & (j >= 0) & (j < n_beams), np.sinc(u) ** 2, 0.0)
+    beams = np.clip(j, 0, n_beams - 1)
+    energy = (w * w).sum(axis=0)
+    for arr in (beams, w, energy):
+        arr.setflags(write=False)
+    return beams, w, energy
+
+
+def _matched_table(
+    btr: NDArray[np.float64], lobe_beams: float, noise_level: float,
+    centre: NDArray[np.float64] | None = None, half_width: float | None = None,
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.int64]]:
+    """Per-scan lobe correlation on the sub-beam grid (row 0 latest), template energy, offsets.
+
+    With `centre` (a beam per scan) and `half_width` (beams) only the grid positions within
+    `half_width` of the centre are tabulated; row ``k`` of the table then starts at grid position
+    ``start[k]`` (0 for the full table).
+    """
+    n_scans, n_beams = btr.shape
+    beams, w, energy = _lobe_taps(int(n_beams), float(lobe_beams))
+    n_pos = energy.size
+    if centre is None or half_width is None:
+        start = np.zeros(n_scans, dtype=np.int64)
+        cols = np.broadcast_to(np.arange(n_pos), (n_scans, n_pos))
+    else:
+        n_win = min(2 * int(math.ceil(half_width / MATCHED_STEP_BEAMS)) + 1, n_pos)
+        start = np.clip(np.round(centre / MATCHED_STEP_BEAMS).astype(np.int64) - n_win // 2,
+                        0, n_pos - n_win)
+        cols = start[:, None] + np.arange(n_win)  # (scans, window)
+    rows = np.arange(n_scans)[None, :, None]
+    vals = (btr - float(noise_level))[rows, beams[:, cols]]  # (taps, scans, window)
+    return (vals * w[:, cols]).sum(axis=0), energy, start
+
+
+def _score_from_table(
+    table: NDArray[np.float64], energy: NDArray[np.float64], start: NDArray[np.int64],
+    positions: NDArray[np.float64], n_used: NDArray[np.int64],
+) -> NDArray[np.float64]:
+    n_scans, n_win = table.shape
+    g = np.clip(positions / MATCHED_STEP_BEAMS - start, 0.0, n_win - 1.0)
+    lo = np.minimum(g.astype(np.int64), n_win - 2)
+    f = g - lo
+    used = np.arange(n_scans) < n_used[..., None]
+    flat = table.ravel()
+    cell = lo + np.arange(n_scans) * n_win
+    corr = flat[cell] + f * (flat[cell + 1] - flat[cell])
+    e = lo + start
+    en = energy[e] + f * (energy[e + 1] - energy[e])
+    num = np.where(used, corr, 0.0).sum(axis=-1)
+    den = np.where(used, en, 0.0).sum(axis=-1)
+    return num / np.sqrt(np.maximum(den, 1e-300))
+
+
+def matched_trace_score(
+    btr_latest_first: ArrayLike,
+    positions: ArrayLike,
+    n_used: ArrayLike,
+    *,
+    lobe_beams: float,
+    noise_level: float,
+) -> NDArray[np.float64]:
+    """Main-lobe matched score of traces at fractional beam positions.
+
+    Parameters
+    ----------
+    btr_latest_first : array_like, shape (n_scans, n_beams)
+        IBW BTR, row 0 the latest update.
+    positions : array_like, shape (..., n_scans)
+        Fractional beam of each trace at each scan, latest first, in ``[0, n_beams - 1]``.
+    n_used : array_like of int, shape (...)
+        Scans each trace spans (later rows are ignored).
+    lobe_beams : float
+        Half-width of the main lobe to its first nulls, in beams:
+        ``(n_beams - 1) / 2 * lambda / L``.
+    noise_level : float
+        Mean BTR value of noise alone (the band noise level), subtracted from every cell.
+
+    Returns
+    -------
+    ndarray, shape (...)
+        ``sum w (btr - noise) / sqrt(sum w^2)`` over the cells of the main lobe around the trace
+        in every scan it spans, with ``w = sinc^2((beam - position) / lobe_beams)`` the main lobe of
+        a line array in cosine space.
+
+    Notes
+    -----
+    The correlation of the BTR with the main lobe the array would draw along the trace,
+    normalised by the energy of that template (the matched filter for a line of unknown level in
+    unit-mean noise). For a noise-free trace the Cauchy-Schwarz inequality makes the true trace
+    the maximum, also where the lobe is cut by the edge of the BTR at endfire; a trace read from
+    one cell per scan (nearest or linear) is instead maximal on whole beams, so it cannot resolve
+    a trace that crosses less than a beam or two over the history. Beams beyond the edges count as
+    absent. The per-scan correlation and the template energy are tabulated every
+    ``MATCHED_STEP_BEAMS`` (1/16 beam, one gather of the lobe's taps per BTR) and interpolated
+    linearly, so scoring a trace is a gather of two table cells per scan.
+    """
+    btr = np.asarray(btr_latest_first, dtype=float)
+    pos = np.asarray(positions, dtype=float)
+    nu = np.asarray(n_used, dtype=np.int64)
+    if btr.ndim != 2:
+        raise ValueError(f"btr must be 2-D (scans, beams), got shape {btr.shape}")
+    if pos.shape[-1] != btr.shape[0]:
+        raise ValueError(f"positions must have {btr.shape[0]} scans on the last axis, got {pos.shape}")
+    if not np.isfinite(lobe_beams) or lobe_beams <= 0:
+        raise ValueError(f"lobe_beams must be positive, got {lobe_beams!r}")
+    table, energy, start = _matched_table(btr, lobe_beams, noise_level)
+    return _score_from_table(table, energy, start, pos, nu)
+
+
+@dataclass(frozen=True)
+class RefinedTrace:
+    """Result of :func:`refine_trace`.
+
+    Attributes
+    ----------
+    end_beam : float
+        Fractional beam at the latest update.
+    rate_rad_s : float
+        Bearing rate, rad/s forward in time.
+    score : float
+        Matched score (:func:`matched_trace_score`) of the refined trace.
+    start_score : float
+        Matched score of the starting trace (never above `score`).
+    n_used : int
+        Scans the refined trace spans.
+    """
+
+    end_beam: float
+    rate_rad_s: float
+    score: float
+    start_score: float
+    n_used: int
+
+
+def refine_trace(
+    btr_latest_first: ArrayLike,
+    end_beam: float,
+    rate_rad_s: float,
+    *,
+    scan_period: float,
+    min_scans: int,
+    lobe_beams: float,
+    noise_level: float,
+    span_beams: float = 2.0,
+    n_grid: int = 21,
+    n_fine: int = 11,
+) -> RefinedTrace:
+    """Sub-beam refinement of a trace's end beam and bearing rate by a local matched search.
+
+    Parameters
+    ----------
+    btr_latest_first : array_like, shape (n_scans, n_beams)
+        IBW BTR, row 0 the latest update.
+    end_beam, rate_rad_s : float
+        Starting trace (the overall best trace of the fan search).
+    scan_period : float
+        Time between scans, s.
+    min_scans : int
+        Fewest scans a candidate trace must span (the method's ``minscan``).
+    lobe_beams, noise_level : float
+        See :func:`matched_trace_score`.
+    span_beams : float
+        Half-size of the search box: the end beam moves up to this many beams, the rate up to the
+        change that moves the trace's oldest scan by this many beams (at the trace's mid bearing,
+        its sine floored at 0.1).
+    n_grid, n_fine : int
+        Odd grid sizes per axis of the first search and of the second one, a fifth of the size,
+        around the first one's best.
+
+    Returns
+    -------
+    RefinedTrace
+
+    Notes
+    -----
+    Both grids contain their centre, so the refined score is never below the starting trace's.
+    The matched score is tabulated once, within ``2 span_beams + 2`` beams of the starting
+    trace at every scan (candidates are scored with two table cells per scan).
+    """
+    btr = np.asarray(btr_latest_first, dtype=float)
+    n_scans, n_beams = btr.shape
+    for name, n in (("n_grid", n_grid), ("n_fine", n_fine)):
+        if int(n) != n or n < 3 or n % 2 == 0:
+            raise ValueError(f"{name} must be an odd integer >= 3, got {n!r}")
+    if not np.isfinite(span_beams) or span_beams <= 0:
+        raise ValueError(f"span_beams must be positive, got {span_beams!r}")
+    if not np.isfinite(lobe_beams) or lobe_beams <= 0:
+        raise ValueError(f"lobe_beams must be positive, got {lobe_beams!r}")
+    kw = {"n_scans": n_scans, "n_beams": n_beams, "scan_period": scan_period}
+    # the matched score tabulated once, near the starting trace (the search box and a margin)
+    centre, _ = constant_rate_traces(float(end_beam), float(rate_rad_s), **kw)
+    table, energy, offset = _matched_table(btr, lobe_beams, noise_level, centre,
+                                           2.0 * span_beams + 2.0)
+
+    def score(ends: NDArray[np.float64], rates: NDArray[np.float64]) -> NDArray[np.float64]:
+        pos, nu = constant_rate_traces(ends, rates, **kw)
+        s = _score_from_table(table, energy, offset, pos, nu)
+        return np.where(nu >= min_scans, s, -np.inf)
+
+    end, rate = float(end_beam), float(rate_rad_s)
+    start = float(score(np.array(end), np.array(rate)))
+    best = start
+    half_span = float(span_beams)
+    for n in (n_grid, n_fine):
+        pos, nu = constant_rate_traces(end, rate, **kw)
+        mid = pos[max(int(nu) - 1, 0) // 2] if int(nu) > 0 else end
+        sin_mid = max(math.sin(float(bearing_from_beam(mid, n_beams))), 0.1)
+        history = max(int(nu) - 1, 1) * scan_period
+        rate_span = half_span / ((n_beams - 1) / 2.0 * sin_mid * history)  # eq. 11 inverted
+        grid = np.linspace(-1.0, 1.0, n)
+        ends = np.clip(end + half_span * grid[:, None], 0.0, n_beams - 1.0) + 0.0 * grid[None, :]
+        rates = rate + rate_span * grid[None, :] + 0.0 * grid[:, None]
+        s = score(ends, rates)
+        i, j = np.unravel_index(int(np.argmax(s)), s.shape)
+        if s[i, j] > best:
+            end, rate, best = float(ends[i, j]), float(rates[i, j]), float(s[i, j])
+        half_span /= 5.0
+    _, nu = constant_rate_traces(end, rate, **kw)
+    return RefinedTrace(end_beam=end, rate_rad_s=rate, score=best, start_score=start,
+                        n_used=int(nu))
+
+
+# --------------------------------------------------------------------------------------------
 # program segment 52: band noise level
 # --------------------------------------------------------------------------------------------
 def band_noise_level(
-    btr_latest_first: ArrayLike, anchor: int, slope: float, *, exclude_beams: float
+    btr_latest_first: ArrayLike,
+    anchor: float,
+    slope: float = 0.0,
+    *,
+    exclude_beams: float,
+    track: ArrayLike | None = None,
 ) -> float:
     """Mean BTR value off the target's trace (program segment 52).
 
@@ -460,12 +936,16 @@ def band_noise_level(
     ----------
     btr_latest_first : array_like, shape (n_scans, n_beams)
         IBW BTR, row 0 the latest update.
-    anchor : int
-        Anchor beam of the best line.
+    anchor : float
+        Anchor beam of the best line (ignored when `track` is given).
     slope : float
-        Slope of the best line, beams per update going back in time.
+        Slope of the best line, beams per update going back in time (ignored when `track` is
+        given).
     exclude_beams : float
         Cells within this many beams of the line (extended over every scan) are left out.
+    track : array_like, shape (n_scans,), optional
+        Fractional beam of the trace at every scan, latest first (a curved trace); default the
+        straight line ``anchor + slope * iscan``.
 
     Returns
     -------
@@ -475,11 +955,16 @@ def band_noise_level(
     Raises
     ------
     ValueError
-        When no cell is left.
+        When no cell is left, or `track` has the wrong length.
     """
     btr = np.asarray(btr_latest_first, dtype=float)
     n_scans, n_beams = btr.shape
-    line = anchor + slope * np.arange(n_scans)
+    if track is None:
+        line = anchor + slope * np.arange(n_scans)
+    else:
+        line = np.asarray(track, dtype=float).reshape(-1)
+        if line.size != n_scans:
+            raise ValueError(f"track must have {n_scans} positions, got {line.size}")
     off = np.abs(np.arange(n_beams)[None, :] - line[:, None]) > exclude_beams
     if not off.any():
         raise ValueError(
@@ -499,18 +984,32 @@ class BestLine:
     Attributes
     ----------
     anchor_beam : int
-        Beam of the line at the latest scan (the method's ``bestbeam``).
+        Beam the best line's fan is anchored at, at the latest scan (the method's ``bestbeam``).
     beam_rate_per_scan : float
-        Slope forward in time, beams per scan (minus the method's ``brgratebpu``, which runs
-        backwards from the latest update).
+        Mean slope forward in time, beams per scan: for a straight line minus the method's
+        ``brgratebpu`` (which runs backwards from the latest update); for a constant-bearing-rate
+        trace ``(end_beam - start_beam) / (n_scans_used - 1)``.
     start_scan, end_scan : int
         Oldest and latest scans the line spans (chronological scan indices, ``end_scan`` the latest).
     start_beam, end_beam : float
-        Beam positions of the line at `start_scan` and `end_scan` (unrounded).
+        Beam positions of the line at `start_scan` and `end_scan` (unrounded; after refinement for
+        a refined trace).
     n_scans_used : int
         Scans the line spans.
     signal_plus_noise : float
-        Mean IBW BTR value along the line (the method's ``signalplusnoise``).
+        Mean IBW BTR value along the fan search's best line (the method's ``signalplusnoise``).
+    trace : {"beam", "bearing"}
+        Straight line in beam number (the literal method) or constant-bearing-rate trace.
+    bearing_rate_deg_per_min : float
+        Bearing rate of a constant-bearing-rate trace, deg/min (NaN for a straight line).
+    coarse_end_beam : float
+        End beam found by the fan search, before refinement (the anchor beam).
+    coarse_bearing_rate_deg_per_min : float
+        Bearing rate of the fan search's best trace, before refinement (NaN for a straight line).
+    refined : bool
+        Whether the sub-beam refinement was applied.
+    beams : ndarray, shape (n_scans_used,)
+        Fractional beam of the line at scans ``start_scan .. end_scan`` (chronological).
     """
 
     anchor_beam: int
@@ -521,6 +1020,12 @@ class BestLine:
     end_beam: float
     n_scans_used: int
     signal_plus_noise: float
+    trace: Literal["beam", "bearing"] = "beam"
+    bearing_rate_deg_per_min: float = float("nan")
+    coarse_end_beam: float = float("nan")
+    coarse_bearing_rate_deg_per_min: float = float("nan")
+    refined: bool = False
+    beams: NDArray[np.float64] = field(default_factory=lambda: np.empty(0))
 
 
 @dataclass(frozen=True)
@@ -543,8 +1048,9 @@ class AcquisitionResult:
         Linear SNR in the IBW, ``(S+N - N) / N`` (measured, also when defaults are output; NaN when
         no line qualified).
     bearing_uncorrected_deg : float
-        Bearing of the best line's anchor beam before the lag correction (the method's
-        ``bestbrguncorrected``), deg.
+        Bearing of the best line's latest end before the lag correction (the method's
+        ``bestbrguncorrected``): the anchor beam of a straight line, the refined end beam of a
+        constant-bearing-rate trace, deg.
     best_line : BestLine or None
         The overall best line (None when no line of any fan qualified).
     btr : ndarray, shape (n_scans, n_beams)
@@ -605,18 +1111,36 @@ class Acquisition:
         Scans pooled into each noise estimate of the normaliser (None: the whole history).
     noise_dof : float
         Degrees of freedom of the noise in one cell, for the normaliser.
+    trace : {"bearing", "beam"}
+        Lines of the fans: constant-bearing-rate traces in the cosine beam spacing (default, see
+        :func:`constant_rate_traces`) or the method's literal straight lines in beam number.
+    sampling : {"nearest", "linear"}
+        How a constant-bearing-rate trace reads the BTR: the nearest beam (the method's rounding,
+        default) or linear interpolation across beams.
+    refine : bool, optional
+        Refine the overall best trace to sub-beam end position and rate (:func:`refine_trace`).
+        None (default): True for ``trace="bearing"``; the literal straight lines are never refined.
+    refine_span_beams : float
+        Half-size of the refinement's search box, beams (see :func:`refine_trace`).
     min_scans : int, optional
         The method's ``minscan``: fewest scans a line may span before it leaves the BTR. None
         (default) uses all scans, as the method text does.
+    max_rate_deg_per_min : float, optional
+        ``trace="bearing"``: largest bearing-rate magnitude searched, deg/min; None: 180 deg over
+        ``min_scans - 1`` scans (the analogue of a line crossing all beams).
+    rate_step_deg_per_min : float, optional
+        ``trace="bearing"``: bearing-rate increment, deg/min; None: the increment that moves a
+        broadside trace's oldest scan by a quarter of a beam, ``0.25 / ((N - 1) / 2 * history)``
+        rad/s (the straight lines' quarter beam over the history).
     max_slope : float, optional
-        Largest slope magnitude searched, beams per update; None: the slope that crosses all beams
-        in ``min_scans`` scans, ``(n_beams - 1) / (min_scans - 1)``.
+        ``trace="beam"``: largest slope magnitude searched, beams per update; None: the slope that
+        crosses all beams in ``min_scans`` scans, ``(n_beams - 1) / (min_scans - 1)``.
     slope_step : float, optional
-        Slope increment, beams per update; None: a quarter of a beam over the history,
-        ``0.25 / (n_scans - 1)``.
+        ``trace="beam"``: slope increment, beams per update; None: a quarter of a beam over the
+        history, ``0.25 / (n_scans - 1)``.
     rate_at : {"midpoint", "latest"}
-        Beam at which the beam rate is turned into a bearing rate (eq. 10): the middle of the best
-        line (default) or its latest end.
+        ``trace="beam"``: beam at which the beam rate is turned into a bearing rate (eq. 10): the
+        middle of the best line (default) or its latest end.
     min_snr_ibw : float
         Defaults are output when the linear IBW SNR is at most this (the method: 1, i.e. 0 dB).
     default_snr_ibw : float
@@ -630,12 +1154,22 @@ class Acquisition:
     Choices where the method text is silent or its equations were lost:
 
     - normaliser: split-window median (see :func:`normalize_spectra`);
-    - slope search: symmetric slopes ``-max_slope .. max_slope`` in steps of ``slope_step``;
-    - eq. 10 is evaluated at the middle of the best line by default: the straight best line
-      joins the ends of the trace, whose beam rate at constant bearing rate is
-      ``(N - 1) / 2 sin(theta) theta_dot`` with ``theta`` the *mean* bearing to within
-      ``sinc(delta_theta / 2)``; at the latest end it would be biased by the trace's curvature in
-      beam space (large near endfire);
+    - fans: the method's lines are straight in beam number, but the method also assumes beams
+      equally spaced in cosine (eqs. 5-11), where a target at a constant bearing rate draws a
+      curve; by default each fan holds the constant-bearing-rate traces through its anchor beam,
+      rates ``-max_rate .. max_rate`` in steps of ``rate_step``, each read at the nearest beam as
+      ``rateest`` reads its lines (segments 62-70: mean over the scans used, minimum-scan rule,
+      strictly largest mean). ``trace="beam"`` keeps the straight lines, slopes
+      ``-max_slope .. max_slope`` in steps of ``slope_step``;
+    - the overall best trace and its SPN give the band noise level, the IBW SNR and the defaults
+      exactly as in the method (segments 50-52); only when the defaults are not used is the trace
+      refined to a sub-beam end position and rate by a local search of its main-lobe matched score
+      (:func:`refine_trace`), since one cell per scan cannot place a trace between beams;
+    - segment 54 for a trace: the bearing of its (refined) end beam (eq. 6) and its bearing rate,
+      which is already in rad/s (the trace is the integral of eq. 11); for a straight line eq. 10
+      is evaluated at the middle of the line by default (at constant bearing rate the chord has
+      beam rate ``(N - 1) / 2 sin(theta) theta_dot`` at the *mean* bearing to within
+      ``sinc(delta_theta / 2)``);
     - SNR (eq. 4, reconstructed): SNR per bin ``~ snr_ibw * nbins_ibw``, SNR in 1 Hz
       ``= SNR_bin * dfbin * 1.3`` (Hamming equivalent noise bandwidth), in dB;
     - the lag-corrected bearing is clipped to ``[0, 180]`` deg.
@@ -659,7 +1193,13 @@ class Acquisition:
         gap_bins: int = 1,
         noise_dof: float = 2.0,
         pool_scans: int | None = None,
+        trace: Literal["bearing", "beam"] = "bearing",
+        sampling: Literal["nearest", "linear"] = "nearest",
+        refine: bool | None = None,
+        refine_span_beams: float = 2.0,
         min_scans: int | None = None,
+        max_rate_deg_per_min: float | None = None,
+        rate_step_deg_per_min: float | None = None,
         max_slope: float | None = None,
         slope_step: float | None = None,
         rate_at: Literal["midpoint", "latest"] = "midpoint",
@@ -674,9 +1214,29 @@ class Acquisition:
         if min_scans is not None and (int(min_scans) != min_scans or min_scans < 2):
             raise ValueError(f"min_scans must be an integer >= 2, got {min_scans!r}")
         for name, v in (("max_slope", max_slope), ("slope_step", slope_step),
-                        ("exclude_beams", exclude_beams)):
+                        ("max_rate_deg_per_min", max_rate_deg_per_min),
+                        ("rate_step_deg_per_min", rate_step_deg_per_min),
+                        ("exclude_beams", exclude_beams), ("refine_span_beams", refine_span_beams)):
             if v is not None and (not np.isfinite(v) or v <= 0):
                 raise ValueError(f"{name} must be positive, got {v!r}")
+        if trace not in ("bearing", "beam"):
+            raise ValueError(f"trace must be 'bearing' or 'beam', got {trace!r}")
+        if sampling not in ("nearest", "linear"):
+            raise ValueError(f"sampling must be 'nearest' or 'linear', got {sampling!r}")
+        if trace == "beam":
+            if refine:
+                raise ValueError("refine applies to trace='bearing' (the straight lines are literal)")
+            for name, v in (("max_rate_deg_per_min", max_rate_deg_per_min),
+                            ("rate_step_deg_per_min", rate_step_deg_per_min)):
+                if v is not None:
+                    raise ValueError(f"{name} applies to trace='bearing'; use max_slope/slope_step")
+        else:
+            for name, v in (("max_slope", max_slope), ("slope_step", slope_step)):
+                if v is not None:
+                    raise ValueError(
+                        f"{name} applies to trace='beam'; use max_rate_deg_per_min/"
+                        "rate_step_deg_per_min"
+                    )
         if rate_at not in ("midpoint", "latest"):
             raise ValueError(f"rate_at must be 'midpoint' or 'latest', got {rate_at!r}")
         for name, v in (("min_snr_ibw", min_snr_ibw), ("default_snr_ibw", default_snr_ibw)):
@@ -684,16 +1244,22 @@ class Acquisition:
                 raise ValueError(f"{name} must be positive, got {v!r}")
         if not np.isfinite(noise_dof) or noise_dof <= 0:
             raise ValueError(f"noise_dof must be positive, got {noise_dof!r}")
+        if pool_scans is not None and (int(pool_scans) != pool_scans or pool_scans < 1):
+            raise ValueError(f"pool_scans must be a positive integer, got {pool_scans!r}")
         self.ibw_hz = ibw_hz
         self.lag_s = float(lag_s)
         self.normalize = bool(normalize)
         self.window_bins = int(window_bins)
         self.gap_bins = int(gap_bins)
         self.noise_dof = float(noise_dof)
-        if pool_scans is not None and (int(pool_scans) != pool_scans or pool_scans < 1):
-            raise ValueError(f"pool_scans must be a positive integer, got {pool_scans!r}")
         self.pool_scans = pool_scans
+        self.trace = trace
+        self.sampling = sampling
+        self.refine = (trace == "bearing") if refine is None else bool(refine)
+        self.refine_span_beams = float(refine_span_beams)
         self.min_scans = min_scans
+        self.max_rate_deg_per_min = max_rate_deg_per_min
+        self.rate_step_deg_per_min = rate_step_deg_per_min
         self.max_slope = max_slope
         self.slope_step = slope_step
         self.rate_at = rate_at
@@ -722,6 +1288,82 @@ class Acquisition:
             )
         return df
 
+    def _best_straight_line(
+        self, btr_rev: NDArray[np.float64], anchors: NDArray[np.int64], min_scans: int
+    ) -> BestLine | None:
+        """Segments 46-50 with the method's straight lines."""
+        n_scans, n_beams = btr_rev.shape
+        max_slope = ((n_beams - 1) / (min_scans - 1) if self.max_slope is None
+                     else float(self.max_slope))
+        step = 0.25 / (n_scans - 1) if self.slope_step is None else float(self.slope_step)
+        fans = best_lines_in_fans(btr_rev, anchors, slope_grid(-max_slope, max_slope, step),
+                                  min_scans=min_scans)
+        if not fans.found.any():
+            return None
+        i = int(np.argmax(np.where(fans.found, fans.signal_plus_noise, -np.inf)))
+        bestbeam, a, n_used = int(fans.anchors[i]), float(fans.slope[i]), int(fans.n_used[i])
+        return BestLine(
+            anchor_beam=bestbeam,
+            beam_rate_per_scan=-a,
+            start_scan=n_scans - n_used,
+            end_scan=n_scans - 1,
+            start_beam=bestbeam + a * (n_used - 1),
+            end_beam=float(bestbeam),
+            n_scans_used=n_used,
+            signal_plus_noise=float(fans.signal_plus_noise[i]),
+            trace="beam",
+            coarse_end_beam=float(bestbeam),
+            beams=bestbeam + a * np.arange(n_used)[::-1].astype(float),
+        )
+
+    def _trace_line(
+        self, n_scans: int, n_beams: int, scan_period: float, *, anchor: int, end: float,
+        rate: float, coarse_rate: float, spn: float, refined: bool,
+    ) -> BestLine:
+        pos, n_used = constant_rate_traces(end, rate, n_scans=n_scans, n_beams=n_beams,
+                                           scan_period=scan_period)
+        n_used = int(n_used)
+        beams = pos[:n_used][::-1].copy()  # chronological
+        return BestLine(
+            anchor_beam=anchor,
+            beam_rate_per_scan=float((beams[-1] - beams[0]) / max(n_used - 1, 1)),
+            start_scan=n_scans - n_used,
+            end_scan=n_scans - 1,
+            start_beam=float(beams[0]),
+            end_beam=float(end),
+            n_scans_used=n_used,
+            signal_plus_noise=spn,
+            trace="bearing",
+            bearing_rate_deg_per_min=math.degrees(rate) * 60.0,
+            coarse_end_beam=float(anchor),
+            coarse_bearing_rate_deg_per_min=math.degrees(coarse_rate) * 60.0,
+            refined=refined,
+            beams=beams,
+        )
+
+    def _best_trace(
+        self, btr_rev: NDArray[np.float64], anchors: NDArray[np.int64], min_scans: int,
+        scan_period: float,
+    ) -> BestLine | None:
+        """Segments 46-50 with constant-bearing-rate traces (not yet refined)."""
+        n_scans, n_beams = btr_rev.shape
+        max_rate = (math.pi / ((min_scans - 1) * scan_period) if self.max_rate_deg_per_min is None
+                    else math.radians(self.max_rate_deg_per_min) / 60.0)
+        step = (0.25 / ((n_beams - 1) / 2.0 * (n_scans - 1) * scan_period)
+                if self.rate_step_deg_per_min is None
+                else math.radians(self.rate_step_deg_per_min) / 60.0)
+        k = int(math.floor(max_rate / step + 1e-9))
+        rates = step * np.arange(-k, k + 1)  # symmetric, 0 included
+        fans = best_traces_in_fans(btr_rev, anchors, rates, scan_period=scan_period,
+                                   min_scans=min_scans, sampling=self.sampling)
+        if not fans.found.any():
+            return None
+        i = int(np.argmax(np.where(fans.found, fans.signal_plus_noise, -np.inf)))
+        rate = float(fans.rate_rad_s[i])
+        return self._trace_line(n_scans, n_beams, scan_period, anchor=int(fans.anchors[i]),
+                                end=float(fans.anchors[i]), rate=rate, coarse_rate=rate,
+                                spn=float(fans.signal_plus_noise[i]), refined=False)
+
     def acquire(self, cube: Cube, *, beam: int, freq_hz: float) -> AcquisitionResult:
         """Acquire the target clicked at (`beam`, `freq_hz`) on the latest scan of `cube`.
 
@@ -748,6 +1390,7 @@ class Acquisition:
         df = self._check(cube, beam, freq_hz)
         beam = int(beam)
         n_scans, n_beams, _ = cube.power.shape
+        scan_period = float(cube.scan_period)
 
         # segments 26-28: IBW, normalisation of its bins, BTR
         band = ibw_bins(cube.freqs, freq_hz, self.ibw_hz)
@@ -772,65 +1415,66 @@ class Acquisition:
 
         # segments 46-50: best line in every fan, overall best line
         min_scans = n_scans if self.min_scans is None else min(int(self.min_scans), n_scans)
-        max_slope = ((n_beams - 1) / (min_scans - 1) if self.max_slope is None
-                     else float(self.max_slope))
-        step = 0.25 / (n_scans - 1) if self.slope_step is None else float(self.slope_step)
-        slopes = slope_grid(-max_slope, max_slope, step)
-        fans = best_lines_in_fans(btr_rev, anchors, slopes, min_scans=min_scans)
+        if self.trace == "beam":
+            best_line = self._best_straight_line(btr_rev, anchors, min_scans)
+        else:
+            best_line = self._best_trace(btr_rev, anchors, min_scans, scan_period)
         brg_click = float(bearing_from_beam(beam, n_beams))
 
-        best_line: BestLine | None = None
+        # segment 52: band noise level off the trace, linear SNR in the IBW
         snr_ibw = float("nan")
         noise = float("nan")
-        if fans.found.any():
-            i = int(np.argmax(np.where(fans.found, fans.signal_plus_noise, -np.inf)))
-            bestbeam, a, n_used = int(fans.anchors[i]), float(fans.slope[i]), int(fans.n_used[i])
-            spn = float(fans.signal_plus_noise[i])
-            best_line = BestLine(
-                anchor_beam=bestbeam,
-                beam_rate_per_scan=-a,
-                start_scan=n_scans - n_used,
-                end_scan=n_scans - 1,
-                start_beam=bestbeam + a * (n_used - 1),
-                end_beam=float(bestbeam),
-                n_scans_used=n_used,
-                signal_plus_noise=spn,
-            )
-            # segment 52: band noise level off the trace, linear SNR in the IBW
-            lobe = int(math.ceil(wavelength / cube.aperture / (2.0 / (n_beams - 1))))
-            excl = float(max(tol, lobe)) if self.exclude_beams is None else self.exclude_beams
-            noise = band_noise_level(btr_rev, bestbeam, a, exclude_beams=excl)
+        lobe_beams = wavelength / cube.aperture * (n_beams - 1) / 2.0  # first null, beams
+        if best_line is not None:
+            excl = (float(max(tol, int(math.ceil(lobe_beams)))) if self.exclude_beams is None
+                    else self.exclude_beams)
+            # the trace over every scan, also beyond where it leaves the BTR
+            if best_line.trace == "beam":
+                track = best_line.end_beam - best_line.beam_rate_per_scan * np.arange(n_scans)
+            else:
+                track = constant_rate_traces(
+                    best_line.end_beam, math.radians(best_line.bearing_rate_deg_per_min) / 60.0,
+                    n_scans=n_scans, n_beams=n_beams, scan_period=scan_period)[0]
+            noise = band_noise_level(btr_rev, best_line.anchor_beam, exclude_beams=excl,
+                                     track=track)
             if noise <= 0:
                 raise ValueError("band noise level is zero: the IBW holds no noise power")
-            snr_ibw = (spn - noise) / noise
+            snr_ibw = (best_line.signal_plus_noise - noise) / noise
 
+        common = {"snr_ibw": snr_ibw, "btr": btr, "band_noise_level": noise,
+                  "beamwidth_deg": bw_deg, "beam_tolerance": tol,
+                  "anchor_beams": tuple(int(b) for b in anchors),
+                  "ibw_bins": tuple(int(b) for b in band)}
         nbins_ibw = int(band.size)
         if best_line is None or not snr_ibw > self.min_snr_ibw:
             # defaults (segment 52): rate 0, clicked beam's bearing, default SNR through eq. 4
             logger.info("IBW SNR %.3g <= %.3g: default estimates", snr_ibw, self.min_snr_ibw)
             snr_1hz = self.default_snr_ibw * nbins_ibw * df * HAMMING_ENBW
             return AcquisitionResult(
-                bearing_deg=math.degrees(brg_click),
-                bearing_rate_deg_per_min=0.0,
-                snr_db=10.0 * math.log10(snr_1hz),
-                default_used=True,
-                snr_ibw=snr_ibw,
-                bearing_uncorrected_deg=math.degrees(brg_click),
-                best_line=best_line,
-                btr=btr,
-                band_noise_level=noise,
-                beamwidth_deg=bw_deg,
-                beam_tolerance=tol,
-                anchor_beams=tuple(int(b) for b in anchors),
-                ibw_bins=tuple(int(b) for b in band),
-            )
+                bearing_deg=math.degrees(brg_click), bearing_rate_deg_per_min=0.0,
+                snr_db=10.0 * math.log10(snr_1hz), default_used=True,
+                bearing_uncorrected_deg=math.degrees(brg_click), best_line=best_line, **common)
+
+        # sub-beam refinement of the overall best trace (the SPN and SNR stay the fan search's)
+        if best_line.trace == "bearing" and self.refine:
+            coarse_rate = math.radians(best_line.bearing_rate_deg_per_min) / 60.0
+            ref = refine_trace(btr_rev, best_line.end_beam, coarse_rate, scan_period=scan_period,
+                               min_scans=min_scans, lobe_beams=lobe_beams, noise_level=noise,
+                               span_beams=self.refine_span_beams)
+            best_line = self._trace_line(
+                n_scans, n_beams, scan_period, anchor=best_line.anchor_beam, end=ref.end_beam,
+                rate=ref.rate_rad_s, coarse_rate=coarse_rate,
+                spn=best_line.signal_plus_noise, refined=True)
 
         # segment 54: beam -> bearing (eq. 6), beam rate -> bearing rate (eq. 10), lag correction
-        beam_rate = best_line.beam_rate_per_scan / cube.scan_period  # beams/s, forward in time
-        ref_beam = (0.5 * (best_line.start_beam + best_line.end_beam)
-                    if self.rate_at == "midpoint" else best_line.end_beam)
-        rate_rad_s = float(bearing_rate_from_beam_rate(ref_beam, beam_rate, n_beams))
-        brg_uncorrected = float(bearing_from_beam(best_line.anchor_beam, n_beams))
+        if best_line.trace == "bearing":
+            rate_rad_s = math.radians(best_line.bearing_rate_deg_per_min) / 60.0
+        else:
+            beam_rate = best_line.beam_rate_per_scan / scan_period  # beams/s, forward in time
+            ref_beam = (0.5 * (best_line.start_beam + best_line.end_beam)
+                        if self.rate_at == "midpoint" else best_line.end_beam)
+            rate_rad_s = float(bearing_rate_from_beam_rate(ref_beam, beam_rate, n_beams))
+        brg_uncorrected = float(bearing_from_beam(best_line.end_beam, n_beams))
         brg = min(max(brg_uncorrected + rate_rad_s * self.lag_s, 0.0), math.pi)
         snr_1hz = snr_ibw * nbins_ibw * df * HAMMING_ENBW  # eq. 4 (reconstructed)
         return AcquisitionResult(
@@ -838,15 +1482,9 @@ class Acquisition:
             bearing_rate_deg_per_min=math.degrees(rate_rad_s) * 60.0,
             snr_db=10.0 * math.log10(snr_1hz),
             default_used=False,
-            snr_ibw=snr_ibw,
             bearing_uncorrected_deg=math.degrees(brg_uncorrected),
             best_line=best_line,
-            btr=btr,
-            band_noise_level=noise,
-            beamwidth_deg=bw_deg,
-            beam_tolerance=tol,
-            anchor_beams=tuple(int(b) for b in anchors),
-            ibw_bins=tuple(int(b) for b in band),
+            **common,
         )
 
 

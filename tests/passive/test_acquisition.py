@@ -23,9 +23,13 @@ from fusion.passive.acquisition import (
     band_noise_level,
     beamwidth_deg,
     best_lines_in_fans,
+    best_traces_in_fans,
+    constant_rate_traces,
     expected_median_fraction,
     ibw_bins,
+    matched_trace_score,
     normalize_spectra,
+    refine_trace,
     slope_grid,
 )
 from fusion.simulate.cube import simulate_cube
@@ -199,8 +203,129 @@ def test_fan_search_edge_rule():
 
 
 # ------------------------------------------------------------------------------------------
+# constant-bearing-rate traces (the fans' lines in cosine-spaced beams) and their refinement
+# ------------------------------------------------------------------------------------------
+def test_constant_rate_traces_follow_the_bearing():
+    """Positions are beam_from_bearing of theta_end - rate * t; the trace is cut outside [0, pi]."""
+    end = beam_from_bearing(math.radians(100.0), 64)
+    rate = math.radians(30.0) / 60.0
+    pos, n_used = constant_rate_traces(end, rate, n_scans=60, n_beams=64, scan_period=1.0)
+    want = beam_from_bearing(math.radians(100.0) - rate * np.arange(60), 64)
+    assert_allclose(pos, want, atol=1e-9)
+    assert int(n_used) == 60
+    # from 10 deg, going back in time at +30 deg/min the bearing crosses 0 after 20 s
+    _, cut = constant_rate_traces(beam_from_bearing(math.radians(10.0), 64), rate, n_scans=60,
+                                  n_beams=64, scan_period=1.0)
+    assert int(cut) == 21
+
+
+def rateest_trace_loop(btr_rev, anchor, rates, min_scans, period):
+    """Loop form of rateest with the line replaced by a constant-bearing-rate trace (nearest beam)."""
+    n_scans, n_beams = btr_rev.shape
+    theta_end = math.acos(1 - 2 * anchor / (n_beams - 1))
+    est, sav, used = 0.0, 0.0, 0
+    for w in rates:
+        total, iscan = 0.0, 0
+        while iscan < n_scans:
+            theta = theta_end - w * iscan * period
+            if theta < -1e-12 or theta > math.pi + 1e-12:
+                break
+            fbeam = (n_beams - 1) * (1 - math.cos(theta)) / 2
+            total += btr_rev[iscan, min(math.floor(fbeam + 0.5), n_beams - 1)]
+            iscan += 1
+        if iscan >= min_scans and total / iscan > sav:
+            est, sav, used = w, total / iscan, iscan
+    return est, sav, used
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_trace_fan_search_equals_loop(seed):
+    """The vectorised trace fans return the loop's rate, SPN and scans used."""
+    rng = np.random.default_rng(seed)
+    n_scans, n_beams = int(rng.integers(5, 14)), int(rng.integers(6, 16))
+    btr = rng.exponential(size=(n_scans, n_beams))
+    rates = np.linspace(-0.4, 0.4, 57) + rng.uniform(0, 1e-3)
+    min_scans = int(rng.integers(2, n_scans + 1))
+    fans = best_traces_in_fans(btr, np.arange(n_beams), rates, scan_period=1.0, min_scans=min_scans)
+    for i in range(n_beams):
+        est, sav, used = rateest_trace_loop(btr, i, rates, min_scans, 1.0)
+        assert fans.rate_rad_s[i] == pytest.approx(est, abs=1e-12)
+        assert fans.signal_plus_noise[i] == pytest.approx(sav, rel=1e-12)
+        assert fans.n_used[i] == used
+
+
+def test_matched_score_peaks_on_the_true_trace_at_the_edge():
+    """Noise-free, the matched score of a trace near endfire is largest on the true trace."""
+    sc = simulate_cube(seed=2, bearing0_deg=168.0, bearing_rate_deg_per_min=-3.0, snr_db=20.0,
+                       noise=False)
+    btr_rev = sc.cube.power[::-1, :, int(np.argmin(np.abs(sc.cube.freqs - sc.click_freq)))]
+    rate = math.radians(-3.0) / 60.0
+    end = np.asarray(sc.beam_track)[-1]
+    ends = end + np.linspace(-0.5, 0.5, 11)[:, None] + 0 * np.arange(11)[None, :]
+    ends = np.clip(ends, 0, 63)
+    rates = rate + np.linspace(-0.002, 0.002, 11)[None, :] + 0 * ends
+    pos, nu = constant_rate_traces(ends, rates, n_scans=60, n_beams=64, scan_period=1.0)
+    s = matched_trace_score(btr_rev, pos, nu, lobe_beams=0.1 * 63 / 2, noise_level=1.0)
+    i, j = np.unravel_index(np.argmax(s), s.shape)
+    assert abs(ends[i, j] - end) <= 0.1 and abs(rates[i, j] - rate) <= 0.0004
+
+
+@pytest.mark.parametrize(("b0", "rate", "tol_rate", "tol_brg"), [
+    (70.0, 40.0, 0.2, 0.1),      # ends near broadside (109 deg)
+    (110.0, -40.0, 0.2, 0.1),    # ends near broadside (71 deg)
+    (50.0, -40.0, 0.5, 0.4),     # ends near forward endfire (10.7 deg)
+    (130.0, 40.0, 0.5, 0.4),     # ends near aft endfire (169.3 deg)
+])
+def test_known_answer_noise_free_constant_rate(b0, rate, tol_rate, tol_brg):
+    """A noise-free 40 deg/min target: bearing rate and bearing within tight tolerances."""
+    sc = simulate_cube(seed=3, bearing0_deg=b0, bearing_rate_deg_per_min=rate, snr_db=10.0,
+                       noise=False)
+    res = Acquisition(normalize=False).acquire(sc.cube, beam=sc.click_beam, freq_hz=sc.click_freq)
+    assert not res.default_used and res.best_line.refined and res.best_line.trace == "bearing"
+    assert res.bearing_rate_deg_per_min == pytest.approx(rate, abs=tol_rate)
+    assert res.bearing_deg == pytest.approx(sc.latest_bearing_deg, abs=tol_brg)
+    # the drawn trace is the trace of the estimate, chronological, ending at the end beam
+    bl = res.best_line
+    assert bl.beams.size == bl.n_scans_used == 60 and bl.beams[-1] == pytest.approx(bl.end_beam)
+
+
+@pytest.mark.parametrize(("b0", "rate"), [
+    (70.0, 40.0), (50.0, -40.0), (130.0, 40.0), (12.0, 0.3), (60.0, 2.0), (150.0, -1.5),
+    (100.0, 10.0), (25.0, -5.0), (165.0, 3.0), (90.0, 0.0),
+])
+def test_refinement_never_worse_than_coarse_noise_free(b0, rate):
+    """Noise-free: the refined rate and bearing are never worse than the coarse fan search's."""
+    sc = simulate_cube(seed=4, bearing0_deg=b0, bearing_rate_deg_per_min=rate, snr_db=10.0,
+                       noise=False)
+    kw = {"beam": sc.click_beam, "freq_hz": sc.click_freq}
+    fine = Acquisition(normalize=False).acquire(sc.cube, **kw)
+    coarse = Acquisition(normalize=False, refine=False).acquire(sc.cube, **kw)
+    truth = sc.latest_bearing_deg
+    assert abs(fine.bearing_rate_deg_per_min - rate) <= abs(coarse.bearing_rate_deg_per_min - rate) + 1e-6
+    assert abs(fine.bearing_deg - truth) <= abs(coarse.bearing_deg - truth) + 1e-6
+    assert abs(fine.bearing_rate_deg_per_min - rate) <= 0.35
+    # the SPN (and so the SNR and the default rule) is the fan search's, untouched by refinement
+    assert fine.snr_ibw == coarse.snr_ibw
+    assert fine.best_line.coarse_end_beam == coarse.best_line.end_beam
+
+
+def test_refine_trace_score_never_decreases():
+    """The refined matched score is at least the starting trace's, also on noise."""
+    rng = np.random.default_rng(7)
+    btr = rng.exponential(size=(60, 64))
+    for end, rate in ((10.0, 0.004), (40.0, -0.002), (1.0, 0.0)):
+        ref = refine_trace(btr, end, rate, scan_period=1.0, min_scans=60, lobe_beams=3.15,
+                           noise_level=1.0)
+        assert ref.score >= ref.start_score
+
+
+# ------------------------------------------------------------------------------------------
 # whole acquisition
 # ------------------------------------------------------------------------------------------
+#: the method's literal straight lines on a fine slope grid
+LITERAL = {"normalize": False, "trace": "beam", "slope_step": 0.05, "max_slope": 1.2}
+
+
 def _straight_line_cube(slope_per_scan: float, end_beam: int, *, level: float = 5.0) -> Cube:
     """Noise-free normalised cube: ones, and a line of `level` in bin 2 along a straight beam track."""
     n_scans, n_beams = 30, 40
@@ -215,7 +340,7 @@ def _straight_line_cube(slope_per_scan: float, end_beam: int, *, level: float = 
 def test_known_answer_straight_line():
     """A noise-free straight trace gives its slope, end beam, SPN 5, noise 1, SNR 4 exactly."""
     cube = _straight_line_cube(0.4, 25)
-    res = Acquisition(normalize=False, slope_step=0.05, max_slope=1.2).acquire(cube, beam=25, freq_hz=102.0)
+    res = Acquisition(**LITERAL).acquire(cube, beam=25, freq_hz=102.0)
     bl = res.best_line
     assert bl.anchor_beam == 25 and bl.end_scan == 29 and bl.start_scan == 0
     assert bl.beam_rate_per_scan == pytest.approx(0.4)
@@ -234,7 +359,7 @@ def test_known_answer_straight_line():
 def test_anchor_within_tolerance_of_click():
     """A click one beam off still finds the trace through a neighbouring anchor beam."""
     cube = _straight_line_cube(-0.3, 20)
-    res = Acquisition(normalize=False, slope_step=0.05, max_slope=1.2).acquire(cube, beam=21, freq_hz=102.0)
+    res = Acquisition(**LITERAL).acquire(cube, beam=21, freq_hz=102.0)
     assert res.beam_tolerance >= 2 and 20 in res.anchor_beams
     assert res.best_line.anchor_beam == 20
     assert res.best_line.beam_rate_per_scan == pytest.approx(-0.3)
@@ -243,8 +368,8 @@ def test_anchor_within_tolerance_of_click():
 def test_lag_correction():
     """The lag moves the bearing by rate x lag; zero rate leaves it unchanged."""
     cube = _straight_line_cube(0.4, 25)
-    base = Acquisition(normalize=False, slope_step=0.05, max_slope=1.2).acquire(cube, beam=25, freq_hz=102.0)
-    lagged = Acquisition(normalize=False, slope_step=0.05, max_slope=1.2, lag_s=6.0).acquire(
+    base = Acquisition(**LITERAL).acquire(cube, beam=25, freq_hz=102.0)
+    lagged = Acquisition(**LITERAL, lag_s=6.0).acquire(
         cube, beam=25, freq_hz=102.0)
     assert lagged.bearing_uncorrected_deg == pytest.approx(base.bearing_deg)
     assert lagged.bearing_deg == pytest.approx(
@@ -344,7 +469,11 @@ class TestBadInput:
     @pytest.mark.parametrize(
         ("kwargs", "match"),
         [({"ibw_hz": -1.0}, "ibw_hz"), ({"min_scans": 1}, "min_scans"),
-         ({"rate_at": "start"}, "rate_at"), ({"slope_step": 0.0}, "slope_step")],
+         ({"rate_at": "start"}, "rate_at"), ({"slope_step": 0.0}, "slope_step"),
+         ({"trace": "curve"}, "trace"), ({"sampling": "cubic"}, "sampling"),
+         ({"slope_step": 0.1}, "slope_step"), ({"trace": "beam", "refine": True}, "refine"),
+         ({"trace": "beam", "max_rate_deg_per_min": 60.0}, "max_rate"),
+         ({"refine_span_beams": -1.0}, "refine_span_beams")],
     )
     def test_bad_options(self, kwargs, match):
         """Bad constructor options raise ValueError naming the option."""
