@@ -3,7 +3,8 @@
 A seeded bearing scenario (targets in straight-line motion seen from a moving platform, with
 crossings, misses and clutter) is stripped of its labels; the multi-track smoother forms the
 tracks, shares the detections near every crossing through association-weighted factors, and
-smooths each track on its factor graph. Prints the number of tracks, swaps and the RMSE.
+smooths each track on its factor graph. Prints the number of tracks, swaps, lost tracks and
+the RMSE.
 
     python examples/smoothing.py [--seed 0] [--duration 1200]
 """
@@ -15,7 +16,7 @@ import logging
 
 import numpy as np
 
-from fusion.passive.smoothing import MultiTrackSmoother, identity_swaps
+from fusion.passive.smoothing import MultiTrackSmoother, crossing_outcomes
 from fusion.simulate.bearings import simulate_bearings
 
 logger = logging.getLogger("examples.smoothing")
@@ -36,15 +37,17 @@ def main(argv: list[str] | None = None) -> dict:
                                   clutter_density=0.2 / (2 * np.pi))
     res = smoother.run(sc.time, np.radians(sc.bearing_deg))  # labels are not given
     crossings = [(c.track_a, c.track_b, c.t_cross) for c in sc.crossings]
-    swaps = identity_swaps(sc.track_id, res.labels, sc.time, crossings,
-                           guard_s=15 * sc.sample_period_s, window_s=20 * sc.sample_period_s)
+    outcomes = crossing_outcomes(sc.track_id, res.labels, sc.time, crossings,
+                                 guard_s=15 * sc.sample_period_s,
+                                 window_s=20 * sc.sample_period_s)
     rmse = []
     for tr in res.tracks:  # each output track against its closest true track
         k = np.searchsorted(sc.truth_time, tr.times)
         err = [np.angle(np.exp(1j * (tr.bearing - np.radians(sc.truth_bearing_deg[m, k]))))
                for m in range(sc.n_tracks)]
         rmse.append(min(float(np.degrees(np.sqrt(np.mean(e**2)))) for e in err))
-    out = {"tracks": len(res.tracks), "crossings": len(crossings), "swaps": int(swaps.sum()),
+    out = {"tracks": len(res.tracks), "crossings": len(crossings),
+           "swaps": int(np.sum(outcomes == "swap")), "lost": int(np.sum(outcomes == "lost")),
            "median_track_rmse_deg": float(np.median(rmse)) if rmse else float("nan")}
     logger.warning("%s", out)
     return out

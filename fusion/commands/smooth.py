@@ -84,14 +84,14 @@ def run_demo(out_dir: Path, *, seed: int) -> dict:
 
     Writes ``smoothed.csv`` and ``smoothing.png`` (raw detections, smoothed tracks with 1-sigma
     bands, true crossings, and the crossing alerts of :mod:`fusion.passive.crossing` when
-    present) into `out_dir`; returns tracks, swaps and RMSE.
+    present) into `out_dir`; returns tracks, swaps, lost tracks and RMSE.
     """
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from fusion.passive.smoothing import identity_swaps
+    from fusion.passive.smoothing import crossing_outcomes
     from fusion.simulate.bearings import simulate_bearings
 
     out_dir = Path(out_dir)
@@ -103,8 +103,9 @@ def run_demo(out_dir: Path, *, seed: int) -> dict:
                              clutter_density=0.2 / (2 * np.pi)).run(
         sc.time, np.radians(sc.bearing_deg))
     cr = [(c.track_a, c.track_b, c.t_cross) for c in sc.crossings]
-    swaps = identity_swaps(sc.track_id, res.labels, sc.time, cr,
-                           guard_s=15 * sc.sample_period_s, window_s=20 * sc.sample_period_s)
+    outcomes = crossing_outcomes(sc.track_id, res.labels, sc.time, cr,
+                                 guard_s=15 * sc.sample_period_s,
+                                 window_s=20 * sc.sample_period_s)
     cols = {
         "track_id": np.concatenate([np.full(len(tr), tr.track_id) for tr in res.tracks]),
         "time": np.concatenate([tr.times for tr in res.tracks]),
@@ -152,6 +153,7 @@ def run_demo(out_dir: Path, *, seed: int) -> dict:
             tr.bearing - np.radians(sc.truth_bearing_deg[m, k])))) ** 2))))
             for m in range(sc.n_tracks)))
     return {"tracks": len(res.tracks), "true_tracks": sc.n_tracks, "crossings": len(cr),
-            "swaps": int(swaps.sum()), "crossing_alerts": n_alerts,
+            "swaps": int(np.sum(outcomes == "swap")), "lost": int(np.sum(outcomes == "lost")),
+            "crossing_alerts": n_alerts,
             "median_track_rmse_deg": round(float(np.median(rmse)), 4),
             "raw_noise_deg": sc.noise_deg}

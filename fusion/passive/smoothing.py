@@ -44,6 +44,7 @@ from factors.weighted import weighted_factor
 from fusion.geometry import wrap_angle
 
 __all__ = [
+    "CROSSING_OUTCOMES",
     "BearingSmoother",
     "MultiTrackResult",
     "MultiTrackSmoother",
@@ -52,6 +53,7 @@ __all__ = [
     "SmoothedTrack",
     "TrackPrior",
     "TrackerResult",
+    "crossing_outcomes",
     "crossing_time",
     "identity_swaps",
     "smooth_bearings",
@@ -220,7 +222,7 @@ def crossing_time(
 
     Examples
     --------
-    >>> crossing_time(0.0, 0.01, 0.1, 0.0)
+    >>> round(crossing_time(0.0, 0.01, 0.1, 0.0), 9)
     10.0
     """
     db = wrap_angle(np.asarray(bearing_b, float) - np.asarray(bearing_a, float))
@@ -384,6 +386,27 @@ def _solve(
     marg = gtsam.Marginals(graph, values)
     sig = np.array([np.sqrt(np.diag(marg.marginalCovariance(k))) for k in range(times.size)])
     return states, sig
+
+
+def _solve_cov(
+    times: FloatArray,
+    meas: _Measurements,
+    prior: TrackPrior,
+    model: _Model,
+    init: FloatArray,
+    keys: Sequence[int],
+) -> tuple[FloatArray, list[FloatArray]]:
+    """Levenberg-Marquardt over one track graph (hard factors); states (n, 2) and the marginal
+    covariances (2, 2) of the states `keys`."""
+    values = gtsam.Values()
+    for k in range(times.size):
+        values.insert(k, np.asarray(init[k], dtype=float))
+    graph = _build_graph(times, meas, prior, model, "none", None)
+    values = gtsam.LevenbergMarquardtOptimizer(
+        graph, values, _lm_params(model.max_iterations)).optimize()
+    states = np.array([values.atVector(k) for k in range(times.size)])
+    marg = gtsam.Marginals(graph, values)
+    return states, [np.asarray(marg.marginalCovariance(int(k))) for k in keys]
 
 
 def _default_prior(z0: float, model: _Model, sigma_rate: float) -> TrackPrior:
@@ -751,20 +774,23 @@ class NearestNeighbourTracker:
                         # gated by one coasting track only: still ambiguous near a crossing
                         candidates[idx[c]] = owners
                         used[c] = True
-            free_rows = [r for r, i in enumerate(live) if i not in coasting]
-            free_cols = np.flatnonzero(~used)
-            if free_rows and free_cols.size:
+            # global nearest neighbour: confirmed tracks first, tentative ones on the rest
+            for confirmed in (True, False):
+                free_rows = [r for r, i in enumerate(live)
+                             if i not in coasting and tracks[i]["confirmed"] == confirmed]
+                free_cols = np.flatnonzero(~used)
+                if not (free_rows and free_cols.size):
+                    continue
                 sub = cost[np.ix_(free_rows, free_cols)]
-                big = 1e6
-                rr, cc = linear_sum_assignment(np.where(np.isfinite(sub), sub, big))
+                rr, cc = linear_sum_assignment(np.where(np.isfinite(sub), sub, 1e6))
                 for r, c in zip(rr, cc, strict=True):
                     if np.isfinite(sub[r, c]):
                         assigned[live[free_rows[r]]] = int(free_cols[c])
+                        used[free_cols[c]] = True
             for i in live:
                 tr = tracks[i]
                 if i in assigned:
                     c = assigned[i]
-                    used[c] = True
                     kf = tr["kf"]
                     kf.update(np.array([kf.x[0] + wrap_angle(zk[c] - kf.x[0])]))
                     labels[idx[c]] = i
@@ -829,9 +855,21 @@ class MultiTrackSmoother:
     p_detect : float, keyword-only
         Probability that a track is detected in a scan.
     gate, n_confirm, max_misses, init_sigma_rate, window_scans :
-        Options of the initial :class:`NearestNeighbourTracker` (crossing-aware).
+        Options of the initial :class:`NearestNeighbourTracker` (global nearest neighbour);
+        `window_scans` is also ``J`` of the crossing test, eq. (3)-(4).
+    separation : float, keyword-only
+        Two tracks closer than this in bearing, with a predicted or detected crossing, are
+        ambiguous, rad (default ``2.5 * sqrt(2) * sigma_bearing``).
+    link_gate : float, keyword-only
+        Gate on the squared Mahalanobis distance (2 degrees of freedom) of a segment link
+        (default 30; the 99.9 % point of chi-square is 13.8, but the constant-rate model
+        underrates the curvature of bearing tracks near closest approach).
+    max_gap_scans : int, keyword-only
+        Longest gap, in scan periods, that a segment link may bridge (default 40).
+    fit_scans : int, keyword-only
+        Scans at each end of a segment used for its end states (default 30).
     margin_scans : int, keyword-only
-        Scans of context on each side of a crossing cluster in its graphs.
+        Scans of context on each side of a crossing cluster in its EM graphs.
     em_tol : float, keyword-only
         EM stops when no responsibility changes by more than this.
     em_max_iterations : int, keyword-only
@@ -843,17 +881,32 @@ class MultiTrackSmoother:
 
     Notes
     -----
-    1. Initial tracks: :class:`NearestNeighbourTracker` with ``crossing_aware=True``.
-    2. Crossing clusters: shared detections linked through a common candidate track and less
-       than `margin_scans` apart.
-    3. Per cluster, EM: every track of the cluster gets a small graph over the cluster span plus
-       `margin_scans` of context, with its own detections as hard factors and each shared
-       detection ``j`` as an association-weighted factor with weight ``w_jm``. Start
-       ``w_jm = 1/M``; M-step: Levenberg-Marquardt per track; E-step:
+    1. Initial tracks: :class:`NearestNeighbourTracker` (global nearest neighbour, Kalman).
+    2. Segments: wherever two tracks come closer than `separation` and eq. (2) of "Target Track
+       Crossing Prediction/Detection" puts their crossing within ``J`` scans (eq. (3)
+       prediction or eq. (4) detection), both tracks are cut and the detections of those
+       scans (one scan of margin) are released: their origin is uncertain. What is left are
+       segments that follow one target each.
+    3. Segment relabelling: each segment is smoothed on its bearing-rate graph (its first and
+       last `fit_scans` scans, weak prior) and gives ``gtsam.Marginals`` of its first and last
+       state. A segment ending at ``t_e`` and one starting at ``t_s > t_e`` are linked with
+       cost ``d^2 + ln det S``, ``d^2`` the squared Mahalanobis distance between the end state
+       propagated by the constant-rate model and the start state, ``S`` its covariance
+       (propagated end covariance + ``Q(t_s - t_e)`` + start covariance); links with ``d^2``
+       above `link_gate` are not allowed. One assignment (``linear_sum_assignment``) over all
+       ends and starts, preferring more links, chains the segments into tracks: the identity
+       after a crossing is the one whose bearing and rate continue those before it.
+    4. The released detections in a track's gaps, gated against the track's interpolation
+       across the gap, enter every candidate track through association-weighted factors
+       (:func:`factors.weighted.weighted_factor`). Per crossing cluster, EM: every track of the
+       cluster gets a small graph over the cluster span plus `margin_scans` of context, with its
+       own detections as hard factors and each shared detection ``j`` weighted by ``w_jm``.
+       Start ``w_jm = 1/M``; M-step: Levenberg-Marquardt per track; E-step:
        ``w_jm = P_D N(wrap(z_j - theta_m(t_j)); 0, sigma^2) / (lambda + sum_m' P_D N(...))``
        with ``lambda`` the clutter density; repeat until the weights settle.
-    4. Final smoothing of every whole track with the settled weights; marginals from
+    5. Final smoothing of every whole track with the settled weights; marginals from
        ``gtsam.Marginals``.
+
     Responsibilities use the measurement variance alone (as in probabilistic multi-hypothesis
     tracking), not the state covariance, which would need a ``Marginals`` per iteration.
     """
@@ -870,6 +923,10 @@ class MultiTrackSmoother:
         max_misses: int = 5,
         init_sigma_rate: float = 0.01,
         window_scans: int = 20,
+        separation: float | None = None,
+        link_gate: float = 30.0,
+        max_gap_scans: int = 40,
+        fit_scans: int = 30,
         margin_scans: int = 10,
         em_tol: float = 1e-3,
         em_max_iterations: int = 30,
@@ -890,9 +947,15 @@ class MultiTrackSmoother:
         self.p_detect = float(p_detect)
         self.tracker = NearestNeighbourTracker(
             sigma_bearing=sigma_bearing, q=q, gate=gate, init_sigma_rate=init_sigma_rate,
-            n_confirm=n_confirm, max_misses=max_misses, crossing_aware=True,
-            window_scans=window_scans,
+            n_confirm=n_confirm, max_misses=max_misses, window_scans=window_scans,
         )
+        sep = 2.5 * np.sqrt(2.0) * sigma_bearing if separation is None else separation
+        self.separation = _check_positive("separation", sep)
+        self.link_gate = _check_positive("link_gate", link_gate)
+        if max_gap_scans < 1 or fit_scans < 2 or margin_scans < 0:
+            raise ValueError("max_gap_scans must be >= 1, fit_scans >= 2, margin_scans >= 0")
+        self.max_gap_scans = int(max_gap_scans)
+        self.fit_scans = int(fit_scans)
         self.margin_scans = int(margin_scans)
         self.em_tol = _check_positive("em_tol", em_tol)
         self.em_max_iterations = int(em_max_iterations)
@@ -921,65 +984,208 @@ class MultiTrackSmoother:
         tr = self.tracker.run(t, z)
         scan_times = tr.scan_times
         scan_of = np.searchsorted(scan_times, t)
-        labels = tr.labels.copy()
-        cands = tr.candidates
-        # drop short tracks
-        n_own = np.bincount(labels[labels >= 0], minlength=tr.n_tracks)
-        keep = np.flatnonzero(n_own >= self.min_length)
-        remap = np.full(tr.n_tracks + 1, -1, np.int64)
-        remap[keep] = np.arange(keep.size)
-        labels = remap[labels]
-        cands = tuple(tuple(int(remap[o]) for o in c if remap[o] >= 0) for c in cands)
-        first, last = tr.first_scan[keep], tr.last_scan[keep]
-        init_states = [tr.states[i] for i in keep]
-        n_tracks = keep.size
-        shared_idx = np.array([j for j, c in enumerate(cands) if len(c) >= 2], np.int64)
-        # responsibilities: per shared detection, weight per candidate (flattened pairs)
-        pair_det: list[int] = []
-        pair_track: list[int] = []
+        segments = self._segments(tr, z, scan_of)
+        ends = [self._segment_ends(seg, z, scan_of, scan_times) for seg in segments]
+        chains = self._link(ends, scan_times)
+        # hard labels per track, drop short tracks
+        labels = np.full(t.size, -1, np.int64)
+        kept: list[list[int]] = []
+        for ch in chains:
+            if sum(segments[p].size for p in ch) >= self.min_length:
+                for p in ch:
+                    labels[segments[p]] = len(kept)
+                kept.append(ch)
+        n_tracks = len(kept)
+        first = np.array([scan_of[segments[ch[0]][0]] for ch in kept], np.int64)
+        last = np.array([scan_of[segments[ch[-1]][-1]] for ch in kept], np.int64)
+        # candidates in the gaps of every track
+        cand: list[list[int]] = [[] for _ in range(t.size)]
+        for m, ch in enumerate(kept):
+            for p, p_next in zip(ch[:-1], ch[1:], strict=True):
+                for j in self._gap_candidates(ends[p], ends[p_next], scan_times, z, scan_of,
+                                               labels):
+                    cand[j].append(m)
+        pair_det_l, pair_track_l = [], []
+        for j, c in enumerate(cand):
+            for m in c:
+                pair_det_l.append(j)
+                pair_track_l.append(m)
+        pair_det = np.array(pair_det_l, np.int64)
+        pair_track = np.array(pair_track_l, np.int64)
+        shared_idx = np.unique(pair_det)
+        weights = np.zeros(pair_det.size)
         for j in shared_idx:
-            for m in cands[j]:
-                pair_det.append(int(j))
-                pair_track.append(m)
-        pair_det_a = np.array(pair_det, np.int64)
-        pair_track_a = np.array(pair_track, np.int64)
-        weights = np.zeros(pair_det_a.size)
-        for j in shared_idx:
-            sel = pair_det_a == j
+            sel = pair_det == j
             weights[sel] = 1.0 / sel.sum()
-        # current estimates per track (unwrapped bearing, rate) on its scans
-        est = [s.copy() for s in init_states]
+        est = []
+        for m in range(n_tracks):
+            times_m = scan_times[first[m]: last[m] + 1]
+            meas = self._track_meas(m, first[m], last[m], z, scan_of, labels, pair_det[:0],
+                                    pair_track[:0])
+            est.append(_initial_states(times_m, meas, None))
+        cands = tuple(tuple(c) for c in cand)
         clusters = self._clusters(shared_idx, cands, scan_of)
         max_iter = 0
         for cl in clusters:
             max_iter = max(max_iter, self._em_cluster(
                 cl, t, z, scan_times, scan_of, labels, first, last, est, weights,
-                pair_det_a, pair_track_a))
+                pair_det, pair_track))
         tracks = []
         for m in range(n_tracks):
             times_m = scan_times[first[m]: last[m] + 1]
-            meas = self._track_meas(m, first[m], last[m], z, scan_of, labels, pair_det_a,
-                                    pair_track_a)
-            prior = self._prior(m, est, times_m, meas)
+            meas = self._track_meas(m, first[m], last[m], z, scan_of, labels, pair_det,
+                                    pair_track)
+            prior = self._prior(m, est)
             states, sig = _solve(times_m, meas, prior, self.model, init=est[m], weights=weights,
                                  marginals=True)
             tracks.append(SmoothedTrack(m, times_m, np.asarray(wrap_angle(states[:, 0])),
                                         states[:, 1].copy(), sig[:, 0], sig[:, 1]))
-            est[m] = states
         # final labels: most probable owner of each shared detection, clutter if below 0.5
         out_labels = labels.copy()
         for j in shared_idx:
-            sel = np.flatnonzero(pair_det_a == j)
+            sel = np.flatnonzero(pair_det == j)
             best = sel[np.argmax(weights[sel])]
-            out_labels[j] = pair_track_a[best] if weights[best] >= 0.5 else -1
+            out_labels[j] = pair_track[best] if weights[best] >= 0.5 else -1
         shared = np.zeros(t.size, bool)
         shared[shared_idx] = True
-        logger.info("%d tracks, %d shared detections in %d crossing clusters", n_tracks,
-                    shared_idx.size, len(clusters))
+        logger.info("%d segments linked into %d tracks; %d shared detections in %d crossing "
+                    "clusters", len(segments), n_tracks, shared_idx.size, len(clusters))
         return MultiTrackResult(tuple(tracks), out_labels, shared, max_iter)
 
-    def _prior(self, m: int, est: list[FloatArray], times_m: FloatArray,
-               meas: _Measurements) -> TrackPrior:
+    # -- segments ---------------------------------------------------------------------------
+
+    def _segments(self, tr: TrackerResult, z: FloatArray,
+                  scan_of: NDArray[np.int64]) -> list[NDArray[np.int64]]:
+        """Cut the tracker's tracks where two of them are ambiguous; detections per segment."""
+        n_scans = tr.scan_times.size
+        period = float(np.median(np.diff(tr.scan_times))) if n_scans > 1 else 1.0
+        ambiguous = np.zeros((tr.n_tracks, n_scans), bool)
+        for a in range(tr.n_tracks):
+            for b in range(a + 1, tr.n_tracks):
+                lo = max(tr.first_scan[a], tr.first_scan[b])
+                hi = min(tr.last_scan[a], tr.last_scan[b])
+                if hi < lo:
+                    continue
+                xa = tr.states[a][lo - tr.first_scan[a]: hi - tr.first_scan[a] + 1]
+                xb = tr.states[b][lo - tr.first_scan[b]: hi - tr.first_scan[b] + 1]
+                sep = np.abs(wrap_angle(xa[:, 0] - xb[:, 0]))
+                tc = np.asarray(crossing_time(xa[:, 0], xa[:, 1], xb[:, 0], xb[:, 1]))
+                # eq. (3) predicted or eq. (4) detected crossing, and close in bearing
+                amb = (sep < self.separation) & (np.abs(tc) <= self._window_s(period))
+                if amb.any():
+                    k = np.flatnonzero(amb) + lo
+                    for d in (-1, 0, 1):  # one scan of margin
+                        kk = np.clip(k + d, 0, n_scans - 1)
+                        ambiguous[a, kk] = True
+                        ambiguous[b, kk] = True
+        segments: list[NDArray[np.int64]] = []
+        for m in range(tr.n_tracks):
+            own = np.flatnonzero(tr.labels == m)
+            own = own[np.argsort(scan_of[own], kind="stable")]
+            keep = own[~ambiguous[m, scan_of[own]]]
+            if keep.size == 0:
+                continue
+            amb_scans = np.flatnonzero(ambiguous[m])
+            # a new segment starts after every ambiguous scan between two kept detections
+            cut = np.searchsorted(amb_scans, scan_of[keep])
+            for c in np.unique(cut):
+                seg = keep[cut == c]
+                if seg.size >= self.tracker.n_confirm:
+                    segments.append(seg)
+        return segments
+
+    def _window_s(self, period: float) -> float:
+        """``J K`` of eq. (3)-(4), s."""
+        return self.tracker.window_scans * period
+
+    def _segment_ends(self, seg: NDArray[np.int64], z: FloatArray, scan_of: NDArray[np.int64],
+                      scan_times: FloatArray) -> tuple:
+        """First and last scan of a segment with their states and marginal covariances."""
+        s0, s1 = int(scan_of[seg[0]]), int(scan_of[seg[-1]])
+        out = []
+        w = self.fit_scans
+        spans = [(s0, s1)] if s1 - s0 < 2 * w else [(s0, s0 + w - 1), (s1 - w + 1, s1)]
+        for a, b in spans:
+            sel = seg[(scan_of[seg] >= a) & (scan_of[seg] <= b)]
+            times_ab = scan_times[a: b + 1]
+            meas = _Measurements(state=(scan_of[sel] - a).astype(np.int64), bearing=z[sel])
+            x0 = _initial_states(times_ab, meas, None)
+            prior = TrackPrior(bearing=float(x0[0, 0]), rate=float(x0[0, 1]),
+                               sigma_bearing=10.0 * self.model.sigma_bearing,
+                               sigma_rate=self.tracker.init_sigma_rate)
+            states, covs = _solve_cov(times_ab, meas, prior, self.model, x0,
+                                      (0, b - a))
+            out.append((states, covs))
+        (st_a, cov_a), (st_b, cov_b) = out[0], out[-1]
+        return (s0, st_a[0], cov_a[0], s1, st_b[-1], cov_b[-1])
+
+    def _link(self, ends: list[tuple], scan_times: FloatArray) -> list[list[int]]:
+        """Chain segments by one assignment of segment ends to later segment starts."""
+        n = len(ends)
+        if n == 0:
+            return []
+        period = float(np.median(np.diff(scan_times))) if scan_times.size > 1 else 1.0
+        big = 1e9
+        cost = np.full((n, n), np.inf)
+        for e in range(n):
+            _, _, _, s1, x_e, p_e = ends[e]
+            for s in range(n):
+                s0, x_s, p_s = ends[s][0], ends[s][1], ends[s][2]
+                dt = float(scan_times[s0] - scan_times[s1]) if s0 > s1 else -1.0
+                if s == e or dt <= 0 or dt > self.max_gap_scans * period:
+                    continue
+                f = transition_matrix(dt, 1)
+                cov = f @ p_e @ f.T + wna_covariance(dt, self.model.q, 1) + p_s
+                nu = x_s - f @ x_e
+                nu[0] = wrap_angle(nu[0])
+                d2 = float(nu @ np.linalg.solve(cov, nu))
+                if d2 <= self.link_gate:
+                    cost[e, s] = d2 + float(np.log(np.linalg.det(cov)))
+        finite = np.isfinite(cost)
+        if not finite.any():
+            return [[p] for p in range(n)]
+        # admissible links cost less than any pair of non-links: the most links, then the
+        # cheapest
+        shift = cost[finite].min()
+        c = np.where(finite, cost - shift, big)
+        rr, cc = linear_sum_assignment(c)
+        nxt = {int(r): int(s) for r, s in zip(rr, cc, strict=True) if finite[r, s]}
+        has_prev = set(nxt.values())
+        chains = []
+        for p in range(n):
+            if p in has_prev:
+                continue
+            ch = [p]
+            while ch[-1] in nxt:
+                ch.append(nxt[ch[-1]])
+            chains.append(ch)
+        return chains
+
+    def _gap_candidates(self, end: tuple, start: tuple, scan_times: FloatArray, z: FloatArray,
+                        scan_of: NDArray[np.int64], labels: NDArray[np.int64]) -> list[int]:
+        """Unassigned detections in the gap between two linked segments, gated against the
+        track's interpolation across the gap (forward and backward predictions fused)."""
+        s1, x_e, p_e = end[3], end[4], end[5]
+        s0, x_s, p_s = start[0], start[1], start[2]
+        sel = np.flatnonzero((scan_of > s1) & (scan_of < s0) & (labels < 0))
+        out = []
+        for j in sel:
+            dt_f = float(scan_times[scan_of[j]] - scan_times[s1])
+            dt_b = float(scan_times[s0] - scan_times[scan_of[j]])
+            f_f, f_b = transition_matrix(dt_f, 1), transition_matrix(dt_b, 1)
+            # forward prediction from the end, backward prediction from the start
+            m_f = f_f @ x_e
+            v_f = (f_f @ p_e @ f_f.T + wna_covariance(dt_f, self.model.q, 1))[0, 0]
+            m_b = np.linalg.solve(f_b, x_s)
+            fi = np.linalg.inv(f_b)
+            v_b = (fi @ (p_s + wna_covariance(dt_b, self.model.q, 1)) @ fi.T)[0, 0]
+            theta = m_f[0] + wrap_angle(m_b[0] - m_f[0]) * v_f / (v_f + v_b)
+            var = v_f * v_b / (v_f + v_b) + self.model.sigma_bearing**2
+            if abs(wrap_angle(z[j] - theta)) < self.tracker.gate * np.sqrt(var):
+                out.append(int(j))
+        return out
+
+    def _prior(self, m: int, est: list[FloatArray]) -> TrackPrior:
         x0 = est[m][0]
         return TrackPrior(bearing=float(x0[0]), rate=float(x0[1]),
                           sigma_bearing=10.0 * self.model.sigma_bearing,
@@ -1061,7 +1267,10 @@ class MultiTrackSmoother:
         return it
 
 
-def identity_swaps(
+CROSSING_OUTCOMES = ("kept", "swap", "lost", "unscored")
+
+
+def crossing_outcomes(
     true_labels: ArrayLike,
     est_labels: ArrayLike,
     times: ArrayLike,
@@ -1069,8 +1278,9 @@ def identity_swaps(
     *,
     guard_s: float,
     window_s: float,
-) -> NDArray[np.bool_]:
-    """Which true crossings changed a track's identity.
+    min_fraction: float = 0.5,
+) -> NDArray[np.str_]:
+    """What became of the two tracks' identities at each true crossing.
 
     Parameters
     ----------
@@ -1083,37 +1293,91 @@ def identity_swaps(
     guard_s : float
         Half-width of the ambiguous interval around ``t_cross`` that is not scored, s.
     window_s : float
-        Length of the scored intervals before and after it, s.
+        Length of the scored windows ``[t_c - guard - window, t_c - guard)`` (before) and
+        ``(t_c + guard, t_c + guard + window]`` (after), s.
+    min_fraction : float, optional
+        Share of a true track's detections in a window that one estimated track must own to
+        follow it there (default 0.5).
 
     Returns
     -------
-    ndarray of bool, shape (n_crossings,)
-        True where, for track a or b, the most frequent estimated label of its detections in
-        ``[t_c - guard - window, t_c - guard)`` differs from that in
-        ``(t_c + guard, t_c + guard + window]`` (a swap or a lost track).
+    ndarray of str, shape (n_crossings,)
+        Per crossing, with ``f(x, W)`` the estimated track that follows true track ``x`` in
+        window ``W`` (the most frequent estimated label of x's detections there, if it owns at
+        least `min_fraction` of them):
+
+        - ``"unscored"``: a or b has no detection in one of the windows;
+        - ``"lost"``: a or b is followed by no track before or after, or by the same track as
+          the other one, or after the crossing by a track that followed neither before
+          (fragmented or restarted);
+        - ``"swap"``: after the crossing a is followed by b's track from before, or b by a's;
+        - ``"kept"``: both followed by their own tracks before and after.
+
+    Examples
+    --------
+    >>> t = np.repeat(np.arange(10.0), 2)
+    >>> true = np.tile([0, 1], 10)
+    >>> crossing_outcomes(true, true, t, [(0, 1, 5.0)], guard_s=0.5, window_s=4).tolist()
+    ['kept']
     """
     tl = np.asarray(true_labels)
     el = np.asarray(est_labels)
     t = np.asarray(times, float)
+    if not (tl.shape == el.shape == t.shape and tl.ndim == 1):
+        raise ValueError("true_labels, est_labels and times must be 1-D of equal length")
 
-    def mode(sel: NDArray[np.bool_]) -> int:
-        if not sel.any():
-            return -2
-        u, c = np.unique(el[sel], return_counts=True)
-        return int(u[np.argmax(c)])
+    def follower(trk: int, sel_t: NDArray[np.bool_]) -> int | None:
+        sel = (tl == trk) & sel_t
+        n = int(sel.sum())
+        if n == 0:
+            return None
+        lab = el[sel]
+        lab = lab[lab >= 0]
+        if lab.size == 0:
+            return -1
+        u, c = np.unique(lab, return_counts=True)
+        i = int(np.argmax(c))
+        return int(u[i]) if c[i] >= min_fraction * n else -1
 
-    out = np.zeros(len(crossings), bool)
-    for i, (a, b, tc) in enumerate(crossings):
-        for trk in (a, b):
-            own = tl == trk
-            before = own & (t >= tc - guard_s - window_s) & (t < tc - guard_s)
-            after = own & (t > tc + guard_s) & (t <= tc + guard_s + window_s)
-            mb, ma = mode(before), mode(after)
-            if mb == -2 or ma == -2:
-                continue
-            if mb != ma or mb == -1:
-                out[i] = True
-    return out
+    out = []
+    for a, b, tc in crossings:
+        before = (t >= tc - guard_s - window_s) & (t < tc - guard_s)
+        after = (t > tc + guard_s) & (t <= tc + guard_s + window_s)
+        fb = [follower(x, before) for x in (a, b)]
+        fa = [follower(x, after) for x in (a, b)]
+        if None in fb or None in fa:
+            out.append("unscored")
+        elif -1 in fb or -1 in fa or fb[0] == fb[1] or fa[0] == fa[1]:
+            out.append("lost")
+        elif fa[0] == fb[1] or fa[1] == fb[0]:
+            out.append("swap")
+        elif fa != fb:
+            out.append("lost")
+        else:
+            out.append("kept")
+    return np.array(out, dtype="<U8")
+
+
+def identity_swaps(
+    true_labels: ArrayLike,
+    est_labels: ArrayLike,
+    times: ArrayLike,
+    crossings: Sequence[tuple[int, int, float]],
+    *,
+    guard_s: float,
+    window_s: float,
+) -> NDArray[np.bool_]:
+    """Which true crossings exchanged the two tracks' identities.
+
+    ``crossing_outcomes(...) == "swap"``; lost or fragmented tracks are not swaps (see
+    :func:`crossing_outcomes`).
+
+    Returns
+    -------
+    ndarray of bool, shape (n_crossings,)
+    """
+    return crossing_outcomes(true_labels, est_labels, times, crossings, guard_s=guard_s,
+                             window_s=window_s) == "swap"
 
 
 def smooth_bearings(

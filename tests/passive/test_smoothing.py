@@ -16,6 +16,7 @@ from fusion.passive.smoothing import (
     NearestNeighbourTracker,
     OnlineBearingSmoother,
     TrackPrior,
+    crossing_outcomes,
     crossing_time,
     identity_swaps,
 )
@@ -109,7 +110,7 @@ def test_crossing_time_eq2():
     assert crossing_time(0.0, 0.01, 0.1, 0.01) == np.inf
 
 
-def _crossing_scene(seed, n=60):
+def _crossing_scene(seed, n=60, p_detect=1.0, clutter=0.2):
     """Two straight bearing tracks crossing at scan 30 plus uniform clutter."""
     rng = np.random.default_rng(seed)
     t_s = np.arange(n) * 10.0
@@ -117,8 +118,9 @@ def _crossing_scene(seed, n=60):
     rows = []
     for k in range(n):
         for a in (0, 1):
-            rows.append((t_s[k], truth[a, k] + rng.normal(0, SIG), a))
-        for _ in range(rng.poisson(0.2)):
+            if rng.random() < p_detect:
+                rows.append((t_s[k], truth[a, k] + rng.normal(0, SIG), a))
+        for _ in range(rng.poisson(clutter)):
             rows.append((t_s[k], rng.uniform(-np.pi, np.pi), -1))
     t, z, lab = (np.array(c) for c in zip(*rows, strict=True))
     return t, z, lab.astype(int), truth, t_s
@@ -131,13 +133,29 @@ def test_identity_survives_crossing(seed):
     ms = MultiTrackSmoother(sigma_bearing=SIG, q=1e-9, clutter_density=0.2 / (2 * np.pi))
     res = ms.run(t, z)
     assert len(res.tracks) == 2
-    swaps = identity_swaps(lab, res.labels, t, [(0, 1, 300.0)], guard_s=60.0, window_s=200.0)
-    assert not swaps.any()
+    out = crossing_outcomes(lab, res.labels, t, [(0, 1, 300.0)], guard_s=60.0, window_s=200.0)
+    assert out.tolist() == ["kept"]
     assert res.shared.sum() > 0
     for tr in res.tracks:  # each output track follows one true track throughout
         k = np.searchsorted(t_s, tr.times)
         errs = [np.sqrt(np.mean((tr.bearing - truth[a, k]) ** 2)) for a in (0, 1)]
         assert min(errs) < 2 * SIG
+
+
+@pytest.mark.parametrize("seed", [10, 11, 12, 13, 14])
+def test_identity_kept_with_misses_and_clutter(seed):
+    """P_D 0.8 and 1 clutter detection per scan: both identities survive the crossing and
+    at least 90 % of the detections away from it get their own track."""
+    t, z, lab, _, _ = _crossing_scene(seed, p_detect=0.8, clutter=1.0)
+    res = MultiTrackSmoother(sigma_bearing=SIG, q=1e-9, clutter_density=1.0 / (2 * np.pi),
+                             p_detect=0.8).run(t, z)
+    out = crossing_outcomes(lab, res.labels, t, [(0, 1, 300.0)], guard_s=60.0, window_s=200.0)
+    assert out.tolist() == ["kept"]
+    far = (lab >= 0) & (np.abs(t - 300.0) > 60.0)
+    owner = {a: np.bincount(res.labels[far & (lab == a)] + 1).argmax() - 1 for a in (0, 1)}
+    assert owner[0] >= 0 and owner[1] >= 0 and owner[0] != owner[1]
+    for a in (0, 1):
+        assert np.mean(res.labels[far & (lab == a)] == owner[a]) > 0.9
 
 
 def test_identity_swaps_metric():
@@ -149,6 +167,37 @@ def test_identity_swaps_metric():
     swapped[t > 5] = 1 - swapped[t > 5]
     assert not identity_swaps(true, kept, t, [(0, 1, 5.0)], guard_s=0.5, window_s=4)[0]
     assert identity_swaps(true, swapped, t, [(0, 1, 5.0)], guard_s=0.5, window_s=4)[0]
+
+
+def test_crossing_outcomes_keep_swap_loss():
+    """Hand-made label sequences: a keep, a swap, a lost track, a restarted track, a merge
+    and an unscored crossing (no detections before it)."""
+    t = np.repeat(np.arange(10.0), 2)
+    true = np.tile([0, 1], 10)
+    est = {"kept": np.tile([3, 7], 10)}
+    sw = np.tile([3, 7], 10)
+    sw[t > 5] = np.where(true[t > 5] == 0, 7, 3)
+    est["swap"] = sw
+    lost = np.tile([3, 7], 10)
+    lost[(t > 5) & (true == 1)] = -1  # track of b ends at the crossing
+    est["lost"] = lost
+    restarted = np.tile([3, 7], 10)
+    restarted[(t > 5) & (true == 0)] = 9  # a new track takes over a
+    est["restarted"] = restarted
+    merged = np.tile([3, 7], 10)
+    merged[t > 5] = 3  # one track takes both after the crossing
+    est["merged"] = merged
+    cr = [(0, 1, 5.0)]
+    got = {k: crossing_outcomes(true, v, t, cr, guard_s=0.5, window_s=4)[0] for k, v in est.items()}
+    assert got == {"kept": "kept", "swap": "swap", "lost": "lost", "restarted": "lost",
+                   "merged": "lost"}
+    assert crossing_outcomes(true, est["kept"], t, [(0, 1, 0.2)], guard_s=0.5,
+                             window_s=4).tolist() == ["unscored"]
+    # a minority of stray labels does not change who follows a track
+    noisy = np.tile([3, 7], 10)
+    noisy[[12, 15]] = [7, -1]
+    assert crossing_outcomes(true, noisy, t, cr, guard_s=0.5, window_s=4).tolist() == ["kept"]
+    assert not identity_swaps(true, est["lost"], t, cr, guard_s=0.5, window_s=4)[0]
 
 
 def test_tracker_baseline_runs():
