@@ -32,10 +32,16 @@ The paper does not say how "a location" is defined, nor how big a hotspot is. He
 
 A target moving at speed ``v`` with ping interval ``T`` stays in one 3 x 3 neighbourhood for about
 ``3 cell_m / (v T)`` pings, so it can pass the ``fraction`` test only early in a run (at ping ``n``
-it needs more than ``n / 2`` visits); a bottom feature echoing on most pings passes both tests
+it needs more than ``0.4 n`` visits); a bottom feature echoing on most pings passes both tests
 from its ``min_pings``-th ping on. The defaults (``cell_m`` = 150 m, about 1.5 times the position
 error of a detection; ``min_pings`` = 3, the shortest track a tracker confirms) let the map flag a
-feature before a 3-of-4 track on it can be confirmed. The map is sparse (only visited cells are
+feature before a 3-of-4 track on it can be confirmed. ``fraction`` = 0.4 rather than 1/2: a
+feature seen by one receiver that echoes on 70 % of its pings has at most half of the pings
+visited with probability 0.15 after 10 pings and 0.05 after 20 (binomial), and drops off the map
+for those pings, long enough for a track to form on it; at 0.4 these probabilities are 0.05 and
+0.005. The price is that a slow target's first positions stay hot a few pings longer; the
+tracker's motion test (:func:`fusion.active.tracker.motion_statistic`) keeps a target's tentative
+track alive there. The map is sparse (only visited cells are
 stored), unbounded in extent, and updated online, one ping at a time.
 """
 
@@ -131,7 +137,7 @@ class ClutterMap:
     cell_m : float, optional
         Grid cell side, m (default 150).
     fraction : float, optional
-        A cell is hot when visited on more than this fraction of the pings seen (default 0.5),
+        A cell is hot when visited on more than this fraction of the pings seen (default 0.4),
         in (0, 1).
     min_pings : int, optional
         ... and on at least this many pings (default 3), >= 1.
@@ -164,7 +170,7 @@ class ClutterMap:
         self,
         *,
         cell_m: float = 150.0,
-        fraction: float = 0.5,
+        fraction: float = 0.4,
         min_pings: int = 3,
         position_sigma_m: float = 100.0,
         extent_probability: float = 0.99,

@@ -23,8 +23,9 @@ overview"; Section 2.5, "Tracker"; Section 7, "Results"):
    standard, not to a threshold calibrated with every clue.
 3. *Track management* (Section 2.5). A detection that no track takes, that lies in no track's
    gate and is not near a hotspot starts a tentative track; a tentative (potential) track that
-   comes within the same distance of a hotspot region is dropped, since it is the hotspot; a
-   tentative track is confirmed once it
+   comes within the same distance of a hotspot region is dropped, since it is the hotspot,
+   unless its own detections show that it moves (:func:`motion_statistic`: a hotspot stands
+   still, a submarine does not); a tentative track is confirmed once it
    has ``confirm_hits`` hits within its first ``confirm_window`` pings (the paper's tracks are "at
    least three detections long") and deleted when that can no longer happen; a confirmed track is
    deleted after ``max_misses`` consecutive misses.
@@ -41,6 +42,16 @@ Choices where the paper is silent
   (see :func:`equivalent_aspect_deg`): the angle between the track heading and the bistatic
   bisector at the detection; it is left out for tracks whose speed is not larger than its own
   standard deviation (heading unknown, e.g. a track born on the previous ping).
+- Motion test of a tentative track near a hotspot: the least-squares velocity of its own
+  associated detections (constant velocity, no process noise, position error
+  ``position_sigma_m`` per axis) against zero, chi-square with 2 degrees of freedom at
+  ``motion_probability`` (default 0.999), from its third detection on. The Kalman velocity is
+  not used for this: its covariance carries the process noise and stays too wide for a slow
+  target to ever look significant. A slow target seen by several receivers piles its echoes
+  into one clutter-map neighbourhood on its first pings and looks like a hotspot there; the test
+  keeps its track alive once it has moved significantly. The high confidence (0.999) is because
+  real hotspot echoes scatter by more than ``position_sigma_m`` in far bistatic geometries
+  (cross-range error of the bearing), which inflates the statistic of a stationary track.
 - Missing event numbers (pings without any detection) are stepped through as empty pings at
   interpolated times, so that they count as misses.
 - Every ping is one vectorised pass: the Kalman statistics of all (track, detection) pairs at
@@ -78,6 +89,7 @@ __all__ = [
     "gate_threshold",
     "kf_predict",
     "kf_update",
+    "motion_statistic",
     "neutral_value",
     "pair_statistics",
     "pings_from_table",
@@ -90,6 +102,9 @@ logger = logging.getLogger(__name__)
 CLUE_NAMES: tuple[str, ...] = ("score", "snr_db", "aspect_deg", "hotspot_distance_m")
 
 _H = np.array([[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0]])
+#: Detections a tentative track needs before its motion test may clear it of a hotspot (with
+#: two, the least-squares velocity has no residual and one bad association decides).
+_MOTION_MIN_DETECTIONS = 3
 
 
 # ------------------------------------------------------------------------------------------
@@ -227,6 +242,41 @@ def gate_threshold(probability: float, *, dof: int = 2) -> float:
     if not 0.0 < probability < 1.0:
         raise ValueError(f"gate probability must lie in (0, 1), got {probability!r}")
     return float(chi2.ppf(probability, dof))
+
+
+def motion_statistic(times: ArrayLike, xy: ArrayLike, sigma_m: float) -> float:
+    """Chi-square statistic of "the detections move": least-squares velocity against zero.
+
+    Parameters
+    ----------
+    times : array_like, shape (k,)
+        Detection times, s.
+    xy : array_like, shape (k, 2)
+        Detection positions, m.
+    sigma_m : float
+        Position error per axis, m (> 0).
+
+    Returns
+    -------
+    float
+        ``|v|^2 S_tt / sigma^2`` with ``v = sum (t - t_mean)(p - p_mean) / S_tt`` the
+        least-squares velocity and ``S_tt = sum (t - t_mean)^2``: ``v^T Cov(v)^-1 v`` for
+        ``Cov(v) = sigma^2 / S_tt I``, chi-square with 2 degrees of freedom for a stationary
+        object. 0 when all times are equal.
+
+    Examples
+    --------
+    >>> round(motion_statistic([0.0, 90.0, 180.0], [[0, 0], [180, 0], [360, 0]], 100.0), 2)
+    6.48
+    """
+    t = np.asarray(times, dtype=float)
+    p = np.asarray(xy, dtype=float).reshape(-1, 2)
+    tt = t - t.mean()
+    stt = float(tt @ tt)
+    if stt <= 0.0:
+        return 0.0
+    v = tt @ (p - p.mean(axis=0)) / stt
+    return float(v @ v) * stt / float(sigma_m) ** 2
 
 
 # ------------------------------------------------------------------------------------------
@@ -674,6 +724,9 @@ class Tracker:
     init_exclusion_m : float, optional
         Detections closer than this to a hotspot region start no track (fuzzy mode; default
         300 m, where the default "near" membership is 1/2).
+    motion_probability : float, optional
+        Confidence of the motion test that keeps a tentative track near a hotspot alive
+        (default 0.999), in (0, 1); see :func:`motion_statistic`. Fuzzy mode only.
     clutter_map : ClutterMap, optional
         Clutter map (default ``ClutterMap(position_sigma_m=position_sigma_m)``); fuzzy mode
         only.
@@ -700,6 +753,7 @@ class Tracker:
         max_misses: int = 5,
         init_exclusion_m: float = 300.0,
         clutter_map: ClutterMap | None = None,
+        motion_probability: float = 0.999,
     ) -> None:
         if mode not in ("fuzzy", "kalman"):
             raise ValueError(f"mode must be 'fuzzy' or 'kalman', got {mode!r}")
@@ -720,6 +774,8 @@ class Tracker:
         if not 1 <= confirm_hits <= confirm_window:
             raise ValueError("need 1 <= confirm_hits <= confirm_window, got "
                              f"{confirm_hits} and {confirm_window}")
+        if not 0.0 < motion_probability < 1.0:
+            raise ValueError(f"motion_probability must lie in (0, 1), got {motion_probability!r}")
         if max_misses < 1:
             raise ValueError(f"max_misses must be >= 1, got {max_misses!r}")
         if mode == "fuzzy" and system is None:
@@ -739,6 +795,9 @@ class Tracker:
         self._model: tuple[float, NDArray[np.float64], NDArray[np.float64]] | None = None
         self.m, self.n, self.max_misses = int(confirm_hits), int(confirm_window), int(max_misses)
         self.init_exclusion_m = float(init_exclusion_m)
+        self.motion_probability = float(motion_probability)
+        self._motion_gate = float(chi2.ppf(self.motion_probability, 2))
+        self._position_sigma_m = float(position_sigma_m)
         if mode == "fuzzy":
             self.clutter_map = (clutter_map if clutter_map is not None
                                 else ClutterMap(position_sigma_m=position_sigma_m))
@@ -752,6 +811,8 @@ class Tracker:
         self._x = np.zeros((0, 4))
         self._P = np.zeros((0, 4, 4))
         self._life: list[Lifecycle] = []
+        # Per track: times and positions of its detections while tentative (motion test).
+        self._seen: list[list[tuple[float, float, float]]] = []
         self._next_id = 0
         self._time: float | None = None
         if self.clutter_map is not None:
@@ -887,12 +948,20 @@ class Tracker:
                                                    self.R)
         rank = np.full(nt, np.nan)
         rank[hit] = score[np.flatnonzero(hit), det_of[hit]]
+        for i in np.flatnonzero(hit & ~confirmed):
+            self._seen[i].append((ping.time, *ping.xy[det_of[i]]))
         # A potential (tentative) track inside a hotspot's reach is the hotspot, not a target: it
-        # is dropped, as a detection there starts no track (same distance, init_exclusion_m).
+        # is dropped, as a detection there starts no track (same distance, init_exclusion_m),
+        # unless its own detections move significantly (a slow target mistaken for a hotspot).
         on_hot = np.zeros(nt, dtype=bool)
         if self.clutter_map is not None and nt and not confirmed.all():
             on_hot[~confirmed] = (self.clutter_map.distance(self._x[~confirmed, :2])
                                   <= self.init_exclusion_m)
+            for i in np.flatnonzero(on_hot):
+                seen = np.asarray(self._seen[i])
+                if seen.shape[0] >= _MOTION_MIN_DETECTIONS and motion_statistic(
+                        seen[:, 0], seen[:, 1:], self._position_sigma_m) > self._motion_gate:
+                    on_hot[i] = False
         self._life = [
             Lifecycle("deleted", lc.age + 1, lc.hits + int(h), 0) if drop
             else advance_status(lc, bool(h), m=self.m, n=self.n, max_misses=self.max_misses)
@@ -930,6 +999,9 @@ class Tracker:
         self._P = np.concatenate([self._P, P_new])[alive]
         self._life = [lc for lc, a in zip(self._life + [Lifecycle()] * new.size, alive, strict=True)
                       if a]
+        seen = self._seen + [[(ping.time, *ping.xy[j])] for j in new]
+        self._seen = [[] if st == "confirmed" else h
+                      for h, a, st in zip(seen, alive, status, strict=True) if a]
         logger.debug("event %d: %d detections, %d tracks, %d new", ping.event, nd, nt, new.size)
         return result
 

@@ -22,6 +22,7 @@ from fusion.active.tracker import (
     gate_threshold,
     kf_predict,
     kf_update,
+    motion_statistic,
     neutral_value,
     pair_statistics,
     pings_from_table,
@@ -355,3 +356,46 @@ def test_tentative_track_on_a_hotspot_is_dropped():
     assert fuzzy.confirmed_ids().size == 0
     assert fuzzy.pings[2].status[0] == "deleted"
     assert Tracker(mode="kalman").run(pings).confirmed_ids().size == 1
+
+
+def test_motion_statistic_known_answer_and_calibration():
+    """2 m/s over three pings 90 s apart, 100-m errors: |v|^2 S_tt / sigma^2 = 4 * 16200 / 1e4;
+    for a stationary object the statistic is chi-square with 2 degrees of freedom."""
+    q = motion_statistic([0.0, 90.0, 180.0], [[0.0, 0.0], [180.0, 0.0], [360.0, 0.0]], 100.0)
+    assert q == pytest.approx(6.48)
+    assert motion_statistic([5.0, 5.0], [[0.0, 0.0], [100.0, 0.0]], 100.0) == 0.0
+    rng = np.random.default_rng(8)
+    t = np.array([0.0, 70.0, 150.0, 230.0])
+    qs = np.array([motion_statistic(t, rng.normal(0, 100.0, (4, 2)), 100.0) for _ in range(20000)])
+    assert abs(qs.mean() - 2.0) < 0.05
+    assert abs(np.mean(qs > chi2.ppf(0.99, 2)) - 0.01) < 0.003
+
+
+def _crossing_pings(k_birth=3, n=8):
+    """A fixed feature at the origin on every ping; from ping ``k_birth`` a target at 4 m/s
+    that reaches the feature's region on its third detection."""
+    rng = np.random.default_rng(2)
+    pings = []
+    for k in range(n):
+        xy = [[0.0, 0.0] + rng.normal(0, 30.0, 2)]
+        if k >= k_birth:
+            xy.append([-1100.0 + 360.0 * (k - k_birth), 0.0] + rng.normal(0, 30.0, 2))
+        pings.append(Ping(k, 90.0 * k, np.array(xy)))
+    return pings
+
+
+def test_moving_tentative_track_survives_a_hotspot():
+    """A tentative track that reaches a hotspot region on its third detection is kept and
+    confirmed when its detections move significantly (4 m/s: statistic 25.9 > 13.8); without
+    the motion test (probability -> 1) it is dropped like the feature's own track."""
+    pings = _crossing_pings()
+    res = Tracker().run(pings)
+    assert len(res.pings[4].hotspots) == 1
+    conf = res.confirmed_ids()
+    assert conf.size == 1
+    cols = res.columns()
+    m = (cols["track_id"] == conf[0]) & (cols["status"] == "confirmed")
+    assert np.all(np.abs(cols["y"][m]) < 200) and cols["x"][m].min() < -200
+    assert Tracker(motion_probability=1 - 1e-12).run(pings).confirmed_ids().size == 0
+    with pytest.raises(ValueError, match="motion_probability"):
+        Tracker(motion_probability=1.0)
