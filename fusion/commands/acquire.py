@@ -6,7 +6,9 @@ import argparse
 import json
 from pathlib import Path
 
-from fusion.cli import emit
+import numpy as np
+
+from fusion.cli import emit, number
 from fusion.io import read_cube
 from fusion.passive.acquisition import Acquisition
 
@@ -23,17 +25,19 @@ def register(sub: argparse._SubParsersAction) -> None:
         ),
     )
     p.add_argument("--cube", type=Path, required=True, help="cube .npz (power, freqs, ...)")
-    p.add_argument("--beam", type=int, required=True, help="clicked beam (0 = forward endfire)")
-    p.add_argument("--freq", type=float, required=True, help="clicked frequency, Hz")
-    p.add_argument("--lag", type=float, default=0.0,
+    p.add_argument("--beam", type=number(int, ge=0), required=True,
+                   help="clicked beam (0 = forward endfire)")
+    p.add_argument("--freq", type=number(float, gt=0), required=True, help="clicked frequency, Hz")
+    p.add_argument("--lag", type=number(float, ge=0), default=0.0,
                    help="spectral integration / display lag to correct, s (default 0)")
-    p.add_argument("--ibw", type=float, default=None,
+    p.add_argument("--ibw", type=number(float, gt=0), default=None,
                    help="initialisation bandwidth, Hz (default: the clicked bin)")
     p.add_argument("--no-normalize", action="store_true",
                    help="the cube is already normalised to unit noise mean")
-    p.add_argument("--min-scans", type=int, default=None,
-                   help="fewest scans a line may span before leaving the BTR (default: all)")
-    p.add_argument("--noise-dof", type=float, default=2.0,
+    p.add_argument("--min-scans", type=number(int, ge=2), default=None,
+                   help="fewest scans a line may span before leaving the BTR, at most the "
+                        "cube's scans (default: all)")
+    p.add_argument("--noise-dof", type=number(float, gt=0), default=2.0,
                    help="degrees of freedom of the noise per cell (default 2: one look)")
     p.set_defaults(handler=run)
 
@@ -41,6 +45,20 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     """Read the cube, acquire, print the JSON result."""
     cube = read_cube(args.cube)
+    if args.beam >= cube.n_beams:
+        raise ValueError(f"--beam {args.beam} is outside the beams 0..{cube.n_beams - 1} of "
+                         f"{args.cube}")
+    if cube.n_bins < 2:
+        raise ValueError(f"{args.cube}: the cube needs at least 2 frequency bins "
+                         "(bin spacing unknown)")
+    df = float(np.median(np.diff(cube.freqs)))
+    lo, hi = cube.freqs[0] - 0.5 * df, cube.freqs[-1] + 0.5 * df
+    if not lo <= args.freq <= hi:
+        raise ValueError(f"--freq {args.freq:g} Hz is outside the band {lo:g}..{hi:g} Hz of "
+                         f"{args.cube}")
+    if args.min_scans is not None and args.min_scans > cube.n_scans:
+        raise ValueError(f"--min-scans {args.min_scans} exceeds the {cube.n_scans} scans of "
+                         f"{args.cube}")
     acq = Acquisition(lag_s=args.lag, ibw_hz=args.ibw, normalize=not args.no_normalize,
                       min_scans=args.min_scans, noise_dof=args.noise_dof)
     try:

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fusion.cli import emit
+from fusion.cli import emit, number
 from fusion.io import read_bearings, write_table
 from fusion.passive.crossing import detect_crossings, estimate_period
 
@@ -31,28 +31,22 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--bearings", required=True, help="input CSV: track_id,time,bearing_deg")
     p.add_argument("--out", required=True, help="output CSV: time,track_a,track_b,t_cross,kind")
-    p.add_argument("--period", "-K", type=float, default=None, metavar="K",
+    p.add_argument("--period", "-K", type=number(float, gt=0), default=None, metavar="K",
                    help="sample period K, s (default: median time step within tracks)")
-    p.add_argument("--window", "-J", type=int, default=10, metavar="J",
+    p.add_argument("--window", "-J", type=number(int, ge=3), default=10, metavar="J",
                    help="samples in the least-squares window, > 2 (default 10)")
-    p.add_argument("--horizon", type=float, default=None, metavar="S",
+    p.add_argument("--horizon", type=number(float, gt=0), default=None, metavar="S",
                    help="in-range check: |t_cross - t| <= S seconds (default J*K)")
-    p.add_argument("--merge-window", type=float, default=None, metavar="S",
+    p.add_argument("--merge-window", type=number(float, gt=0), default=None, metavar="S",
                    help="alerts of a pair whose t_cross differ by <= S s are one event "
                         "(default J*K)")
-    p.add_argument("--max-gap", type=float, default=None, metavar="S",
+    p.add_argument("--max-gap", type=number(float, gt=0), default=None, metavar="S",
                    help="a gap longer than S s splits a track (default 3*K)")
     p.set_defaults(handler=run)
 
 
 def run(args: argparse.Namespace) -> int:
     """Read the bearings, detect crossings, write the alerts; print a one-line summary."""
-    if args.window < 3:
-        raise ValueError(f"--window J must be an integer > 2, got {args.window}")
-    for opt, v in (("--period", args.period), ("--horizon", args.horizon),
-                   ("--merge-window", args.merge_window), ("--max-gap", args.max_gap)):
-        if v is not None and not (np.isfinite(v) and v > 0):
-            raise ValueError(f"{opt} must be a positive number of seconds, got {v}")
     table = read_bearings(args.bearings)
     tid = table["track_id"]
     known = tid >= 0
@@ -65,6 +59,13 @@ def run(args: argparse.Namespace) -> int:
         except ValueError as e:
             raise ValueError(f"{args.bearings}: {e}") from None
         logger.info("sample period K = %.6g s (median time step)", period)
+    spans = [np.ptp(table["time"][tid == k]) for k in np.unique(tid[known])]
+    n_samples = np.floor(np.asarray(spans) / period + 1e-9).astype(int) + 1
+    if np.sum(n_samples >= args.window) < 2:
+        raise ValueError(
+            f"{args.bearings}: fewer than two tracks span --window J={args.window} samples at "
+            f"K={period:g} s (longest: {int(n_samples.max())}); no crossing can be tested"
+        )
     alerts = detect_crossings(
         table, J=args.window, K=period, horizon_s=args.horizon,
         merge_window_s=args.merge_window, max_gap_s=args.max_gap,

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from fusion.cli import emit
+from fusion.cli import emit, number
 from fusion.demo import run_demo
 
 
@@ -17,9 +17,9 @@ def register(sub: argparse._SubParsersAction) -> None:
         description="Run every pipeline on built-in scenarios; write results, figures and a summary.",
     )
     p.add_argument("--out", type=Path, default=Path("fusion-demo"), help="output folder")
-    p.add_argument("--seed", type=int, default=0, help="scenario seed (default 0)")
+    p.add_argument("--seed", type=number(int, ge=0), default=0, help="scenario seed (default 0)")
     p.add_argument("--part", action="append", default=None, help="run only this part (repeatable)")
-    p.set_defaults(handler=run)
+    p.set_defaults(handler=run, out_is_dir=True)
 
 
 def run(args: argparse.Namespace) -> int:

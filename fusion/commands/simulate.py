@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from fusion.cli import emit
+from fusion.cli import emit, number
 from fusion.simulate import SIMULATORS, get_writer
 
 
@@ -17,9 +17,9 @@ def register(sub: argparse._SubParsersAction) -> None:
         description="Write a seeded scenario (inputs of the other subcommands) plus ground truth.",
     )
     p.add_argument("kind", choices=sorted(SIMULATORS), help="scenario kind")
-    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    p.add_argument("--seed", type=number(int, ge=0), default=0, help="random seed (default 0)")
     p.add_argument("--out", type=Path, required=True, help="output folder")
-    p.set_defaults(handler=run)
+    p.set_defaults(handler=run, out_is_dir=True)
 
 
 def run(args: argparse.Namespace) -> int:

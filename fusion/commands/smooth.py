@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from fusion.cli import number
 from fusion.io import read_bearings, write_table
 from fusion.passive.smoothing import BearingSmoother, MultiTrackSmoother, smooth_bearings
 
@@ -31,32 +32,33 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--bearings", type=Path, required=True, help="input CSV track_id,time,bearing_deg")
     p.add_argument("--out", type=Path, required=True, help="output CSV")
-    p.add_argument("--sigma-bearing-deg", type=float, default=0.5,
+    p.add_argument("--sigma-bearing-deg", type=number(float, gt=0), default=0.5,
                    help="bearing measurement standard deviation, deg (default 0.5)")
-    p.add_argument("--q-deg2-per-s3", type=float, default=3e-6,
+    p.add_argument("--q-deg2-per-s3", type=number(float, gt=0), default=3e-6,
                    help="bearing acceleration PSD, deg^2/s^3 (default 3e-6)")
     p.add_argument("--robust", choices=("none", "huber", "cauchy"), default="huber",
                    help="loss on the bearing factors of labelled tracks (default huber)")
-    p.add_argument("--clutter-density", type=float, default=0.1,
+    p.add_argument("--clutter-density", type=number(float, gt=0), default=0.1,
                    help="false detections per scan per radian (default 0.1)")
-    p.add_argument("--p-detect", type=float, default=0.9,
-                   help="probability that a track is detected in a scan (default 0.9)")
-    p.add_argument("--min-length", type=int, default=5,
-                   help="fewest detections of a track formed from unknown-origin rows (default 5)")
+    p.add_argument("--p-detect", type=number(float, gt=0, le=1), default=0.9,
+                   help="probability that a track is detected in a scan, (0, 1] (default 0.9)")
+    p.add_argument("--min-length", type=number(int, ge=2), default=5,
+                   help="fewest detections of a track formed from unknown-origin rows, >= 2 "
+                        "(default 5)")
     p.set_defaults(handler=run)
 
 
 def run(args: argparse.Namespace) -> int:
     """Read, smooth, write."""
     table = read_bearings(args.bearings)
+    ids, times = table["track_id"], table["time"]
+    short = [int(k) for k in np.unique(ids[ids >= 0]) if np.unique(times[ids == k]).size < 2]
+    if short:
+        listed = ", ".join(map(str, short[:5])) + (", ..." if len(short) > 5 else "")
+        raise ValueError(f"{args.bearings}: track(s) {listed} have fewer than 2 distinct times; "
+                         "a bearing rate needs at least 2 samples per track")
     sigma = np.radians(args.sigma_bearing_deg)
     q = args.q_deg2_per_s3 * np.radians(1.0) ** 2
-    for name, v in (("--sigma-bearing-deg", sigma), ("--q-deg2-per-s3", q),
-                    ("--clutter-density", args.clutter_density)):
-        if not (np.isfinite(v) and v > 0):
-            raise ValueError(f"{name} must be > 0")
-    if not 0 < args.p_detect <= 1:
-        raise ValueError("--p-detect must be in (0, 1]")
     single = BearingSmoother(sigma_bearing=sigma, q=q, robust=args.robust)
     multi = MultiTrackSmoother(sigma_bearing=sigma, q=q, clutter_density=args.clutter_density,
                                p_detect=args.p_detect, min_length=args.min_length)

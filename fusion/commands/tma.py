@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
+from fusion.cli import number
 from fusion.io import read_ownship, read_tma_bearings, write_table
 from fusion.passive.tma import BearingsOnlyTMA, OwnshipTrack
 
@@ -27,15 +28,15 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--bearings", type=Path, required=True, help="CSV time,bearing_deg")
     p.add_argument("--ownship", type=Path, required=True, help="CSV time,x,y")
     p.add_argument("--out", type=Path, required=True, help="output CSV")
-    p.add_argument("--bearing-sigma-deg", type=float, default=1.0,
+    p.add_argument("--bearing-sigma-deg", type=number(float, gt=0), default=1.0,
                    help="bearing noise standard deviation, deg (default 1.0)")
     p.add_argument("--motion", choices=("single", "chain"), default="single",
                    help="one constant-velocity state, or a state per time with CV factors")
-    p.add_argument("--q", type=float, default=1e-6,
+    p.add_argument("--q", type=number(float, gt=0), default=1e-6,
                    help="acceleration PSD of the target for --motion chain, m^2/s^3 (default 1e-6)")
     p.add_argument("--robust", choices=("huber", "cauchy", "tukey"), default=None,
                    help="robust loss on the bearings (default none)")
-    p.add_argument("--robust-k", type=float, default=2.0,
+    p.add_argument("--robust-k", type=number(float, gt=0), default=2.0,
                    help="robust threshold in bearing sigmas (default 2.0)")
     p.set_defaults(handler=run)
 
@@ -52,6 +53,13 @@ def run(args: argparse.Namespace) -> int:
         bearing_sigma_deg=args.bearing_sigma_deg, motion=args.motion, q=args.q,
         robust=args.robust, robust_k=args.robust_k,
     )
+    t, t_own = bearings["time"], ownship["time"]
+    tol = 1e-9 * max(1.0, float(t_own[-1] - t_own[0]), float(np.max(np.abs(t_own))))
+    if t.min() < t_own[0] - tol or t.max() > t_own[-1] + tol:
+        raise ValueError(
+            f"{args.bearings}: bearing times [{t.min():g}, {t.max():g}] s reach outside the "
+            f"own-ship track [{t_own[0]:g}, {t_own[-1]:g}] s of {args.ownship}"
+        )
     try:
         res = tma.estimate(bearings["time"], np.radians(bearings["bearing_deg"]), track)
     except ValueError as e:

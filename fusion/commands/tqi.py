@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from fusion.cli import number
 from fusion.io import read_amplitudes, write_table
 from fusion.passive.quality import TrackQualityIndicator
 
@@ -32,23 +33,23 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="CSV track_id,time,amplitude,residual")
     p.add_argument("--out", type=Path, required=True, help="output CSV (input columns + tqi)")
     g = p.add_argument_group("design SNRs (per cell)")
-    g.add_argument("--snr0-db", type=float, default=3.0, help="tracker threshold SNR_0 (3 dB)")
-    g.add_argument("--snr1-db", type=float, default=10.0, help="strong-track SNR_1 (10 dB)")
-    g.add_argument("--n-looks", type=int, default=1,
+    g.add_argument("--snr0-db", type=number(float), default=3.0, help="tracker threshold SNR_0 (3 dB)")
+    g.add_argument("--snr1-db", type=number(float), default=10.0, help="strong-track SNR_1 (10 dB)")
+    g.add_argument("--n-looks", type=number(int, ge=1), default=1,
                    help="periodogram looks averaged per cell of the spectra (1)")
     t = p.add_argument_group("thresholds (method defaults)")
-    t.add_argument("--tl", type=float, default=-3.5, help="lost threshold TL (-3.5)")
-    t.add_argument("--tu", type=float, default=1.75, help="uncertain threshold TU (1.75)")
-    t.add_argument("--ts", type=float, default=7.0, help="strong threshold TS (7.0)")
-    t.add_argument("--lh", type=float, default=1.5, help="low-SNR hysteresis LH (1.5)")
-    t.add_argument("--sh", type=float, default=2.0, help="strong-SNR hysteresis SH (2.0)")
+    t.add_argument("--tl", type=number(float), default=-3.5, help="lost threshold TL (-3.5)")
+    t.add_argument("--tu", type=number(float), default=1.75, help="uncertain threshold TU (1.75)")
+    t.add_argument("--ts", type=number(float), default=7.0, help="strong threshold TS (7.0)")
+    t.add_argument("--lh", type=number(float, ge=0), default=1.5, help="low-SNR hysteresis LH (1.5)")
+    t.add_argument("--sh", type=number(float, ge=0), default=2.0, help="strong-SNR hysteresis SH (2.0)")
     t.add_argument("--no-hysteresis", action="store_true",
                    help="single thresholds (LH = SH = 0 in the decision flow)")
     r = p.add_argument_group("residual test")
-    r.add_argument("--omega", type=float, default=0.25,
+    r.add_argument("--omega", type=number(float, gt=0), default=0.25,
                    help="error-detector angular centre frequency Omega, 1/deg (0.25)")
-    r.add_argument("--t-err", type=float, default=3.0, help="residual threshold constant (3.0)")
-    r.add_argument("--residual-smoothing", type=float, default=0.1,
+    r.add_argument("--t-err", type=number(float, ge=0), default=3.0, help="residual threshold constant (3.0)")
+    r.add_argument("--residual-smoothing", type=number(float, gt=0, le=1), default=0.1,
                    help="gain of the recursive residual smoother, (0, 1] (0.1)")
     p.add_argument("--diagnostics", action="store_true",
                    help="also write sllr0, sllr1, smoothed_residual, err_max columns")
@@ -57,6 +58,10 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Compute the TQI of every track and write the output CSV."""
+    if not args.snr1_db > args.snr0_db:
+        raise ValueError(f"--snr1-db ({args.snr1_db:g}) must exceed --snr0-db ({args.snr0_db:g})")
+    if not args.tl < args.tu:
+        raise ValueError(f"--tl ({args.tl:g}) must be below --tu ({args.tu:g})")
     table = read_amplitudes(args.amplitudes)
     tqi = TrackQualityIndicator(
         snr0_db=args.snr0_db, snr1_db=args.snr1_db, n_looks=args.n_looks, tl=args.tl,
