@@ -27,6 +27,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from _realdata import AUTOFERRY
 
 from fusion.io import read_table
 from fusion.passive.crossing import CrossingDetector, detect_crossings, score_alerts
@@ -34,7 +35,7 @@ from fusion.simulate.bearings import simulate_bearings
 
 ROOT = Path(__file__).resolve().parents[1]
 REAL_DIRS = (
-    Path("/work/shared/realdata/autoferry_sensor_fusion"),
+    AUTOFERRY,
     ROOT / "tests" / "data" / "autoferry",
 )
 REAL_TRUTH = {2: 1, 3: 2, 5: 0, 16: 0, 17: 0}

@@ -11,9 +11,9 @@ import argparse
 import json
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
+from _realdata import AUTOFERRY as REALDATA
 from filterpy.kalman import KalmanFilter, rts_smoother
 
 from factors.motion import transition_matrix, wna_covariance
@@ -27,8 +27,6 @@ from fusion.passive.smoothing import (
     crossing_outcomes,
 )
 from fusion.simulate.bearings import simulate_bearings
-
-REALDATA = Path("/work/shared/realdata/autoferry_sensor_fusion")
 
 
 def _log(msg: str) -> None:

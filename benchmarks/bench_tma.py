@@ -16,8 +16,7 @@ Gaussian noise). Prints one JSON line on stdout; human lines on stderr.
 
 Usage::
 
-    python benchmarks/bench_tma.py --runs 50 --seed 1000 \\
-        --realdata /work/shared/realdata/autoferry_sensor_fusion
+    python benchmarks/bench_tma.py --runs 50 --seed 1000 --realdata ../shared/realdata/autoferry_sensor_fusion
 """
 
 from __future__ import annotations
