@@ -5,9 +5,11 @@ Prints ONE JSON line:
   confirmed false tracks per run and mean target coverage (pings after the third with a
   confirmed track within 500 m of the target); targets: false <= 0.5, coverage >= 0.9 (fuzzy);
 - ``ablation``: the fuzzy tracker with one clue removed at a time (and with the aspect angle
-  computed from source/receiver positions and the track heading instead of the given column);
+  computed from source/receiver positions and the track heading instead of the given column;
+  and with the isotropic ``position_sigma_m`` error for every detection instead of the bistatic
+  error ellipses from source/receiver geometry: ``isotropic_errors``);
 - ``speed``: median wall time of one ping with 200 detections against 20 confirmed tracks
-  (target <= 5 ms);
+  (target <= 5 ms), detections with source/receiver positions (bistatic error ellipses);
 - ``real``: Autoferry radar (Trondheim harbour), positions only, scored against GNSS truth;
   the fuzzy rank threshold is derived for the clue set present (likelihood + hotspot).
 
@@ -48,6 +50,7 @@ def bench_sim(seeds) -> tuple[dict, dict]:
         "no_aspect": (dict(clues=("score", "snr_db", "hotspot_distance_m")), ()),
         "no_hotspot": (dict(clues=("score", "snr_db", "aspect_deg")), ()),
         "aspect_from_geometry": (dict(), ("aspect_deg",)),
+        "isotropic_errors": (dict(position_errors="isotropic"), ()),
     }
     acc = {k: ([], []) for k in variants}
     for s in seeds:
@@ -76,8 +79,11 @@ def bench_speed(repeats: int = 50, n_tracks: int = 20, n_det: int = 200) -> dict
     starts = np.column_stack([np.linspace(-8000, 8000, n_tracks), rng.uniform(-8000, 8000, n_tracks)])
     ang = rng.uniform(0, 2 * np.pi, n_tracks)
     vel = 4.0 * np.column_stack([np.sin(ang), np.cos(ang)])
+    # Source at the origin, receiver 5 km east (bistatic error ellipses for every detection).
+    geo = {"src_x": 0.0, "src_y": 0.0, "rcv_x": 5000.0, "rcv_y": 0.0}
     good = {"snr_db": np.full(n_tracks, 12.0), "score": np.full(n_tracks, 0.9),
-            "aspect_deg": np.full(n_tracks, 90.0)}
+            "aspect_deg": np.full(n_tracks, 90.0),
+            **{k: np.full(n_tracks, v) for k, v in geo.items()}}
     for k in range(4):        # build the confirmed tracks
         xy = starts + vel * 90 * k + rng.normal(0, 20, (n_tracks, 2))
         tracker.step(Ping(k, 90.0 * k, xy, good))
@@ -91,7 +97,8 @@ def bench_speed(repeats: int = 50, n_tracks: int = 20, n_det: int = 200) -> dict
                         rng.uniform(-10000, 10000, (n_det - n_tracks, 2))])
         ping = Ping(4, 360.0, xy, {"snr_db": rng.uniform(10, 25, n_det),
                                    "score": rng.uniform(0, 1, n_det),
-                                   "aspect_deg": rng.uniform(0, 180, n_det)})
+                                   "aspect_deg": rng.uniform(0, 180, n_det),
+                                   **{k: np.full(n_det, v) for k, v in geo.items()}})
         tr = copy.deepcopy(tracker)
         t0 = time.perf_counter()
         tr.step(ping)

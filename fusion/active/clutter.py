@@ -16,8 +16,12 @@ The paper does not say how "a location" is defined, nor how big a hotspot is. He
   ``fraction`` of all pings seen so far.
 - *Hotspots are clusters with an extent.* Hot cells that touch (8-connectivity) form one hotspot.
   Its centre is the mean of the detections stored in its cells and its covariance ``C`` is their
-  sample covariance, with every eigenvalue raised to at least ``position_sigma_m**2`` (a feature
-  cannot look smaller than the position error of one detection). The hotspot *region* is the
+  sample covariance, raised to at least the mean position-error covariance ``E`` of those
+  detections (a feature cannot look smaller than the position error of one detection): the
+  eigenvalues of ``E^-1/2 C E^-1/2`` are raised to at least 1, so the result contains both
+  ellipses. ``E`` is the mean of the per-detection covariances given to :meth:`ClutterMap.update`
+  (e.g. bistatic error ellipses, long across the line of sight of a far receiver), or
+  ``position_sigma_m**2 I`` for detections given without one. The hotspot *region* is the
   ellipse ``(p - c)^T C^-1 (p - c) <= g^2`` with ``g^2`` the chi-square quantile (2 degrees of
   freedom) of ``extent_probability``: the region that holds that fraction of the feature's echoes.
 - *Distance to a hotspot* is the distance from a point to that region along the line from the
@@ -63,8 +67,9 @@ logger = logging.getLogger(__name__)
 # Cell indices are packed into one int64 key: (ix + _OFF) * _SPAN + (iy + _OFF).
 _SPAN = np.int64(1 << 31)
 _OFF = np.int64(1 << 30)
-# Per-cell sums: x, y, xx, xy, yy, t, tt, tx, ty (t: ping time relative to the first ping).
-_NSUM = 9
+# Per-cell sums: x, y, xx, xy, yy, t, tt, tx, ty (t: ping time relative to the first ping), then
+# the position-error covariance of the detections: cxx, cxy, cyy.
+_NSUM = 12
 _NEIGHBOURS = np.array([(dx, dy) for dx in (-1, 0, 1) for dy in (-1, 0, 1)], dtype=np.int64)
 
 
@@ -78,8 +83,8 @@ class Hotspots:
         Hotspot centres (x east, y north), m: mean position of the detections in the hotspot's
         cells.
     covariances : ndarray, shape (n, 2, 2)
-        Spread of each hotspot's detections, m^2 (sample covariance, eigenvalues at least the
-        squared position error).
+        Spread of each hotspot's detections, m^2 (sample covariance, raised to at least the mean
+        position-error covariance of its detections).
     gate : float
         Mahalanobis radius ``g`` of the hotspot regions (dimensionless).
     visits : ndarray of int, shape (n,)
@@ -142,8 +147,8 @@ class ClutterMap:
     min_pings : int, optional
         ... and on at least this many pings (default 3), >= 1.
     position_sigma_m : float, optional
-        Position error of one detection per axis, m (default 100): the smallest spread a
-        hotspot can have.
+        Position error of one detection per axis, m (default 100), for detections given to
+        :meth:`update` without a covariance: the smallest spread a hotspot can have.
     extent_probability : float, optional
         Fraction of a hotspot's echoes inside its region (default 0.99), in (0, 1).
     drift_probability : float, optional
@@ -222,23 +227,26 @@ class ClutterMap:
         return (ij[:, 0] + _OFF) * _SPAN + (ij[:, 1] + _OFF)
 
     def _insert(self, new_keys: NDArray[np.int64]) -> None:
-        """Add cells (unique keys) not yet stored, keeping the keys sorted."""
+        """Add cells (sorted unique keys) not yet stored, keeping the keys sorted."""
         if self._keys.size:
-            pos = np.minimum(np.searchsorted(self._keys, new_keys), self._keys.size - 1)
-            known = self._keys[pos] == new_keys
+            at = np.searchsorted(self._keys, new_keys)
+            known = self._keys[np.minimum(at, self._keys.size - 1)] == new_keys
         else:
+            at = np.zeros(new_keys.size, dtype=np.int64)
             known = np.zeros(new_keys.size, dtype=bool)
-        fresh = new_keys[~known]
-        if fresh.size == 0:
+        fresh = ~known
+        if not fresh.any():
             return
-        keys = np.concatenate([self._keys, fresh])
-        order = np.argsort(keys, kind="stable")
-        self._keys = keys[order]
-        self._visits = np.concatenate([self._visits, np.zeros(fresh.size, np.int64)])[order]
-        self._count = np.concatenate([self._count, np.zeros(fresh.size, np.int64)])[order]
-        self._sum = np.concatenate([self._sum, np.zeros((fresh.size, _NSUM))])[order]
+        # Insertion without re-sorting: new_keys is sorted, so are the insertion points.
+        at = at[fresh]
+        self._keys = np.insert(self._keys, at, new_keys[fresh])
+        self._visits = np.insert(self._visits, at, 0)
+        self._count = np.insert(self._count, at, 0)
+        self._sum = np.insert(self._sum, at, 0.0, axis=0)
 
-    def update(self, xy: ArrayLike, time: float | None = None) -> None:
+    def update(
+        self, xy: ArrayLike, time: float | None = None, *, cov: ArrayLike | None = None
+    ) -> None:
         """Add the detections of one ping.
 
         Parameters
@@ -247,6 +255,9 @@ class ClutterMap:
             Detection positions (x east, y north), m; n may be 0 (the ping still counts).
         time : float, optional
             Ping time, s (for the drift test); default: the ping's index.
+        cov : array_like, shape (n, 2, 2), optional
+            Position-error covariance of each detection, m^2, positive definite (default
+            ``position_sigma_m**2 I``): the floor of a hotspot's extent is their mean.
 
         Raises
         ------
@@ -256,6 +267,15 @@ class ClutterMap:
         pts = np.asarray(xy, dtype=float).reshape(-1, 2) if np.size(xy) else np.zeros((0, 2))
         if not np.all(np.isfinite(pts)):
             raise ValueError("clutter map: detection positions must be finite")
+        if cov is None:
+            c = np.broadcast_to(np.eye(2) * self.position_sigma_m**2, (pts.shape[0], 2, 2))
+        else:
+            c = np.asarray(cov, dtype=float)
+            if c.shape != (pts.shape[0], 2, 2) or not np.all(np.isfinite(c)):
+                raise ValueError(f"clutter map: cov must be finite, shape ({pts.shape[0]}, 2, 2), "
+                                 f"got shape {c.shape}")
+            if np.any(c[:, 0, 0] <= 0) or np.any(c[:, 0, 0] * c[:, 1, 1] - c[:, 0, 1] ** 2 <= 0):
+                raise ValueError("clutter map: cov must be positive definite")
         t = float(self.n_pings if time is None else time)
         if not np.isfinite(t):
             raise ValueError("clutter map: ping time must be finite")
@@ -277,7 +297,8 @@ class ClutterMap:
         x, y = pts[:, 0], pts[:, 1]
         tt = np.full(x.size, t)
         np.add.at(self._sum, idx, np.column_stack([x, y, x * x, x * y, y * y, tt, tt * t,
-                                                   tt * x, tt * y]))
+                                                   tt * x, tt * y, c[:, 0, 0], c[:, 0, 1],
+                                                   c[:, 1, 1]]))
 
     def hotspots(self) -> Hotspots:
         """The current hotspots.
@@ -317,31 +338,42 @@ class ClutterMap:
         cov[:, 0, 1] = cov[:, 1, 0] = m[:, 3] - mean[:, 0] * mean[:, 1]
         cov[:, 1, 1] = m[:, 4] - mean[:, 1] ** 2
         # No hotspot looks smaller than the position error of one detection.
-        cov = self._floor(cov)
+        err = np.empty((n_spots, 2, 2))
+        err[:, 0, 0], err[:, 1, 1] = m[:, 9], m[:, 11]
+        err[:, 0, 1] = err[:, 1, 0] = m[:, 10]
+        cov = self._floor(cov, err)
         visits = np.zeros(n_spots, np.int64)
         np.maximum.at(visits, label, self._visits[hot])
         cells = np.bincount(label, minlength=n_spots).astype(np.int64)
-        keep = ~self._drifting(count, m, cov)
+        keep = ~self._drifting(count, m, err)
         if not keep.all():
             logger.debug("clutter map: %d drifting cluster(s) are no hotspot", int((~keep).sum()))
         self._cache = Hotspots(mean[keep], cov[keep], self._gate, visits[keep], cells[keep],
                                self.n_pings)
         return self._cache
 
-    def _floor(self, cov: NDArray[np.float64]) -> NDArray[np.float64]:
-        """Raise every eigenvalue of each 2 x 2 covariance to at least position_sigma_m^2."""
-        w, v = np.linalg.eigh(cov)
-        w = np.maximum(w, self.position_sigma_m**2)
-        return np.einsum("nij,nj,nkj->nik", v, w, v)
+    @staticmethod
+    def _floor(cov: NDArray[np.float64], err: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Raise each 2 x 2 covariance to at least the error covariance ``E`` (Loewner order).
+
+        With ``E = L L^T`` (Cholesky), the eigenvalues of ``L^-1 C L^-T`` are raised to at least
+        1 and the result mapped back; for ``E = sigma^2 I`` this raises every eigenvalue of
+        ``C`` to at least ``sigma^2``.
+        """
+        L = np.linalg.cholesky(err)
+        Li = np.linalg.inv(L)
+        w, v = np.linalg.eigh(Li @ cov @ np.swapaxes(Li, 1, 2))
+        inner = np.einsum("nij,nj,nkj->nik", v, np.maximum(w, 1.0), v)
+        return L @ inner @ np.swapaxes(L, 1, 2)
 
     def _drifting(
-        self, count: NDArray[np.float64], m: NDArray[np.float64], cov: NDArray[np.float64]
+        self, count: NDArray[np.float64], m: NDArray[np.float64], err: NDArray[np.float64]
     ) -> NDArray[np.bool_]:
         """Clusters whose echoes move: least-squares drift significant at drift_probability.
 
         The drift ``v = cov(t, p) / var(t)`` of the detections' positions over ping time has
         covariance ``C_res / (n var(t))`` (``C_res``: the covariance left after removing the
-        drift, floored at the position error); a cluster is drifting when
+        drift, floored at the mean position-error covariance ``err``); a cluster is drifting when
         ``v^T (C_res / (n var(t)))^-1 v`` exceeds the chi-square quantile (2 degrees of freedom).
         """
         var_t = m[:, 6] - m[:, 5] ** 2
@@ -356,7 +388,7 @@ class ClutterMap:
         raw[:, 0, 0] = m[ok, 2] - mean[:, 0] ** 2
         raw[:, 0, 1] = raw[:, 1, 0] = m[ok, 3] - mean[:, 0] * mean[:, 1]
         raw[:, 1, 1] = m[ok, 4] - mean[:, 1] ** 2
-        res = self._floor(raw - np.einsum("ni,nj->nij", v, v) * var_t[ok, None, None])
+        res = self._floor(raw - np.einsum("ni,nj->nij", v, v) * var_t[ok, None, None], err[ok])
         cv = res / (count[ok] * var_t[ok])[:, None, None]
         det = cv[:, 0, 0] * cv[:, 1, 1] - cv[:, 0, 1] ** 2
         q = (v[:, 0] ** 2 * cv[:, 1, 1] - 2 * v[:, 0] * v[:, 1] * cv[:, 0, 1]

@@ -3,7 +3,10 @@
 Reads position detections (``event,time,x,y`` plus optional clue columns ``snr_db, score,
 aspect_deg, src_x, src_y, rcv_x, rcv_y``) and writes one row per track per event:
 ``track_id,event,time,x,y,vx,vy,status``. Clue columns absent from the file leave the rules that
-read them out of the rank; the command says so once on stderr.
+read them out of the rank; the command says so once on stderr. With ``src_x, src_y, rcv_x, rcv_y``
+each detection's position error is the bistatic error ellipse propagated from the range-sum and
+bearing accuracies (``--range-sum-sigma``, ``--bearing-sigma``); without them (e.g. radar), or with
+``--position-errors isotropic``, it is ``--position-sigma`` per axis.
 """
 
 from __future__ import annotations
@@ -33,7 +36,16 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--rules", type=Path, default=None,
                    help="fuzzy system JSON file (default: the built-in rule base)")
     p.add_argument("--position-sigma", type=float, default=100.0,
-                   help="position error of a detection per axis, m (default 100)")
+                   help="position error of a detection per axis, m, for detections without "
+                        "source/receiver positions (default 100)")
+    p.add_argument("--position-errors", choices=("geometry", "isotropic"), default="geometry",
+                   help="position error of detections with src_x,src_y,rcv_x,rcv_y: bistatic "
+                        "error ellipse from range-sum and bearing accuracies (default) or "
+                        "--position-sigma per axis")
+    p.add_argument("--range-sum-sigma", type=float, default=30.0,
+                   help="bistatic range-sum accuracy (standard deviation), m (default 30)")
+    p.add_argument("--bearing-sigma", type=float, default=1.0,
+                   help="receiver bearing accuracy (standard deviation), deg (default 1)")
     p.add_argument("--accel-psd", type=float, default=0.04,
                    help="white-acceleration spectral density, m^2/s^3 (default 0.04)")
     p.add_argument("--min-rank", type=float, default=None,
@@ -66,6 +78,9 @@ def run(args: argparse.Namespace) -> int:
             mode=args.mode,
             system=system,
             position_sigma_m=args.position_sigma,
+            position_errors=args.position_errors,
+            range_sum_sigma_m=args.range_sum_sigma,
+            bearing_sigma_deg=args.bearing_sigma,
             accel_psd=args.accel_psd,
             min_rank=args.min_rank,
             confirm_hits=args.confirm[0],

@@ -121,3 +121,44 @@ def test_non_finite_positions_rejected():
     """NaN positions raise ValueError."""
     with pytest.raises(ValueError, match="finite"):
         ClutterMap().update([[np.nan, 0.0]])
+
+
+def test_hotspot_extent_floor_follows_the_detection_covariances():
+    """Echoes of a feature with a tiny scatter but elongated error covariances: the hotspot
+    extent is raised to the mean given covariance (rotated ellipse), not to a circle; without
+    covariances the floor is position_sigma_m^2 I."""
+    rng = np.random.default_rng(4)
+    ang = np.radians(30.0)
+    rot = np.array([[np.cos(ang), -np.sin(ang)], [np.sin(ang), np.cos(ang)]])
+    err = rot @ np.diag([200.0**2, 40.0**2]) @ rot.T
+    given, plain = ClutterMap(position_sigma_m=100.0), ClutterMap(position_sigma_m=100.0)
+    for k in range(4):
+        xy = np.array([500.0, 500.0]) + rng.normal(0, 5.0, (3, 2))
+        given.update(xy, time=90.0 * k, cov=np.broadcast_to(err, (3, 2, 2)))
+        plain.update(xy, time=90.0 * k)
+    assert_allclose(given.hotspots().covariances[0], err, rtol=1e-6)
+    assert_allclose(plain.hotspots().covariances[0], np.eye(2) * 100.0**2, rtol=1e-6)
+
+
+def test_floor_contains_both_ellipses():
+    """The floored covariance is >= the sample covariance and >= the error covariance (Loewner
+    order), and equals the eigenvalue floor for an isotropic error."""
+    rng = np.random.default_rng(5)
+    for _ in range(50):
+        A, B = rng.normal(0, 100, (2, 2, 2))
+        C, E = A @ A.T, B @ B.T + np.eye(2)
+        F = ClutterMap._floor(C[None], E[None])[0]
+        assert np.linalg.eigvalsh(F - C).min() > -1e-6 * np.abs(F).max()
+        assert np.linalg.eigvalsh(F - E).min() > -1e-6 * np.abs(F).max()
+    C = np.array([[300.0, 100.0], [100.0, 50.0]]) * 100
+    w, v = np.linalg.eigh(C)
+    expect = v @ np.diag(np.maximum(w, 100.0**2)) @ v.T
+    assert_allclose(ClutterMap._floor(C[None], np.eye(2)[None] * 1e4)[0], expect)
+
+
+def test_bad_covariances_rejected():
+    """A covariance array of the wrong shape or not positive definite raises ValueError."""
+    with pytest.raises(ValueError, match="cov"):
+        ClutterMap().update([[0.0, 0.0]], cov=np.eye(2))
+    with pytest.raises(ValueError, match="positive definite"):
+        ClutterMap().update([[0.0, 0.0]], cov=np.zeros((1, 2, 2)))

@@ -16,6 +16,7 @@ from fusion.active.tracker import (
     Ping,
     Tracker,
     assign,
+    bistatic_covariance,
     cv_model,
     derived_min_rank,
     equivalent_aspect_deg,
@@ -29,6 +30,7 @@ from fusion.active.tracker import (
     track_status,
 )
 from fusion.io import Table, read_table, write_table
+from fusion.simulate.multistatic import bistatic_position, simulate_multistatic
 
 
 def _random_track(rng):
@@ -399,3 +401,182 @@ def test_moving_tentative_track_survives_a_hotspot():
     assert Tracker(motion_probability=1 - 1e-12).run(pings).confirmed_ids().size == 0
     with pytest.raises(ValueError, match="motion_probability"):
         Tracker(motion_probability=1.0)
+
+
+# ------------------------------------------------------------------------------------------
+# geometry-aware (bistatic) position errors
+# ------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("target, receiver", [
+    ([3000.0, 6000.0], [5000.0, 1000.0]),       # wide bistatic angle, range error matters
+    ([-6000.0, -5000.0], [5000.0, 1000.0]),     # far from the receiver: bearing error dominates
+    ([2500.0, 2000.0], [5000.0, 0.0]),          # near the baseline (still outside blanking)
+    ([0.0, 3000.0], [0.0, 0.0]),                # monostatic
+])
+def test_bistatic_covariance_equals_monte_carlo(target, receiver):
+    """First-order covariance equals the sample covariance of bistatic_position with Gaussian
+    range-sum (30 m) and bearing (1 deg) errors: every element within 3 % of the scale
+    sqrt(C_ii C_jj) (Monte Carlo standard error ~0.3 %)."""
+    rng = np.random.default_rng(11)
+    s, r, p = np.zeros(2), np.asarray(receiver), np.asarray(target)
+    rho = np.linalg.norm(p - s) + np.linalg.norm(p - r)
+    theta = np.arctan2(p[0] - r[0], p[1] - r[1])
+    n = 200_000
+    z = bistatic_position(s, r, rho + rng.normal(0.0, 30.0, n),
+                          theta + rng.normal(0.0, np.radians(1.0), n))
+    mc = np.cov(z.T)
+    c = bistatic_covariance([p], s, r, 30.0, 1.0)[0]
+    scale = np.sqrt(np.outer(np.diag(mc), np.diag(mc)))
+    assert np.all(np.abs(c - mc) <= 0.03 * scale), (c, mc)
+    assert_allclose(c, c.T)
+
+
+def test_bistatic_covariance_degenerate_points_are_nan():
+    """An echo on the receiver or on the baseline between source and receiver has no
+    first-order covariance (NaN)."""
+    c = bistatic_covariance([[5000.0, 0.0], [2500.0, 0.0], [7000.0, 0.0]], [0.0, 0.0],
+                            [5000.0, 0.0], 30.0, 1.0)
+    assert np.isnan(c[0]).all() and np.isnan(c[1]).all()
+    assert np.isfinite(c[2]).all()        # beyond the receiver, on the baseline's extension
+
+
+def test_measurement_covariances_geometry_and_fallback():
+    """Detections with source/receiver positions get the bistatic ellipse; without positions,
+    with NaN positions, on the baseline, or with position_errors='isotropic' they get
+    position_sigma_m^2 I."""
+    xy = np.array([[3000.0, 6000.0], [2500.0, 0.0], [-4000.0, 2000.0]])
+    geo = {"src_x": np.zeros(3), "src_y": np.zeros(3), "rcv_x": np.array([5000.0, 5000.0, np.nan]),
+           "rcv_y": np.zeros(3)}
+    tr = Tracker(position_sigma_m=80.0, range_sum_sigma_m=20.0, bearing_sigma_deg=2.0)
+    R, geometric = tr.measurement_covariances(Ping(0, 0.0, xy, geo))
+    assert geometric
+    assert_allclose(R[0], bistatic_covariance(xy[:1], [0, 0], [5000, 0], 20.0, 2.0)[0])
+    assert_allclose(R[1:], np.broadcast_to(np.eye(2) * 80.0**2, (2, 2, 2)))
+    for ping, trk in ((Ping(0, 0.0, xy), tr),
+                      (Ping(0, 0.0, xy, geo), Tracker(position_sigma_m=80.0,
+                                                      position_errors="isotropic"))):
+        R, geometric = trk.measurement_covariances(ping)
+        assert not geometric
+        assert_allclose(R, np.broadcast_to(np.eye(2) * 80.0**2, (3, 2, 2)))
+
+
+def test_new_track_and_update_use_the_detection_covariance():
+    """A new track's position covariance is its detection's ellipse; the Kalman update of the
+    next ping uses the next detection's ellipse (equal to filterpy with that R)."""
+    src, rcv = np.zeros(2), np.array([5000.0, 1000.0])
+    geo = {"src_x": [0.0], "src_y": [0.0], "rcv_x": [rcv[0]], "rcv_y": [rcv[1]]}
+    z0, z1 = np.array([[-6000.0, -5000.0]]), np.array([[-5800.0, -5150.0]])
+    tr = Tracker(mode="kalman")
+    tr.step(Ping(0, 0.0, z0, geo))
+    R0 = bistatic_covariance(z0, src, rcv, 30.0, 1.0)[0]
+    assert_allclose(tr._P[0, :2, :2], R0)
+    x0, P0 = tr._x[0].copy(), tr._P[0].copy()
+    tr.step(Ping(1, 80.0, z1, geo))
+    kf = KalmanFilter(dim_x=4, dim_z=2)
+    F, Q = cv_model(80.0, tr.accel_psd)
+    kf.x, kf.P, kf.F, kf.Q = x0, P0, F, Q
+    kf.H = np.array([[1.0, 0, 0, 0], [0, 1.0, 0, 0]])
+    kf.R = bistatic_covariance(z1, src, rcv, 30.0, 1.0)[0]
+    kf.predict()
+    kf.update(z1[0])
+    assert_allclose(tr._x[0], kf.x, rtol=1e-9, atol=1e-9)
+    assert_allclose(tr._P[0], kf.P, rtol=1e-8, atol=1e-8)
+
+
+def test_update_with_full_per_track_R_equals_filterpy():
+    """kf_update with a different full (correlated) R per track equals filterpy."""
+    rng = np.random.default_rng(5)
+    xs, Ps = zip(*(_random_track(rng) for _ in range(4)), strict=True)
+    A = rng.normal(0.0, 60.0, (4, 2, 2))
+    R = A @ np.swapaxes(A, 1, 2) + np.eye(2) * 25.0
+    z = rng.normal(0, 1000, (4, 2))
+    x2, P2 = kf_update(np.array(xs), np.array(Ps), z, R)
+    for i in range(4):
+        kf = KalmanFilter(dim_x=4, dim_z=2)
+        kf.x, kf.P, kf.R = xs[i].copy(), Ps[i].copy(), R[i]
+        kf.H = np.array([[1.0, 0, 0, 0], [0, 1.0, 0, 0]])
+        kf.update(z[i])
+        assert_allclose(x2[i], kf.x, rtol=1e-9, atol=1e-9)
+        assert_allclose(P2[i], kf.P, rtol=1e-8, atol=1e-8)
+
+
+def test_likelihood_with_per_detection_R_equals_scipy():
+    """Pair statistics with one R per detection: S = P_t + R_d for every pair."""
+    rng = np.random.default_rng(6)
+    xs, Ps = zip(*(_random_track(rng) for _ in range(3)), strict=True)
+    x, P = np.array(xs), np.array(Ps)
+    z = rng.normal(0, 1000, (5, 2))
+    A = rng.normal(0.0, 80.0, (5, 2, 2))
+    R = A @ np.swapaxes(A, 1, 2) + np.eye(2)
+    st = pair_statistics(x, P, z, R)
+    for t in range(3):
+        for d in range(5):
+            S = P[t, :2, :2] + R[d]
+            assert st.log_pdf[t, d] == pytest.approx(
+                multivariate_normal(x[t, :2], S).logpdf(z[d]), rel=1e-9)
+            nu = z[d] - x[t, :2]
+            assert st.d2[t, d] == pytest.approx(nu @ np.linalg.solve(S, nu), rel=1e-9)
+
+
+def test_motion_statistic_with_covariances():
+    """With sigma^2 I covariances the generalised statistic equals the isotropic one; with
+    elongated, differently oriented covariances it is chi-square (2 dof) for a stationary
+    object."""
+    rng = np.random.default_rng(9)
+    t = np.array([0.0, 70.0, 150.0, 230.0])
+    xy = rng.normal(0, 100.0, (4, 2))
+    iso = np.broadcast_to(np.eye(2) * 100.0**2, (4, 2, 2))
+    assert motion_statistic(t, xy, cov=iso) == pytest.approx(motion_statistic(t, xy, 100.0))
+    ang = np.radians([0.0, 40.0, 100.0, 160.0])
+    rot = np.stack([[np.cos(ang), -np.sin(ang)], [np.sin(ang), np.cos(ang)]]).transpose(2, 0, 1)
+    C = rot @ np.diag([250.0**2, 30.0**2]) @ np.swapaxes(rot, 1, 2)
+    L = np.linalg.cholesky(C)
+    qs = np.array([motion_statistic(t, np.einsum("kij,kj->ki", L, rng.normal(size=(4, 2))),
+                                    cov=C) for _ in range(20000)])
+    assert abs(qs.mean() - 2.0) < 0.06
+    assert abs(np.mean(qs > chi2.ppf(0.99, 2)) - 0.01) < 0.003
+    with pytest.raises(ValueError, match="exactly one"):
+        motion_statistic(t, xy)
+
+
+def test_geometry_errors_on_a_simulated_run():
+    """On a simulated run with source/receiver columns, geometry errors and isotropic errors
+    both track; the hotspot extents differ (they follow the receivers' error ellipses)."""
+    sc = simulate_multistatic(seed=3)
+    geo = Tracker().run(sc.detections)
+    iso = Tracker(position_errors="isotropic").run(sc.detections)
+    assert geo.confirmed_ids().size > 0 and iso.confirmed_ids().size > 0
+    assert not np.array_equal(geo.columns()["x"], iso.columns()["x"])
+
+
+def test_position_error_options_rejected():
+    """Bad position-error options raise ValueError naming the option."""
+    with pytest.raises(ValueError, match="position_errors"):
+        Tracker(position_errors="ellipse")
+    with pytest.raises(ValueError, match="range_sum_sigma_m"):
+        Tracker(range_sum_sigma_m=-1.0)
+    with pytest.raises(ValueError, match="bearing_sigma_deg"):
+        Tracker(bearing_sigma_deg=float("nan"))
+    with pytest.raises(ValueError, match="both be 0"):
+        Tracker(range_sum_sigma_m=0.0, bearing_sigma_deg=0.0)
+
+
+def test_cli_position_error_flags(tmp_path, run_cli):
+    """fusion track --position-errors isotropic differs from the default geometry errors on
+    data with source/receiver columns; --range-sum-sigma / --bearing-sigma are used."""
+    sc = simulate_multistatic(seed=3)
+    d = sc.detections
+    src = tmp_path / "d.csv"
+    write_table(src, {k: d[k] for k in ("event", "time", "x", "y", "snr_db", "score",
+                                        "aspect_deg", "src_x", "src_y", "rcv_x", "rcv_y")})
+    outs = {}
+    for name, extra in (("geo", ()), ("iso", ("--position-errors", "isotropic")),
+                        ("sig", ("--range-sum-sigma", "60", "--bearing-sigma", "2"))):
+        out = tmp_path / f"{name}.csv"
+        code, _, _ = run_cli("track", "--detections", src, "--out", out, *extra)
+        assert code == 0
+        outs[name] = read_table(out, required=("x",), text=("status",))["x"]
+    assert not np.array_equal(outs["geo"], outs["iso"])
+    assert not np.array_equal(outs["geo"], outs["sig"])
+    code, _, err = run_cli("track", "--detections", src, "--out", tmp_path / "b.csv",
+                           "--bearing-sigma", "-1")
+    assert code == 2 and "bearing_sigma_deg" in err
