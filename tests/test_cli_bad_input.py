@@ -192,13 +192,11 @@ class Case:
 
     ``spoil(tmp, inputs) -> (inputs, extra_args, mention)``: the spoiled input files, extra
     command-line words, and the text (file name or option) the error line must contain.
-    ``xfail``: reason, when the case fails in a file this suite's authors do not own.
     """
 
     cmd: str
     name: str
     spoil: Callable[[Path, dict[str, Path]], tuple[dict[str, Path], list[str], str]]
-    xfail: str | None = None
 
 
 def _replace(opt: str, make: Callable[[Path], Path]):
@@ -318,12 +316,6 @@ def _rules(content: str):
     return spoil
 
 
-#: fusion/commands/track.py (edited elsewhere) passes the Tracker's own ValueError on as
-#: "bad option: position_sigma_m must be ...", naming the Python parameter, not the option.
-X_TRACK = ("fusion track reports out-of-range options by the Tracker's parameter name "
-                      "(position_sigma_m, cell_m, confirm_hits, ...), not the option at fault; "
-                      "track.py should validate with fusion.cli.number / name --position-sigma etc.")
-
 CASES: list[Case] = [
     # ---- crossings
     *_csv_cases("crossings", "bearings"),
@@ -393,19 +385,19 @@ CASES: list[Case] = [
     Case("tma", "q-negative", _option("--motion", "chain", "--q", "-1", mention="--q")),
     Case("tma", "robust-k-zero", _option("--robust", "huber", "--robust-k", "0",
                                           mention="--robust-k")),
-    # ---- track (fusion/commands/track.py is edited elsewhere: its failures are xfail, X_TRACK)
+    # ---- track
     *_csv_cases("track", "detections"),
     Case("track", "events-decreasing", _replace("detections", _unsorted("track", "detections"))),
     Case("track", "score-out-of-range",
          _replace("detections", lambda tmp: write_csv(tmp / "score.csv", {
              **_detections(), "score": [1.5] * 12}))),
-    Case("track", "position-sigma-zero", _option("--position-sigma", "0"), xfail=X_TRACK),
-    Case("track", "position-sigma-negative", _option("--position-sigma", "-100"), xfail=X_TRACK),
-    Case("track", "accel-psd-negative", _option("--accel-psd", "-1"), xfail=X_TRACK),
-    Case("track", "confirm-m-above-n", _option("--confirm", "5", "4", mention="--confirm"), xfail=X_TRACK),
-    Case("track", "confirm-zero", _option("--confirm", "0", "0", mention="--confirm"), xfail=X_TRACK),
-    Case("track", "max-misses-zero", _option("--max-misses", "0"), xfail=X_TRACK),
-    Case("track", "hotspot-cell-zero", _option("--hotspot-cell", "0"), xfail=X_TRACK),
+    Case("track", "position-sigma-zero", _option("--position-sigma", "0")),
+    Case("track", "position-sigma-negative", _option("--position-sigma", "-100")),
+    Case("track", "accel-psd-negative", _option("--accel-psd", "-1")),
+    Case("track", "confirm-m-above-n", _option("--confirm", "5", "4", mention="--confirm")),
+    Case("track", "confirm-zero", _option("--confirm", "0", "0", mention="--confirm")),
+    Case("track", "max-misses-zero", _option("--max-misses", "0")),
+    Case("track", "hotspot-cell-zero", _option("--hotspot-cell", "0")),
     Case("track", "min-rank-nan", _option("--min-rank", "nan")),
     Case("track", "rules-missing", _rules("<missing>")),
     Case("track", "rules-malformed", _rules("{not json")),
@@ -453,15 +445,7 @@ def _case_id(c: Case) -> str:
     return f"{c.cmd}-{c.name}"
 
 
-def _params():
-    for c in CASES:
-        marks = []
-        if c.xfail:
-            marks.append(pytest.mark.xfail(strict=True, reason=c.xfail))
-        yield pytest.param(c, id=_case_id(c), marks=marks)
-
-
-@pytest.mark.parametrize("case", list(_params()))
+@pytest.mark.parametrize("case", [pytest.param(c, id=_case_id(c)) for c in CASES])
 def test_bad_input(case: Case, run_cli, tmp_path):
     """Each bad input: exit 2, one stderr line naming the culprit, no traceback, no output."""
     inputs = valid_inputs(case.cmd, tmp_path)

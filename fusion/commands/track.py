@@ -13,9 +13,9 @@ from __future__ import annotations
 
 import argparse
 import logging
-import sys
 from pathlib import Path
 
+from fusion.cli import emit, number
 from fusion.io import read_detections, write_table
 
 _POSITIONS = ("src_x", "src_y", "rcv_x", "rcv_y")
@@ -35,27 +35,27 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="association: fuzzy rank (default) or Kalman likelihood alone")
     p.add_argument("--rules", type=Path, default=None,
                    help="fuzzy system JSON file (default: the built-in rule base)")
-    p.add_argument("--position-sigma", type=float, default=100.0,
+    p.add_argument("--position-sigma", type=number(float, gt=0), default=100.0,
                    help="position error of a detection per axis, m, for detections without "
                         "source/receiver positions (default 100)")
     p.add_argument("--position-errors", choices=("geometry", "isotropic"), default="geometry",
                    help="position error of detections with src_x,src_y,rcv_x,rcv_y: bistatic "
                         "error ellipse from range-sum and bearing accuracies (default) or "
                         "--position-sigma per axis")
-    p.add_argument("--range-sum-sigma", type=float, default=30.0,
+    p.add_argument("--range-sum-sigma", type=number(float, gt=0), default=30.0,
                    help="bistatic range-sum accuracy (standard deviation), m (default 30)")
-    p.add_argument("--bearing-sigma", type=float, default=1.0,
+    p.add_argument("--bearing-sigma", type=number(float, gt=0), default=1.0,
                    help="receiver bearing accuracy (standard deviation), deg (default 1)")
-    p.add_argument("--accel-psd", type=float, default=0.04,
+    p.add_argument("--accel-psd", type=number(float, ge=0), default=0.04,
                    help="white-acceleration spectral density, m^2/s^3 (default 0.04)")
-    p.add_argument("--min-rank", type=float, default=None,
+    p.add_argument("--min-rank", type=number(float, ge=0, le=1), default=None,
                    help="lowest fuzzy rank associated, one value for all pairs (default: derived "
                         "from the rule base for the clues present, at likelihood ratio 0.25)")
-    p.add_argument("--confirm", type=int, nargs=2, default=(3, 4), metavar=("M", "N"),
+    p.add_argument("--confirm", type=number(int, ge=1), nargs=2, default=(3, 4), metavar=("M", "N"),
                    help="confirm after M hits in the first N pings (default 3 4)")
-    p.add_argument("--max-misses", type=int, default=5,
+    p.add_argument("--max-misses", type=number(int, ge=1), default=5,
                    help="consecutive misses deleting a confirmed track (default 5)")
-    p.add_argument("--hotspot-cell", type=float, default=150.0,
+    p.add_argument("--hotspot-cell", type=number(float, gt=0), default=150.0,
                    help="clutter-map cell size, m (default 150)")
     p.add_argument("--confirmed-only", action="store_true",
                    help="write only rows of tracks that were confirmed at some point")
@@ -67,6 +67,8 @@ def run(args: argparse.Namespace) -> int:
     from fusion.active.clutter import ClutterMap
     from fusion.active.tracker import Tracker
 
+    if args.confirm[0] > args.confirm[1]:
+        raise ValueError(f"--confirm: M must not exceed N, got {args.confirm[0]} {args.confirm[1]}")
     table = read_detections(args.detections)
     system = None
     if args.mode == "fuzzy" and args.rules is not None:
@@ -96,8 +98,8 @@ def run(args: argparse.Namespace) -> int:
         if "aspect_deg" not in table and not all(c in table for c in _POSITIONS):
             absent.append("aspect_deg (or src_x, src_y, rcv_x, rcv_y)")
         if absent:
-            print(f"fusion track: note: {args.detections} has no {', '.join(absent)}; "
-                  "the rules reading them are left out of the rank", file=sys.stderr)
+            emit(f"fusion track: note: {args.detections} has no {', '.join(absent)}; "
+                 "the rules reading them are left out of the rank", err=True)
         # The note above replaces the fuzzy engine's own warning.
         logging.getLogger("fusion.active.fuzzy").setLevel(logging.ERROR)
     result = tracker.run(table)

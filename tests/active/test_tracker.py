@@ -283,7 +283,7 @@ def test_cli_bad_input_exit_2(tmp_path, run_cli):
     good = tmp_path / "g.csv"
     good.write_text("event,time,x,y\n0,0,1,1\n")
     code, _, err = run_cli("track", "--detections", good, "--out", out, "--min-rank", "2")
-    assert code == 2 and "min_rank" in err and len(err.strip().splitlines()) == 1
+    assert code == 2 and "--min-rank" in err and len(err.strip().splitlines()) == 1
     assert not out.exists()
 
 
@@ -579,4 +579,4 @@ def test_cli_position_error_flags(tmp_path, run_cli):
     assert not np.array_equal(outs["geo"], outs["sig"])
     code, _, err = run_cli("track", "--detections", src, "--out", tmp_path / "b.csv",
                            "--bearing-sigma", "-1")
-    assert code == 2 and "bearing_sigma_deg" in err
+    assert code == 2 and "--bearing-sigma" in err
