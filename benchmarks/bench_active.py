@@ -23,9 +23,9 @@ import json
 import logging
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
+from _realdata import AUTOFERRY as REAL
 
 from fusion.active.clutter import ClutterMap
 from fusion.active.fuzzy import FuzzySystem
@@ -33,8 +33,6 @@ from fusion.active.rulebase import default_association_system
 from fusion.active.tracker import Ping, Tracker
 from fusion.io import Table
 from fusion.simulate.multistatic import score_tracks, simulate_multistatic
-
-REAL = Path("/work/shared/realdata/autoferry_sensor_fusion")
 
 
 def _drop(table: Table, names) -> Table:
