@@ -55,6 +55,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="confirm after M hits in the first N pings (default 3 4)")
     p.add_argument("--max-misses", type=number(int, ge=1), default=5,
                    help="consecutive misses deleting a confirmed track (default 5)")
+    p.add_argument("--confirm-stationary", action="store_true",
+                   help="fuzzy mode: confirm a track on its hits alone, even when its own "
+                        "detections do not move (default: such a track is held tentative until "
+                        "it moves or the clutter map flags it)")
     p.add_argument("--hotspot-cell", type=number(float, gt=0), default=150.0,
                    help="clutter-map cell size, m (default 150)")
     p.add_argument("--confirmed-only", action="store_true",
@@ -88,6 +92,7 @@ def run(args: argparse.Namespace) -> int:
             confirm_hits=args.confirm[0],
             confirm_window=args.confirm[1],
             max_misses=args.max_misses,
+            hold_stationary=not args.confirm_stationary,
             clutter_map=ClutterMap(cell_m=args.hotspot_cell,
                                    position_sigma_m=args.position_sigma),
         )

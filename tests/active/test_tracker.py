@@ -580,3 +580,87 @@ def test_cli_position_error_flags(tmp_path, run_cli):
     code, _, err = run_cli("track", "--detections", src, "--out", tmp_path / "b.csv",
                            "--bearing-sigma", "-1")
     assert code == 2 and "--bearing-sigma" in err
+
+
+# ------------------------------------------------------------------------------------------
+# stationary tracks are held tentative (track-level form of the clutter-map test)
+# ------------------------------------------------------------------------------------------
+def _no_flag_map():
+    """A clutter map that cannot flag anything within a short run (min_pings = 50)."""
+    from fusion.active.clutter import ClutterMap
+
+    return ClutterMap(min_pings=50)
+
+
+def _line_pings(speed_mps, n=10, interval=90.0, noise_m=0.0, seed=0):
+    """One detection per ping moving east at ``speed_mps`` (positions only: 100-m errors)."""
+    rng = np.random.default_rng(seed)
+    return [Ping(k, interval * k, np.array([[speed_mps * interval * k, 3000.0]])
+                 + rng.normal(0, noise_m, (1, 2))) for k in range(n)]
+
+
+def test_stationary_track_is_held_until_misses_end_it():
+    """A fixed echo the map does not flag: confirmed on its third ping (index 2) on hits alone;
+    held tentative by default, and deleted after max_misses (5) consecutive misses once the
+    echo stops (pings 6-10 empty: deleted on ping 10)."""
+    pings = _line_pings(0.0, n=6, noise_m=30.0)
+    pings += [Ping(k, 90.0 * k, np.zeros((0, 2))) for k in range(6, 12)]
+    plain = Tracker(clutter_map=_no_flag_map(), hold_stationary=False).run(pings)
+    assert plain.confirmed_ids().tolist() == [0]
+    assert plain.pings[2].status[0] == "confirmed"
+    held = Tracker(clutter_map=_no_flag_map()).run(pings)
+    assert held.confirmed_ids().size == 0
+    status = [str(p.status[p.track_id == 0][0]) for p in held.pings if (p.track_id == 0).any()]
+    assert status == ["tentative"] * 10 + ["deleted"]
+
+
+def test_moving_track_is_confirmed_on_its_third_hit():
+    """4 m/s, 90 s pings, 100-m errors: the motion statistic of three exact detections is
+    16 * 16200 / 1e4 = 25.9 > 13.8 (chi-square 2 dof at 0.999): confirmed on ping 2 as before."""
+    pings = _line_pings(4.0, n=4)
+    q = motion_statistic([0.0, 90.0, 180.0], [p.xy[0] for p in pings[:3]], 100.0)
+    assert q == pytest.approx(25.92)
+    res = Tracker(clutter_map=_no_flag_map()).run(pings)
+    assert res.pings[2].status[0] == "confirmed"
+
+
+def test_slow_track_is_confirmed_once_it_moves_significantly():
+    """1 m/s, 90 s pings, exact positions, 100-m errors: k detections give
+    S_tt = 8100 k (k^2 - 1) / 12 and the statistic 1 * S_tt / 1e4, which first exceeds
+    chi2.ppf(0.999, 2) = 13.82 at k = 6 (14.18; k = 5: 8.10): confirmed on ping 5, not 2."""
+    pings = _line_pings(1.0, n=8)
+    gate = chi2.ppf(0.999, 2)
+    qs = [motion_statistic(90.0 * np.arange(k), [p.xy[0] for p in pings[:k]], 100.0)
+          for k in range(3, 8)]
+    assert_allclose(qs, [8100 * k * (k * k - 1) / 12 / 1e4 for k in range(3, 8)])
+    assert [q > gate for q in qs] == [False, False, False, True, True]
+    res = Tracker(clutter_map=_no_flag_map()).run(pings)
+    status = [str(p.status[0]) for p in res.pings]
+    assert status == ["tentative"] * 5 + ["confirmed"] * 3
+    assert Tracker(clutter_map=_no_flag_map(), hold_stationary=False).run(
+        pings).pings[2].status[0] == "confirmed"
+
+
+def test_hold_is_fuzzy_only():
+    """Kalman mode (no clutter map) confirms a fixed echo on hits alone."""
+    pings = _line_pings(0.0, n=4, noise_m=30.0)
+    assert Tracker(mode="kalman").run(pings).pings[2].status[0] == "confirmed"
+
+
+def test_cli_confirm_stationary_flag(tmp_path, run_cli):
+    """A fixed echo scattered by 30 m, with 1-m map cells (the map never flags it): the default
+    holds its track tentative; --confirm-stationary confirms it on its third ping."""
+    rng = np.random.default_rng(4)
+    rows = {"event": np.arange(5), "time": 90.0 * np.arange(5),
+            "x": rng.normal(0, 30.0, 5), "y": 3000.0 + rng.normal(0, 30.0, 5)}
+    src = tmp_path / "d.csv"
+    write_table(src, rows)
+    for flag, out in (((), "a.csv"), (("--confirm-stationary",), "b.csv")):
+        code, _, _ = run_cli("track", "--detections", src, "--out", tmp_path / out,
+                             "--hotspot-cell", "1", *flag)
+        assert code == 0
+    a = read_table(tmp_path / "a.csv", required=("status",), text=("status",))
+    b = read_table(tmp_path / "b.csv", required=("status",), text=("status",))
+    assert "confirmed" not in set(a["status"])
+    assert list(b["status"][:5]) == ["tentative", "tentative", "confirmed", "confirmed",
+                                     "confirmed"]
