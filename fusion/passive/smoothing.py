@@ -41,6 +41,7 @@ from scipy.optimize import linear_sum_assignment
 from factors.bearing import bearing_factor
 from factors.motion import constant_velocity_factor, transition_matrix, wna_covariance
 from factors.weighted import weighted_factor
+from fusion._validation import check_positive
 from fusion.geometry import wrap_angle
 
 __all__ = [
@@ -240,13 +241,6 @@ def _robust_noise(base: gtsam.noiseModel.Base, loss: str, k: float) -> gtsam.noi
     else:
         est = gtsam.noiseModel.mEstimator.Cauchy.Create(k)
     return gtsam.noiseModel.Robust.Create(est, base)
-
-
-def _check_positive(name: str, value: float) -> float:
-    value = float(value)
-    if not (np.isfinite(value) and value > 0):
-        raise ValueError(f"{name} must be finite and > 0, got {value!r}")
-    return value
 
 
 def _check_loss(loss: str) -> str:
@@ -465,13 +459,13 @@ class BearingSmoother:
         max_iterations: int = 100,
     ) -> None:
         self.model = _Model(
-            sigma_bearing=_check_positive("sigma_bearing", sigma_bearing),
-            q=_check_positive("q", q),
+            sigma_bearing=check_positive("sigma_bearing", sigma_bearing),
+            q=check_positive("q", q),
             loss=_check_loss(robust),
-            k=_check_positive("robust_k", robust_k),
+            k=check_positive("robust_k", robust_k),
             max_iterations=int(max_iterations),
         )
-        self.prior_sigma_rate = _check_positive("prior_sigma_rate", prior_sigma_rate)
+        self.prior_sigma_rate = check_positive("prior_sigma_rate", prior_sigma_rate)
 
     def smooth(
         self,
@@ -557,10 +551,10 @@ class OnlineBearingSmoother:
         relinearize_threshold: float = 1e-3,
     ) -> None:
         self.model = _Model(
-            sigma_bearing=_check_positive("sigma_bearing", sigma_bearing),
-            q=_check_positive("q", q),
+            sigma_bearing=check_positive("sigma_bearing", sigma_bearing),
+            q=check_positive("q", q),
             loss=_check_loss(robust),
-            k=_check_positive("robust_k", robust_k),
+            k=check_positive("robust_k", robust_k),
             max_iterations=1,
         )
         if not np.isfinite(t0):
@@ -688,17 +682,17 @@ class NearestNeighbourTracker:
         separation: float | None = None,
         window_scans: int = 20,
     ) -> None:
-        self.sigma_bearing = _check_positive("sigma_bearing", sigma_bearing)
-        self.q = _check_positive("q", q)
-        self.gate = _check_positive("gate", gate)
-        self.init_sigma_rate = _check_positive("init_sigma_rate", init_sigma_rate)
+        self.sigma_bearing = check_positive("sigma_bearing", sigma_bearing)
+        self.q = check_positive("q", q)
+        self.gate = check_positive("gate", gate)
+        self.init_sigma_rate = check_positive("init_sigma_rate", init_sigma_rate)
         if n_confirm < 1 or max_misses < 1 or window_scans < 1:
             raise ValueError("n_confirm, max_misses and window_scans must be >= 1")
         self.n_confirm = int(n_confirm)
         self.max_misses = int(max_misses)
         self.crossing_aware = bool(crossing_aware)
         sep = gate * np.sqrt(2.0) * sigma_bearing if separation is None else separation
-        self.separation = _check_positive("separation", sep)
+        self.separation = check_positive("separation", sep)
         self.window_scans = int(window_scans)
 
     def _new_filter(self, z: float) -> KalmanFilter:
@@ -935,13 +929,13 @@ class MultiTrackSmoother:
         min_length: int = 5,
     ) -> None:
         self.model = _Model(
-            sigma_bearing=_check_positive("sigma_bearing", sigma_bearing),
-            q=_check_positive("q", q),
+            sigma_bearing=check_positive("sigma_bearing", sigma_bearing),
+            q=check_positive("q", q),
             loss=_check_loss(robust),
-            k=_check_positive("robust_k", robust_k),
+            k=check_positive("robust_k", robust_k),
             max_iterations=50,
         )
-        self.clutter_density = _check_positive("clutter_density", clutter_density)
+        self.clutter_density = check_positive("clutter_density", clutter_density)
         if not 0 < p_detect <= 1:
             raise ValueError(f"p_detect must be in (0, 1], got {p_detect!r}")
         self.p_detect = float(p_detect)
@@ -950,14 +944,14 @@ class MultiTrackSmoother:
             n_confirm=n_confirm, max_misses=max_misses, window_scans=window_scans,
         )
         sep = 2.5 * np.sqrt(2.0) * sigma_bearing if separation is None else separation
-        self.separation = _check_positive("separation", sep)
-        self.link_gate = _check_positive("link_gate", link_gate)
+        self.separation = check_positive("separation", sep)
+        self.link_gate = check_positive("link_gate", link_gate)
         if max_gap_scans < 1 or fit_scans < 2 or margin_scans < 0:
             raise ValueError("max_gap_scans must be >= 1, fit_scans >= 2, margin_scans >= 0")
         self.max_gap_scans = int(max_gap_scans)
         self.fit_scans = int(fit_scans)
         self.margin_scans = int(margin_scans)
-        self.em_tol = _check_positive("em_tol", em_tol)
+        self.em_tol = check_positive("em_tol", em_tol)
         self.em_max_iterations = int(em_max_iterations)
         self.min_length = int(min_length)
 

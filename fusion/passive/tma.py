@@ -55,6 +55,7 @@ from threadpoolctl import threadpool_limits
 
 from factors.motion import constant_velocity_factor, transition_matrix, wna_covariance
 from factors.target import target_bearing, target_bearing_factor, target_bearing_jacobian
+from fusion._validation import check_positive
 from fusion.geometry import wrap_angle
 
 __all__ = [
@@ -380,10 +381,8 @@ class BearingsOnlyTMA:
             "prior_sigma_mps": prior_sigma_mps,
         }
         for name, value in positive.items():
-            if not np.isfinite(value) or value <= 0:
-                raise ValueError(f"{name} must be finite and > 0, got {value!r}")
-        if not np.isfinite(min_manoeuvre_m) or min_manoeuvre_m < 0:
-            raise ValueError(f"min_manoeuvre_m must be finite and >= 0, got {min_manoeuvre_m!r}")
+            check_positive(name, value)
+        check_positive("min_manoeuvre_m", min_manoeuvre_m, allow_zero=True)
         if motion not in ("chain", "single"):
             raise ValueError(f"motion must be 'chain' or 'single', got {motion!r}")
         if robust is not None and robust not in _ROBUST:

@@ -39,6 +39,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import brentq
 
+from fusion._validation import check_positive
 from fusion.geometry import wrap_angle
 from fusion.io import write_json, write_table
 
@@ -177,12 +178,6 @@ def _unit(theta: float) -> NDArray[np.float64]:
 def _tangent(theta: float) -> NDArray[np.float64]:
     """d(unit)/d(theta): direction of increasing compass bearing."""
     return np.array([np.cos(theta), -np.sin(theta)])
-
-
-def _check_positive(name: str, value: float, *, allow_zero: bool = False) -> None:
-    ok = value >= 0 if allow_zero else value > 0
-    if not np.isfinite(value) or not ok:
-        raise ValueError(f"{name} must be {'>= 0' if allow_zero else '> 0'}, got {value!r}")
 
 
 def _check_interval(name: str, lo_hi: tuple[float, float], *, positive: bool = True) -> None:
@@ -451,17 +446,17 @@ def simulate_bearings(
     n_planned = 2 * (n_crossing_pairs + n_near_miss_pairs + n_parallel_pairs)
     if n_tracks < max(n_planned, 1):
         raise ValueError(f"n_tracks ({n_tracks}) must be at least {max(n_planned, 1)} for the pairs asked")
-    _check_positive("duration_s", duration_s)
-    _check_positive("sample_period_s", sample_period_s)
+    check_positive("duration_s", duration_s)
+    check_positive("sample_period_s", sample_period_s)
     if sample_period_s > duration_s:
         raise ValueError("sample_period_s must not exceed duration_s")
-    _check_positive("noise_deg", noise_deg, allow_zero=True)
+    check_positive("noise_deg", noise_deg, allow_zero=True)
     if not 0.0 < p_detect <= 1.0:
         raise ValueError(f"p_detect must lie in (0, 1], got {p_detect!r}")
-    _check_positive("clutter_rate", clutter_rate, allow_zero=True)
-    _check_positive("ownship_speed_mps", ownship_speed_mps, allow_zero=True)
-    _check_positive("min_range_m", min_range_m)
-    _check_positive("min_crossing_rate_deg_per_min", min_crossing_rate_deg_per_min, allow_zero=True)
+    check_positive("clutter_rate", clutter_rate, allow_zero=True)
+    check_positive("ownship_speed_mps", ownship_speed_mps, allow_zero=True)
+    check_positive("min_range_m", min_range_m)
+    check_positive("min_crossing_rate_deg_per_min", min_crossing_rate_deg_per_min, allow_zero=True)
     _check_interval("range_m", range_m)
     _check_interval("target_speed_mps", target_speed_mps)
     _check_interval("miss_deg", miss_deg)
