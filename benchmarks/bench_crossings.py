@@ -29,6 +29,7 @@ from pathlib import Path
 import numpy as np
 from _realdata import AUTOFERRY
 
+from fusion.geometry import wrap_deg
 from fusion.io import read_table
 from fusion.passive.crossing import CrossingDetector, detect_crossings, score_alerts
 from fusion.simulate.bearings import simulate_bearings
@@ -143,7 +144,7 @@ def _true_crossings(table, step: float = 0.01) -> list[float]:
         m = tid == k
         o = np.argsort(t[m])
         u.append(np.interp(grid, t[m][o], np.degrees(np.unwrap(np.radians(b[m][o])))))
-    d = np.mod(u[1] - u[0] + 180.0, 360.0) - 180.0
+    d = wrap_deg(u[1] - u[0])
     s = np.flatnonzero((np.sign(d[:-1]) != np.sign(d[1:])) & (np.abs(d[:-1]) < 90))
     return [float(grid[i] - d[i] * step / (d[i + 1] - d[i])) for i in s]
 

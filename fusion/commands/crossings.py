@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from fusion.cli import emit, number
+from fusion.geometry import wrap_deg
 from fusion.io import read_bearings, write_table
 from fusion.passive.crossing import detect_crossings, estimate_period
 
@@ -134,8 +135,7 @@ def run_demo(out_dir: Path, *, seed: int) -> dict:
     write_table(out_dir / "tqi.csv", {"track_id": sc.track_id, "time": sc.time,
                                       "tqi": np.array([TrackQuality(q).label for q in tqi])})
 
-    def centred(b: np.ndarray) -> np.ndarray:  # north in the middle of the plot
-        return np.mod(np.asarray(b) + 180.0, 360.0) - 180.0
+    centred = wrap_deg  # north in the middle of the plot
 
     fig, ax = plt.subplots(figsize=(9, 6))
     t_min = sc.truth_time / 60.0

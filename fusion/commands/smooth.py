@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from fusion.cli import number
+from fusion.geometry import wrap_angle
 from fusion.io import read_bearings, write_table
 from fusion.passive.smoothing import BearingSmoother, MultiTrackSmoother, smooth_bearings
 
@@ -151,8 +152,8 @@ def run_demo(out_dir: Path, *, seed: int) -> dict:
     rmse = []
     for tr in res.tracks:
         k = np.searchsorted(sc.truth_time, tr.times)
-        rmse.append(min(float(np.degrees(np.sqrt(np.mean(np.angle(np.exp(1j * (
-            tr.bearing - np.radians(sc.truth_bearing_deg[m, k])))) ** 2))))
+        rmse.append(min(float(np.degrees(np.sqrt(np.mean(wrap_angle(
+            tr.bearing - np.radians(sc.truth_bearing_deg[m, k])) ** 2))))
             for m in range(sc.n_tracks)))
     return {"tracks": len(res.tracks), "true_tracks": sc.n_tracks, "crossings": len(cr),
             "swaps": int(np.sum(outcomes == "swap")), "lost": int(np.sum(outcomes == "lost")),
