@@ -14,9 +14,7 @@ import time
 
 import numpy as np
 from _realdata import AUTOFERRY as REALDATA
-from filterpy.kalman import KalmanFilter, rts_smoother
 
-from factors.motion import transition_matrix, wna_covariance
 from fusion.passive.smoothing import (
     CROSSING_OUTCOMES,
     BearingSmoother,
@@ -25,6 +23,7 @@ from fusion.passive.smoothing import (
     OnlineBearingSmoother,
     TrackPrior,
     crossing_outcomes,
+    rts_reference,
 )
 from fusion.simulate.bearings import simulate_bearings
 
@@ -40,32 +39,14 @@ def _track(rng, n, sig):
     return t, theta, theta + rng.normal(0, sig, n)
 
 
-def _rts(t, z, prior, sig, q):
-    kf = KalmanFilter(dim_x=2, dim_z=1)
-    kf.x, kf.P = prior.mean.copy(), prior.covariance.copy()
-    kf.H, kf.R = np.array([[1.0, 0.0]]), np.array([[sig**2]])
-    xs, ps, fs, qs = [], [], [np.eye(2)], [np.zeros((2, 2))]
-    for k in range(t.size):
-        if k:
-            F, Q = transition_matrix(t[k] - t[k - 1], 1), wna_covariance(t[k] - t[k - 1], q, 1)
-            kf.predict(F=F, Q=Q)
-            fs.append(F)
-            qs.append(Q)
-        kf.update(np.array([z[k]]))
-        xs.append(kf.x.copy())
-        ps.append(kf.P.copy())
-    # filterpy applies Fs[k], Qs[k] between steps k and k + 1
-    return rts_smoother(np.array(xs), np.array(ps), fs[1:] + [np.eye(2)],
-                        qs[1:] + [np.zeros((2, 2))])[0]
-
-
 def bench_rts(seeds: int, sig=0.01, q=1e-8) -> dict:
     worst = 0.0
     for s in range(seeds):
         t, _, z = _track(np.random.default_rng(s), 100, sig)
         prior = TrackPrior(bearing=z[0], rate=0.0, sigma_bearing=0.05, sigma_rate=0.01)
         r = BearingSmoother(sigma_bearing=sig, q=q).smooth(t, z, prior=prior)
-        worst = max(worst, float(np.max(np.abs(r.bearing - _rts(t, z, prior, sig, q)[:, 0]))))
+        ref = rts_reference(t, z, prior, sigma_bearing=sig, q=q)[0]
+        worst = max(worst, float(np.max(np.abs(r.bearing - ref[:, 0]))))
     return {"rts_max_abs_diff_rad": worst}
 
 
@@ -77,7 +58,7 @@ def bench_outliers(seeds: int, sig=0.01, q=1e-8, frac=0.10) -> dict:
         out = rng.random(t.size) < frac
         z[out] = rng.uniform(-np.pi, np.pi, out.sum())  # false bearings, uniform
         prior = TrackPrior(bearing=theta[0], rate=0.0, sigma_bearing=0.05, sigma_rate=0.01)
-        xs = _rts(t, z, prior, sig, q)
+        xs = rts_reference(t, z, prior, sigma_bearing=sig, q=q)[0]
         e["rts"].append(np.mean(np.angle(np.exp(1j * (xs[:, 0] - theta))) ** 2))
         for loss in ("huber", "cauchy"):
             r = BearingSmoother(sigma_bearing=sig, q=q, robust=loss).smooth(t, z)

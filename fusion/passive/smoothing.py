@@ -34,7 +34,7 @@ from dataclasses import dataclass, field
 
 import gtsam
 import numpy as np
-from filterpy.kalman import KalmanFilter
+from filterpy.kalman import KalmanFilter, rts_smoother
 from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import linear_sum_assignment
 
@@ -57,6 +57,7 @@ __all__ = [
     "crossing_outcomes",
     "crossing_time",
     "identity_swaps",
+    "rts_reference",
     "smooth_bearings",
 ]
 
@@ -513,6 +514,54 @@ class BearingSmoother:
 
 # --------------------------------------------------------------------------------------------
 # one track, online
+
+
+def rts_reference(
+    times: ArrayLike, bearings: ArrayLike, prior: TrackPrior, *, sigma_bearing: float, q: float
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    """filterpy's Kalman filter + Rauch-Tung-Striebel smoother on the bearing-rate model.
+
+    The linear-Gaussian reference that :class:`BearingSmoother` equals on unwrapped data (the
+    bearings are used as given, without wrapping).
+
+    Parameters
+    ----------
+    times : array_like, shape (n,)
+        Scan times, s, increasing.
+    bearings : array_like, shape (n,)
+        One bearing per scan, rad.
+    prior : TrackPrior
+        Prior of the first state.
+    sigma_bearing : float
+        Bearing noise standard deviation, rad.
+    q : float
+        Bearing-acceleration PSD, rad^2/s^3.
+
+    Returns
+    -------
+    x, P, K, Pp : ndarray
+        ``filterpy.kalman.rts_smoother`` outputs: smoothed states (n, 2), covariances (n, 2, 2),
+        smoother gains and predicted covariances.
+    """
+    t = np.asarray(times, dtype=float)
+    z = np.asarray(bearings, dtype=float)
+    kf = KalmanFilter(dim_x=2, dim_z=1)
+    kf.x, kf.P = prior.mean.copy(), prior.covariance.copy()
+    kf.H, kf.R = np.array([[1.0, 0.0]]), np.array([[sigma_bearing**2]])
+    xs, ps, fs, qs = [], [], [], []
+    for k in range(t.size):
+        if k:
+            F, Q = transition_matrix(t[k] - t[k - 1], 1), wna_covariance(t[k] - t[k - 1], q, 1)
+            kf.predict(F=F, Q=Q)
+            fs.append(F)
+            qs.append(Q)
+        kf.update(np.array([z[k]]))
+        xs.append(kf.x.copy())
+        ps.append(kf.P.copy())
+    # filterpy applies Fs[k], Qs[k] between steps k and k + 1; the last pair is unused
+    fs.append(np.eye(2))
+    qs.append(np.zeros((2, 2)))
+    return rts_smoother(np.array(xs), np.array(ps), fs, qs)
 
 
 class OnlineBearingSmoother:

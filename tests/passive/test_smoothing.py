@@ -5,10 +5,8 @@ import sys
 
 import numpy as np
 import pytest
-from filterpy.kalman import KalmanFilter, rts_smoother
 from numpy.testing import assert_allclose
 
-from factors.motion import transition_matrix, wna_covariance
 from fusion.cli import main
 from fusion.passive.smoothing import (
     BearingSmoother,
@@ -19,6 +17,7 @@ from fusion.passive.smoothing import (
     crossing_outcomes,
     crossing_time,
     identity_swaps,
+    rts_reference,
 )
 
 SIG, Q = 0.01, 1e-8
@@ -31,32 +30,13 @@ def _linear_track(seed, n=40):
     return t, theta, theta + rng.normal(0, SIG, n)
 
 
-def _rts(t, z, prior):
-    kf = KalmanFilter(dim_x=2, dim_z=1)
-    kf.x, kf.P = prior.mean.copy(), prior.covariance.copy()
-    kf.H, kf.R = np.array([[1.0, 0.0]]), np.array([[SIG**2]])
-    xs, ps, fs, qs = [], [], [np.eye(2)], [np.zeros((2, 2))]
-    for k in range(t.size):
-        if k:
-            F, Qk = transition_matrix(t[k] - t[k - 1], 1), wna_covariance(t[k] - t[k - 1], Q, 1)
-            kf.predict(F=F, Q=Qk)
-            fs.append(F)
-            qs.append(Qk)
-        kf.update(np.array([z[k]]))
-        xs.append(kf.x.copy())
-        ps.append(kf.P.copy())
-    fs.append(np.eye(2))
-    qs.append(np.zeros((2, 2)))
-    return rts_smoother(np.array(xs), np.array(ps), fs[1:], qs[1:])
-
-
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_batch_equals_rts(seed):
     """On linear-Gaussian data the batch graph equals filterpy's RTS smoother (1e-6 rad)."""
     t, _, z = _linear_track(seed)
     prior = TrackPrior(bearing=z[0], rate=0.0, sigma_bearing=0.05, sigma_rate=0.01)
     res = BearingSmoother(sigma_bearing=SIG, q=Q).smooth(t, z, prior=prior)
-    xs, ps, _, _ = _rts(t, z, prior)
+    xs, ps, _, _ = rts_reference(t, z, prior, sigma_bearing=SIG, q=Q)
     assert_allclose(res.bearing, xs[:, 0], atol=1e-6)
     assert_allclose(res.rate, xs[:, 1], atol=1e-8)
     assert_allclose(res.sigma_bearing, np.sqrt(ps[:, 0, 0]), rtol=1e-4)
