@@ -388,6 +388,35 @@ class FanSearch:
     found: NDArray[np.bool_]
 
 
+def _fan_inputs(
+    btr_latest_first: ArrayLike, anchors: ArrayLike, min_scans: int
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """Checked BTR (scans latest first, beams) and anchor beams of a fan search."""
+    btr = np.asarray(btr_latest_first, dtype=float)
+    if btr.ndim != 2:
+        raise ValueError(f"btr must be 2-D (scans, beams), got shape {btr.shape}")
+    n_scans, n_beams = btr.shape
+    anc = np.asarray(anchors, dtype=np.int64).reshape(-1)
+    if int(min_scans) != min_scans or not 1 <= min_scans <= n_scans:
+        raise ValueError(f"min_scans must be an integer in [1, {n_scans}], got {min_scans!r}")
+    if anc.size and (anc.min() < 0 or anc.max() >= n_beams):
+        raise ValueError(f"anchor beams must lie in [0, {n_beams - 1}]")
+    return btr, anc
+
+
+def _best_in_fans(
+    means: NDArray[np.float64],
+) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.bool_]]:
+    """Best candidate of each fan (rows): index, mean, and whether it beat the method's start 0.
+
+    ``argmax`` takes the first maximum, the method's strict ">" in candidate order; the method's
+    running maximum starts at 0, so a fan whose best mean is not positive found nothing.
+    """
+    best = np.argmax(means, axis=1)
+    best_mean = means[np.arange(means.shape[0]), best]
+    return best, best_mean, best_mean > 0.0
+
+
 def best_lines_in_fans(
     btr_latest_first: ArrayLike,
     anchors: ArrayLike,
@@ -424,18 +453,11 @@ def best_lines_in_fans(
     offsets of the lines and where they leave the BTR depend only on the slopes and the BTR's
     shape, and are cached.
     """
-    btr = np.asarray(btr_latest_first, dtype=float)
-    if btr.ndim != 2:
-        raise ValueError(f"btr must be 2-D (scans, beams), got shape {btr.shape}")
-    n_scans, n_beams = btr.shape
-    anc = np.asarray(anchors, dtype=np.int64).reshape(-1)
     sl = np.asarray(slopes, dtype=float).reshape(-1)
     if sl.size == 0:
         raise ValueError("no candidate slopes")
-    if int(min_scans) != min_scans or not 1 <= min_scans <= n_scans:
-        raise ValueError(f"min_scans must be an integer in [1, {n_scans}], got {min_scans!r}")
-    if anc.size and (anc.min() < 0 or anc.max() >= n_beams):
-        raise ValueError(f"anchor beams must lie in [0, {n_beams - 1}]")
+    btr, anc = _fan_inputs(btr_latest_first, anchors, min_scans)
+    n_scans, n_beams = btr.shape
     lt = _line_tensors(n_scans, n_beams, np.ascontiguousarray(sl).tobytes())
     # scans each line spans before its first step off the BTR (the method's break)
     n_used = lt.n_used[:, anc].T  # (fans, slopes)
@@ -448,10 +470,8 @@ def best_lines_in_fans(
     csum = np.cumsum(vals, axis=-1)
     means = np.full(n_used.shape, -np.inf)
     means[fan_i, slope_i] = csum[np.arange(used.size), used - 1] / used
-    best = np.argmax(means, axis=1)  # first maximum: the method's strict ">" in slope order
+    best, best_mean, found = _best_in_fans(means)
     rows = np.arange(anc.size)
-    best_mean = means[rows, best]
-    found = best_mean > 0.0  # the method's running maximum starts at 0
     return FanSearch(
         anchors=anc,
         slope=np.where(found, sl[best], 0.0),
@@ -639,20 +659,13 @@ def best_traces_in_fans(
     the anchor, the rates and the scan period, and are cached; all traces of all fans are read
     with one gather.
     """
-    btr = np.asarray(btr_latest_first, dtype=float)
-    if btr.ndim != 2:
-        raise ValueError(f"btr must be 2-D (scans, beams), got shape {btr.shape}")
     if sampling not in ("nearest", "linear"):
         raise ValueError(f"sampling must be 'nearest' or 'linear', got {sampling!r}")
-    n_scans, n_beams = btr.shape
-    anc = np.asarray(anchors, dtype=np.int64).reshape(-1)
     rates = np.ascontiguousarray(np.asarray(rates_rad_s, dtype=float).reshape(-1))
     if rates.size == 0 or not np.all(np.isfinite(rates)):
         raise ValueError("candidate rates must be finite and not empty")
-    if int(min_scans) != min_scans or not 1 <= min_scans <= n_scans:
-        raise ValueError(f"min_scans must be an integer in [1, {n_scans}], got {min_scans!r}")
-    if anc.size and (anc.min() < 0 or anc.max() >= n_beams):
-        raise ValueError(f"anchor beams must lie in [0, {n_beams - 1}]")
+    btr, anc = _fan_inputs(btr_latest_first, anchors, min_scans)
+    n_scans, n_beams = btr.shape
     key = rates.tobytes()
     fans = [_trace_tensors(n_scans, n_beams, int(a), key, float(scan_period), sampling)
             for a in anc]
@@ -662,10 +675,7 @@ def best_traces_in_fans(
         ok = t.n_used >= min_scans
         sums = _sum_along(flat, t.index[ok], None if t.weight is None else t.weight[ok])
         means[i, ok] = sums / t.n_used[ok]
-    best = np.argmax(means, axis=1) if rates.size else np.zeros(anc.size, dtype=np.int64)
-    rows = np.arange(anc.size)
-    best_mean = means[rows, best]
-    found = best_mean > 0.0
+    best, best_mean, found = _best_in_fans(means)
     n_used = np.array([t.n_used[b] for t, b in zip(fans, best, strict=True)], dtype=np.int64)
     return TraceFanSearch(
         anchors=anc,
