@@ -35,7 +35,14 @@ from scipy.special import ndtr
 from fusion.geometry import beam_from_bearing
 from fusion.io import Cube, atomic_output, write_cube, write_json
 
-__all__ = ["CubeScenario", "simulate_cube", "write_scenario"]
+__all__ = [
+    "CubeScenario",
+    "beam_pattern",
+    "line_spectrum",
+    "noisy_power",
+    "simulate_cube",
+    "write_scenario",
+]
 
 logger = logging.getLogger(__name__)
 
@@ -84,6 +91,96 @@ class CubeScenario:
     def latest_bearing_deg(self) -> float:
         """True bearing at the latest scan, deg."""
         return float(self.bearing_deg[-1])
+
+
+def line_spectrum(
+    freqs: NDArray[np.float64], *, bin_width_hz: float, line_freq_hz: float, freq_spread_hz: float
+) -> NDArray[np.float64]:
+    """Fraction of a narrowband line's power in each FFT bin.
+
+    Parameters
+    ----------
+    freqs : ndarray, shape (n_bins,)
+        Bin centre frequencies, Hz, equally spaced by `bin_width_hz`.
+    bin_width_hz : float
+        Bin spacing, Hz.
+    line_freq_hz : float
+        Line frequency, Hz.
+    freq_spread_hz : float
+        Standard deviation of the line's Gaussian spectral shape, Hz; 0 puts all the power in
+        the bin whose centre is nearest the line.
+
+    Returns
+    -------
+    ndarray, shape (n_bins,)
+        The Gaussian integrated over each bin (sums to 1 when the line lies well inside the band).
+    """
+    if freq_spread_hz > 0:
+        edges = np.concatenate([freqs - 0.5 * bin_width_hz, [freqs[-1] + 0.5 * bin_width_hz]])
+        return np.diff(ndtr((edges - line_freq_hz) / freq_spread_hz))
+    spectrum = np.zeros(freqs.size)
+    spectrum[int(np.argmin(np.abs(freqs - line_freq_hz)))] = 1.0
+    return spectrum
+
+
+def beam_pattern(
+    theta: NDArray[np.float64], *, n_beams: int, aperture_m: float, wavelength_m: float
+) -> NDArray[np.float64]:
+    """Power response of every beam of a uniformly weighted line array to sources at `theta`.
+
+    Parameters
+    ----------
+    theta : ndarray, shape (n,)
+        Source bearings from the forward axis, rad.
+    n_beams : int
+        Beams equally spaced in cosine, beam 0 at forward endfire.
+    aperture_m, wavelength_m : float
+        Aperture ``L`` and wavelength ``lambda``, m.
+
+    Returns
+    -------
+    ndarray, shape (n, n_beams)
+        ``sinc^2(L (u_b - cos theta) / lambda)`` with ``u_b = 1 - 2 b / (N - 1)``.
+    """
+    u_beams = 1.0 - 2.0 * np.arange(n_beams) / (n_beams - 1)
+    return np.sinc(aperture_m / wavelength_m * (u_beams[None, :] - np.cos(theta)[:, None])) ** 2
+
+
+def noisy_power(
+    signal_powers: list[NDArray[np.float64]],
+    *,
+    rng: np.random.Generator,
+    n_averages: int = 1,
+    noise: bool = True,
+) -> NDArray[np.float64]:
+    """Cell power of narrowband lines in unit-power noise, averaged over periodogram looks.
+
+    Parameters
+    ----------
+    signal_powers : list of ndarray, each shape (n_scans, n_beams, n_bins)
+        Mean power of each line in every cell (noise power 1).
+    rng : numpy.random.Generator
+        Source of the phases and the noise; drawn in the same order whether or not `noise`.
+    n_averages : int
+        Periodogram looks averaged per cell.
+    noise : bool
+        False: the expected value ``1 + sum of the lines' powers`` (no randomness in the result).
+
+    Returns
+    -------
+    ndarray, shape (n_scans, n_beams, n_bins)
+        Each look is ``|sum_i sqrt(P_i) exp(j phi_i) + n|^2`` with an independent uniform phase per
+        line and look and ``n`` circular complex Gaussian of unit power; the looks are averaged.
+    """
+    shape = (n_averages, *signal_powers[0].shape)
+    field = np.zeros(shape, dtype=complex)
+    for sig_power in signal_powers:
+        phase = rng.uniform(0.0, 2.0 * np.pi, size=shape)
+        field += np.sqrt(sig_power)[None] * np.exp(1j * phase)
+    white = (rng.standard_normal(shape) + 1j * rng.standard_normal(shape)) / np.sqrt(2.0)
+    if not noise:
+        return 1.0 + np.sum(signal_powers, axis=0)
+    return (np.abs(field + white) ** 2).mean(axis=0)
 
 
 def simulate_cube(
@@ -193,13 +290,8 @@ def simulate_cube(
     freqs = centre + (np.arange(n_bins) - n_bins // 2) * bin_width_hz
     if freqs[0] - 0.5 * bin_width_hz <= 0:
         raise ValueError("line_freq_hz too low for n_bins * bin_width_hz (non-positive bins)")
-    edges = np.concatenate([freqs - 0.5 * bin_width_hz, [freqs[-1] + 0.5 * bin_width_hz]])
-    if freq_spread_hz > 0:
-        cdf = ndtr((edges - line_freq_hz) / freq_spread_hz)
-        spectrum = np.diff(cdf)  # fraction of the line's power in each bin
-    else:
-        spectrum = np.zeros(n_bins)
-        spectrum[n_bins // 2] = 1.0
+    spectrum = line_spectrum(freqs, bin_width_hz=bin_width_hz, line_freq_hz=line_freq_hz,
+                             freq_spread_hz=freq_spread_hz)  # fraction of the power per bin
 
     # bearing track, true and as shown (lagged); folded into [0, pi] (cone angle)
     t = np.arange(n_scans) * scan_period_s
@@ -209,22 +301,12 @@ def simulate_cube(
     shown_theta = np.arccos(np.cos(theta0 + rate * (t - lag_s)))
 
     # beam pattern of a line array in cosine space: sinc^2(L (u_b - cos theta) / lambda)
-    wavelength = sound_speed / line_freq_hz
-    u_beams = 1.0 - 2.0 * np.arange(n_beams) / (n_beams - 1)
-    pattern = np.sinc(aperture_m / wavelength * (u_beams[None, :] - np.cos(shown_theta)[:, None]))
-    pattern = pattern**2  # (n_scans, n_beams)
+    pattern = beam_pattern(shown_theta, n_beams=n_beams, aperture_m=aperture_m,
+                           wavelength_m=sound_speed / line_freq_hz)  # (n_scans, n_beams)
 
     s_lin = 10.0 ** (snr_db / 10.0)
     sig_power = s_lin * pattern[:, :, None] * spectrum[None, None, :]  # (scans, beams, bins)
-    amp = np.sqrt(sig_power)
-    shape = (n_averages, n_scans, n_beams, n_bins)
-    phase = rng.uniform(0.0, 2.0 * np.pi, size=shape)
-    white = (rng.standard_normal(shape) + 1j * rng.standard_normal(shape)) / np.sqrt(2.0)
-    if noise:
-        looks = np.abs(amp[None] * np.exp(1j * phase) + white) ** 2
-        power = looks.mean(axis=0)
-    else:
-        power = 1.0 + sig_power
+    power = noisy_power([sig_power], rng=rng, n_averages=n_averages, noise=noise)
 
     cube = Cube(power=power, freqs=freqs, scan_period=scan_period_s, aperture=aperture_m,
                 sound_speed=sound_speed)
