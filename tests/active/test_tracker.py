@@ -340,10 +340,10 @@ def test_tracker_threshold_follows_the_clues():
     table, _ = _hotspot_scenario(0)
     tr = Tracker()
     tr.run(Table({k: table[k] for k in ("event", "time", "x", "y")}))
-    assert set(tr._thresholds) == {frozenset({"hotspot_distance_m"})}
+    assert set(tr.ranker.thresholds) == {frozenset({"hotspot_distance_m"})}
     tr = Tracker()
     tr.run(table)
-    assert set(tr._thresholds) == {frozenset(("score", "snr_db", "aspect_deg",
+    assert set(tr.ranker.thresholds) == {frozenset(("score", "snr_db", "aspect_deg",
                                               "hotspot_distance_m"))}
     assert Tracker(min_rank=0.6).threshold(["score"]) == 0.6
 

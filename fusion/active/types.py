@@ -1,0 +1,208 @@
+"""Data of the multistatic tracker: a ping's detections, the tracks after a ping, a whole run.
+
+Frozen dataclasses (the tracker never mutates them) and the grouping of detection rows
+(``event,time,x,y`` plus optional clue columns, the detections format of ``fusion track``) into
+pings. Rows come as columns: a mapping of column name to array, e.g. a
+:class:`fusion.io.Table` read by :func:`fusion.io.read_detections`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Protocol
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+__all__ = [
+    "CLUE_COLUMNS",
+    "POSITION_CLUES",
+    "Columns",
+    "Ping",
+    "PingResult",
+    "TrackingResult",
+    "pings_from_columns",
+]
+
+#: Source and receiver position columns of a bistatic detection, m.
+POSITION_CLUES: tuple[str, ...] = ("src_x", "src_y", "rcv_x", "rcv_y")
+#: Optional per-detection columns the tracker reads.
+CLUE_COLUMNS: tuple[str, ...] = ("snr_db", "score", "aspect_deg", *POSITION_CLUES)
+
+
+class Columns(Protocol):
+    """Named columns of equal length (a dict of arrays, or a :class:`fusion.io.Table`)."""
+
+    def __getitem__(self, name: str) -> ArrayLike: ...
+
+    def __contains__(self, name: object) -> bool: ...
+
+    def __len__(self) -> int: ...
+
+
+@dataclass(frozen=True)
+class Ping:
+    """The detections of one event (ping or scan).
+
+    Attributes
+    ----------
+    event : int
+        Event index.
+    time : float
+        Event time, s.
+    xy : ndarray, shape (n, 2)
+        Detection positions (x east, y north), m.
+    clues : dict of str to ndarray, shape (n,)
+        Optional per-detection clues among ``snr_db``, ``score``, ``aspect_deg`` and positions
+        ``src_x, src_y, rcv_x, rcv_y`` (m).
+    """
+
+    event: int
+    time: float
+    xy: NDArray[np.float64]
+    clues: Mapping[str, NDArray[np.float64]] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        xy = np.asarray(self.xy, dtype=float).reshape(-1, 2) if np.size(self.xy) else np.zeros((0, 2))
+        if not np.all(np.isfinite(xy)) or not np.isfinite(self.time):
+            raise ValueError(f"event {self.event}: positions and time must be finite")
+        clues = {}
+        for k, v in self.clues.items():
+            a = np.asarray(v, dtype=float).reshape(-1)
+            if a.shape != (xy.shape[0],):
+                raise ValueError(f"event {self.event}: clue {k!r} has {a.size} values for "
+                                 f"{xy.shape[0]} detections")
+            clues[k] = a
+        object.__setattr__(self, "xy", xy)
+        object.__setattr__(self, "clues", clues)
+
+    @property
+    def n(self) -> int:
+        """Number of detections."""
+        return int(self.xy.shape[0])
+
+
+
+def pings_from_columns(columns: Columns | Mapping[str, ArrayLike]) -> list[Ping]:
+    """Group detection rows (``event,time,x,y`` + optional clue columns) into pings.
+
+    Event numbers missing between the first and the last become empty pings at times
+    interpolated linearly between their neighbours.
+
+    Parameters
+    ----------
+    columns : mapping of str to array_like, each shape (n,)
+        ``event`` (int), ``time`` (s), ``x``, ``y`` (m) and any of :data:`CLUE_COLUMNS`; other
+        columns are ignored. A :class:`fusion.io.Table` will do.
+
+    Returns
+    -------
+    list of Ping
+        One per event from the smallest to the largest event number.
+
+    Examples
+    --------
+    >>> pings = pings_from_columns({"event": [0, 2], "time": [0.0, 100.0], "x": [1.0, 2.0],
+    ...                             "y": [0.0, 0.0]})
+    >>> [(p.event, p.time, p.n) for p in pings]
+    [(0, 0.0, 1), (1, 50.0, 0), (2, 100.0, 1)]
+    """
+    if len(columns["event"]) == 0:
+        return []
+    ev = np.asarray(columns["event"]).astype(np.int64)
+    order = np.argsort(ev, kind="stable")
+    ev = ev[order]
+    t = np.asarray(columns["time"], dtype=float)[order]
+    xy = np.column_stack([columns["x"], columns["y"]]).astype(float)[order]
+    clues = {c: np.asarray(columns[c], dtype=float)[order] for c in CLUE_COLUMNS if c in columns}
+    uniq, start = np.unique(ev, return_index=True)
+    stop = np.append(start[1:], ev.size)
+    t_event = t[start]
+    all_events = np.arange(uniq[0], uniq[-1] + 1)
+    all_times = np.interp(all_events, uniq, t_event)
+    by_event = {int(e): (a, b) for e, a, b in zip(uniq, start, stop, strict=True)}
+    pings = []
+    for e, te in zip(all_events, all_times, strict=True):
+        a, b = by_event.get(int(e), (0, 0))
+        pings.append(Ping(int(e), float(te), xy[a:b], {k: v[a:b] for k, v in clues.items()}))
+    return pings
+
+
+@dataclass(frozen=True)
+class PingResult:
+    """Tracks after one ping.
+
+    Attributes
+    ----------
+    event : int
+    time : float
+        s.
+    track_id : ndarray of int, shape (k,)
+        Tracks alive before or born on this ping (deleted ones included once, with their last
+        state).
+    state : ndarray, shape (k, 4)
+        ``x, y, vx, vy`` (m, m/s): posterior, or prediction for a track without a detection.
+    status : ndarray of str, shape (k,)
+        ``tentative``, ``confirmed`` or ``deleted``.
+    detection : ndarray of int, shape (k,)
+        Index of the associated detection in the ping, -1 when none (the birth detection for
+        new tracks).
+    rank : ndarray, shape (k,)
+        Rank (fuzzy) or likelihood ratio (kalman) of the associated pair; NaN when none.
+    hotspots : ndarray, shape (h, 2)
+        Clutter-map hotspots after this ping, m (empty in kalman mode).
+    covariance : ndarray, shape (k, 4, 4)
+        Covariance of ``state`` (m^2, m^2/s, m^2/s^2).
+    measurement : ndarray, shape (k, 2)
+        Position of the associated (or birth) detection, m; NaN when none.
+    measurement_cov : ndarray, shape (k, 2, 2)
+        Position covariance of that detection as the tracker used it, m^2; NaN when none.
+    """
+
+    event: int
+    time: float
+    track_id: NDArray[np.int64]
+    state: NDArray[np.float64]
+    status: NDArray[np.str_]
+    detection: NDArray[np.int64]
+    rank: NDArray[np.float64]
+    hotspots: NDArray[np.float64]
+    covariance: NDArray[np.float64]
+    measurement: NDArray[np.float64]
+    measurement_cov: NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class TrackingResult:
+    """All pings of a run.
+
+    Attributes
+    ----------
+    pings : tuple of PingResult
+    """
+
+    pings: tuple[PingResult, ...]
+
+    def columns(self) -> dict[str, NDArray]:
+        """Output rows ``track_id,event,time,x,y,vx,vy,status``, one per track per event."""
+        if not self.pings:
+            empty = np.zeros(0)
+            return {"track_id": empty.astype(np.int64), "event": empty.astype(np.int64),
+                    "time": empty, "x": empty, "y": empty, "vx": empty, "vy": empty,
+                    "status": np.zeros(0, dtype=str)}
+        k = [p.track_id.size for p in self.pings]
+        state = np.concatenate([p.state for p in self.pings]).reshape(-1, 4)
+        return {
+            "track_id": np.concatenate([p.track_id for p in self.pings]).astype(np.int64),
+            "event": np.repeat([p.event for p in self.pings], k).astype(np.int64),
+            "time": np.repeat([p.time for p in self.pings], k).astype(float),
+            "x": state[:, 0], "y": state[:, 1], "vx": state[:, 2], "vy": state[:, 3],
+            "status": np.concatenate([p.status for p in self.pings]).astype(str),
+        }
+
+    def confirmed_ids(self) -> NDArray[np.int64]:
+        """Ids of the tracks that were confirmed at some ping."""
+        ids = [p.track_id[p.status == "confirmed"] for p in self.pings]
+        return np.unique(np.concatenate(ids)) if ids else np.zeros(0, np.int64)
+
