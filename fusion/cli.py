@@ -1,16 +1,33 @@
 """The ``fusion`` command line.
 
-Subcommands live one per module in :mod:`fusion.commands`; each module registers its parser.
+Subcommands live one per module in :mod:`fusion.commands` and are listed in :data:`COMMANDS`. Only
+the chosen command's module is imported (``fusion --help`` imports none), so the top-level help
+and usage errors are instant whatever the commands need.
+
 Bad input (a missing file, a malformed CSV, NaN values, a wrong channel count, degenerate sensor
 geometry, an option out of range, an output path that cannot be written, ...) is reported as one
 line on stderr with exit code 2, never as a traceback, and leaves no output behind. Usage errors
 found by the argument parser are one line too (``fusion CMD: error: ...``); ``--help`` prints the
-full usage.
+full usage. Notes and warnings are lines ``fusion CMD: warning: ...`` on stderr.
 
-Output paths: ``--out`` names a file (or, for commands that set ``out_is_dir``, a folder). Missing
-folders on the way are created, like ``mkdir -p``; an output that cannot be written (a folder where
-a file is expected, a parent that is a file, a read-only folder) is reported before any work is
-done.
+Outputs never destroy anything. Before any work, ``--out`` is checked against the command's
+inputs and the file system:
+
+- ``--out`` naming an input (the same file, also through another path, a symbolic link or a hard
+  link) is refused;
+- a symbolic link is written through: its target is replaced, the link stays a link;
+- a folder where a file is expected, a FIFO, a device (``/dev/null``, ``/dev/full``,
+  ``/dev/stdout`` on a pipe or a terminal), a socket, a parent that is not a folder or a folder
+  that is not writable is refused;
+- ``--out -`` writes a one-file output (a CSV table or JSON) to standard output -- the command's
+  own messages then go to stderr; commands that write a folder refuse it (``./-`` names a file
+  called ``-``);
+- missing folders on the way are created, like ``mkdir -p``; writes are atomic
+  (:func:`fusion.io.atomic_output`), and temporaries of killed runs are removed by the next run.
+
+A command module declares its inputs with ``set_defaults(inputs=("bearings", ...))`` (the dest
+names of the options that name files it reads); ``out_is_dir=True`` when ``--out`` is a folder;
+``out_stdout=False`` to refuse ``--out -`` for a one-file output that is not text.
 """
 
 from __future__ import annotations
@@ -21,30 +38,40 @@ import logging
 import math
 import os
 import sys
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
+from types import ModuleType
 
 from fusion import __version__
+from fusion._output import STDOUT, output_destination
 
-#: Modules of :mod:`fusion.commands`, in the order they appear in ``fusion --help``.
-COMMAND_MODULES: list[str] = [
-    "fusion.commands.simulate",
-    "fusion.commands.demo",
-    "fusion.commands.acquire",
-    "fusion.commands.crossings",
-    "fusion.commands.tqi",
-    "fusion.commands.tma",
-    "fusion.commands.smooth",
-    "fusion.commands.track",
-]
+#: The subcommands, in the order of ``fusion --help``: name -> (module, one-line help).
+#: A module is imported only when its command is chosen. To add a command, add one line.
+COMMANDS: dict[str, tuple[str, str]] = {
+    "simulate": ("fusion.commands.simulate", "write a simulated scenario in the project's file formats"),
+    "demo": ("fusion.commands.demo", "run every pipeline on built-in simulated scenarios"),
+    "acquire": ("fusion.commands.acquire", "bearing, bearing rate and SNR of a clicked narrowband target"),
+    "crossings": ("fusion.commands.crossings", "predict and detect crossings of bearing tracks"),
+    "tqi": ("fusion.commands.tqi", "track quality (lost/uncertain/low_snr/strong) of tracker outputs"),
+    "tma": ("fusion.commands.tma", "bearings-only target motion analysis"),
+    "smooth": ("fusion.commands.smooth", "smooth bearing tracks (labelled, or detections of unknown origin)"),
+    "track": ("fusion.commands.track", "track targets in active-sonar (or any position) detections"),
+}
 
 #: Exit code for bad input or bad options.
 EXIT_BAD_INPUT = 2
+#: Exit code when a command's module cannot be loaded (a broken installation).
+EXIT_UNAVAILABLE = 1
+
+_data_on_stdout = False  # set while a command writes its output to stdout (``--out -``)
 
 
 def emit(text: str, *, err: bool = False) -> None:
-    """Write one line of command output: stdout for results, stderr (``err=True``) for notes."""
-    print(text, file=sys.stderr if err else sys.stdout)
+    """Write one line of command output: stdout for results, stderr (``err=True``) for notes.
+
+    While the command's ``--out`` is ``-`` (its result goes to stdout), every line goes to stderr.
+    """
+    print(text, file=sys.stderr if err or _data_on_stdout else sys.stdout)
 
 
 class Parser(argparse.ArgumentParser):
@@ -106,23 +133,32 @@ def number(
     return convert
 
 
+# --------------------------------------------------------------------------------------------
+# paths: outputs and inputs
+# --------------------------------------------------------------------------------------------
 def check_output(path: str | os.PathLike[str], *, is_dir: bool = False, option: str = "--out") -> None:
-    """Raise ValueError (naming `option` and the path) if `path` cannot be written.
+    """Raise ValueError (naming `option` and the path) if `path` cannot be written safely.
 
-    A missing folder is fine (it is created when the output is written); a folder where a file is
-    expected, a file where a folder is expected, a parent that is not a folder, or a folder that
-    is not writable is not.
+    A missing file or folder is fine (it is created when the output is written), and so is a
+    symbolic link (the output replaces its target). A folder where a file is expected, a file
+    where a folder is expected, a FIFO, a device or a socket, a symbolic-link loop, a parent that
+    is not a folder, or a folder that is not writable is not.
     """
-    p = Path(path)
+    text = os.fspath(path)
+    p = Path(text)
     where = f"{option} {p}"
     if is_dir:
         if p.exists() and not p.is_dir():
             raise ValueError(f"{where}: exists and is not a folder")
-    elif p.is_dir():
-        raise ValueError(f"{where}: is a folder, expected a file name")
-    elif str(p).endswith(("/", os.sep)):
-        raise ValueError(f"{where}: expected a file name, not a folder")
-    parent = p if is_dir else p.parent
+        target = p
+    else:
+        if text.endswith(("/", os.sep)):
+            raise ValueError(f"{where}: expected a file name, not a folder")
+        try:
+            target = output_destination(p)
+        except ValueError as e:
+            raise ValueError(f"{option} {e}") from None
+    parent = target if is_dir else target.parent
     parent = Path(os.path.abspath(parent))
     while not parent.exists() and parent != parent.parent:
         parent = parent.parent
@@ -130,6 +166,130 @@ def check_output(path: str | os.PathLike[str], *, is_dir: bool = False, option: 
         raise ValueError(f"{where}: {parent} is not a folder")
     if not os.access(parent, os.W_OK | os.X_OK):
         raise ValueError(f"{where}: folder {parent} is not writable")
+
+
+def _option_names(parser: argparse.ArgumentParser) -> dict[str, str]:
+    """dest -> how the user wrote it (``--bearings``, or the metavar of a positional)."""
+    names = {}
+    for action in parser._actions:
+        if action.option_strings:
+            names[action.dest] = max(action.option_strings, key=len)
+        else:
+            names[action.dest] = action.metavar if isinstance(action.metavar, str) else action.dest
+    return names
+
+
+def _paths(value: object) -> Iterator[Path]:
+    """The paths in an argument value (a str/Path, or a list/tuple of them)."""
+    for v in value if isinstance(value, list | tuple) else [value]:
+        if isinstance(v, str | os.PathLike) and os.fspath(v) not in ("", STDOUT):
+            yield Path(v)
+
+
+def _same_file(a: Path, b: Path) -> bool:
+    """Whether `a` and `b` exist and are one file (same device and inode: links, other paths)."""
+    try:
+        return os.path.samefile(a, b)
+    except OSError:
+        return False
+
+
+def check_paths(args: argparse.Namespace, names: dict[str, str]) -> bool:
+    """Check inputs and output before any work; return whether the output goes to stdout.
+
+    Declared inputs (``args.inputs``) must exist. ``--out`` must be writable
+    (:func:`check_output`) and must not be the same file as any input -- declared, or any other
+    path-typed option (a rules file, ...). ``--out -`` is accepted for one-file outputs.
+
+    Raises
+    ------
+    ValueError
+        One line naming the option(s) and path(s) at fault.
+    """
+    out = getattr(args, "out", None)
+    is_dir = bool(getattr(args, "out_is_dir", False))
+    declared = tuple(getattr(args, "inputs", ()))
+    for dest in declared:
+        for p in _paths(getattr(args, dest, None)):
+            if not os.path.exists(p):
+                raise ValueError(f"{names.get(dest, dest)} {p}: no such file")
+    if out is None:
+        return False
+    if os.fspath(out) == STDOUT:
+        if is_dir:
+            raise ValueError("--out -: this command writes a folder, not one file; name a folder "
+                             "(./- for a folder called '-')")
+        if not getattr(args, "out_stdout", True):
+            raise ValueError("--out -: this command's output cannot go to standard output")
+        return True
+    check_output(out, is_dir=is_dir)
+    others = [d for d, v in vars(args).items() if d not in declared and isinstance(v, os.PathLike)]
+    for dest in (*declared, *others):
+        if dest == "out":
+            continue
+        for p in _paths(getattr(args, dest, None)):
+            if _same_file(Path(out), p):
+                raise ValueError(f"--out {out} is the same file as the input {names.get(dest, dest)} "
+                                 f"{p}; refusing to overwrite an input")
+    return False
+
+
+# --------------------------------------------------------------------------------------------
+# parser and entry point
+# --------------------------------------------------------------------------------------------
+def chosen_command(argv: Sequence[str]) -> str | None:
+    """The subcommand named in `argv` (its first word that is not a top-level option), if any.
+
+    ``None`` when `argv` asks for the top-level help or version first, or names no known command.
+    """
+    for word in argv:
+        if word in ("-h", "--help", "--version"):
+            return None
+        if word.startswith("-"):
+            continue
+        return word if word in COMMANDS else None
+    return None
+
+
+def load_command(name: str) -> ModuleType:
+    """Import the module of subcommand `name` (see :data:`COMMANDS`)."""
+    return importlib.import_module(COMMANDS[name][0])
+
+
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """The argument parser: every subcommand listed, only `command`'s module loaded.
+
+    The other subcommands get a placeholder parser with their one-line help (enough for
+    ``fusion --help`` and for the list of choices in usage errors).
+    """
+    parser = Parser(
+        prog="fusion",
+        description="Probabilistic sensor fusion for underwater acoustics on factor graphs.",
+    )
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
+    parser.add_argument("-v", "--verbose", action="count", default=0, help="more log output")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    sub.required = True
+    for name, (_module, help_text) in COMMANDS.items():
+        if name == command:
+            load_command(name).register(sub)
+        else:
+            sub.add_parser(name, help=help_text, add_help=False)
+    return parser
+
+
+class _LineFormatter(logging.Formatter):
+    """``fusion CMD: warning: message`` -- the form of the command's error lines."""
+
+    def __init__(self, command: str) -> None:
+        super().__init__()
+        self.command = command
+
+    def format(self, record: logging.LogRecord) -> str:
+        line = f"fusion {self.command}: {record.levelname.lower()}: {record.getMessage()}"
+        if record.exc_info:
+            line += "\n" + self.formatException(record.exc_info)
+        return line
 
 
 def _os_error_message(e: OSError) -> str:
@@ -140,40 +300,41 @@ def _os_error_message(e: OSError) -> str:
     return str(e)
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The argument parser with every registered subcommand."""
-    parser = Parser(
-        prog="fusion",
-        description="Probabilistic sensor fusion for underwater acoustics on factor graphs.",
-    )
-    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
-    parser.add_argument("-v", "--verbose", action="count", default=0, help="more log output")
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
-    sub.required = True
-    for name in COMMAND_MODULES:
-        importlib.import_module(name).register(sub)
-    return parser
+def _silence_stdout() -> None:
+    """After a broken pipe on stdout, send what is left to /dev/null (no second error at exit)."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError, AttributeError):  # not a real file (tests, embedding)
+        pass
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit code (2: bad input or usage, see module notes)."""
-    parser = build_parser()
+    global _data_on_stdout
+    argv = list(sys.argv[1:] if argv is None else argv)
+    command = chosen_command(argv)
+    try:
+        parser = build_parser(command)
+    except ImportError as e:
+        print(f"fusion {command}: error: the command cannot be loaded ({e})", file=sys.stderr)
+        return EXIT_UNAVAILABLE
     try:
         args = parser.parse_args(argv)
     except SystemExit as e:  # usage error (exit 2, one line already printed), --help, --version
         if e.code is None:
             return 0
         return e.code if isinstance(e.code, int) else EXIT_BAD_INPUT
-    logging.basicConfig(
-        level=logging.WARNING - 10 * min(args.verbose, 2),
-        format="fusion: %(levelname)s: %(message)s",
-        stream=sys.stderr,
-    )
+    handler = logging.StreamHandler(sys.stderr)
+    handler.setFormatter(_LineFormatter(args.command))
+    logging.basicConfig(level=logging.WARNING - 10 * min(args.verbose, 2), handlers=[handler])
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
     try:
-        out = getattr(args, "out", None)
-        if out is not None:
-            check_output(out, is_dir=bool(getattr(args, "out_is_dir", False)))
+        _data_on_stdout = check_paths(args, _option_names(sub.choices[args.command]))
         return int(args.handler(args) or 0)
+    except BrokenPipeError:  # `fusion ... --out - | head`: the reader left; not an error of ours
+        _silence_stdout()
+        return 1
     except (ValueError, OSError) as e:  # FileNotFoundError is an OSError
         text = _os_error_message(e) if isinstance(e, OSError) else str(e)
         msg = " ".join(text.split()) or type(e).__name__
@@ -182,6 +343,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("fusion: interrupted", file=sys.stderr)
         return 130
+    finally:
+        _data_on_stdout = False
 
 
 if __name__ == "__main__":  # pragma: no cover

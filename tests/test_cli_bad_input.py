@@ -237,9 +237,14 @@ def _table_variant(cmd: str, opt: str, kind: str):
             cols = {k: [] for k in names}
         elif kind == "nocol":
             del cols[numeric]
-        elif kind in ("nan", "inf", "-inf", "abc", ""):
+        elif kind in ("nan", "inf", "-inf", "abc", "", "1e308", "-1e13"):
             cols[numeric] = list(cols[numeric])
             cols[numeric][1] = kind
+        elif kind == "long-field":  # one cell over the csv module's 128 KiB field limit
+            cols[numeric] = list(cols[numeric])
+            cols[numeric][1] = "1" * (200 * 1024)
+        elif kind == "duplicate-time":  # the second row repeated: same track, same time
+            cols = {k: [v[0], v[1], *v[1:]] for k, v in cols.items()}
         elif kind == "single":  # one sample per track
             ids = np.asarray(cols["track_id"])
             first = [int(np.flatnonzero(ids == k)[0]) for k in np.unique(ids)]
@@ -260,6 +265,18 @@ def _option(*args: str, mention: str | None = None):
     return spoil
 
 
+def _sparse(size: int, name: str):
+    """A file of `size` zero bytes that takes no disk space (a sparse file)."""
+
+    def make(tmp: Path) -> Path:
+        p = tmp / name
+        with p.open("wb") as fh:
+            fh.truncate(size)
+        return p
+
+    return make
+
+
 def _csv_cases(cmd: str, opt: str) -> list[Case]:
     cases = [
         Case(cmd, f"{opt}-missing", _replace(opt, _missing)),
@@ -267,8 +284,10 @@ def _csv_cases(cmd: str, opt: str) -> list[Case]:
         Case(cmd, f"{opt}-empty", _replace(opt, _text("", f"{opt}_empty.csv"))),
         Case(cmd, f"{opt}-blank-lines", _replace(opt, _text("\n\n  \n", f"{opt}_blank.csv"))),
         Case(cmd, f"{opt}-binary", _replace(opt, _text("\x00\xff\xfe garbage", f"{opt}_bin.csv"))),
+        Case(cmd, f"{opt}-sparse-2GiB", _replace(opt, _sparse(2 << 30, f"{opt}_huge.csv"))),
+        Case(cmd, f"{opt}-sparse-8MiB-one-line", _replace(opt, _sparse(8 << 20, f"{opt}_nul.csv"))),
     ]
-    for kind in ("header", "nocol", "nan", "inf", "-inf", "abc", ""):
+    for kind in ("header", "nocol", "nan", "inf", "-inf", "abc", "", "1e308", "-1e13", "long-field"):
         cases.append(Case(cmd, f"{opt}-{kind or 'blank-cell'}",
                           _replace(opt, _table_variant(cmd, opt, kind))))
     return cases
@@ -297,15 +316,6 @@ def _ownship_late(tmp: Path) -> Path:
     return write_csv(tmp / "ownship_late.csv", cols)
 
 
-def _unsorted(cmd: str, opt: str):
-    def make(tmp: Path) -> Path:
-        cols = CSV_INPUTS[f"{cmd}.{opt}"]()
-        cols = {k: list(reversed(v)) for k, v in cols.items()}
-        return write_csv(tmp / f"{opt}_unsorted.csv", cols)
-
-    return make
-
-
 def _rules(content: str):
     def spoil(tmp, inputs):
         p = tmp / "rules.json"
@@ -325,6 +335,8 @@ CASES: list[Case] = [
          lambda tmp, inputs: ({**inputs, "bearings": _table_variant("crossings", "bearings",
                                                                      "single")(tmp)},
                               ["--period", "10"], "bearings_single.csv")),
+    Case("crossings", "duplicate-time",
+         _replace("bearings", _table_variant("crossings", "bearings", "duplicate-time"))),
     Case("crossings", "one-track",
          _replace("bearings", lambda tmp: write_csv(tmp / "one_track.csv", _smooth_bearings()))),
     Case("crossings", "window-zero", _option("--window", "0")),
@@ -341,6 +353,8 @@ CASES: list[Case] = [
     *_csv_cases("smooth", "bearings"),
     Case("smooth", "single-sample-per-track",
          _replace("bearings", _table_variant("smooth", "bearings", "single"))),
+    Case("smooth", "duplicate-time",
+         _replace("bearings", _table_variant("smooth", "bearings", "duplicate-time"))),
     Case("smooth", "sigma-zero", _option("--sigma-bearing-deg", "0")),
     Case("smooth", "sigma-negative", _option("--sigma-bearing-deg", "-0.5")),
     Case("smooth", "sigma-nan", _option("--sigma-bearing-deg", "nan")),
@@ -356,7 +370,8 @@ CASES: list[Case] = [
     Case("tqi", "amplitude-negative",
          _replace("amplitudes", lambda tmp: write_csv(tmp / "neg.csv", {
              **_amplitudes(), "amplitude": [-1.0] + _amplitudes()["amplitude"][1:]}))),
-    Case("tqi", "time-decreasing", _replace("amplitudes", _unsorted("tqi", "amplitudes"))),
+    Case("tqi", "duplicate-time",
+         _replace("amplitudes", _table_variant("tqi", "amplitudes", "duplicate-time"))),
     Case("tqi", "track-id-fractional",
          _replace("amplitudes", lambda tmp: write_csv(tmp / "frac.csv", {
              **_amplitudes(), "track_id": [0.5] * 20}))),
@@ -375,8 +390,10 @@ CASES: list[Case] = [
     Case("tma", "ownship-ends-early", _replace("ownship", _ownship_short)),
     Case("tma", "ownship-starts-late", _replace("ownship", _ownship_late)),
     Case("tma", "two-bearings", _replace("bearings", _table_variant("tma", "bearings", "two_rows"))),
-    Case("tma", "bearing-times-decreasing", _replace("bearings", _unsorted("tma", "bearings"))),
-    Case("tma", "ownship-times-decreasing", _replace("ownship", _unsorted("tma", "ownship"))),
+    Case("tma", "bearing-duplicate-time",
+         _replace("bearings", _table_variant("tma", "bearings", "duplicate-time"))),
+    Case("tma", "ownship-duplicate-time",
+         _replace("ownship", _table_variant("tma", "ownship", "duplicate-time"))),
     Case("tma", "ownship-single-position",
          _replace("ownship", lambda tmp: write_csv(tmp / "os1.csv", {"time": [0.0], "x": [0.0],
                                                                     "y": [0.0]}))),
@@ -387,7 +404,6 @@ CASES: list[Case] = [
                                           mention="--robust-k")),
     # ---- track
     *_csv_cases("track", "detections"),
-    Case("track", "events-decreasing", _replace("detections", _unsorted("track", "detections"))),
     Case("track", "score-out-of-range",
          _replace("detections", lambda tmp: write_csv(tmp / "score.csv", {
              **_detections(), "score": [1.5] * 12}))),
@@ -420,6 +436,14 @@ CASES: list[Case] = [
     _cube_case("power-text", power=np.array(["a", "b"])),
     _cube_case("power-object", power=np.array([{"a": 1}], dtype=object)),
     _cube_case("one-bin", power=np.ones((24, 12, 1)), freqs=np.array([100.0])),
+    _cube_case("power-complex", power=np.ones(CUBE_SHAPE) * (1 + 1j)),
+    _cube_case("power-numeric-text", power=np.full(CUBE_SHAPE, "1.0")),
+    _cube_case("power-bool", power=np.ones(CUBE_SHAPE, dtype=bool)),
+    _cube_case("freqs-text", freqs=np.array([str(f) for f in CUBE_FREQS])),
+    _cube_case("scan-period-text", scan_period=np.array("1.0")),
+    _cube_case("aperture-two-values", aperture=np.array([20.0, 30.0])),
+    Case("acquire", "cube-text-named-npz",
+         _replace("cube", _text("power,freqs\n1,2\n", "looks_like.npz"))),
     Case("acquire", "beam-negative", _option("--beam", "-1")),
     Case("acquire", "beam-past-last", _option("--beam", str(CUBE_SHAPE[1]), mention="--beam")),
     Case("acquire", "beam-not-int", _option("--beam", "4.5")),

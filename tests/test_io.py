@@ -1,6 +1,7 @@
 """Tests of fusion.io: validation of every reader, round trips, atomic writes."""
 
 import json
+import logging
 
 import numpy as np
 import pytest
@@ -126,15 +127,27 @@ def test_read_table_ragged_and_integer(tmp_path):
 
 
 def test_semantic_checks(tmp_path):
-    """Scores outside [0, 1], negative amplitudes and time going backwards are errors."""
+    """Scores outside [0, 1], negative amplitudes and repeated own-ship times are errors."""
     with pytest.raises(ValueError, match="score"):
         read_detections(_write(tmp_path, "event,time,x,y,score\n0,0,1,2,1.5\n"))
     with pytest.raises(ValueError, match="negative"):
         read_amplitudes(_write(tmp_path, "track_id,time,amplitude,residual\n1,0,-1,0\n"))
-    with pytest.raises(ValueError, match="strictly increasing"):
-        read_ownship(_write(tmp_path, "time,x,y\n1,0,0\n0,0,0\n"))
-    with pytest.raises(ValueError, match="non-decreasing"):
-        read_detections(_write(tmp_path, "event,time,x,y\n2,0,1,2\n1,0,1,2\n"))
+    with pytest.raises(ValueError, match="two rows at time 1; times must be distinct"):
+        read_ownship(_write(tmp_path, "time,x,y\n1,0,0\n1,5,0\n"))
+
+
+def test_out_of_order_rows_are_sorted_once(tmp_path, caplog):
+    """Rows out of time order are stably sorted, with one warning naming the file."""
+    with caplog.at_level(logging.WARNING, logger="fusion.io"):
+        o = read_ownship(_write(tmp_path, "time,x,y\n1,10,0\n0,0,0\n2,20,0\n"))
+        d = read_detections(_write(tmp_path, "event,time,x,y\n2,0,1,2\n1,0,3,4\n1,0,5,6\n",
+                                   "d.csv"))
+    assert_array_equal(o["time"], [0, 1, 2])
+    assert_array_equal(o["x"], [0, 10, 20])
+    assert_array_equal(d["event"], [1, 1, 2])
+    assert_array_equal(d["x"], [3, 5, 1])  # stable: the two event-1 rows keep their order
+    messages = [r.getMessage() for r in caplog.records]
+    assert len(messages) == 2 and "t.csv" in messages[0] and "d.csv" in messages[1]
 
 
 def test_binary_file_is_not_csv(tmp_path):
@@ -306,7 +319,7 @@ def test_cube_missing_array_and_not_npz(tmp_path):
     with pytest.raises(ValueError, match="missing array.*power"):
         read_cube(p)
     p.write_text("nope")
-    with pytest.raises(ValueError, match="not a readable"):
+    with pytest.raises(ValueError, match="c.npz: not a valid .npz file"):
         read_cube(p)
 
 

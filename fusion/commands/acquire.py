@@ -17,7 +17,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     """Add the ``acquire`` subcommand."""
     p = sub.add_parser(
         "acquire",
-        help="estimate a clicked narrowband target's bearing, bearing rate and SNR",
+        help="bearing, bearing rate and SNR of a clicked narrowband target",
         description=(
             "Find the best line through the initialisation-band BTR of a beam/frequency/time cube "
             "around an operator's click and print the target's bearing, bearing rate and SNR as "
@@ -39,7 +39,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "cube's scans (default: all)")
     p.add_argument("--noise-dof", type=number(float, gt=0), default=2.0,
                    help="degrees of freedom of the noise per cell (default 2: one look)")
-    p.set_defaults(handler=run)
+    p.set_defaults(handler=run, inputs=("cube",))
 
 
 def run(args: argparse.Namespace) -> int:

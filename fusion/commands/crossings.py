@@ -43,7 +43,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "(default J*K)")
     p.add_argument("--max-gap", type=number(float, gt=0), default=None, metavar="S",
                    help="a gap longer than S s splits a track (default 3*K)")
-    p.set_defaults(handler=run)
+    p.set_defaults(handler=run, inputs=("bearings",))
 
 
 def run(args: argparse.Namespace) -> int:

@@ -19,7 +19,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", type=Path, default=Path("fusion-demo"), help="output folder")
     p.add_argument("--seed", type=number(int, ge=0), default=0, help="scenario seed (default 0)")
     p.add_argument("--part", action="append", default=None, help="run only this part (repeatable)")
-    p.set_defaults(handler=run, out_is_dir=True)
+    p.set_defaults(handler=run, inputs=(), out_is_dir=True)
 
 
 def run(args: argparse.Namespace) -> int:

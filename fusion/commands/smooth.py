@@ -27,7 +27,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     """Add the ``smooth`` subcommand."""
     p = sub.add_parser(
         "smooth",
-        help="smooth bearing tracks (and form tracks from unknown-origin detections)",
+        help="smooth bearing tracks (labelled, or detections of unknown origin)",
         description="Bearing-rate smoothing on factor graphs; track_id -1 rows are detections "
         "of unknown origin, tracked and smoothed jointly through crossings.",
     )
@@ -46,7 +46,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--min-length", type=number(int, ge=2), default=5,
                    help="fewest detections of a track formed from unknown-origin rows, >= 2 "
                         "(default 5)")
-    p.set_defaults(handler=run)
+    p.set_defaults(handler=run, inputs=("bearings",))
 
 
 def run(args: argparse.Namespace) -> int:

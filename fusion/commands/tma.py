@@ -38,7 +38,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="robust loss on the bearings (default none)")
     p.add_argument("--robust-k", type=number(float, gt=0), default=2.0,
                    help="robust threshold in bearing sigmas (default 2.0)")
-    p.set_defaults(handler=run)
+    p.set_defaults(handler=run, inputs=("bearings", "ownship"))
 
 
 def run(args: argparse.Namespace) -> int:

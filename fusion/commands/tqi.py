@@ -25,7 +25,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     """Add the ``tqi`` subcommand."""
     p = sub.add_parser(
         "tqi",
-        help="track quality indicator (lost/uncertain/low_snr/strong) of tracker outputs",
+        help="track quality (lost/uncertain/low_snr/strong) of tracker outputs",
         description="Track quality indicator with hysteresis of narrowband tracker outputs "
         "(amplitude and bearing residual per update).",
     )
@@ -53,7 +53,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="gain of the recursive residual smoother, (0, 1] (0.1)")
     p.add_argument("--diagnostics", action="store_true",
                    help="also write sllr0, sllr1, smoothed_residual, err_max columns")
-    p.set_defaults(handler=run)
+    p.set_defaults(handler=run, inputs=("amplitudes",))
 
 
 def run(args: argparse.Namespace) -> int:

@@ -63,7 +63,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="clutter-map cell size, m (default 150)")
     p.add_argument("--confirmed-only", action="store_true",
                    help="write only rows of tracks that were confirmed at some point")
-    p.set_defaults(handler=run)
+    p.set_defaults(handler=run, inputs=("detections", "rules"))
 
 
 def run(args: argparse.Namespace) -> int:

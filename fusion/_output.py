@@ -1,0 +1,187 @@
+"""Output paths that never destroy anything, and atomic writes.
+
+Standard library only, so that the command line can check its outputs before importing any
+numerical library. :mod:`fusion.io` re-exports :func:`atomic_output`; every writer of the project
+goes through it.
+
+Rules (the command line applies the same ones before any work, see :mod:`fusion.cli`):
+
+- a write is atomic: the file is written beside the destination under a temporary name and
+  renamed onto it, so an interrupted or failed run never leaves a half-written result, and an
+  existing result is replaced only by a complete one;
+- a symbolic link is written through: its target is replaced, the link stays a link;
+- a folder, a FIFO, a device (``/dev/null``, ``/dev/full``, ``/dev/stdout`` on a pipe or a
+  terminal) or a socket is refused with a ValueError -- use ``"-"`` for standard output;
+- ``"-"`` means standard output: the file is written to a private temporary folder and copied to
+  stdout when complete;
+- temporaries of runs that were killed (even by SIGKILL) are removed by the next write of the same
+  destination; new files get the usual permissions (``0o666`` less the umask).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import os
+import shutil
+import stat
+import sys
+import tempfile
+from collections.abc import Iterator
+from pathlib import Path
+
+__all__ = ["STDOUT", "TMP_MARK", "atomic_output", "output_destination", "special_file_kind"]
+
+logger = logging.getLogger(__name__)
+
+PathLike = str | os.PathLike[str]
+
+#: An output path of ``"-"`` means standard output (see :func:`atomic_output`).
+STDOUT = "-"
+
+#: Marker in the names of temporary files: ``.{name}.{pid}.fusion-tmp{suffix}`` beside `name`.
+TMP_MARK = "fusion-tmp"
+
+_SPECIAL_KINDS = (
+    (stat.S_ISFIFO, "a named pipe (FIFO)"),
+    (stat.S_ISCHR, "a character device"),
+    (stat.S_ISBLK, "a block device"),
+    (stat.S_ISSOCK, "a socket"),
+)
+
+
+def special_file_kind(mode: int) -> str | None:
+    """What a non-regular, non-folder file of ``st_mode`` `mode` is (``None`` for files, folders)."""
+    for test, kind in _SPECIAL_KINDS:
+        if test(mode):
+            return kind
+    return None
+
+
+def output_destination(path: PathLike) -> Path:
+    """The file an output to `path` replaces: `path` itself, or the target of a symbolic link.
+
+    Writing through a link keeps the link a link and replaces its target (a dangling link gets a
+    new target file). Raises ValueError if `path` is a folder, a symbolic-link loop, or a special
+    file (FIFO, device, socket) -- ``/dev/null``, ``/dev/full`` and ``/dev/stdout`` on a pipe or
+    terminal among them: an atomic write would replace the device node, or could not be done.
+    """
+    p = Path(path)
+    try:
+        st = os.stat(p)  # follows links
+    except FileNotFoundError:
+        st = None
+    except OSError as e:  # ELOOP, ENAMETOOLONG, ...
+        raise ValueError(f"{p}: cannot be written ({e.strerror})") from None
+    if st is not None:
+        if stat.S_ISDIR(st.st_mode):
+            raise ValueError(f"{p}: is a folder, expected a file name")
+        kind = special_file_kind(st.st_mode)
+        if kind is not None:
+            raise ValueError(f"{p}: is {kind}, not a regular file; refusing to write to it")
+    if p.is_symlink():
+        return Path(os.path.realpath(p))
+    return p
+
+
+def _pid_alive(pid: int) -> bool:
+    """Whether process `pid` exists (on systems without signals, assume it does)."""
+    if os.name != "posix":
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:  # EPERM: alive, another user's
+        return True
+    return True
+
+
+def _remove_stale_temporaries(dest: Path) -> None:
+    """Delete temporary files of earlier writes of `dest` whose writing process is gone.
+
+    Only names of the form ``.{name}.{pid}.fusion-tmp*`` are touched, and only when process
+    ``pid`` no longer exists: a temporary of a live process (a concurrent run) is left alone.
+    """
+    prefix = f".{dest.name}."
+    try:
+        names = [e.name for e in os.scandir(dest.parent) if e.name.startswith(prefix)]
+    except OSError:
+        return
+    for name in names:
+        rest = name[len(prefix):]
+        pid_text, _, tail = rest.partition(".")
+        if (pid_text.isdigit() and tail.startswith(TMP_MARK) and int(pid_text) != os.getpid()
+                and not _pid_alive(int(pid_text))):
+            with contextlib.suppress(OSError):
+                os.unlink(dest.parent / name)
+                logger.info("removed stale temporary file %s", dest.parent / name)
+
+
+def _copy_to_stdout(src: Path) -> None:
+    sys.stdout.flush()
+    buffer = getattr(sys.stdout, "buffer", None)
+    with src.open("rb") as fh:
+        if buffer is not None:
+            shutil.copyfileobj(fh, buffer)
+            buffer.flush()
+        else:  # a text-only stream (some embedding environments)
+            sys.stdout.write(fh.read().decode("utf-8", errors="replace"))
+            sys.stdout.flush()
+
+
+@contextlib.contextmanager
+def atomic_output(path: PathLike, *, suffix: str | None = None) -> Iterator[Path]:
+    """Yield a temporary path beside `path`; on success rename it onto `path`, else delete it.
+
+    Parameters
+    ----------
+    path : path-like
+        Final destination. Its folder is created if missing. A symbolic link is written through
+        (its target is replaced, the link stays). ``"-"`` (:data:`STDOUT`) means standard output:
+        the file is written to a private temporary folder and copied to stdout on success.
+    suffix : str, optional
+        Suffix of the temporary file (defaults to that of `path`, so that writers that pick a
+        format by suffix, like soundfile, see the right one).
+
+    Yields
+    ------
+    pathlib.Path
+        Where to write.
+
+    Raises
+    ------
+    ValueError
+        `path` is a folder, a special file (FIFO, device, socket) or a symbolic-link loop.
+
+    Notes
+    -----
+    The temporary file is ``.{name}.{pid}.fusion-tmp{suffix}`` in the destination's folder, with
+    the usual permissions of a new file (those the umask allows). A run killed mid-write (even
+    by SIGKILL) leaves it behind; the next write of the same destination removes temporaries
+    whose process is gone, so they never pile up. Temporaries of live processes are kept, so
+    two runs writing the same output at once do not delete each other's work.
+    """
+    sfx_default = Path(os.fspath(path)).suffix
+    sfx = sfx_default if suffix is None else suffix
+    if os.fspath(path) == STDOUT:
+        with tempfile.TemporaryDirectory(prefix="fusion-stdout-") as folder:
+            tmp = Path(folder) / f"stdout{sfx}"
+            yield tmp
+            _copy_to_stdout(tmp)
+        return
+    dest = output_destination(path)
+    dest.parent.mkdir(parents=True, exist_ok=True)
+    _remove_stale_temporaries(dest)
+    tmp = dest.parent / f".{dest.name}.{os.getpid()}.{TMP_MARK}{sfx}"
+    with contextlib.suppress(FileNotFoundError):
+        tmp.unlink()
+    # O_EXCL: never write through a link planted at the temporary name; mode 0o666 & ~umask.
+    os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
+    try:
+        yield tmp
+        os.replace(tmp, dest)
+    except BaseException:
+        with contextlib.suppress(FileNotFoundError):
+            tmp.unlink()
+        raise
