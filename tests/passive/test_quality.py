@@ -364,7 +364,7 @@ def test_cli_round_trip(tmp_path, run_cli):
         ("track_id,time,amplitude\n0,0,1\n", (), "missing required column"),
         ("track_id,time,amplitude,residual\n0,0,nan,0\n", (), "amplitude"),
         ("track_id,time,amplitude,residual\n0,0,-1,0\n", (), "negative"),
-        ("track_id,time,amplitude,residual\n0,1,1,0\n0,0,1,0\n", (), "non-decreasing"),
+        ("track_id,time,amplitude,residual\n0,1,1,0\n0,1,1,0\n", (), "must be distinct"),
         ("track_id,time,amplitude,residual\n0,0,1,0\n", ("--snr1-db", "1"), "must exceed"),
         (None, (), "no such file"),
     ],
