@@ -11,7 +11,19 @@ times ``dt`` apart as ``x_next = F(dt) x_prev + w`` with
 
 the continuous white-noise-acceleration model (acceleration power spectral density ``q``). For
 ``d = 1`` the state is a bearing track ``[bearing (rad), bearing rate (rad/s)]`` and the bearing
-part of the residual goes through :func:`fusion.geometry.wrap_angle`, so a track may cross ±180°.
+part of the residual goes through :func:`factors.angles.wrap_angle`, so a track may cross ±180°.
+
+Two forms of the same factor:
+
+- :func:`constant_velocity_factor` -- a ``CustomFactor`` (a Python callback per evaluation).
+- :func:`linear_constant_velocity_factor` and, for a whole track, :func:`constant_velocity_chain`
+  -- the model is linear, so the factor is a built-in ``JacobianFactor``
+  ``[-R F, R] [dx_prev; dx_next] - b`` (``R`` the square-root information of ``Q``) held by a
+  ``LinearContainerFactor`` at a linearisation point, evaluated and relinearised in C++.
+  ``BetweenFactorVector`` cannot express it (it models ``x_next - x_prev``, not
+  ``x_next - F x_prev``). The wrap of the position part is handled when the factor is built:
+  ``b = -R wrap(x_next - F x_prev)`` at the linearisation point, which equals the wrapped
+  residual as long as the estimate stays within pi of that point.
 """
 
 from __future__ import annotations
@@ -19,9 +31,16 @@ from __future__ import annotations
 import gtsam
 import numpy as np
 
-from fusion.geometry import wrap_angle
+from factors.angles import wrap_angle
 
-__all__ = ["constant_velocity_factor", "transition_matrix", "wna_covariance"]
+__all__ = [
+    "constant_velocity_chain",
+    "constant_velocity_factor",
+    "linear_constant_velocity_factor",
+    "transition_matrix",
+    "wna_covariance",
+    "wna_sqrt_information",
+]
 
 
 def _check_dt(dt: float, *, allow_zero: bool) -> float:
@@ -161,3 +180,195 @@ def constant_velocity_factor(
         return error
 
     return gtsam.CustomFactor(noise, [int(key_prev), int(key_next)], error_func)
+
+
+def wna_sqrt_information(dt: np.ndarray | float, q: float, d: int) -> np.ndarray:
+    """Square-root information of the white-noise-acceleration covariance (vectorised over dt).
+
+    Parameters
+    ----------
+    dt : float or ndarray, shape (...)
+        Time steps, s (> 0).
+    q : float
+        Acceleration power spectral density, unit^2 / s^3 (> 0).
+    d : int
+        Number of position components.
+
+    Returns
+    -------
+    R : ndarray, shape (..., 2 d, 2 d)
+        Lower block-triangular, ``R^T R = Q(dt)^-1`` (:func:`wna_covariance`): per axis
+        ``q^(-1/2) [[sqrt(3) dt^(-3/2), 0], [-3 dt^(-3/2), 2 dt^(-1/2)]]``, the inverse of the
+        Cholesky factor of ``Q``.
+
+    Examples
+    --------
+    >>> R = wna_sqrt_information(2.0, 0.5, 1)
+    >>> bool(np.allclose(R.T @ R, np.linalg.inv(wna_covariance(2.0, 0.5, 1))))
+    True
+    """
+    dt_arr = np.asarray(dt, dtype=float)
+    if not np.all(np.isfinite(dt_arr)) or np.any(dt_arr <= 0.0):
+        raise ValueError("dt must be finite and > 0 seconds")
+    d = _check_d(d)
+    q = float(q)
+    if not np.isfinite(q) or q <= 0.0:
+        raise ValueError(f"q (acceleration PSD) must be finite and > 0, got {q!r}")
+    s = 1.0 / np.sqrt(q)
+    block = np.zeros(dt_arr.shape + (2, 2))
+    block[..., 0, 0] = s * np.sqrt(3.0) * dt_arr**-1.5  # 1 / L11
+    block[..., 1, 0] = -3.0 * s * dt_arr**-1.5  # -L21 / (L11 L22)
+    block[..., 1, 1] = 2.0 * s * dt_arr**-0.5  # 1 / L22
+    return _kron_eye(block, d)
+
+
+def _kron_eye(block: np.ndarray, d: int) -> np.ndarray:
+    """``kron(block, I_d)`` over the last two axes of a stack of 2 x 2 blocks."""
+    out = block[..., :, None, :, None] * np.eye(d)[:, None, :]
+    return out.reshape(block.shape[:-2] + (2 * d, 2 * d))
+
+
+def _linear_cv(
+    key_prev: int, key_next: int, F: np.ndarray, R: np.ndarray, x_prev: np.ndarray,
+    x_next: np.ndarray, unit: gtsam.noiseModel.Base, residual: np.ndarray,
+) -> gtsam.LinearContainerFactor:
+    point = gtsam.Values()
+    point.insert(key_prev, x_prev)
+    point.insert(key_next, x_next)
+    # whitened: R (x_next - F x_prev) = [-R F, R] [x_prev; x_next]; at the point, -b = R e_0
+    jf = gtsam.JacobianFactor(key_prev, -R @ F, key_next, R, -R @ residual, unit)
+    return gtsam.LinearContainerFactor(jf, point)
+
+
+def linear_constant_velocity_factor(
+    noise: gtsam.noiseModel.Base,
+    key_prev: int,
+    key_next: int,
+    dt: float,
+    *,
+    estimate_prev: np.ndarray,
+    estimate_next: np.ndarray,
+    wrap: bool | None = None,
+) -> gtsam.LinearContainerFactor:
+    """Constant-velocity factor as a built-in linear factor (no Python callback).
+
+    Parameters
+    ----------
+    noise : gtsam.noiseModel.Base
+        Gaussian (not robust) noise model of dimension ``2 d``, usually
+        ``gtsam.noiseModel.Gaussian.Covariance(wna_covariance(dt, q, d))``; its square-root
+        information ``R`` whitens the factor.
+    key_prev, key_next : int
+        Keys of the ``Vector(2 d)`` states at ``t`` and ``t + dt``.
+    dt : float
+        Time step, s (>= 0).
+    estimate_prev, estimate_next : ndarray, shape (2 d,), keyword-only
+        Linearisation point (current estimates of the two states).
+    wrap : bool or None, keyword-only
+        Wrap the position part of the residual at the linearisation point into [-pi, pi).
+        ``None`` (default) wraps when ``d == 1``.
+
+    Returns
+    -------
+    gtsam.LinearContainerFactor
+        Whitened error ``R (e(x) - e(x_0) + wrap(e(x_0)))`` with ``e(x) = x_next - F x_prev``
+        and ``x_0`` the linearisation point: the whitened error of
+        :func:`constant_velocity_factor` while the estimate stays within pi of ``x_0``.
+
+    Examples
+    --------
+    >>> noise = gtsam.noiseModel.Gaussian.Covariance(wna_covariance(1.0, 1e-6, 1))
+    >>> x0, x1 = np.array([0.1, 0.01]), np.array([0.11, 0.01])
+    >>> f = linear_constant_velocity_factor(noise, 0, 1, 1.0, estimate_prev=x0, estimate_next=x1)
+    >>> v = gtsam.Values(); v.insert(0, x0); v.insert(1, x1)
+    >>> f.error(v) < 1e-20
+    True
+    """
+    if isinstance(noise, gtsam.noiseModel.Robust) or not isinstance(
+        noise, gtsam.noiseModel.Gaussian
+    ):
+        raise ValueError("noise model of a linear factor must be Gaussian (not robust)")
+    dim = int(noise.dim())
+    if dim < 2 or dim % 2:
+        raise ValueError(f"noise model dimension must be even (2 d), got {dim}")
+    if int(key_prev) == int(key_next):
+        raise ValueError("key_prev and key_next must differ")
+    d = dim // 2
+    dt = _check_dt(dt, allow_zero=True)
+    x_prev = np.asarray(estimate_prev, dtype=float)
+    x_next = np.asarray(estimate_next, dtype=float)
+    if x_prev.shape != (dim,) or x_next.shape != (dim,):
+        raise ValueError(f"estimates must have shape ({dim},), got {x_prev.shape}, {x_next.shape}")
+    F = transition_matrix(dt, d)
+    residual = x_next - F @ x_prev  # e_0 = x_{k+1} - F x_k at the linearisation point
+    if (d == 1) if wrap is None else bool(wrap):
+        residual[:d] = wrap_angle(residual[:d])
+    return _linear_cv(int(key_prev), int(key_next), F, np.asarray(noise.R()), x_prev, x_next,
+                      gtsam.noiseModel.Unit.Create(dim), residual)
+
+
+def constant_velocity_chain(
+    keys: np.ndarray | list[int],
+    times: np.ndarray,
+    q: float,
+    *,
+    estimates: np.ndarray,
+    wrap: bool | None = None,
+) -> list[gtsam.LinearContainerFactor]:
+    """Linear constant-velocity factors along a whole track (vectorised set-up).
+
+    Parameters
+    ----------
+    keys : array_like of int, shape (n,)
+        Keys of the ``Vector(2 d)`` states, in time order.
+    times : array_like, shape (n,)
+        State times, s, strictly increasing.
+    q : float
+        Acceleration power spectral density, unit^2 / s^3 (> 0); the noise of step ``k`` is
+        ``wna_covariance(times[k+1] - times[k], q, d)``.
+    estimates : array_like, shape (n, 2 d), keyword-only
+        Current state estimates (the linearisation points).
+    wrap : bool or None, keyword-only
+        As in :func:`linear_constant_velocity_factor`.
+
+    Returns
+    -------
+    list of gtsam.LinearContainerFactor, length n - 1
+        Factor ``k`` ties states ``k`` and ``k + 1``; the same factors as
+        :func:`linear_constant_velocity_factor` with ``Gaussian.Covariance(wna_covariance(...))``
+        noise, with ``F`` and ``R`` computed for all steps at once.
+    """
+    key_arr = np.asarray(keys)
+    t = np.asarray(times, dtype=float)
+    x = np.asarray(estimates, dtype=float)
+    if t.ndim != 1 or key_arr.shape != t.shape:
+        raise ValueError(f"keys and times must be 1-D of equal length, got {key_arr.shape}, {t.shape}")
+    if x.ndim != 2 or x.shape[0] != t.size or x.shape[1] < 2 or x.shape[1] % 2:
+        raise ValueError(f"estimates must have shape ({t.size}, 2 d), got {x.shape}")
+    if not (np.all(np.isfinite(t)) and np.all(np.isfinite(x))):
+        raise ValueError("times and estimates must be finite")
+    if t.size < 2:
+        return []
+    dt = np.diff(t)
+    if np.any(dt <= 0.0):
+        raise ValueError("times must be strictly increasing")
+    d = x.shape[1] // 2
+    R = wna_sqrt_information(dt, q, d)  # (n-1, 2d, 2d)
+    fb = np.zeros(dt.shape + (2, 2))
+    fb[:, 0, 0] = fb[:, 1, 1] = 1.0
+    fb[:, 0, 1] = dt
+    F = _kron_eye(fb, d)  # (n-1, 2d, 2d)
+    residual = x[1:] - np.einsum("kij,kj->ki", F, x[:-1])  # e_0 = x_{k+1} - F x_k
+    if (d == 1) if wrap is None else bool(wrap):
+        residual[:, :d] = wrap_angle(residual[:, :d])
+    A_prev = -np.einsum("kij,kjl->kil", R, F)
+    b = -np.einsum("kij,kj->ki", R, residual)
+    unit = gtsam.noiseModel.Unit.Create(2 * d)
+    out = []
+    for k in range(dt.size):
+        point = gtsam.Values()
+        point.insert(int(key_arr[k]), x[k])
+        point.insert(int(key_arr[k + 1]), x[k + 1])
+        jf = gtsam.JacobianFactor(int(key_arr[k]), A_prev[k], int(key_arr[k + 1]), R[k], b[k], unit)
+        out.append(gtsam.LinearContainerFactor(jf, point))
+    return out

@@ -14,19 +14,29 @@ position relative to the platform at the bearing time and ``r^2 = dx^2 + dy^2``:
     d beta / d(vx, vy) = dt [dy, -dx] / r^2
 
 This is the bearing factor of the project's design notes ("Factor graphs", bearings-only target
-motion analysis). The residual is wrapped by :func:`fusion.geometry.wrap_angle`, so bearings near
-±180° (a target due south) are handled.
+motion analysis). The residual is wrapped by :func:`factors.angles.wrap_angle`, so bearings near
+±180° (a target due south) are handled. Two forms: :func:`target_bearing_factor`, one
+``CustomFactor`` per bearing, and :func:`target_bearing_batch_factor`, one ``CustomFactor`` with
+one vector residual for a batch of bearings (one Python callback per evaluation instead of one
+per bearing).
 """
 
 from __future__ import annotations
+
+from collections.abc import Sequence
 
 import gtsam
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from fusion.geometry import wrap_angle
+from factors.angles import wrap_angle
 
-__all__ = ["target_bearing", "target_bearing_factor", "target_bearing_jacobian"]
+__all__ = [
+    "target_bearing",
+    "target_bearing_batch_factor",
+    "target_bearing_factor",
+    "target_bearing_jacobian",
+]
 
 #: Smallest squared range (m^2) used in the Jacobian, guarding a target on top of the platform.
 MIN_RANGE_SQ = 1e-12
@@ -168,3 +178,111 @@ def target_bearing_factor(
         return error
 
     return gtsam.CustomFactor(noise, [int(key)], error_func)
+
+
+def target_bearing_batch_factor(
+    noise: gtsam.noiseModel.Base,
+    keys: int | Sequence[int],
+    platform_xy: ArrayLike,
+    bearings: ArrayLike,
+    *,
+    dt: ArrayLike = 0.0,
+) -> gtsam.CustomFactor:
+    """One factor for a batch of true bearings of a target: one vector residual.
+
+    Parameters
+    ----------
+    noise : gtsam.noiseModel.Base
+        Noise model of dimension ``m`` (the number of bearings), rad, e.g.
+        ``gtsam.noiseModel.Isotropic.Sigma(m, sigma)``. For a robust loss per bearing wrap it in
+        ``gtsam.noiseModel.Robust`` with an m-estimator created with ``ReweightScheme.Scalar``
+        (the default ``Block`` scheme weights the whole vector by its norm).
+    keys : int or sequence of int
+        Key of the ``Vector4`` target state ``[x, y, vx, vy]`` of every bearing (one key, the
+        classical single-state problem) or one key per bearing (length m, keys may repeat).
+    platform_xy : array_like, shape (m, 2)
+        Platform (own-ship) position at each bearing time, m.
+    bearings : array_like, shape (m,)
+        Measured true bearings, rad, clockwise from north.
+    dt : float or array_like, shape (m,), keyword-only
+        Bearing time minus the epoch of the bearing's state, s.
+
+    Returns
+    -------
+    gtsam.CustomFactor
+        Error ``e_j = wrap(beta_j(s) - bearings[j])``, rad, shape (m,); the Jacobian for a key
+        is (m, 4) with the rows :func:`target_bearing_jacobian` of its bearings (zeros on the
+        rows of other keys).
+
+    Raises
+    ------
+    ValueError
+        If the noise dimension is not m or an input has the wrong shape or is not finite.
+
+    Notes
+    -----
+    The same cost as ``m`` :func:`target_bearing_factor` factors with the same 1-D noise
+    (diagonal, or robust with scalar reweighting), evaluated in one Python callback; the bearing
+    and its Jacobian are those of the module docstring, computed for all bearings at once.
+
+    Examples
+    --------
+    >>> noise = gtsam.noiseModel.Isotropic.Sigma(2, 0.01)
+    >>> f = target_bearing_batch_factor(noise, 0, [[0.0, 0.0], [0.0, 200.0]],
+    ...                                 [np.pi / 2, 3 * np.pi / 4], dt=[0.0, 100.0])
+    >>> v = gtsam.Values(); v.insert(0, np.array([100.0, 0.0, 0.0, 1.0]))
+    >>> bool(np.all(np.abs(f.unwhitenedError(v)) < 1e-12))
+    True
+    """
+    z = np.asarray(bearings, dtype=float)
+    if z.ndim != 1 or z.size == 0 or not np.all(np.isfinite(z)):
+        raise ValueError(f"bearings must be a non-empty 1-D array of finite values (rad), "
+                         f"got shape {z.shape}")
+    m = z.size
+    if int(noise.dim()) != m:
+        raise ValueError(f"noise model dimension {noise.dim()} differs from the {m} bearings")
+    o = np.asarray(platform_xy, dtype=float)
+    if o.shape != (m, 2) or not np.all(np.isfinite(o)):
+        raise ValueError(f"platform_xy must be finite with shape ({m}, 2) (m), got {o.shape}")
+    dt_arr = np.broadcast_to(np.asarray(dt, dtype=float), (m,)).copy()
+    if not np.all(np.isfinite(dt_arr)):
+        raise ValueError("dt must be finite (s)")
+    if np.ndim(keys) == 0:
+        key_list = [int(keys)] * m
+    else:
+        key_list = [int(k) for k in keys]
+        if len(key_list) != m:
+            raise ValueError(f"{len(key_list)} keys for {m} bearings: give one key or one per "
+                             f"bearing")
+    unique = list(dict.fromkeys(key_list))
+    slot = {k: i for i, k in enumerate(unique)}
+    which = np.array([slot[k] for k in key_list])
+    single = len(unique) == 1
+    rows = [np.flatnonzero(which == i) for i in range(len(unique))]
+
+    def error_func(
+        this: gtsam.CustomFactor, values: gtsam.Values, jacobians: list[np.ndarray] | None
+    ) -> np.ndarray:
+        if single:
+            s = values.atVector(unique[0])
+            dx = s[0] + s[2] * dt_arr - o[:, 0]
+            dy = s[1] + s[3] * dt_arr - o[:, 1]
+        else:
+            s = np.array([values.atVector(k) for k in unique])[which]  # state of each bearing
+            dx = s[:, 0] + s[:, 2] * dt_arr - o[:, 0]
+            dy = s[:, 1] + s[:, 3] * dt_arr - o[:, 1]
+        error = np.asarray(wrap_angle(np.arctan2(dx, dy) - z))  # e = wrap(beta(s) - z)
+        if jacobians is not None:
+            r2 = np.maximum(dx * dx + dy * dy, MIN_RANGE_SQ)
+            gx, gy = dy / r2, -dx / r2  # d beta / d (x, y)
+            H = np.column_stack([gx, gy, gx * dt_arr, gy * dt_arr])
+            if single:
+                jacobians[0] = H
+            else:
+                for i, r in enumerate(rows):
+                    Hi = np.zeros((m, 4))
+                    Hi[r] = H[r]
+                    jacobians[i] = Hi
+        return error
+
+    return gtsam.CustomFactor(noise, unique, error_func)

@@ -3,6 +3,13 @@
 Jacobians are taken with respect to each variable's local (tangent) coordinates: the plain
 derivative for vector-valued variables (``Vector``, ``Point2``, ``Point3``, ``double``), the
 derivative along ``retract`` for manifold variables (``Pose2``, ``Pose3``, ``Rot2``, ``Rot3``).
+
+Two error functions can be differentiated: the unwhitened error of a noise-model factor (the
+default), or the whitened error ``-b`` of the factor's own linearisation (``whitened=True``;
+automatic for factors without an unwhitened error, such as ``LinearContainerFactor``, and the
+way to check factors whose noise model cannot be unwhitened, such as a ``Diagonal`` with zero
+precisions). With a robust noise model the unwhitened Jacobian is taken from a copy of the
+factor with the robust model's Gaussian part (``cloneWithNewNoiseModel``).
 """
 
 from __future__ import annotations
@@ -14,7 +21,7 @@ import gtsam
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["analytic_jacobians", "assert_jacobians", "numerical_jacobians"]
+__all__ = ["analytic_jacobians", "assert_jacobians", "error_function", "numerical_jacobians"]
 
 _MANIFOLD_ACCESSORS = ("atPose2", "atPose3", "atRot2", "atRot3")
 
@@ -55,25 +62,50 @@ def _dim(kind: str, x0: Any) -> int:
     return int(len(x0.localCoordinates(x0)))
 
 
+def _use_whitened(factor: gtsam.NonlinearFactor, whitened: bool | None) -> bool:
+    if whitened is None:
+        return not hasattr(factor, "unwhitenedError")
+    return bool(whitened)
+
+
+def _whitened_error(factor: gtsam.NonlinearFactor, values: gtsam.Values) -> NDArray[np.float64]:
+    if hasattr(factor, "whitenedError"):
+        return np.asarray(factor.whitenedError(values))
+    return -np.asarray(factor.linearize(values).jacobian()[1])  # b = -e_w
+
+
 def numerical_jacobians(
-    factor: gtsam.NonlinearFactor, values: gtsam.Values, *, delta: float = 1e-6
+    factor: gtsam.NonlinearFactor,
+    values: gtsam.Values,
+    *,
+    delta: float = 1e-6,
+    whitened: bool | None = None,
 ) -> list[NDArray[np.float64]]:
-    """Central-difference Jacobians of ``factor.unwhitenedError`` at `values`.
+    """Central-difference Jacobians of the factor's error at `values`.
 
     Parameters
     ----------
-    factor : gtsam.NoiseModelFactor
+    factor : gtsam.NonlinearFactor
         The factor (e.g. a ``gtsam.CustomFactor``).
     values : gtsam.Values
         Linearization point; must hold every key of the factor.
     delta : float, optional
         Step in each local coordinate.
+    whitened : bool or None, optional, keyword-only
+        Differentiate the whitened error instead of ``unwhitenedError``; ``None`` (default)
+        does so only for factors without an unwhitened error.
 
     Returns
     -------
     list of ndarray, each shape (error_dim, variable_dim)
         One Jacobian per key, in ``factor.keys()`` order.
     """
+    if _use_whitened(factor, whitened):
+        def err(v: gtsam.Values) -> NDArray[np.float64]:
+            return _whitened_error(factor, v)
+    else:
+        def err(v: gtsam.Values) -> NDArray[np.float64]:
+            return np.asarray(factor.unwhitenedError(v))
     jacs = []
     for key in factor.keys():
         kind, x0 = _getter(values, key)
@@ -82,27 +114,38 @@ def numerical_jacobians(
         for k in range(n):
             d = np.zeros(n)
             d[k] = delta
-            ep = factor.unwhitenedError(_perturbed(values, key, kind, x0, d))
-            em = factor.unwhitenedError(_perturbed(values, key, kind, x0, -d))
-            cols.append((np.asarray(ep) - np.asarray(em)) / (2.0 * delta))
+            ep = err(_perturbed(values, key, kind, x0, d))
+            em = err(_perturbed(values, key, kind, x0, -d))
+            cols.append((ep - em) / (2.0 * delta))
         jacs.append(np.column_stack(cols))
     return jacs
 
 
 def analytic_jacobians(
-    factor: gtsam.NonlinearFactor, values: gtsam.Values
+    factor: gtsam.NonlinearFactor, values: gtsam.Values, *, whitened: bool | None = None
 ) -> list[NDArray[np.float64]]:
-    """The factor's own (unwhitened) Jacobians at `values`, in ``factor.keys()`` order.
+    """The factor's own Jacobians at `values`, in ``factor.keys()`` order.
 
-    Obtained from ``factor.linearize`` (which whitens them) by undoing the whitening of a
-    Gaussian noise model: ``H = W^-1 A`` with ``W`` the square-root information matrix.
+    Obtained from ``factor.linearize``, which whitens them. Unless `whitened` (see
+    :func:`numerical_jacobians`), the whitening of the Gaussian noise model is undone:
+    ``H = W^-1 A`` with ``W`` the square-root information matrix.
+
+    Raises
+    ------
+    ValueError
+        If the factor has a robust noise model (its linearisation is reweighted).
     """
-    lin = factor.linearize(values)
-    a, _ = lin.jacobian()
-    noise = factor.noiseModel()
-    m = noise.dim()
-    w = np.column_stack([noise.whiten(e) for e in np.eye(m)])
-    h_all = np.linalg.solve(w, a)
+    noise = factor.noiseModel() if hasattr(factor, "noiseModel") else None
+    if isinstance(noise, gtsam.noiseModel.Robust):
+        raise ValueError("a robust noise model reweights the Jacobians: check the factor with "
+                         "the robust model's Gaussian part (noise.noise())")
+    if _use_whitened(factor, whitened):
+        h_all, _ = factor.linearize(values).jacobian()
+    else:
+        a, _ = factor.linearize(values).jacobian()
+        m = noise.dim()
+        w = np.column_stack([noise.whiten(e) for e in np.eye(m)])
+        h_all = np.linalg.solve(w, a)
     out, col = [], 0
     for key in factor.keys():
         kind, x0 = _getter(values, key)
@@ -119,19 +162,20 @@ def assert_jacobians(
     delta: float = 1e-6,
     rtol: float = 1e-5,
     atol: float = 1e-8,
+    whitened: bool | None = None,
 ) -> None:
     """Assert that a factor's analytic Jacobians match central differences.
 
-    Use a plain Gaussian noise model on the factor under test (a robust model reweights the
-    linearization, so the unwhitening above would not recover the raw Jacobian).
+    Use a Gaussian (not robust) noise model on the factor under test: a robust model
+    reweights the linearisation (:func:`analytic_jacobians` raises ``ValueError``).
 
     Raises
     ------
     AssertionError
         Naming the key and showing both matrices when they differ beyond the tolerances.
     """
-    num = numerical_jacobians(factor, values, delta=delta)
-    ana = analytic_jacobians(factor, values)
+    num = numerical_jacobians(factor, values, delta=delta, whitened=whitened)
+    ana = analytic_jacobians(factor, values, whitened=whitened)
     for key, hn, ha in zip(factor.keys(), num, ana, strict=True):
         np.testing.assert_allclose(
             ha, hn, rtol=rtol, atol=atol,
@@ -139,6 +183,10 @@ def assert_jacobians(
         )
 
 
-def error_function(factor: gtsam.NonlinearFactor) -> Callable[[gtsam.Values], NDArray[np.float64]]:
-    """Convenience: the factor's unwhitened error as a function of Values."""
+def error_function(
+    factor: gtsam.NonlinearFactor, *, whitened: bool | None = None
+) -> Callable[[gtsam.Values], NDArray[np.float64]]:
+    """Convenience: the factor's (unwhitened, or whitened, as above) error as a function of Values."""
+    if _use_whitened(factor, whitened):
+        return lambda values: _whitened_error(factor, values)
     return lambda values: np.asarray(factor.unwhitenedError(values))

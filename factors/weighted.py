@@ -13,9 +13,18 @@ whitened Jacobian the wrapped factor has
 
 so its cost is ``w`` times the inner cost: the weighted least squares of the M-step of
 expectation-maximisation data association (design notes, "Association-weighted factor").
+
+The vector form gives every row of a vector inner factor its own weight (``index`` a sequence):
+a batch of shared measurements of one track in one factor, ``e_i = sqrt(w_i) e_w,i``.
+
+The tangent dimension of each key is read from the inner factor's own linearisation the first
+time the wrapper is linearised (never from the whole graph's values), so building and first
+linearising a graph of many weighted factors costs the same as any later linearisation.
 """
 
 from __future__ import annotations
+
+from collections.abc import Sequence
 
 import gtsam
 import numpy as np
@@ -23,36 +32,48 @@ import numpy as np
 __all__ = ["weighted_factor"]
 
 
+def _key_dims(linear: gtsam.GaussianFactor, keys: list[int], n_cols: int) -> list[int]:
+    """Tangent dimension of each key of a linearised factor."""
+    if len(keys) == 1:
+        return [n_cols]
+    graph = gtsam.GaussianFactorGraph()
+    graph.push_back(linear)
+    gradient = graph.gradientAtZero()  # one vector per key, of the key's tangent dimension
+    return [int(gradient.at(k).shape[0]) for k in keys]
+
+
 def weighted_factor(
-    factor: gtsam.NoiseModelFactor,
+    factor: gtsam.NonlinearFactor,
     weights: np.ndarray,
-    index: int,
+    index: int | Sequence[int],
     *,
     noise: gtsam.noiseModel.Base | None = None,
 ) -> gtsam.CustomFactor:
-    """Wrap a factor so that its cost is scaled by ``weights[index]``.
+    """Wrap a factor so that its cost is scaled by association weights read live from an array.
 
     Parameters
     ----------
-    factor : gtsam.NoiseModelFactor
-        The inner factor (a ``CustomFactor`` or any built-in noise-model factor) with a
-        Gaussian (not robust) noise model; its whitened error and Jacobian are used.
+    factor : gtsam.NonlinearFactor
+        The inner factor: a ``CustomFactor`` or any built-in noise-model factor with a Gaussian
+        (not robust) noise model, or a ``LinearContainerFactor``; its whitened error and
+        Jacobian are used.
     weights : ndarray of float64, shape (n,)
         The weight array, read (not copied) at every evaluation; the caller updates it in
         place between solves. Weights are association probabilities in [0, 1]; a negative
         value counts as 0.
-    index : int
-        Which entry of `weights` belongs to this factor.
+    index : int or sequence of int
+        Which entry of `weights` belongs to this factor (one weight for the whole factor), or
+        one entry per row of the inner error (length ``factor.dim()``; the vector form).
     noise : gtsam.noiseModel.Base, optional, keyword-only
         Noise model of the wrapper, applied to the already whitened, weighted error; default
         ``noiseModel.Unit`` of the inner dimension. Pass a ``noiseModel.Robust`` around a unit
-        model for a robust weighted factor.
+        model for a robust weighted factor (with ``ReweightScheme.Scalar`` for a loss per row).
 
     Returns
     -------
     gtsam.CustomFactor
         On the inner factor's keys; error ``sqrt(w) e_w`` (whitened, dimensionless), shape
-        ``(factor.dim(),)``.
+        ``(factor.dim(),)``; Jacobians ``sqrt(w) A_w``.
 
     Examples
     --------
@@ -67,34 +88,44 @@ def weighted_factor(
         raise ValueError(
             "weights must be a 1-D float64 numpy array (updated in place by the caller)"
         )
-    if isinstance(index, bool) or int(index) != index or not 0 <= int(index) < weights.shape[0]:
+    dim = int(factor.dim())
+    idx = np.atleast_1d(np.asarray(index))
+    if idx.dtype == bool or not np.issubdtype(idx.dtype, np.integer) or idx.ndim != 1:
+        raise ValueError(f"index must be an integer or a 1-D sequence of integers, got {index!r}")
+    if np.ndim(index) == 1 and idx.size != dim:
+        raise ValueError(f"{idx.size} weight indices for a factor of dimension {dim}: give one "
+                         f"index or one per row")
+    if np.any((idx < 0) | (idx >= weights.shape[0])):
         raise ValueError(f"index {index!r} is out of range for {weights.shape[0]} weights")
-    index = int(index)
-    inner_noise = factor.noiseModel()
+    idx = idx.astype(np.intp)
+    inner_noise = factor.noiseModel() if hasattr(factor, "noiseModel") else None
     if isinstance(inner_noise, gtsam.noiseModel.Robust):
         raise ValueError("the inner factor must have a Gaussian noise model; put a robust "
                          "model on the wrapper through noise=")
-    dim = int(factor.dim())
     if noise is None:
         noise = gtsam.noiseModel.Unit.Create(dim)
     elif int(noise.dim()) != dim:
         raise ValueError(f"noise model dimension {noise.dim()} differs from the factor's {dim}")
     keys = list(factor.keys())
-    dims: list[int] = []  # tangent dimension of each key, learnt at the first linearization
+    has_error = hasattr(factor, "whitenedError")
+    dims: list[int] = []  # tangent dimension of each key, from the first linearisation
 
     def error_func(
         this: gtsam.CustomFactor, values: gtsam.Values, jacobians: list[np.ndarray] | None
     ) -> np.ndarray:
-        scale = np.sqrt(max(float(weights[index]), 0.0))
-        if jacobians is None:
+        scale = np.sqrt(np.maximum(weights[idx], 0.0))  # sqrt(w), one or one per row
+        if jacobians is None and has_error:
             return scale * factor.whitenedError(values)  # e = sqrt(w) e_w
-        A, b = factor.linearize(values).jacobian()  # whitened: A_w, b = -e_w
+        linear = factor.linearize(values)
+        A, b = linear.jacobian()  # whitened: A_w, b = -e_w
+        if jacobians is None:
+            return -scale * b
         if not dims:
-            vv = values.zeroVectors()
-            dims.extend(int(vv.at(k).shape[0]) for k in keys)
+            dims.extend(_key_dims(linear, keys, A.shape[1]))
+        A = A * scale[:, None] if scale.size > 1 else scale * A
         start = 0
         for i, d in enumerate(dims):
-            jacobians[i] = scale * A[:, start : start + d]  # H = sqrt(w) A_w
+            jacobians[i] = A[:, start : start + d]  # H = sqrt(w) A_w
             start += d
         return -scale * b
 

@@ -1,4 +1,4 @@
-"""Tests of factors.motion: WNA covariance, constant-velocity factor."""
+"""Tests of factors.motion: WNA covariance, constant-velocity factor (scalar and linear forms)."""
 
 import gtsam
 import numpy as np
@@ -6,7 +6,14 @@ import pytest
 from filterpy.common import Q_continuous_white_noise
 from numpy.testing import assert_allclose
 
-from factors.motion import constant_velocity_factor, transition_matrix, wna_covariance
+from factors.motion import (
+    constant_velocity_chain,
+    constant_velocity_factor,
+    linear_constant_velocity_factor,
+    transition_matrix,
+    wna_covariance,
+    wna_sqrt_information,
+)
 from factors.testing import assert_jacobians
 
 
@@ -93,3 +100,119 @@ def test_bad_input():
         constant_velocity_factor(gtsam.noiseModel.Unit.Create(3), 0, 1, 1.0)
     with pytest.raises(ValueError, match="dt"):
         constant_velocity_factor(gtsam.noiseModel.Unit.Create(2), 0, 1, np.nan)
+
+
+# -- linear (built-in) form -----------------------------------------------------------------
+
+
+@pytest.mark.parametrize("d", [1, 2, 3])
+def test_sqrt_information_inverts_covariance(d):
+    """R^T R = Q^-1 for many steps and spectral densities, vectorised and one at a time."""
+    rng = np.random.default_rng(70 + d)
+    dt = rng.uniform(0.01, 100.0, 12)
+    q = float(rng.uniform(1e-9, 10.0))
+    R = wna_sqrt_information(dt, q, d)
+    assert R.shape == (12, 2 * d, 2 * d)
+    for k in range(dt.size):
+        Q = wna_covariance(dt[k], q, d)
+        assert_allclose(R[k].T @ R[k] @ Q, np.eye(2 * d), atol=1e-9)
+        assert_allclose(wna_sqrt_information(dt[k], q, d), R[k], rtol=1e-14)
+
+
+@pytest.mark.parametrize("d", [1, 2])
+def test_linear_jacobians_and_error_equal_scalar(d):
+    """Linear CV factor: whitened Jacobians equal central differences, and its cost equals the
+    CustomFactor's at points moved away from the linearisation point (bearings near +-pi)."""
+    rng = np.random.default_rng(80 + d)
+    for _ in range(25):
+        dt = rng.uniform(0.1, 20.0)
+        noise = gtsam.noiseModel.Gaussian.Covariance(wna_covariance(dt, rng.uniform(1e-6, 1.0), d))
+        x0 = rng.normal(size=2 * d)
+        x0[:d] = rng.choice([-1, 1]) * np.pi * rng.uniform(0.97, 1.0, d)
+        x1 = transition_matrix(dt, d) @ x0 + 0.1 * rng.normal(size=2 * d)
+        if d == 1:
+            x1[0] = np.mod(x1[0] + np.pi, 2 * np.pi) - np.pi  # next bearing on the other branch
+        lin = linear_constant_velocity_factor(noise, 0, 1, dt, estimate_prev=x0, estimate_next=x1)
+        old = constant_velocity_factor(noise, 0, 1, dt)
+        at = _values(x0, x1)
+        assert_jacobians(lin, at)  # no unwhitened error: checked on the whitened error
+        moved = _values(x0 + 0.05 * rng.normal(size=2 * d), x1 + 0.05 * rng.normal(size=2 * d))
+        assert_allclose(lin.error(moved), old.error(moved), rtol=1e-9)
+        assert_allclose(lin.error(at), old.error(at), rtol=1e-9)
+
+
+def test_linear_zero_at_truth_and_chain_equals_single_factors():
+    """Zero cost on the CV prediction; the vectorised chain builds the same factors one by one."""
+    rng = np.random.default_rng(91)
+    t = np.cumsum(rng.uniform(0.5, 6.0, 8))
+    q = 0.02
+    x = rng.normal(size=(8, 4))
+    chain = constant_velocity_chain(np.arange(8), t, q, estimates=x)
+    assert len(chain) == 7
+    v = _values(*x)
+    for k, f in enumerate(chain):
+        dt = t[k + 1] - t[k]
+        noise = gtsam.noiseModel.Gaussian.Covariance(wna_covariance(dt, q, 2))
+        one = linear_constant_velocity_factor(noise, k, k + 1, dt, estimate_prev=x[k],
+                                              estimate_next=x[k + 1])
+        assert_allclose(f.error(v), one.error(v), rtol=1e-10)
+        truth = _values(*[np.zeros(4)] * k, x[k], transition_matrix(dt, 2) @ x[k])
+        assert f.error(truth) < 1e-20
+    assert constant_velocity_chain([0], [0.0], q, estimates=x[:1]) == []
+
+
+def test_linear_chain_graph_matches_scalar_graph():
+    """A bearing track across +-180 deg: the chain of linear CV factors and the CustomFactor
+    chain give the same optimum (to 1e-9) with the same bearings and prior."""
+    rng = np.random.default_rng(5)
+    n, q, sig = 25, 1e-7, 0.01
+    t = np.cumsum(rng.uniform(2.0, 6.0, n))
+    theta = np.pi - 0.05 + 0.003 * (t - t[0])
+    z = np.mod(theta + rng.normal(0, sig, n) + np.pi, 2 * np.pi) - np.pi
+    init = np.column_stack([np.unwrap(z), np.zeros(n)])
+    out = []
+    for kind in ("scalar", "linear"):
+        g = gtsam.NonlinearFactorGraph()
+        g.add(gtsam.PriorFactorVector(0, init[0], gtsam.noiseModel.Diagonal.Sigmas([0.1, 0.01])))
+        if kind == "scalar":
+            for k in range(n - 1):
+                dt = t[k + 1] - t[k]
+                noise = gtsam.noiseModel.Gaussian.Covariance(wna_covariance(dt, q, 1))
+                g.add(constant_velocity_factor(noise, k, k + 1, dt))
+        else:
+            for f in constant_velocity_chain(np.arange(n), t, q, estimates=init):
+                g.add(f)
+        for k in range(n):
+            g.add(gtsam.PriorFactorVector(
+                k, np.array([init[k, 0], 0.0]),
+                gtsam.noiseModel.Diagonal.Precisions(np.array([1 / sig**2, 0.0]))))
+        p = gtsam.LevenbergMarquardtParams()
+        p.setRelativeErrorTol(1e-14)
+        res = gtsam.LevenbergMarquardtOptimizer(g, _values(*init), p).optimize()
+        out.append(np.array([res.atVector(k) for k in range(n)]))
+    assert_allclose(out[1], out[0], atol=1e-9)
+    assert_allclose(out[1][:, 1], 0.003, atol=1e-3)
+
+
+def test_linear_bad_input():
+    """Robust or odd-dimensional noise, equal keys, bad estimates and times raise ValueError."""
+    huber = gtsam.noiseModel.mEstimator.Huber.Create(1.0)
+    robust = gtsam.noiseModel.Robust.Create(huber, gtsam.noiseModel.Unit.Create(2))
+    z2 = np.zeros(2)
+    with pytest.raises(ValueError, match="Gaussian"):
+        linear_constant_velocity_factor(robust, 0, 1, 1.0, estimate_prev=z2, estimate_next=z2)
+    with pytest.raises(ValueError, match="even"):
+        linear_constant_velocity_factor(gtsam.noiseModel.Unit.Create(3), 0, 1, 1.0,
+                                        estimate_prev=np.zeros(3), estimate_next=np.zeros(3))
+    with pytest.raises(ValueError, match="differ"):
+        linear_constant_velocity_factor(gtsam.noiseModel.Unit.Create(2), 0, 0, 1.0,
+                                        estimate_prev=z2, estimate_next=z2)
+    with pytest.raises(ValueError, match="shape"):
+        linear_constant_velocity_factor(gtsam.noiseModel.Unit.Create(2), 0, 1, 1.0,
+                                        estimate_prev=np.zeros(4), estimate_next=z2)
+    with pytest.raises(ValueError, match="strictly increasing"):
+        constant_velocity_chain([0, 1], [1.0, 1.0], 0.1, estimates=np.zeros((2, 2)))
+    with pytest.raises(ValueError, match="estimates"):
+        constant_velocity_chain([0, 1], [0.0, 1.0], 0.1, estimates=np.zeros((2, 3)))
+    with pytest.raises(ValueError, match="dt"):
+        wna_sqrt_information(np.array([1.0, 0.0]), 0.1, 1)

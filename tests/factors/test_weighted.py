@@ -1,12 +1,19 @@
 """Tests of factors.weighted: association-weighted factor."""
 
+import time
+
 import gtsam
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from factors.bearing import bearing_factor
-from factors.motion import constant_velocity_factor, wna_covariance
+from factors.bearing import (
+    bearing_batch_factor,
+    bearing_factor,
+    linear_bearing_factor,
+    linear_bearing_factors,
+)
+from factors.motion import constant_velocity_factor, linear_constant_velocity_factor, wna_covariance
 from factors.testing import assert_jacobians
 from factors.weighted import weighted_factor
 
@@ -75,3 +82,95 @@ def test_bad_input():
         weighted_factor(bearing_factor(robust, 0, 0.1), np.ones(1), 0)
     with pytest.raises(ValueError, match="dimension"):
         weighted_factor(inner, np.ones(1), 0, noise=gtsam.noiseModel.Unit.Create(2))
+
+
+# -- fast inner factors, per-row weights, dimensions from the inner factor ------------------
+
+
+def test_vector_form_weights_each_row():
+    """One weight per row of a batch factor: cost = sum_i w_i e_i^2 / 2; Jacobians match."""
+    rng = np.random.default_rng(17)
+    for _ in range(15):
+        z = rng.uniform(-np.pi, np.pi, 4)
+        x = np.column_stack([z + rng.normal(0, 0.05, 4), rng.normal(0, 0.01, 4)])
+        v = gtsam.Values()
+        for k in range(2):
+            v.insert(k, x[k])
+        keys = [0, 0, 1, 1]
+        w = rng.uniform(0.0, 1.0, 6)
+        rows = [5, 0, 3, 2]
+        inner = bearing_batch_factor(gtsam.noiseModel.Isotropic.Sigma(4, 0.02), keys, z)
+        f = weighted_factor(inner, w, rows)
+        e_w = inner.whitenedError(v)
+        assert_allclose(f.error(v), 0.5 * np.sum(w[rows] * e_w**2), rtol=1e-12)
+        assert_jacobians(f, v)
+        single = [weighted_factor(bearing_factor(gtsam.noiseModel.Isotropic.Sigma(1, 0.02), k,
+                                                 zj), w, r)
+                  for k, zj, r in zip(keys, z, rows, strict=True)]
+        assert_allclose(f.error(v), sum(s.error(v) for s in single), rtol=1e-12)
+
+
+def test_builtin_inner_factors_and_mixed_dimensions():
+    """Built-in inner factors (linear bearing, linear CV in a LinearContainerFactor) and one on a
+    Pose2 and a 1-vector are wrapped with the right per-key Jacobian widths."""
+    w = np.array([0.4])
+    x0, x1 = np.array([np.pi - 0.01, 0.002]), np.array([-np.pi + 0.02, 0.003])
+    v = gtsam.Values()
+    v.insert(0, x0)
+    v.insert(1, x1)
+    v.insert(2, gtsam.Pose2(1.0, 2.0, 0.3))
+    v.insert(3, np.array([0.5]))
+    noise = gtsam.noiseModel.Isotropic.Sigma(1, 0.01)
+    lin_b = linear_bearing_factor(noise, 0, -np.pi + 0.005, estimate=x0)
+    cv = gtsam.noiseModel.Gaussian.Covariance(wna_covariance(4.0, 1e-6, 1))
+    lin_m = linear_constant_velocity_factor(cv, 0, 1, 4.0, estimate_prev=x0, estimate_next=x1)
+    mixed = gtsam.CustomFactor(
+        gtsam.noiseModel.Unit.Create(1), [2, 3],
+        lambda this, vals, jac: _mixed_error(vals, jac))
+    for inner in (lin_b, lin_m, mixed):
+        f = weighted_factor(inner, w, 0)
+        assert_allclose(f.error(v), 0.4 * inner.error(v), rtol=1e-12)
+        assert_jacobians(f, v)
+
+
+def _mixed_error(vals, jac):
+    """x of a Pose2 plus a 1-vector; Jacobians (1, 3) and (1, 1)."""
+    p, s = vals.atPose2(2), vals.atVector(3)
+    if jac is not None:
+        jac[0] = np.array([[np.cos(p.theta()), -np.sin(p.theta()), 0.0]])
+        jac[1] = np.array([[1.0]])
+    return np.array([p.x() + s[0]])
+
+
+def test_first_linearisation_costs_no_more_than_later_ones():
+    """Regression: the first linearisation of many weighted factors used to read the whole
+    graph's zero vectors once per factor (quadratic); now it costs about a later one."""
+    n = 1000
+    rng = np.random.default_rng(3)
+    x = np.column_stack([rng.uniform(-3, 3, n), np.zeros(n)])
+    v = gtsam.Values()
+    for k in range(n):
+        v.insert(k, x[k])
+    w = rng.uniform(0.1, 1.0, n)
+    noise = gtsam.noiseModel.Isotropic.Sigma(1, 0.01)
+    g = gtsam.NonlinearFactorGraph()
+    for k, f in enumerate(linear_bearing_factors(noise, range(n), x[:, 0] + 0.01, estimates=x)):
+        g.add(weighted_factor(f, w, k))
+    t0 = time.perf_counter()
+    first = g.linearize(v)
+    t1 = time.perf_counter()
+    again = g.linearize(v)
+    t2 = time.perf_counter()
+    assert (t1 - t0) < 4.0 * (t2 - t1) + 0.02
+    assert_allclose(first.jacobian()[1], again.jacobian()[1], rtol=0)
+
+
+def test_index_sequence_bad_input():
+    """A per-row index of the wrong length or out of range raises ValueError."""
+    inner = bearing_batch_factor(gtsam.noiseModel.Isotropic.Sigma(2, 0.1), [0, 1], [0.1, 0.2])
+    with pytest.raises(ValueError, match="one per row"):
+        weighted_factor(inner, np.ones(3), [0, 1, 2])
+    with pytest.raises(ValueError, match="out of range"):
+        weighted_factor(inner, np.ones(3), [0, 3])
+    with pytest.raises(ValueError, match="integer"):
+        weighted_factor(inner, np.ones(3), 0.5)
