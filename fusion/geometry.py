@@ -28,6 +28,7 @@ __all__ = [
     "beam_rate_from_bearing_rate",
     "beam_tolerance",
     "beamwidth_cos",
+    "beamwidth_deg",
     "bearing_from_beam",
     "bearing_rate_from_beam_rate",
     "compass_bearing_deg",
@@ -201,6 +202,49 @@ def beamwidth_cos(wavelength: float, aperture: float) -> float:
             f"wavelength and aperture must be positive, got {wavelength!r}, {aperture!r}"
         )
     return 0.886 * wavelength / aperture
+
+
+def beamwidth_deg(
+    bearing_deg: ArrayLike, *, wavelength: float, aperture: float
+) -> NDArray[np.float64] | float:
+    """Main-lobe width in bearing of a line array steered at `bearing_deg`, deg.
+
+    Parameters
+    ----------
+    bearing_deg : float or array_like
+        Steering bearing from the forward axis, deg in ``[0, 180]``.
+    wavelength : float
+        Acoustic wavelength, m.
+    aperture : float
+        Array aperture, m.
+
+    Returns
+    -------
+    float or ndarray
+        Same shape as `bearing_deg`: the width in bearing of the cosine interval
+        ``cos(theta) +- 0.443 lambda / L`` (:func:`beamwidth_cos` centred on the steering
+        direction), clipped to ``[-1, 1]`` so that it stays finite at endfire, deg.
+
+    Notes
+    -----
+    The main lobe is ``0.886 lambda / L`` wide in cosine for every beam; mapped to bearing it
+    widens away from broadside, about ``0.886 lambda / (L sin theta)`` rad there. This exact
+    mapping is used by the acquisition (program segment 40 of the acquisition method text) and
+    the bearing tracker alike.
+
+    Examples
+    --------
+    Broadside, ``2 arcsin(0.443 lambda / L)``:
+
+    >>> round(beamwidth_deg(90.0, wavelength=5.0, aperture=50.0), 4)
+    5.0781
+    """
+    w = beamwidth_cos(wavelength, aperture)
+    u = np.cos(np.radians(np.asarray(bearing_deg, dtype=float)))
+    lo = np.maximum(-1.0, u - 0.5 * w)
+    hi = np.minimum(1.0, u + 0.5 * w)
+    out = np.degrees(np.arccos(lo) - np.arccos(hi))
+    return float(out) if np.ndim(out) == 0 else out
 
 
 def beam_tolerance(wavelength: float, aperture: float, n_beams: int) -> int:

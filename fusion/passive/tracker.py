@@ -46,7 +46,7 @@ from filterpy.common import Q_discrete_white_noise
 from filterpy.kalman import KalmanFilter
 from numpy.typing import ArrayLike, NDArray
 
-from fusion.geometry import beam_from_bearing, beam_tolerance, beamwidth_cos, bearing_from_beam
+from fusion.geometry import beam_from_bearing, beam_tolerance, beamwidth_deg, bearing_from_beam
 from fusion.io import Cube
 
 __all__ = ["BearingTracker", "TrackHistory", "beamwidth_deg", "cell_power_statistics"]
@@ -95,31 +95,6 @@ def cell_power_statistics(
     if np.any(np.isnan(s)):
         raise ValueError("snr_db contains NaN")
     return noise_mean * (1.0 + s), noise_mean * np.sqrt((1.0 + 2.0 * s) / n_looks)
-
-
-def beamwidth_deg(bearing_deg: ArrayLike, *, wavelength: float, aperture: float) -> NDArray[np.float64]:
-    """Main-lobe width in bearing of a line array steered at `bearing_deg`, deg.
-
-    The lobe is ``0.886 lambda / L`` wide in cosine; in bearing that is divided by
-    ``sin(theta)`` (floored so that endfire stays finite, where the lobe is
-    ``arccos(1 - w)`` wide).
-
-    Parameters
-    ----------
-    bearing_deg : float or array_like
-        Bearing from the forward axis, deg.
-    wavelength, aperture : float
-        Wavelength and aperture, m.
-
-    Returns
-    -------
-    ndarray
-        Beamwidth, deg.
-    """
-    w = beamwidth_cos(wavelength, aperture)
-    s = np.abs(np.sin(np.radians(np.asarray(bearing_deg, dtype=float))))
-    endfire = np.degrees(np.arccos(max(1.0 - w, -1.0)))
-    return np.minimum(np.degrees(w / np.maximum(s, 1e-12)), 2.0 * endfire)
 
 
 @dataclass(frozen=True)

@@ -430,9 +430,15 @@ def test_same_input_same_output_and_function_form():
 
 
 def test_beamwidth_and_noise_level_helpers():
-    """Beamwidth at broadside is 2 asin(0.443 lambda / L); noise level skips the trace."""
-    assert beamwidth_deg(32, 65, wavelength=5.0, aperture=50.0) == pytest.approx(
+    """Beamwidth at broadside is 2 asin(0.443 lambda / L), at endfire acos(1 - 0.443 lambda / L)
+    (the lobe clipped at cos = 1), element-wise on arrays; noise level skips the trace."""
+    assert beamwidth_deg(90.0, wavelength=5.0, aperture=50.0) == pytest.approx(
         2 * math.degrees(math.asin(0.0443)))
+    assert beamwidth_deg(0.0, wavelength=5.0, aperture=50.0) == pytest.approx(
+        math.degrees(math.acos(1 - 0.0443)))
+    brg = np.array([0.0, 30.0, 90.0, 150.0, 180.0])
+    assert_allclose(beamwidth_deg(brg, wavelength=5.0, aperture=50.0),
+                    [beamwidth_deg(b, wavelength=5.0, aperture=50.0) for b in brg], rtol=1e-15)
     btr = np.ones((6, 12))
     btr[:, 5] = 50.0
     assert band_noise_level(btr, 5, 0.0, exclude_beams=1.0) == pytest.approx(1.0)

@@ -1,0 +1,451 @@
+"""The acquisition component (program segments 22-54): a clicked target's bearing, rate and SNR.
+
+:class:`Acquisition` chains the steps of the method, one module each: normalisation
+(:mod:`~fusion.passive.acquisition.normalise`), the IBW BTR (:mod:`~fusion.passive.acquisition.btr`),
+beamwidth and beam tolerance (:mod:`fusion.geometry`), the fan search through the anchor beams
+(a :class:`~fusion.passive.acquisition.fans.FanStrategy`), the band noise level, IBW SNR and
+defaults (:mod:`~fusion.passive.acquisition.snr`), the line's refinement and segment 54 (beam to
+bearing, bearing rate, lag correction).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+from numpy.typing import NDArray
+
+from fusion.geometry import beam_tolerance, beamwidth_deg, bearing_from_beam
+from fusion.io import Cube
+from fusion.passive.acquisition.btr import ibw_bins, ibw_btr
+from fusion.passive.acquisition.fans import (
+    BestLine,
+    ConstantRateFans,
+    FanStrategy,
+    StraightLineFans,
+)
+from fusion.passive.acquisition.normalise import normalize_spectra
+from fusion.passive.acquisition.snr import band_noise_level, snr_1hz_db
+
+__all__ = ["Acquisition", "AcquisitionResult", "acquire"]
+
+logger = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class AcquisitionResult:
+    """Initial bearing, bearing rate and SNR of a clicked narrowband target.
+
+    Attributes
+    ----------
+    bearing_deg : float
+        Bearing from the forward axis at the latest scan, lag-corrected, deg in ``[0, 180]``.
+    bearing_rate_deg_per_min : float
+        Bearing rate, deg/min (positive: bearing increasing, toward aft endfire).
+    snr_db : float
+        SNR in a 1 Hz band, dB (eq. 4 of the method text; the default's value when
+        `default_used`).
+    default_used : bool
+        True when the IBW SNR was too low (``snr_ibw <= min_snr_ibw``) and the defaults were output:
+        rate 0, the clicked beam's bearing, the default SNR.
+    snr_ibw : float
+        Linear SNR in the IBW, ``(S+N - N) / N`` (measured, also when defaults are output; NaN when
+        no line qualified).
+    bearing_uncorrected_deg : float
+        Bearing of the best line's latest end before the lag correction (the method's
+        ``bestbrguncorrected``): the anchor beam of a straight line, the refined end beam of a
+        constant-bearing-rate trace, deg.
+    best_line : BestLine or None
+        The overall best line (None when no line of any fan qualified).
+    btr : ndarray, shape (n_scans, n_beams)
+        IBW BTR, chronological rows (row ``n_scans - 1`` the latest scan).
+    band_noise_level : float
+        Mean BTR value off the trace.
+    beamwidth_deg : float
+        Approximate beamwidth of the clicked beam, deg.
+    beam_tolerance : int
+        Beams on each side of the clicked beam used as anchors.
+    anchor_beams : tuple of int
+        The anchor beams searched.
+    ibw_bins : tuple of int
+        Bin indices of the IBW.
+    """
+
+    bearing_deg: float
+    bearing_rate_deg_per_min: float
+    snr_db: float
+    default_used: bool
+    snr_ibw: float
+    bearing_uncorrected_deg: float
+    best_line: BestLine | None
+    btr: NDArray[np.float64]
+    band_noise_level: float
+    beamwidth_deg: float
+    beam_tolerance: int
+    anchor_beams: tuple[int, ...]
+    ibw_bins: tuple[int, ...]
+
+    def to_json(self) -> dict[str, float | bool]:
+        """The ``fusion acquire`` output: bearing, bearing rate, SNR, whether defaults were used."""
+        return {
+            "bearing_deg": float(self.bearing_deg),
+            "bearing_rate_deg_per_min": float(self.bearing_rate_deg_per_min),
+            "snr_db": float(self.snr_db),
+            "default_used": bool(self.default_used),
+        }
+
+
+class Acquisition:
+    """Estimate a clicked target's bearing, bearing rate and SNR from the best line on its IBW BTR.
+
+    Parameters
+    ----------
+    ibw_hz : float, optional
+        Width of the initialisation band, Hz; None (default) uses the clicked bin alone.
+    lag_s : float
+        Delay between what the spectra show and the present, s (spectral integration, about half
+        an integration period, plus any display delay); the bearing is corrected by
+        ``rate * lag_s``. Default 0.
+    normalize : bool
+        Normalise the IBW bins (program segment 22) with :func:`normalize_spectra`; set False for
+        cubes already normalised to unit noise mean.
+    window_bins, gap_bins : int
+        Split window of the normaliser (bins each side, bins left out each side).
+    pool_scans : int, optional
+        Scans pooled into each noise estimate of the normaliser (None: the whole history).
+    noise_dof : float
+        Degrees of freedom of the noise in one cell, for the normaliser.
+    trace : {"bearing", "beam"}
+        Lines of the fans: constant-bearing-rate traces in the cosine beam spacing (default, see
+        :func:`constant_rate_traces`) or the method's literal straight lines in beam number.
+    sampling : {"nearest", "linear"}
+        How a constant-bearing-rate trace reads the BTR: the nearest beam (the method's rounding,
+        default) or linear interpolation across beams.
+    refine : bool, optional
+        Refine the overall best trace to sub-beam end position and rate (:func:`refine_trace`).
+        None (default): True for ``trace="bearing"``; the literal straight lines are never refined.
+    refine_span_beams : float
+        Half-size of the refinement's search box, beams (see :func:`refine_trace`).
+    min_scans : int, optional
+        The method's ``minscan``: fewest scans a line may span before it leaves the BTR. None
+        (default) uses all scans, as the method text does.
+    max_rate_deg_per_min : float, optional
+        ``trace="bearing"``: largest bearing-rate magnitude searched, deg/min; None: 180 deg over
+        ``min_scans - 1`` scans (the analogue of a line crossing all beams).
+    rate_step_deg_per_min : float, optional
+        ``trace="bearing"``: bearing-rate increment, deg/min; None: the increment that moves a
+        broadside trace's oldest scan by a quarter of a beam, ``0.25 / ((N - 1) / 2 * history)``
+        rad/s (the straight lines' quarter beam over the history).
+    max_slope : float, optional
+        ``trace="beam"``: largest slope magnitude searched, beams per update; None: the slope that
+        crosses all beams in ``min_scans`` scans, ``(n_beams - 1) / (min_scans - 1)``.
+    slope_step : float, optional
+        ``trace="beam"``: slope increment, beams per update; None: a quarter of a beam over the
+        history, ``0.25 / (n_scans - 1)``.
+    rate_at : {"midpoint", "latest"}
+        ``trace="beam"``: beam at which the beam rate is turned into a bearing rate (eq. 10): the
+        middle of the best line (default) or its latest end.
+    min_snr_ibw : float
+        Defaults are output when the linear IBW SNR is at most this (the method: 1, i.e. 0 dB).
+    default_snr_ibw : float
+        Linear IBW SNR put through eq. 4 to give the default SNR (the method: the threshold).
+    exclude_beams : float, optional
+        Beams each side of the best line left out of the band noise level; None: the main lobe to
+        its first nulls, ``ceil(lambda / L / (2 / (N - 1)))``, at least the beam tolerance.
+    fans : FanStrategy, optional
+        The fans' lines as a strategy object (:class:`~fusion.passive.acquisition.fans.\
+StraightLineFans`, :class:`~fusion.passive.acquisition.fans.ConstantRateFans` or a subclass of
+        :class:`~fusion.passive.acquisition.fans.FanStrategy`) instead of the options ``trace``,
+        ``sampling``, ``refine``, ``refine_span_beams``, ``max_rate_deg_per_min``,
+        ``rate_step_deg_per_min``, ``max_slope``, ``slope_step`` and ``rate_at``, which must then
+        be left at their defaults. Default None: built from those options.
+
+    Notes
+    -----
+    Choices where the method text is silent or its equations were lost:
+
+    - normaliser: split-window median (see :func:`normalize_spectra`);
+    - fans: the method's lines are straight in beam number, but the method also assumes beams
+      equally spaced in cosine (eqs. 5-11), where a target at a constant bearing rate draws a
+      curve; by default each fan holds the constant-bearing-rate traces through its anchor beam,
+      rates ``-max_rate .. max_rate`` in steps of ``rate_step``, each read at the nearest beam as
+      ``rateest`` reads its lines (segments 62-70: mean over the scans used, minimum-scan rule,
+      strictly largest mean). ``trace="beam"`` keeps the straight lines, slopes
+      ``-max_slope .. max_slope`` in steps of ``slope_step``;
+    - the overall best trace and its SPN give the band noise level, the IBW SNR and the defaults
+      exactly as in the method (segments 50-52); only when the defaults are not used is the trace
+      refined to a sub-beam end position and rate by a local search of its main-lobe matched score
+      (:func:`refine_trace`), since one cell per scan cannot place a trace between beams;
+    - segment 54 for a trace: the bearing of its (refined) end beam (eq. 6) and its bearing rate,
+      which is already in rad/s (the trace is the integral of eq. 11); for a straight line eq. 10
+      is evaluated at the middle of the line by default (at constant bearing rate the chord has
+      beam rate ``(N - 1) / 2 sin(theta) theta_dot`` at the *mean* bearing to within
+      ``sinc(delta_theta / 2)``);
+    - SNR (eq. 4, reconstructed): SNR per bin ``~ snr_ibw * nbins_ibw``, SNR in 1 Hz
+      ``= SNR_bin * dfbin * 1.3`` (Hamming equivalent noise bandwidth), in dB;
+    - the lag-corrected bearing is clipped to ``[0, 180]`` deg.
+
+    Examples
+    --------
+    >>> from fusion.simulate.cube import simulate_cube
+    >>> sc = simulate_cube(seed=3, bearing0_deg=60.0, bearing_rate_deg_per_min=30.0, snr_db=6.0)
+    >>> res = Acquisition().acquire(sc.cube, beam=sc.click_beam, freq_hz=sc.click_freq)
+    >>> bool(abs(res.bearing_rate_deg_per_min - 30.0) < 7.5)
+    True
+    """
+
+    def __init__(
+        self,
+        *,
+        ibw_hz: float | None = None,
+        lag_s: float = 0.0,
+        normalize: bool = True,
+        window_bins: int = 8,
+        gap_bins: int = 1,
+        noise_dof: float = 2.0,
+        pool_scans: int | None = None,
+        trace: Literal["bearing", "beam"] = "bearing",
+        sampling: Literal["nearest", "linear"] = "nearest",
+        refine: bool | None = None,
+        refine_span_beams: float = 2.0,
+        min_scans: int | None = None,
+        max_rate_deg_per_min: float | None = None,
+        rate_step_deg_per_min: float | None = None,
+        max_slope: float | None = None,
+        slope_step: float | None = None,
+        rate_at: Literal["midpoint", "latest"] = "midpoint",
+        min_snr_ibw: float = 1.0,
+        default_snr_ibw: float = 1.0,
+        exclude_beams: float | None = None,
+        fans: FanStrategy | None = None,
+    ) -> None:
+        if ibw_hz is not None and (not np.isfinite(ibw_hz) or ibw_hz <= 0):
+            raise ValueError(f"ibw_hz must be positive, got {ibw_hz!r}")
+        if not np.isfinite(lag_s):
+            raise ValueError(f"lag_s must be finite, got {lag_s!r}")
+        if min_scans is not None and (int(min_scans) != min_scans or min_scans < 2):
+            raise ValueError(f"min_scans must be an integer >= 2, got {min_scans!r}")
+        for name, v in (("max_slope", max_slope), ("slope_step", slope_step),
+                        ("max_rate_deg_per_min", max_rate_deg_per_min),
+                        ("rate_step_deg_per_min", rate_step_deg_per_min),
+                        ("exclude_beams", exclude_beams), ("refine_span_beams", refine_span_beams)):
+            if v is not None and (not np.isfinite(v) or v <= 0):
+                raise ValueError(f"{name} must be positive, got {v!r}")
+        if trace not in ("bearing", "beam"):
+            raise ValueError(f"trace must be 'bearing' or 'beam', got {trace!r}")
+        if sampling not in ("nearest", "linear"):
+            raise ValueError(f"sampling must be 'nearest' or 'linear', got {sampling!r}")
+        if trace == "beam":
+            if refine:
+                raise ValueError("refine applies to trace='bearing' (the straight lines are literal)")
+            for name, v in (("max_rate_deg_per_min", max_rate_deg_per_min),
+                            ("rate_step_deg_per_min", rate_step_deg_per_min)):
+                if v is not None:
+                    raise ValueError(f"{name} applies to trace='bearing'; use max_slope/slope_step")
+        else:
+            for name, v in (("max_slope", max_slope), ("slope_step", slope_step)):
+                if v is not None:
+                    raise ValueError(
+                        f"{name} applies to trace='beam'; use max_rate_deg_per_min/"
+                        "rate_step_deg_per_min"
+                    )
+        if rate_at not in ("midpoint", "latest"):
+            raise ValueError(f"rate_at must be 'midpoint' or 'latest', got {rate_at!r}")
+        for name, v in (("min_snr_ibw", min_snr_ibw), ("default_snr_ibw", default_snr_ibw)):
+            if not np.isfinite(v) or v <= 0:
+                raise ValueError(f"{name} must be positive, got {v!r}")
+        if not np.isfinite(noise_dof) or noise_dof <= 0:
+            raise ValueError(f"noise_dof must be positive, got {noise_dof!r}")
+        if pool_scans is not None and (int(pool_scans) != pool_scans or pool_scans < 1):
+            raise ValueError(f"pool_scans must be a positive integer, got {pool_scans!r}")
+        self.ibw_hz = ibw_hz
+        self.lag_s = float(lag_s)
+        self.normalize = bool(normalize)
+        self.window_bins = int(window_bins)
+        self.gap_bins = int(gap_bins)
+        self.noise_dof = float(noise_dof)
+        self.pool_scans = pool_scans
+        self.trace = trace
+        self.sampling = sampling
+        self.refine = (trace == "bearing") if refine is None else bool(refine)
+        self.refine_span_beams = float(refine_span_beams)
+        self.min_scans = min_scans
+        self.max_rate_deg_per_min = max_rate_deg_per_min
+        self.rate_step_deg_per_min = rate_step_deg_per_min
+        self.max_slope = max_slope
+        self.slope_step = slope_step
+        self.rate_at = rate_at
+        self.min_snr_ibw = float(min_snr_ibw)
+        self.default_snr_ibw = float(default_snr_ibw)
+        self.exclude_beams = exclude_beams
+        if fans is not None:
+            options = {"trace": (trace, "bearing"), "sampling": (sampling, "nearest"),
+                       "refine": (refine, None), "refine_span_beams": (refine_span_beams, 2.0),
+                       "max_rate_deg_per_min": (max_rate_deg_per_min, None),
+                       "rate_step_deg_per_min": (rate_step_deg_per_min, None),
+                       "max_slope": (max_slope, None), "slope_step": (slope_step, None),
+                       "rate_at": (rate_at, "midpoint")}
+            given = sorted(k for k, (v, default) in options.items() if v != default)
+            if given:
+                raise ValueError(f"give either fans or the options {', '.join(given)}")
+            if not isinstance(fans, FanStrategy):
+                raise ValueError(f"fans must be a FanStrategy, got {type(fans).__name__}")
+            self.fans = fans
+        elif trace == "beam":
+            self.fans = StraightLineFans(max_slope=max_slope, slope_step=slope_step,
+                                         rate_at=rate_at)
+        else:
+            self.fans = ConstantRateFans(
+                max_rate_deg_per_min=max_rate_deg_per_min,
+                rate_step_deg_per_min=rate_step_deg_per_min, sampling=sampling,
+                refine=self.refine, refine_span_beams=refine_span_beams)
+
+
+    # ----------------------------------------------------------------------------------------
+    def _check(self, cube: Cube, beam: int, freq_hz: float) -> float:
+        if not isinstance(cube, Cube):
+            raise ValueError(f"cube must be a fusion.io.Cube, got {type(cube).__name__}")
+        power = np.asarray(cube.power)
+        if power.ndim != 3:
+            raise ValueError(f"cube power must have shape (scans, beams, bins), got {power.shape}")
+        if cube.n_bins < 2:
+            raise ValueError("the cube needs at least 2 frequency bins (bin spacing unknown)")
+        if isinstance(beam, bool) or not float(beam).is_integer():
+            raise ValueError(f"beam must be an integer beam index, got {beam!r}")
+        if not 0 <= int(beam) < cube.n_beams:
+            raise ValueError(f"beam {beam} is outside the cube's beams 0..{cube.n_beams - 1}")
+        df = float(np.median(np.diff(cube.freqs)))
+        lo, hi = cube.freqs[0] - 0.5 * df, cube.freqs[-1] + 0.5 * df
+        if not np.isfinite(freq_hz) or not lo <= freq_hz <= hi:
+            raise ValueError(
+                f"frequency {freq_hz!r} Hz is outside the cube's band {lo:.3f}..{hi:.3f} Hz"
+            )
+        return df
+
+    def acquire(self, cube: Cube, *, beam: int, freq_hz: float) -> AcquisitionResult:
+        """Acquire the target clicked at (`beam`, `freq_hz`) on the latest scan of `cube`.
+
+        Parameters
+        ----------
+        cube : fusion.io.Cube
+            Beam spectra, power shape (n_scans, n_beams, n_bins), scans in time order (the last is
+            the latest update), beams equally spaced in cosine from forward endfire.
+        beam : int
+            Clicked beam (the method's ``ibeamclick``).
+        freq_hz : float
+            Clicked frequency, Hz (the method's ``freqclick``).
+
+        Returns
+        -------
+        AcquisitionResult
+
+        Raises
+        ------
+        ValueError
+            Not a cube, a beam or frequency outside the cube, NaN power, too few bins for the
+            normaliser or beams for the noise level.
+        """
+        df = self._check(cube, beam, freq_hz)
+        beam = int(beam)
+        n_scans, n_beams, _ = cube.power.shape
+        scan_period = float(cube.scan_period)
+
+        # segments 26-28: IBW, normalisation of its bins, BTR
+        band = ibw_bins(cube.freqs, freq_hz, self.ibw_hz)
+        if self.normalize:
+            spectra = normalize_spectra(cube.power, window_bins=self.window_bins,
+                                        gap_bins=self.gap_bins, noise_dof=self.noise_dof,
+                                        pool_scans=(None if self.pool_scans is None
+                                                    else min(self.pool_scans, n_scans)),
+                                        bins=band)
+        else:
+            spectra = cube.power[:, :, band]
+            if not np.all(np.isfinite(spectra)):
+                raise ValueError("cube power contains NaN or infinite values")
+        btr = ibw_btr(spectra)  # (scans, beams), chronological
+        btr_rev = btr[::-1]  # row 0 = latest update, as in the method's btr[iscan][ibeam]
+
+        # segments 40-44: beamwidth, beam tolerance, anchors
+        wavelength = cube.sound_speed / float(cube.freqs[int(np.argmin(np.abs(cube.freqs - freq_hz)))])
+        brg_click = float(bearing_from_beam(beam, n_beams))
+        bw_deg = float(beamwidth_deg(math.degrees(brg_click), wavelength=wavelength,
+                                     aperture=cube.aperture))
+        tol = beam_tolerance(wavelength, cube.aperture, n_beams)
+        anchors = np.arange(max(0, beam - tol), min(n_beams - 1, beam + tol) + 1)
+
+        # segments 46-50: best line in every fan, overall best line
+        min_scans = n_scans if self.min_scans is None else min(int(self.min_scans), n_scans)
+        best_line = self.fans.search(btr_rev, anchors, min_scans=min_scans,
+                                     scan_period=scan_period)
+
+        # segment 52: band noise level off the trace, linear SNR in the IBW
+        snr_ibw = float("nan")
+        noise = float("nan")
+        lobe_beams = wavelength / cube.aperture * (n_beams - 1) / 2.0  # first null, beams
+        if best_line is not None:
+            excl = (float(max(tol, int(math.ceil(lobe_beams)))) if self.exclude_beams is None
+                    else self.exclude_beams)
+            # the trace over every scan, also beyond where it leaves the BTR
+            track = self.fans.extend(best_line, n_scans=n_scans, n_beams=n_beams,
+                                     scan_period=scan_period)
+            noise = band_noise_level(btr_rev, best_line.anchor_beam, exclude_beams=excl,
+                                     track=track)
+            if noise <= 0:
+                raise ValueError("band noise level is zero: the IBW holds no noise power")
+            snr_ibw = (best_line.signal_plus_noise - noise) / noise
+
+        common = {"snr_ibw": snr_ibw, "btr": btr, "band_noise_level": noise,
+                  "beamwidth_deg": bw_deg, "beam_tolerance": tol,
+                  "anchor_beams": tuple(int(b) for b in anchors),
+                  "ibw_bins": tuple(int(b) for b in band)}
+        nbins_ibw = int(band.size)
+        if best_line is None or not snr_ibw > self.min_snr_ibw:
+            # defaults (segment 52): rate 0, clicked beam's bearing, default SNR through eq. 4
+            logger.info("IBW SNR %.3g <= %.3g: default estimates", snr_ibw, self.min_snr_ibw)
+            return AcquisitionResult(
+                bearing_deg=math.degrees(brg_click), bearing_rate_deg_per_min=0.0,
+                snr_db=snr_1hz_db(self.default_snr_ibw, nbins_ibw, df), default_used=True,
+                bearing_uncorrected_deg=math.degrees(brg_click), best_line=best_line, **common)
+
+        # refinement of the overall best line (the SPN and SNR stay the fan search's)
+        best_line = self.fans.refine_line(best_line, btr_rev, min_scans=min_scans,
+                                          scan_period=scan_period, lobe_beams=lobe_beams,
+                                          noise_level=noise)
+
+        # segment 54: beam -> bearing (eq. 6), bearing rate, lag correction
+        rate_rad_s = self.fans.bearing_rate(best_line, n_beams=n_beams, scan_period=scan_period)
+        brg_uncorrected = float(bearing_from_beam(best_line.end_beam, n_beams))
+        brg = min(max(brg_uncorrected + rate_rad_s * self.lag_s, 0.0), math.pi)
+        return AcquisitionResult(
+            bearing_deg=math.degrees(brg),
+            bearing_rate_deg_per_min=math.degrees(rate_rad_s) * 60.0,
+            snr_db=snr_1hz_db(snr_ibw, nbins_ibw, df),
+            default_used=False,
+            bearing_uncorrected_deg=math.degrees(brg_uncorrected),
+            best_line=best_line,
+            **common,
+        )
+
+
+def acquire(cube: Cube, *, beam: int, freq_hz: float, **options: object) -> AcquisitionResult:
+    """Function form of :class:`Acquisition`: ``Acquisition(**options).acquire(cube, ...)``.
+
+    Parameters
+    ----------
+    cube : fusion.io.Cube
+        Beam spectra, shape (n_scans, n_beams, n_bins), the last scan the latest.
+    beam : int
+        Clicked beam.
+    freq_hz : float
+        Clicked frequency, Hz.
+    **options
+        Keyword options of :class:`Acquisition`.
+
+    Returns
+    -------
+    AcquisitionResult
+    """
+    return Acquisition(**options).acquire(cube, beam=beam, freq_hz=freq_hz)  # type: ignore[arg-type]
