@@ -19,6 +19,8 @@ from fusion.io import Cube, write_cube
 from fusion.passive.acquisition import (
     HAMMING_ENBW,
     Acquisition,
+    ConstantRateFans,
+    StraightLineFans,
     acquire,
     band_noise_level,
     beamwidth_deg,
@@ -181,6 +183,27 @@ def test_fan_search_equals_brute_force(seed):
         assert fans.signal_plus_noise[i] == pytest.approx(sav, rel=1e-12)
         assert fans.n_used[i] == used
         assert bool(fans.found[i]) == (sav > 0)
+
+
+def test_regression_beam_trace_short_min_scans_index_error():
+    """Regression: steep straight lines (min_scans < numscans) no longer index past the padded BTR
+    (IndexError); the fan search still equals the loop, and acquire(trace="beam") runs."""
+    rng = np.random.default_rng(7)
+    n_scans, n_beams, min_scans = 12, 10, 2
+    btr = rng.exponential(size=(n_scans, n_beams))
+    max_slope = (n_beams - 1) / (min_scans - 1)  # the default fan: steep lines leave early
+    slopes = slope_grid(-max_slope - 0.013, max_slope, 0.25 + 0.0007)
+    fans = best_lines_in_fans(btr, np.arange(n_beams), slopes, min_scans=min_scans)
+    for anc in range(n_beams):
+        est, sav, used = rateest_loop(btr, anc, slopes, min_scans)
+        assert fans.slope[anc] == pytest.approx(est, abs=1e-12)
+        assert fans.signal_plus_noise[anc] == pytest.approx(sav, rel=1e-12)
+        assert fans.n_used[anc] == used
+    sc = simulate_cube(seed=3, bearing0_deg=60.0, bearing_rate_deg_per_min=30.0, snr_db=6.0)
+    res = Acquisition(trace="beam", min_scans=10).acquire(sc.cube, beam=sc.click_beam,
+                                                          freq_hz=sc.click_freq)
+    assert not res.default_used and res.best_line.trace == "beam"
+    assert res.bearing_rate_deg_per_min == pytest.approx(30.0, rel=0.25)
 
 
 def test_fan_search_edge_rule():
@@ -442,6 +465,36 @@ def test_beamwidth_and_noise_level_helpers():
     btr = np.ones((6, 12))
     btr[:, 5] = 50.0
     assert band_noise_level(btr, 5, 0.0, exclude_beams=1.0) == pytest.approx(1.0)
+
+
+@pytest.mark.parametrize(("options", "fans"), [
+    ({"trace": "beam", "rate_at": "latest", "slope_step": 0.01},
+     StraightLineFans(rate_at="latest", slope_step=0.01)),
+    ({"sampling": "linear", "refine_span_beams": 1.5},
+     ConstantRateFans(sampling="linear", refine_span_beams=1.5)),
+    ({"refine": False}, ConstantRateFans(refine=False)),
+])
+def test_fan_strategy_parts_equal_the_options(options, fans):
+    """A FanStrategy passed as ``fans`` gives the same result as the equivalent options."""
+    sc = simulate_cube(seed=5, bearing0_deg=70.0, bearing_rate_deg_per_min=-25.0, snr_db=6.0)
+    click = {"beam": sc.click_beam, "freq_hz": sc.click_freq}
+    a = Acquisition(min_scans=40, **options).acquire(sc.cube, **click)
+    b = Acquisition(min_scans=40, fans=fans).acquire(sc.cube, **click)
+    assert a.to_json() == b.to_json()
+    assert a.best_line.refined == b.best_line.refined
+    assert_allclose(a.best_line.beams, b.best_line.beams, rtol=0, atol=0)
+
+
+def test_fans_and_trace_options_are_exclusive():
+    """``fans`` with a trace option, or something that is not a FanStrategy, is refused."""
+    with pytest.raises(ValueError, match="either fans or the options rate_at, trace"):
+        Acquisition(fans=StraightLineFans(), trace="beam", rate_at="latest")
+    with pytest.raises(ValueError, match="FanStrategy"):
+        Acquisition(fans="beam")
+    with pytest.raises(ValueError, match="max_slope"):
+        StraightLineFans(max_slope=0.0)
+    with pytest.raises(ValueError, match="sampling"):
+        ConstantRateFans(sampling="cubic")
 
 
 class TestBadInput:

@@ -51,10 +51,13 @@ def _line_tensors(n_scans: int, n_beams: int, slopes_bytes: bytes) -> _LineTenso
     a = np.frombuffer(slopes_bytes, dtype=np.float64)
     k = np.arange(n_scans)
     off = np.floor(a[:, None] * k[None, :] + 0.5).astype(np.int64)  # round(a * iscan)
-    # a line is cut at its first step off the BTR, so n_beams of padding suffice
+    # A line is cut at its first step off the BTR, so n_beams of padding suffice: the offsets
+    # of the scans a line uses are below pad in magnitude; those of later scans are clipped to
+    # +-pad so that every anchor b in [0, n_beams - 1] reads inside its own padded row
+    # (b + pad + off in [0, n_beams - 1 + 2 pad]).
     pad = int(min(np.abs(off).max(), n_beams)) + 1
     width = n_beams + 2 * pad
-    flat = k[None, :] * width + pad + np.clip(off, -pad, n_beams - 1 + pad)
+    flat = k[None, :] * width + pad + np.clip(off, -pad, pad)
     lo = np.minimum.accumulate(off, axis=1)[:, :, None]  # running extremes along the line
     hi = np.maximum.accumulate(off, axis=1)[:, :, None]
     b = np.arange(n_beams)[None, None, :]
