@@ -39,6 +39,16 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "cube's scans (default: all)")
     p.add_argument("--noise-dof", type=number(float, gt=0), default=2.0,
                    help="degrees of freedom of the noise per cell (default 2: one look)")
+    p.add_argument("--pool-scans", type=number(int, ge=1), default=None,
+                   help="scans pooled into each noise estimate of the normaliser (default: the "
+                        "whole history; 1: every scan on its own, the method's literal normaliser)")
+    p.add_argument("--trace", choices=("bearing", "beam"), default="bearing",
+                   help="lines of the fans: constant-bearing-rate traces in cosine-spaced beams, "
+                        "refined to sub-beam accuracy (default), or the method's literal straight "
+                        "lines in beam number")
+    p.add_argument("--rate-at", choices=("midpoint", "latest"), default=None,
+                   help="--trace beam: beam where the line's beam rate becomes a bearing rate, "
+                        "the middle of the line (default) or its latest end")
     p.set_defaults(handler=run, inputs=("cube",))
 
 
@@ -59,8 +69,12 @@ def run(args: argparse.Namespace) -> int:
     if args.min_scans is not None and args.min_scans > cube.n_scans:
         raise ValueError(f"--min-scans {args.min_scans} exceeds the {cube.n_scans} scans of "
                          f"{args.cube}")
+    if args.rate_at is not None and args.trace != "beam":
+        raise ValueError("--rate-at applies to --trace beam")
     acq = Acquisition(lag_s=args.lag, ibw_hz=args.ibw, normalize=not args.no_normalize,
-                      min_scans=args.min_scans, noise_dof=args.noise_dof)
+                      min_scans=args.min_scans, noise_dof=args.noise_dof,
+                      pool_scans=args.pool_scans, trace=args.trace,
+                      rate_at=args.rate_at or "midpoint")
     try:
         res = acq.acquire(cube, beam=args.beam, freq_hz=args.freq)
     except ValueError as e:

@@ -552,6 +552,32 @@ class TestCli:
         assert sorted(got) == ["bearing_deg", "bearing_rate_deg_per_min", "default_used", "snr_db"]
         assert got["bearing_rate_deg_per_min"] == pytest.approx(30.0, rel=0.25)
 
+    @pytest.mark.parametrize(("args", "options"), [
+        (("--trace", "beam", "--rate-at", "latest", "--min-scans", "30"),
+         {"trace": "beam", "rate_at": "latest", "min_scans": 30}),
+        (("--trace", "beam", "--pool-scans", "5"), {"trace": "beam", "pool_scans": 5}),
+        (("--pool-scans", "1",), {"pool_scans": 1}),
+    ])
+    def test_trace_options_reach_the_acquisition(self, tmp_path, run_cli, args, options):
+        """--trace, --rate-at and --pool-scans give the library's result for those options."""
+        sc = simulate_cube(seed=12, bearing0_deg=50.0, bearing_rate_deg_per_min=35.0, snr_db=8.0)
+        write_cube(tmp_path / "c.npz", sc.cube)
+        code, out, err = run_cli("acquire", "--cube", tmp_path / "c.npz", "--beam", sc.click_beam,
+                                 "--freq", sc.click_freq, *args)
+        assert code == 0, err
+        want = Acquisition(**options).acquire(sc.cube, beam=sc.click_beam, freq_hz=sc.click_freq)
+        assert json.loads(out) == pytest.approx(want.to_json(), rel=1e-12)
+        assert want.to_json() != Acquisition().acquire(
+            sc.cube, beam=sc.click_beam, freq_hz=sc.click_freq).to_json()
+
+    def test_rate_at_needs_the_beam_trace(self, tmp_path, run_cli):
+        """--rate-at without --trace beam: exit 2 with one line naming the option."""
+        write_cube(tmp_path / "c.npz", simulate_cube(seed=11).cube)
+        code, out, err = run_cli("acquire", "--cube", tmp_path / "c.npz", "--beam", "3",
+                                 "--freq", "300", "--rate-at", "latest")
+        assert code == 2 and out == ""
+        assert len(err.strip().splitlines()) == 1 and "--rate-at" in err
+
     @pytest.mark.parametrize("args", [("--beam", "99", "--freq", "300"),
                                       ("--beam", "3", "--freq", "5")])
     def test_bad_click_exit_2(self, tmp_path, run_cli, args):
