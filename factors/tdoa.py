@@ -291,7 +291,9 @@ def weighted_tdoa_vector_factor(
     text (write ``w~_km = w_km gamma_km`` of eq. (22) into `weights`). The robust form uses the
     square-root-loss residual ``psi`` whose half square is the loss, so the cost GTSAM
     evaluates is the robust cost and the Jacobian ``psi'(e) = w(e) e / psi(e)`` is exact;
-    GTSAM's own ``noiseModel.Robust`` would reweight the m-vector as one block.
+    GTSAM's own ``noiseModel.Robust`` would reweight the m-vector as one block. Far from the
+    optimum the robust loss is nearly linear and Gauss-Newton steps on it crawl: start a robust
+    solve from the least-squares one (as :func:`solve_source` does).
 
     Examples
     --------
