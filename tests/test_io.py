@@ -400,3 +400,108 @@ def test_written_files_have_usual_permissions(tmp_path):
     os.umask(umask)
     p = write_json(tmp_path / "r.json", {"a": 1})
     assert (p.stat().st_mode & 0o777) == (0o666 & ~umask)
+
+
+# --------------------------------------------------------------------------------------------
+# bad input found while decoding, degenerate arrays, folders, huge numbers
+# --------------------------------------------------------------------------------------------
+def _flac(tmp_path, damage):
+    """A 3-channel FLAC of 2 s, damaged by `damage(bytes) -> bytes`."""
+    rng = np.random.default_rng(4)
+    p = write_audio(tmp_path / "a.flac", rng.uniform(-0.5, 0.5, (16000, 3)), 8000)
+    p.write_bytes(damage(p.read_bytes()))
+    return p
+
+
+def _truncate(b: bytes) -> bytes:
+    return b[: len(b) // 2]
+
+
+def _scramble(b: bytes) -> bytes:
+    c = bytearray(b)
+    i = len(c) // 3
+    c[i : i + 4000] = bytes((x * 7 + 13) % 256 for x in c[i : i + 4000])
+    return bytes(c)
+
+
+@pytest.mark.parametrize("damage", [_truncate, _scramble], ids=["truncated", "corrupt"])
+def test_damaged_flac_found_while_decoding(tmp_path, damage):
+    """A FLAC whose header reads but whose frames do not: ValueError naming the file, both readers."""
+    p = _flac(tmp_path, damage)
+    import soundfile
+
+    assert soundfile.info(str(p)).frames == 16000  # the header alone looks fine
+    with pytest.raises(ValueError, match=r"a\.flac: audio is truncated or corrupt"):
+        read_audio(p)
+    with pytest.raises(ValueError, match=r"a\.flac: audio is truncated or corrupt near"):
+        list(iter_audio_blocks(p, block_s=0.5, hop_s=0.25))
+
+
+def test_audio_blocks_refuse_hops_that_skip_samples(tmp_path):
+    """A hop longer than the window, or a window under one sample, is refused."""
+    p = write_audio(tmp_path / "a.wav", np.zeros((1000, 1)), 1000)
+    with pytest.raises(ValueError, match="would be skipped"):
+        list(iter_audio_blocks(p, block_s=0.1, hop_s=0.2))
+    with pytest.raises(ValueError, match="at least one sample"):
+        list(iter_audio_blocks(p, block_s=1e-6, hop_s=1e-6))
+
+
+def test_array_duplicate_positions(tmp_path):
+    """Two sensors at one position: degenerate geometry, named by index and id."""
+    sensors = _array_doc()["sensors"] + [{"id": "H4", "x": 3200.0, "y": 150.0, "z": -1610.0}]
+    p = tmp_path / "array.json"
+    p.write_text(json.dumps(_array_doc(sensors=sensors)))
+    with pytest.raises(ValueError, match=r"array\.json: sensors 1 \(H2\) and 3 \(H4\) are at the "
+                                         "same position"):
+        read_array(p)
+
+
+@pytest.mark.parametrize("reader", [read_json, read_array, read_audio, read_cube, read_bearings,
+                                    read_localization])
+def test_folder_given_as_a_file(tmp_path, reader):
+    """Every reader given a folder says so in one message naming it."""
+    d = tmp_path / "folder.json"
+    d.mkdir()
+    with pytest.raises(ValueError, match=r"folder\.json: is a directory, expected a file"):
+        reader(d)
+
+
+def test_json_not_utf8_and_too_deep(tmp_path):
+    """Non-UTF-8 bytes and pathological nesting are ValueErrors naming the file."""
+    p = tmp_path / "r.json"
+    p.write_bytes(b'{"a": "\xff"}')
+    with pytest.raises(ValueError, match="r.json: not a UTF-8"):
+        read_json(p)
+    p.write_text("[" * 100_000)
+    with pytest.raises(ValueError, match="r.json: JSON nested too deeply"):
+        read_json(p)
+
+
+def test_huge_floats_written_exactly_not_as_300_digits(tmp_path):
+    """write_table writes 1e308 as '1e+308' (exact, short), ordinary values in the given format."""
+    p = write_table(tmp_path / "o.csv", {"v": [1e308, -2.5e20, 1.25, 123456789012.5]})
+    assert p.read_text().splitlines() == ["v", "1e+308", "-2.5e+20", "1.250000",
+                                          "123456789012.500000"]
+    t = read_table(p, required=("v",), max_abs=None)
+    assert_array_equal(t["v"], [1e308, -2.5e20, 1.25, 123456789012.5])
+    with pytest.raises(ValueError, match=r"line 2, column 'v': '1e\+308' is beyond \+-1e\+12"):
+        read_table(p, required=("v",))
+
+
+def test_bom_crlf_and_blank_lines(tmp_path):
+    """A byte-order mark, CRLF line ends and blank lines are fine; line numbers are physical."""
+    p = tmp_path / "b.csv"
+    p.write_bytes(b"\xef\xbb\xbftrack_id,time,bearing_deg\r\n\r\n1,0,10\r\n1,10,x\r\n")
+    with pytest.raises(ValueError, match="line 4, column 'bearing_deg'"):
+        read_bearings(p)
+    p.write_bytes(b"\xef\xbb\xbftrack_id,time,bearing_deg\r\n\r\n1,0,10\r\n1,10,11\r\n")
+    assert_allclose(read_bearings(p)["bearing_deg"], [10, 11])
+
+
+def test_large_table_in_chunks(tmp_path):
+    """A table longer than one parsing chunk reads back whole and in order."""
+    n = 70_000
+    p = tmp_path / "o.csv"
+    p.write_text("time,x,y\n" + "".join(f"{i},{2 * i},0\n" for i in range(n)))
+    t = read_ownship(p)
+    assert len(t) == n and t["x"][-1] == 2 * (n - 1) and np.all(np.diff(t["time"]) == 1)
