@@ -6,7 +6,9 @@ aspect_deg, src_x, src_y, rcv_x, rcv_y``) and writes one row per track per event
 read them out of the rank; the command says so once on stderr. With ``src_x, src_y, rcv_x, rcv_y``
 each detection's position error is the bistatic error ellipse propagated from the range-sum and
 bearing accuracies (``--range-sum-sigma``, ``--bearing-sigma``); without them (e.g. radar), or with
-``--position-errors isotropic``, it is ``--position-sigma`` per axis.
+``--position-errors isotropic``, it is ``--position-sigma`` per axis. With ``--smooth`` each
+confirmed track is refined with all of its detections on a factor graph
+(:mod:`fusion.active.smoothing`) and every row gets ``sigma_x, sigma_y`` (m).
 """
 
 from __future__ import annotations
@@ -63,6 +65,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="clutter-map cell size, m (default 150)")
     p.add_argument("--confirmed-only", action="store_true",
                    help="write only rows of tracks that were confirmed at some point")
+    p.add_argument("--smooth", action="store_true",
+                   help="refine each confirmed track with all of its detections on a factor graph "
+                        "(fixed-interval smoother) and append sigma_x, sigma_y (m) to every row")
     p.set_defaults(handler=run, inputs=("detections", "rules"))
 
 
@@ -73,6 +78,8 @@ def run(args: argparse.Namespace) -> int:
 
     if args.confirm[0] > args.confirm[1]:
         raise ValueError(f"--confirm: M must not exceed N, got {args.confirm[0]} {args.confirm[1]}")
+    if args.smooth and args.accel_psd <= 0:
+        raise ValueError("--smooth needs --accel-psd > 0")
     table = read_detections(args.detections)
     system = None
     if args.mode == "fuzzy" and args.rules is not None:
@@ -107,8 +114,16 @@ def run(args: argparse.Namespace) -> int:
                  "the rules reading them are left out of the rank", err=True)
         # The note above replaces the fuzzy engine's own warning.
         logging.getLogger("fusion.active.fuzzy").setLevel(logging.ERROR)
-    result = tracker.run(table)
+    from fusion.active.types import pings_from_columns
+
+    result = tracker.run(pings_from_columns(table))
     cols = result.columns()
+    if args.smooth:
+        from fusion.active.smoothing import TrackSmoother, smooth_tracks
+
+        smoother = TrackSmoother(accel_psd=tracker.accel_psd,
+                                 speed_sigma_mps=tracker.speed_sigma_mps)
+        cols = smooth_tracks(result, smoother).columns
     if args.confirmed_only:
         import numpy as np
 
