@@ -1,1 +1,15 @@
-"""Multistatic active sonar: fuzzy association, clutter map and tracker."""
+"""Multistatic active sonar tracking ("Target tracking using fuzzy logic association").
+
+One module per role, bottom up:
+
+- :mod:`~fusion.active.types`: pings, per-ping tracks, a run (data only);
+- :mod:`~fusion.active.fuzzy` and :mod:`~fusion.active.rulebase`: the fuzzy inference engine and
+  the paper's rule base as data;
+- :mod:`~fusion.active.kalman`: constant-velocity prediction, update, pair statistics, gate;
+- :mod:`~fusion.active.bistatic`: a detection's error ellipse and equivalent aspect angle;
+- :mod:`~fusion.active.clutter`: the online clutter map (hotspots);
+- :mod:`~fusion.active.association`: fuzzy rank of gated pairs, rank threshold, assignment;
+- :mod:`~fusion.active.lifecycle`: M-of-N confirmation, deletion, the motion test;
+- :mod:`~fusion.active.tracker`: the tracker, composed of the above;
+- :mod:`~fusion.active.smoothing`: confirmed tracks refined on a GTSAM factor graph.
+"""

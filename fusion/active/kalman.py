@@ -168,7 +168,7 @@ def pair_statistics(
         Detection positions, m.
     R : ndarray, shape (2, 2) or (n_detections, 2, 2)
         Measurement covariance, m^2: one for all detections or one per detection (e.g.
-        :func:`bistatic_covariance`).
+        :func:`fusion.active.bistatic.bistatic_covariance`).
 
     Returns
     -------
