@@ -218,33 +218,13 @@ def _csv_rows(p: Path, reader: Any) -> Iterator[list[str]]:
                 raise ValueError(f"{p}: line {reader.line_num}: a field is longer than "
                                  f"{csv.field_size_limit():,} characters; not a CSV table") from None
             raise ValueError(f"{p}: line {reader.line_num}: malformed CSV ({e})") from None
-        if any(cell.strip() for cell in row):
+        if row and (row[0].strip() or any(cell.strip() for cell in row)):
             yield row
-
-
-class _Column:
-    """Values of one column, collected in float64/int64 chunks so memory stays near file size."""
-
-    def __init__(self, name: str, kind: str) -> None:
-        self.name, self.kind = name, kind  # kind: "float", "int" or "text"
-        self.pending: list[Any] = []
-        self.chunks: list[NDArray[Any]] = []
-
-    def flush(self) -> None:
-        if self.pending and self.kind != "text":
-            self.chunks.append(np.array(self.pending, dtype=float))
-            self.pending = []
-
-    def array(self) -> NDArray[Any]:
-        if self.kind == "text":
-            return np.array(self.pending, dtype=str)
-        self.flush()
-        values = np.concatenate(self.chunks) if self.chunks else np.zeros(0)
-        return values.astype(np.int64) if self.kind == "int" else values
 
 
 def _number(cell: str, where: str, *, whole: bool, max_abs: float | None) -> float:
     """A CSV cell as a finite float (a whole number if `whole`), bounded by `max_abs`."""
+    cell = cell.strip()
     try:
         x = float(cell)
     except ValueError:
@@ -260,6 +240,31 @@ def _number(cell: str, where: str, *, whole: bool, max_abs: float | None) -> flo
         if abs(x) > _WHOLE_LIMIT:
             raise ValueError(f"{where}: {_show(cell)} is too large for a whole number")
     return x
+
+
+def _numbers(
+    cells: list[str], lines: list[int], where: str, *, whole: bool, max_abs: float | None
+) -> NDArray[np.float64]:
+    """Cells of one column as checked float64 (see :func:`_number`); vectorized checks.
+
+    `where` is formatted with the line number of the first bad cell (``{line}``), whose message
+    is that of :func:`_number`.
+    """
+    try:
+        x = np.fromiter(map(float, cells), dtype=float, count=len(cells))
+    except ValueError:  # some cell is not a number
+        x = None
+    if x is not None:
+        bad = ~np.isfinite(x)
+        if max_abs is not None:
+            bad |= np.abs(x) > max_abs
+        if whole:
+            bad |= (x != np.round(x)) | (np.abs(x) > _WHOLE_LIMIT)
+        if not np.any(bad):
+            return x
+    for cell, line in zip(cells, lines, strict=True):  # the first bad cell raises
+        _number(cell, where.format(line=line), whole=whole, max_abs=max_abs)
+    raise AssertionError("a bad cell was expected")  # pragma: no cover
 
 
 def read_table(
@@ -318,29 +323,45 @@ def read_table(
         if missing:
             raise ValueError(f"{p}: missing required column(s) {', '.join(missing)}")
         wanted = list(required) + [c for c in optional if c in header and c not in required]
-        index = {c: header.index(c) for c in wanted}
-        columns = {c: _Column(c, "text" if c in text else "int" if c in integer else "float")
-                   for c in wanted}
+        index = [header.index(c) for c in wanted]
+        need = max(index) + 1
+        cells: list[list[str]] = [[] for _ in wanted]  # per column, the cells of this chunk
+        lines: list[int] = []  # line number of each row of this chunk
+        parsed: list[list[Any]] = [[] for _ in wanted]  # per column, float64 chunks or strings
         n_rows = 0
+
+        def flush() -> None:
+            for k, name in enumerate(wanted):
+                if name in text:
+                    parsed[k] += [c.strip() for c in cells[k]]
+                else:
+                    parsed[k].append(_numbers(
+                        cells[k], lines, f"{p}: line {{line}}, column {name!r}",
+                        whole=name in integer, max_abs=max_abs))
+                cells[k] = []
+            lines.clear()
+
         for row in rows:
-            lineno = reader.line_num
-            for name, j in index.items():
-                if j >= len(row):
-                    raise ValueError(f"{p}: line {lineno} has {len(row)} fields, header has "
-                                     f"{len(header)}")
-                col, cell = columns[name], row[j].strip()
-                if col.kind == "text":
-                    col.pending.append(cell)
-                    continue
-                col.pending.append(_number(cell, f"{p}: line {lineno}, column {name!r}",
-                                           whole=col.kind == "int", max_abs=max_abs))
+            if len(row) < need:
+                raise ValueError(f"{p}: line {reader.line_num} has {len(row)} fields, header has "
+                                 f"{len(header)}")
+            lines.append(reader.line_num)
+            for k, j in enumerate(index):
+                cells[k].append(row[j])
             n_rows += 1
-            if n_rows % _ROWS_PER_CHUNK == 0:
-                for col in columns.values():
-                    col.flush()
+            if len(lines) == _ROWS_PER_CHUNK:
+                flush()
+        flush()
     if n_rows == 0:
         raise ValueError(f"{p}: no data rows")
-    return Table({c: col.array() for c, col in columns.items()}, str(p))
+    columns: dict[str, NDArray[Any]] = {}
+    for k, name in enumerate(wanted):
+        if name in text:
+            columns[name] = np.array(parsed[k], dtype=str)
+        else:
+            values = np.concatenate(parsed[k])
+            columns[name] = values.astype(np.int64) if name in integer else values
+    return Table(columns, str(p))
 
 
 def _in_time_order(
