@@ -1,5 +1,16 @@
 """Subcommands of the ``fusion`` command line, one module each.
 
-Each module defines ``register(subparsers)``, which adds its parser and sets ``handler=run``
-with ``run(args) -> int``.
+:data:`fusion.cli.COMMANDS` lists them (name -> module, one-line help); a module is imported only
+when its command is chosen, so it may import what it needs at the top. Each module defines
+``register(subparsers)``, which adds the parser under the registry's name and help, and
+``run(args) -> int``. The parser's ``set_defaults`` declares
+
+- ``handler=run``;
+- ``inputs=("opt", ...)``: the dests of the options naming files the command reads (checked to
+  exist, and never to be the ``--out`` file, before any work);
+- ``out_is_dir=True`` when ``--out`` is a folder (``--out -`` is then refused);
+- ``out_stdout=False`` when a one-file output cannot go to standard output.
+
+Errors are ValueError/OSError with a message naming the file or option; ``fusion.cli.main`` prints
+them as one line with exit code 2.
 """

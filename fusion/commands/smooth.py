@@ -2,7 +2,9 @@
 
 Rows with ``track_id >= 0`` are smoothed track by track (batch Levenberg-Marquardt); rows with
 ``track_id`` -1 are detections of unknown origin, formed into tracks and smoothed jointly through
-crossings (:class:`fusion.passive.smoothing.MultiTrackSmoother`). Output (formats.md section 7):
+crossings (:class:`fusion.passive.smoothing.MultiTrackSmoother`). Rows out of time order are
+sorted (one warning); two rows of one labelled track at the same time are an error. Output
+(``docs/formats.md``, section 7):
 ``track_id,time,bearing_deg,bearing_rate_deg_per_min,sigma_bearing_deg``, bearings in [0, 360)
 when every input bearing is >= 0, else in [-180, 180).
 """

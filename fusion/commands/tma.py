@@ -1,8 +1,9 @@
 """``fusion tma --bearings B.csv --ownship O.csv --out T.csv``: bearings-only target motion analysis.
 
 Reads true bearings (``time,bearing_deg``) and own-ship positions (``time,x,y``), estimates the
-target track on a factor graph and writes ``time,x,y,vx,vy,sigma_x,sigma_y,range`` (file-format
-notes, section 8). When range is unobservable (no own-ship manoeuvre), one warning line goes to
+target track on a factor graph and writes ``time,x,y,vx,vy,sigma_x,sigma_y,range``
+(``docs/formats.md``, section 8). Rows out of time order are sorted (one warning); repeated times
+are an error. When range is unobservable (no own-ship manoeuvre), one warning line goes to
 stderr and the estimate is still written.
 """
 

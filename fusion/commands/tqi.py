@@ -3,7 +3,9 @@
 Reads ``track_id,time,amplitude,residual`` (amplitude: cell power, linear, normalised so that
 noise alone has mean 1; residual: bearing error, deg), runs the track quality indicator with
 hysteresis on every track (all tracks at once, vectorised), and writes the input columns plus
-``tqi`` (``lost``, ``uncertain``, ``low_snr``, ``strong``) in the input's row order.
+``tqi`` (``lost``, ``uncertain``, ``low_snr``, ``strong``) in the input's row order -- after
+:func:`fusion.io.read_amplitudes` has put rows that were out of time order within a track in time
+order (one warning says so); two updates of one track at the same time are an error.
 """
 
 from __future__ import annotations
