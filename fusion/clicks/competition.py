@@ -1,0 +1,345 @@
+"""Candidate solutions competing for a window's TDOAs (eq. 19-22 with an EM weight update).
+
+K candidate positions share M TDOAs through weights ``w_km``, the probability that TDOA ``m``
+belongs to candidate ``k`` (Baggenstoss 2011, as adopted by the localization text). They start
+flat, ``w_km = 1/K`` (eq. 19), and each iteration alternates
+
+(a) **candidate update** (eq. 20-22): at each candidate ``x_k`` the delay-fit weight
+    ``beta_m = exp(-(d_m(x_k) - tau_m)^2 / (sigma_t^2/4))`` and the association weight
+    ``gamma_km = sum_l (1 - exp(-alpha_ml/4)) beta_l beta_m`` (both evaluated at ``x_k``) give
+    ``w~_km = w_km gamma_km``, written into the live weight array of the candidate's
+    :func:`factors.tdoa.weighted_tdoa_vector_factor`; its one-factor graph is re-solved by
+    Levenberg-Marquardt from ``x_k``;
+(b) **weight update** (E-step of a mixture): each TDOA's responsibilities over the candidates,
+    Gaussian in the delay residual, plus a clutter component of uniform density over the
+    pair's physically possible delays ``|tau| <= |s_i - s_j|/c`` with a prior clutter fraction;
+    the mixing proportions follow the responsibilities. Optionally a candidate keeps at most
+    one TDOA's worth of weight per sensor pair (a source makes one delay per pair);
+(c) **merge and drop**: two candidates whose predicted delays agree within ``merge_sigmas``
+    on the TDOAs they hold, or that split the same TDOAs between them, become one; a candidate
+    holding too little (``sum_m w_km < min_weight``) or whose TDOAs of weight > 0.5 span fewer
+    than ``min_independent`` independent sensor pairs (the rank of their incidence; 3 fix a
+    3-D position) is dropped.
+
+The delay scale of (a) and (b) starts at the candidate grid's smoothing and shrinks by
+``anneal_factor`` per iteration to the TDOA sigmas (a deterministic annealing: a candidate a
+grid cell off its source sees its TDOAs' residuals of up to a few cell delays; with the TDOA
+sigma at once every weight would vanish). ``sigma_t`` of eq. (20) is ``beta_scale`` times that
+scale: with the text's factor 4 in the exponent, ``beta_scale = 4`` gives ``beta = 0.78`` at a
+one-sigma residual and 0.1 at three.
+
+Notes
+-----
+*Localization of Short Duration Periodic Signals*, eq. (19)-(22) and paragraph [0047];
+P. M. Baggenstoss, "An algorithm for the localization of multiple interfering sperm whales using
+multi-sensor time difference of arrival", J. Acoust. Soc. Am. 130 (2011). The clutter component,
+the mixing proportions, the per-pair cap, the annealing and the merge/drop rules are this
+module's reading of that algorithm (the text gives no formulas for them).
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+
+import gtsam
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from factors.tdoa import weighted_tdoa_vector_factor
+from fusion.clicks.surfaces import WindowTdoas
+
+__all__ = ["CompetitionResult", "CompetitionSettings", "compete", "independent_pairs"]
+
+_LOG = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class CompetitionSettings:
+    """Options of :func:`compete`.
+
+    Attributes
+    ----------
+    clutter_fraction : float
+        Prior probability that a TDOA is clutter, in (0, 1).
+    beta_scale : float
+        ``sigma_t`` of eq. (20) in units of the (annealed) TDOA sigma.
+    anneal_factor : float
+        Ratio of the delay scale between iterations, in (0, 1).
+    max_iterations : int
+        Iteration limit.
+    min_weight : float
+        Smallest total weight ``sum_m w_km`` a candidate keeps once annealed.
+    min_independent : int
+        Smallest rank of the incidence of a candidate's TDOAs of weight > 0.5.
+    merge_sigmas : float
+        Candidates whose predicted delays differ by less than this many sigmas (RMS over the
+        TDOAs either holds) merge.
+    max_overlap : float
+        Candidates sharing more than this fraction of the smaller one's weight merge.
+    use_alpha : bool
+        Use ``gamma`` of eq. (21) (needs ``alpha``); False: ``gamma_km = beta_m``.
+    pair_exclusive : bool
+        Cap a candidate's total weight per sensor pair at one.
+    solver_iterations : int
+        Levenberg-Marquardt iterations per candidate update.
+    tol : float
+        Convergence: largest weight change, and largest position change in units of
+        ``min(sigma) c``.
+    """
+
+    clutter_fraction: float = 0.1
+    beta_scale: float = 4.0
+    anneal_factor: float = 0.3
+    max_iterations: int = 40
+    min_weight: float = 4.0
+    min_independent: int = 3
+    merge_sigmas: float = 3.0
+    max_overlap: float = 0.5
+    use_alpha: bool = True
+    pair_exclusive: bool = True
+    solver_iterations: int = 10
+    tol: float = 1e-2
+
+    def __post_init__(self) -> None:
+        for name in ("clutter_fraction", "anneal_factor"):
+            v = getattr(self, name)
+            if not 0.0 < v < 1.0:
+                raise ValueError(f"{name} must lie in (0, 1), got {v!r}")
+        for name in ("beta_scale", "merge_sigmas", "tol"):
+            v = getattr(self, name)
+            if not (np.isfinite(v) and v > 0):
+                raise ValueError(f"{name} must be positive, got {v!r}")
+        if not 0.0 < self.max_overlap <= 1.0:
+            raise ValueError(f"max_overlap must lie in (0, 1], got {self.max_overlap!r}")
+        if not self.min_weight >= 0.0:
+            raise ValueError(f"min_weight must be >= 0, got {self.min_weight!r}")
+        for name in ("max_iterations", "min_independent", "solver_iterations"):
+            v = getattr(self, name)
+            if int(v) != v or v < 1:
+                raise ValueError(f"{name} must be a positive integer, got {v!r}")
+
+
+@dataclass(frozen=True)
+class CompetitionResult:
+    """The surviving candidates of :func:`compete`.
+
+    Attributes
+    ----------
+    positions : ndarray, shape (S, 3)
+        Positions, m (from the last candidate update).
+    weights : ndarray, shape (S, M)
+        EM weights ``w_km`` (responsibilities) of the last weight update.
+    combined : ndarray, shape (S, M)
+        Weights ``w~_km = w_km gamma_km`` (eq. 22) of the last candidate update.
+    clutter : ndarray, shape (M,)
+        Weight left to clutter, ``1 - sum_k w_km``.
+    origin : ndarray of int, shape (S,)
+        Index of each survivor among the starting candidates.
+    iterations : int
+        Iterations run.
+    converged : bool
+        Whether the tolerance was met before ``max_iterations``.
+    """
+
+    positions: NDArray[np.float64]
+    weights: NDArray[np.float64]
+    combined: NDArray[np.float64]
+    clutter: NDArray[np.float64]
+    origin: NDArray[np.intp]
+    iterations: int
+    converged: bool
+
+
+class _CandidateGraph:
+    """One candidate's one-factor graph whose TDOA weights are updated in place."""
+
+    def __init__(self, tdoas: WindowTdoas, iterations: int) -> None:
+        self.key = gtsam.symbol("x", 0)
+        self.weights = np.zeros(tdoas.m)
+        self.factor = weighted_tdoa_vector_factor(
+            gtsam.noiseModel.Diagonal.Sigmas(np.asarray(tdoas.sigmas)), self.key, tdoas.sensors,
+            tdoas.pairs, tdoas.taus, self.weights, c=tdoas.c)
+        self.graph = gtsam.NonlinearFactorGraph()
+        self.graph.add(self.factor)
+        self.params = gtsam.LevenbergMarquardtParams()
+        self.params.setMaxIterations(int(iterations))
+        self.params.setRelativeErrorTol(1e-10)
+        self.params.setAbsoluteErrorTol(1e-20)
+
+    def solve(self, x0: NDArray[np.float64], w: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Weighted least-squares position from `x0` with weights `w` (eq. 22 update)."""
+        self.weights[:] = w
+        values = gtsam.Values()
+        values.insert(self.key, gtsam.Point3(*x0))
+        result = gtsam.LevenbergMarquardtOptimizer(self.graph, values, self.params).optimize()
+        return np.asarray(result.atPoint3(self.key), dtype=float)
+
+
+def independent_pairs(pairs: NDArray[np.intp], rows: NDArray[np.bool_]) -> int:
+    """Rank of the incidence of the selected pairs: sensors they touch minus their components.
+
+    (The number of independent TDOAs: a spanning forest of the pair graph.)
+    """
+    parent: dict[int, int] = {}
+
+    def root(i: int) -> int:
+        while parent.setdefault(i, i) != i:
+            parent[i] = parent[parent[i]]
+            i = parent[i]
+        return i
+
+    rank = 0
+    for i, j in pairs[rows].tolist():
+        ri, rj = root(i), root(j)
+        if ri != rj:
+            parent[ri] = rj
+            rank += 1
+    return rank
+
+
+def _pair_ids(pairs: NDArray[np.intp]) -> NDArray[np.intp]:
+    """Id of the unordered sensor pair of each TDOA."""
+    lo, hi = np.minimum(pairs[:, 0], pairs[:, 1]), np.maximum(pairs[:, 0], pairs[:, 1])
+    return np.unique(lo * (hi.max() + 1) + hi, return_inverse=True)[1].reshape(-1)
+
+
+def _cap_per_pair(w: NDArray[np.float64], pair_id: NDArray[np.intp]) -> NDArray[np.float64]:
+    """Scale each candidate's weights on one pair down to a total of at most one."""
+    totals = np.zeros((w.shape[0], int(pair_id.max()) + 1))
+    np.add.at(totals.T, pair_id, w.T)
+    return w / np.maximum(totals[:, pair_id], 1.0)
+
+
+def _same_source(
+    tdoas: WindowTdoas, xa: NDArray, xb: NDArray, wa: NDArray, wb: NDArray, scale: NDArray,
+    settings: CompetitionSettings,
+) -> bool:
+    """Whether two candidates explain the same TDOAs (close in delay space, or shared weight)."""
+    union = np.maximum(wa, wb)
+    e = (tdoas.predicted(xa) - tdoas.predicted(xb)) / scale
+    if union.sum() > 0:
+        rms = float(np.sqrt(np.sum(union * e * e) / union.sum()))
+    else:
+        rms = float(np.sqrt(np.mean(e * e)))
+    small = min(wa.sum(), wb.sum())
+    shared = float(np.minimum(wa, wb).sum() / small) if small > 0 else 0.0
+    return rms < settings.merge_sigmas or shared > settings.max_overlap
+
+
+def compete(
+    tdoas: WindowTdoas,
+    starts: ArrayLike,
+    *,
+    start_scale_s: float,
+    settings: CompetitionSettings | None = None,
+) -> CompetitionResult:
+    """Let candidate positions compete for the TDOAs of one window.
+
+    Parameters
+    ----------
+    tdoas : WindowTdoas
+        The window's TDOAs (``alpha`` used when present and ``settings.use_alpha``).
+    starts : array_like, shape (K, 3)
+        Candidate positions, m (e.g. :class:`fusion.clicks.candidates.CandidateFinder`).
+    start_scale_s : float, keyword-only
+        Delay uncertainty of the starts, s (e.g. the delay smoothing of the grid they come
+        from); the annealing starts there.
+    settings : CompetitionSettings, optional, keyword-only
+        Options; default :class:`CompetitionSettings()`.
+
+    Returns
+    -------
+    CompetitionResult
+        The candidates that survived, in the order of `starts`.
+
+    Notes
+    -----
+    Eq. (19)-(22) of *Localization of Short Duration Periodic Signals* with the weight update
+    of Baggenstoss (2011) as described in the module docstring.
+    """
+    cfg = CompetitionSettings() if settings is None else settings
+    x = np.array(starts, dtype=float).reshape(-1, 3)
+    if not np.all(np.isfinite(x)):
+        raise ValueError("candidate starts must be finite positions (K, 3)")
+    if not (np.isfinite(start_scale_s) and start_scale_s > 0):
+        raise ValueError(f"start_scale_s must be positive, got {start_scale_s!r}")
+    m, k0 = tdoas.m, x.shape[0]
+    sig = np.asarray(tdoas.sigmas)
+    assoc = None
+    if cfg.use_alpha and tdoas.alpha is not None:
+        assoc = 1.0 - np.exp(-np.asarray(tdoas.alpha) / 4.0)  # (1 - exp(-alpha_ml/4)), eq. (21)
+    pairs = np.asarray(tdoas.pairs)
+    pair_id = _pair_ids(pairs)
+    # uniform clutter density over the physically possible delays of each pair
+    log_clutter = np.log(cfg.clutter_fraction) - np.log(2.0 * np.maximum(tdoas.max_delay_s, sig))
+    w = np.full((k0, m), 1.0 / max(k0, 1))  # eq. (19)
+    wt = np.zeros((k0, m))
+    log_pi = np.full(k0, np.log((1.0 - cfg.clutter_fraction) / max(k0, 1)))
+    alive = np.ones(k0, dtype=bool)
+    graphs = [_CandidateGraph(tdoas, cfg.solver_iterations) for _ in range(k0)]
+    s0 = max(float(start_scale_s), float(sig.max()))
+    tol_m = cfg.tol * float(sig.min()) * tdoas.c
+    converged, it = False, 0
+    for it in range(1, cfg.max_iterations + 1):
+        scale = np.maximum(sig, s0 * cfg.anneal_factor ** (it - 1))  # annealed delay scale
+        annealed = bool(np.all(scale == sig))
+        idx = np.flatnonzero(alive)
+        if idx.size == 0:
+            break
+        # (a) candidate update, eq. (20)-(22)
+        r = tdoas.predicted(x[idx]) - tdoas.taus  # d_m(x_k) - tau_m, (K', M)
+        beta = np.exp(-(r * r) / ((cfg.beta_scale * scale) ** 2 / 4.0))  # eq. (20)
+        gamma = beta * (beta @ assoc) if assoc is not None else beta  # eq. (21)
+        wt[idx] = w[idx] * gamma  # eq. (22)
+        moved = 0.0
+        for k in idx:
+            strong = wt[k] > 1e-6 * max(float(wt[k].max()), 1e-300)
+            if independent_pairs(pairs, strong) < 3:
+                continue  # too little to fix a position: leave it, the weights decide
+            new = graphs[k].solve(x[k], wt[k])
+            moved = max(moved, float(np.linalg.norm(new - x[k])))
+            x[k] = new
+        # (b) weight update: responsibilities with a uniform clutter component
+        r = tdoas.predicted(x[idx]) - tdoas.taus
+        loglik = log_pi[idx, None] - 0.5 * (r / scale) ** 2 - np.log(np.sqrt(2 * np.pi) * scale)
+        both = np.vstack([loglik, log_clutter[None]])
+        top = both.max(axis=0)
+        resp = np.exp(both - top)
+        resp = (resp / resp.sum(axis=0))[:-1]
+        if cfg.pair_exclusive:
+            resp = _cap_per_pair(resp, pair_id)
+        change = float(np.abs(resp - w[idx]).max())
+        w[idx] = resp
+        totals = resp.sum(axis=1)
+        if totals.sum() > 0:
+            log_pi[idx] = np.log((1.0 - cfg.clutter_fraction) * np.maximum(totals, 1e-300)
+                                 / totals.sum())
+        # (c) merge candidates explaining the same TDOAs (the one holding more survives)
+        for a_pos, a in enumerate(idx):
+            if not alive[a]:
+                continue
+            for b in idx[a_pos + 1:]:
+                if alive[b] and _same_source(tdoas, x[a], x[b], w[a], w[b], scale, cfg):
+                    loser = b if w[a].sum() >= w[b].sum() else a
+                    alive[loser] = False
+                    _LOG.debug("iteration %d: candidate %d merged into %d", it, loser, a + b - loser)
+                    if loser == a:
+                        break
+        # ... and drop those holding too little (fully once annealed)
+        for k in np.flatnonzero(alive):
+            floor = cfg.min_weight if annealed else min(1.0, cfg.min_weight)
+            if w[k].sum() < floor or (annealed and independent_pairs(pairs, w[k] > 0.5)
+                                      < cfg.min_independent):
+                alive[k] = False
+                _LOG.debug("iteration %d: candidate %d dropped (weight %.2f)", it, k, w[k].sum())
+        if annealed and moved < tol_m and change < cfg.tol:
+            converged = True
+            break
+    idx = np.flatnonzero(alive)
+    clutter = 1.0 - w[idx].sum(axis=0) if idx.size else np.ones(m)
+    _LOG.debug("competition: %d of %d candidates survive after %d iterations (converged %s)",
+               idx.size, k0, it, converged)
+    return CompetitionResult(positions=x[idx], weights=w[idx], combined=wt[idx],
+                             clutter=np.clip(clutter, 0.0, 1.0), origin=idx, iterations=it,
+                             converged=converged)

@@ -1,0 +1,471 @@
+"""Multi-source localization of one processing window's TDOAs (steps 56-62).
+
+:class:`MultiSourceLocalizer` takes a window's validated TDOAs and cross-pair association and
+returns every source it finds as a :class:`SourceFix` (position, ``gtsam.Marginals``
+covariance, the TDOAs it uses, observability flags). Four methods, for use and comparison:
+
+``"competition"`` (default)
+    Association-weighted volume (eq. 18; eq. 17 when the window has no ``alpha``) over the
+    search region, its local maxima as candidates, and the candidates competing for the TDOAs
+    on factor graphs (:func:`fusion.clicks.competition.compete`, eq. 19-22). Each survivor is
+    then re-solved with its EM weights (``polish``), which makes it the weighted least-squares
+    fit of the TDOAs it owns; its covariance comes from the same graph.
+``"eq17"`` / ``"eq18"``
+    The plain surface methods: every local maximum of eq. (17) / eq. (18) above the finder's
+    floor, refined coarse to fine until one TDOA sigma spans about two cells, is a source; it
+    uses the TDOAs whose residual is within ``gate_sigmas``.
+``"lsq"``
+    One source: unweighted least squares over all TDOAs from the eq. (17) peak.
+
+Every method drops a source using fewer than ``min_tdoas`` TDOAs or fewer than three
+independent pairs, so they differ only in how TDOAs are assigned to sources.
+
+Observability: the position information ``J^T W J`` of the source's TDOAs gives a condition
+number; a fix is flagged unobservable when it exceeds ``max_condition`` (e.g. a planar array
+and a source far outside its aperture, whose depth the delays barely fix). The mirror test
+reflects the position through the sensors' best-fitting plane, re-solves from there, and calls
+the fix ambiguous when the mirrored solution fits within ``mirror_chi2`` of the original (the
+sign of ``z`` of a planar array). With a water column, a fix outside it whose mirror fits as
+well inside it is replaced by the mirror, and a mirror outside it is no rival.
+
+Notes
+-----
+*Localization of Short Duration Periodic Signals*, eq. (14)-(22), paragraphs [0044]-[0049]
+(steps 56-62: surfaces, depth from the volume, competing candidates).
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+
+import gtsam
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import connected_components
+
+from factors.tdoa import weighted_tdoa_vector_factor
+from fusion.clicks.candidates import CandidateFinder
+from fusion.clicks.competition import CompetitionSettings, compete, independent_pairs
+from fusion.clicks.surfaces import (
+    SearchRegion,
+    WindowTdoas,
+    fine_step,
+    intensity_volume,
+    smoothing_sigma,
+)
+
+__all__ = ["METHODS", "LocalizationOutput", "MultiSourceLocalizer", "SourceFix"]
+
+_LOG = logging.getLogger(__name__)
+
+#: The localization methods of :class:`MultiSourceLocalizer`.
+METHODS: tuple[str, ...] = ("competition", "eq17", "eq18", "lsq")
+
+
+def _frozen(a: ArrayLike) -> NDArray[np.float64]:
+    out = np.array(a, dtype=float)
+    out.setflags(write=False)
+    return out
+
+
+@dataclass(frozen=True)
+class SourceFix:
+    """One localized source of a window.
+
+    Attributes
+    ----------
+    position : ndarray, shape (3,)
+        Position, m (z up).
+    covariance : ndarray, shape (3, 3)
+        Marginal covariance from ``gtsam.Marginals`` at `position` with the fix's TDOA weights,
+        m^2; NaN where the information is singular.
+    information : ndarray, shape (3, 3)
+        Position information ``J^T W J`` of the weighted TDOAs, m^-2 (finite even when singular).
+    weights : ndarray, shape (M,)
+        Weight of each of the window's TDOAs in this fix, in [0, 1].
+    tdoas_used : int
+        TDOAs of weight > 0.5.
+    residual_rms_s : float
+        RMS delay residual of those TDOAs, s.
+    condition_number : float
+        Largest over smallest eigenvalue of `information` (inf when singular).
+    observable : bool
+        False when the geometry leaves a direction (nearly) unfixed: condition number above the
+        localizer's ``max_condition``, or a mirror solution fits as well.
+    mirror_ambiguous : bool
+        Whether the mirror test found a distinct, equally good solution.
+    mirror_position : ndarray, shape (3,)
+        That solution, m; NaN when there is none.
+    """
+
+    position: NDArray[np.float64]
+    covariance: NDArray[np.float64]
+    information: NDArray[np.float64]
+    weights: NDArray[np.float64]
+    tdoas_used: int
+    residual_rms_s: float
+    condition_number: float
+    observable: bool
+    mirror_ambiguous: bool
+    mirror_position: NDArray[np.float64]
+
+    def __post_init__(self) -> None:
+        for name in ("position", "covariance", "information", "weights", "mirror_position"):
+            object.__setattr__(self, name, _frozen(getattr(self, name)))
+
+
+@dataclass(frozen=True)
+class LocalizationOutput:
+    """All sources of one window.
+
+    Attributes
+    ----------
+    sources : tuple of SourceFix
+        The sources, the one using most TDOAs first.
+    method : str
+        The method used (one of :data:`METHODS`).
+    clutter_weights : ndarray, shape (M,)
+        Weight of each TDOA left to no source, ``1 - sum_k w_km`` clipped to [0, 1].
+    candidates : ndarray, shape (K, 3)
+        Starting candidates, m.
+    iterations : int
+        Competition iterations (0 for the other methods).
+    converged : bool
+        Whether the competition converged (True for the other methods).
+    """
+
+    sources: tuple[SourceFix, ...]
+    method: str
+    clutter_weights: NDArray[np.float64]
+    candidates: NDArray[np.float64]
+    iterations: int
+    converged: bool
+
+
+class MultiSourceLocalizer:
+    """Localize every source of a window from its TDOAs and their cross-pair association.
+
+    Parameters
+    ----------
+    method : {"competition", "eq17", "eq18", "lsq"}, keyword-only
+        See the module docstring. Default ``"competition"``.
+    region : SearchRegion, optional, keyword-only
+        Search box and coarse grid budget (default :class:`SearchRegion()`: one array aperture
+        around the sensors each way).
+    finder : CandidateFinder, optional, keyword-only
+        Candidate picking (default :class:`CandidateFinder()`: at most 8).
+    competition : CompetitionSettings, optional, keyword-only
+        Options of the competition.
+    polish : bool, keyword-only
+        Re-solve each competition survivor with its EM weights (default True).
+    gate_sigmas : float, keyword-only
+        Residual gate (in TDOA sigmas) of the TDOAs a surface peak uses (eq17/eq18).
+    min_tdoas : float, keyword-only
+        Smallest total TDOA weight of a reported source (default 4).
+    max_condition : float, keyword-only
+        Largest condition number of the position information of an observable fix.
+    mirror_chi2 : float, keyword-only
+        Largest rise of the weighted squared residual sum (twice the graph error) at which a
+        mirrored solution still ties.
+    smoothing_cells : float, keyword-only
+        Delay smoothing of the surfaces in grid cells (:func:`smoothing_sigma`).
+    max_rounds : int, keyword-only
+        Competition rounds (default 2). After a round, the largest group of TDOAs left to
+        clutter that are linked by ``alpha >= min_alpha_link`` (all leftovers without
+        ``alpha``), if it could fix a source, gets its own surface and candidates, and all
+        candidates compete again: a source the coarse surface merged with a neighbour.
+    min_alpha_link : float, keyword-only
+        Association count linking two leftover TDOAs (default 3: ``1 - exp(-3/4) = 0.53`` in
+        eq. 21).
+
+    Examples
+    --------
+    >>> from factors.tdoa import predicted_tdoas
+    >>> s = np.array([[0, 0, -900.0], [1000, 0, -1000], [0, 1000, -950], [1000, 1000, -980],
+    ...               [500, 500, -1000]])
+    >>> pairs = np.array([(i, j) for i in range(5) for j in range(i + 1, 5)])
+    >>> taus = predicted_tdoas([300.0, 600.0, -500.0], s, pairs, c=1500.0)
+    >>> loc = MultiSourceLocalizer(method="lsq", region=SearchRegion(water_column=(-1000, 0)))
+    >>> out = loc.localize(s, pairs, taus, 2e-5, c=1500.0)
+    >>> np.round(out.sources[0].position, 3)
+    array([ 300.,  600., -500.])
+    """
+
+    def __init__(
+        self,
+        *,
+        method: str = "competition",
+        region: SearchRegion | None = None,
+        finder: CandidateFinder | None = None,
+        competition: CompetitionSettings | None = None,
+        polish: bool = True,
+        gate_sigmas: float = 3.0,
+        min_tdoas: float = 4.0,
+        max_condition: float = 1e5,
+        mirror_chi2: float = 4.0,
+        smoothing_cells: float = 1.0,
+        max_rounds: int = 2,
+        min_alpha_link: float = 3.0,
+    ) -> None:
+        if method not in METHODS:
+            raise ValueError(f"method must be one of {METHODS}, got {method!r}")
+        for name, v in (("gate_sigmas", gate_sigmas), ("max_condition", max_condition),
+                        ("mirror_chi2", mirror_chi2), ("smoothing_cells", smoothing_cells)):
+            if not (np.isfinite(v) and v > 0):
+                raise ValueError(f"{name} must be positive and finite, got {v!r}")
+        if int(max_rounds) != max_rounds or max_rounds < 1:
+            raise ValueError(f"max_rounds must be a positive integer, got {max_rounds!r}")
+        if not (np.isfinite(min_alpha_link) and min_alpha_link >= 0):
+            raise ValueError(f"min_alpha_link must be >= 0, got {min_alpha_link!r}")
+        if not (np.isfinite(min_tdoas) and min_tdoas >= 0):
+            raise ValueError(f"min_tdoas must be >= 0, got {min_tdoas!r}")
+        self.method = method
+        self.region = SearchRegion() if region is None else region
+        self.finder = CandidateFinder() if finder is None else finder
+        self.competition = CompetitionSettings() if competition is None else competition
+        self.polish = bool(polish)
+        self.gate_sigmas = float(gate_sigmas)
+        self.min_tdoas = float(min_tdoas)
+        self.max_condition = float(max_condition)
+        self.mirror_chi2 = float(mirror_chi2)
+        self.smoothing_cells = float(smoothing_cells)
+        self.max_rounds = int(max_rounds)
+        self.min_alpha_link = float(min_alpha_link)
+
+    # ------------------------------------------------------------------ entry point
+    def localize(
+        self,
+        sensors: ArrayLike,
+        pairs: ArrayLike,
+        taus: ArrayLike,
+        sigmas: ArrayLike,
+        alpha: ArrayLike | None = None,
+        *,
+        c: float,
+    ) -> LocalizationOutput:
+        """Localize the sources of one window.
+
+        Parameters
+        ----------
+        sensors : array_like, shape (n, 3)
+            Sensor positions, m (z up).
+        pairs : array_like of int, shape (M, 2)
+            Sensor pair ``(i, j)`` of each TDOA.
+        taus : array_like, shape (M,)
+            Delays, arrival at ``i`` minus arrival at ``j``, s.
+        sigmas : float or array_like, shape (M,)
+            Delay standard deviations, s.
+        alpha : array_like, shape (M, M), optional
+            Cross-pair association (eq. 13): symmetric, zero diagonal; needed by ``"eq18"``.
+        c : float, keyword-only
+            Sound speed, m/s.
+
+        Returns
+        -------
+        LocalizationOutput
+        """
+        tdoas = WindowTdoas(sensors, np.asarray(pairs), taus,
+                            np.broadcast_to(np.asarray(sigmas, dtype=float), np.shape(taus)),
+                            c=c, alpha=alpha)
+        if self.method == "eq18" and tdoas.alpha is None:
+            raise ValueError("method 'eq18' needs the association matrix alpha")
+        return self.localize_window(tdoas)
+
+    def localize_window(self, tdoas: WindowTdoas) -> LocalizationOutput:
+        """:meth:`localize` for an already checked :class:`WindowTdoas`."""
+        equation = 17 if self.method in ("eq17", "lsq") or tdoas.alpha is None else 18
+        lo, hi = self.region.bounds(tdoas.sensors)
+        grid = self.region.volume(tdoas.sensors)
+        volume = intensity_volume(tdoas, grid, equation=equation, cells=self.smoothing_cells)
+        finder = self.finder
+        if self.method in ("eq17", "eq18"):  # refine every peak to the fine level
+            finder = CandidateFinder(max_candidates=finder.max_candidates,
+                                     min_relative=finder.min_relative, footprint=finder.footprint,
+                                     refine_levels=_levels_to_fine(tdoas, grid.step),
+                                     min_separation_cells=finder.min_separation_cells)
+        cand = finder.find(volume, tdoas, lo=lo, hi=hi)
+        if self.method == "competition":
+            return self._competition(tdoas, cand.positions, cand.step)
+        if self.method == "lsq":
+            return self._lsq(tdoas, cand.positions)
+        return self._surface_peaks(tdoas, cand.positions)
+
+    # ------------------------------------------------------------------ methods
+    def _competition(self, tdoas: WindowTdoas, starts: NDArray, step: float) -> LocalizationOutput:
+        scale = float(np.max(smoothing_sigma(tdoas.sigmas, step, c=tdoas.c,
+                                             cells=self.smoothing_cells)))
+        if starts.shape[0] == 0:
+            return self._output((), tdoas, starts, 0, True)
+        res = compete(tdoas, starts, start_scale_s=scale, settings=self.competition)
+        iterations = res.iterations
+        for _ in range(self.max_rounds - 1):
+            group = self._unexplained(tdoas, res.clutter)
+            if group is None:
+                break
+            # a source the coarse surface merged with a neighbour: look again with the
+            # associated TDOAs no candidate explains, and let everyone compete anew
+            sub = tdoas.subset(group)
+            vol = intensity_volume(sub, self.region.volume(tdoas.sensors),
+                                   equation=17 if sub.alpha is None else 18,
+                                   cells=self.smoothing_cells)
+            lo, hi = self.region.bounds(tdoas.sensors)
+            extra = self.finder.find(vol, sub, lo=lo, hi=hi).positions
+            if extra.shape[0] == 0:
+                break
+            _LOG.debug("%d unexplained associated TDOAs: %d more candidates", group.size,
+                       extra.shape[0])
+            starts = np.vstack([starts, extra])
+            res = compete(tdoas, np.vstack([res.positions, extra]), start_scale_s=scale,
+                          settings=self.competition)
+            iterations += res.iterations
+        fixes = []
+        for k in range(res.positions.shape[0]):
+            w = res.weights[k]
+            if not self._enough(tdoas, w):
+                continue
+            pos = res.positions[k]
+            if self.polish:
+                pos = _solve(tdoas, pos, w)
+            fixes.append(self._fix(tdoas, pos, w))
+        return self._output(fixes, tdoas, starts, iterations, res.converged)
+
+    def _unexplained(self, tdoas: WindowTdoas, clutter: NDArray) -> NDArray[np.intp] | None:
+        """Largest group of mutually associated TDOAs left to clutter, if it could be a source."""
+        left = np.flatnonzero(clutter > 0.5)
+        if left.size < max(self.min_tdoas, 3):
+            return None
+        if tdoas.alpha is not None:
+            links = np.asarray(tdoas.alpha)[np.ix_(left, left)] >= self.min_alpha_link
+            _, label = connected_components(csr_matrix(links), directed=False)
+            left = left[label == np.argmax(np.bincount(label))]
+        mask = np.zeros(tdoas.m, dtype=bool)
+        mask[left] = True
+        if left.size < self.min_tdoas or independent_pairs(np.asarray(tdoas.pairs), mask) < 3:
+            return None
+        return left
+
+    def _surface_peaks(self, tdoas: WindowTdoas, peaks: NDArray) -> LocalizationOutput:
+        fixes = []
+        for p in peaks:
+            w = self._gate(tdoas, p)
+            if self._enough(tdoas, w):
+                fixes.append(self._fix(tdoas, p, w, mirror=False))
+        return self._output(fixes, tdoas, peaks, 0, True)
+
+    def _lsq(self, tdoas: WindowTdoas, peaks: NDArray) -> LocalizationOutput:
+        w = np.ones(tdoas.m)
+        if peaks.shape[0] == 0 or independent_pairs(np.asarray(tdoas.pairs), w > 0) < 3:
+            return self._output((), tdoas, peaks, 0, True)
+        pos = _solve(tdoas, peaks[0], w)
+        return self._output([self._fix(tdoas, pos, w)], tdoas, peaks, 0, True)
+
+    # ------------------------------------------------------------------ helpers
+    def _gate(self, tdoas: WindowTdoas, p: NDArray) -> NDArray[np.float64]:
+        r = tdoas.predicted(p) - tdoas.taus
+        return (np.abs(r) <= self.gate_sigmas * np.asarray(tdoas.sigmas)).astype(float)
+
+    def _enough(self, tdoas: WindowTdoas, w: NDArray) -> bool:
+        return bool(w.sum() >= self.min_tdoas
+                    and independent_pairs(np.asarray(tdoas.pairs), w > 0.5) >= 3)
+
+    def _output(self, fixes, tdoas: WindowTdoas, starts: NDArray, iterations: int,
+                converged: bool) -> LocalizationOutput:
+        fixes = sorted(fixes, key=lambda f: -float(f.weights.sum()))
+        owned = np.sum([f.weights for f in fixes], axis=0) if fixes else np.zeros(tdoas.m)
+        return LocalizationOutput(tuple(fixes), self.method, _frozen(np.clip(1.0 - owned, 0, 1)),
+                                  _frozen(np.asarray(starts).reshape(-1, 3)), int(iterations),
+                                  bool(converged))
+
+    def _fix(self, tdoas: WindowTdoas, pos: NDArray, w: NDArray, *, mirror: bool = True
+             ) -> SourceFix:
+        pos = np.asarray(pos, dtype=float)
+        mirror_pos = np.full(3, np.nan)
+        ambiguous = False
+        if mirror:
+            pos, mirror_pos, ambiguous = self._mirror_test(tdoas, pos, w)
+        graph, values, key = _graph(tdoas, pos, w)
+        a, _ = graph.linearize(values).jacobian()
+        info = a.T @ a  # J^T W J, whitened
+        evals = np.linalg.eigvalsh(info)
+        cond = float(evals[-1] / evals[0]) if evals[0] > 0 else float("inf")
+        cov = np.full((3, 3), np.nan)
+        if np.isfinite(cond):
+            try:
+                cov = np.asarray(gtsam.Marginals(graph, values).marginalCovariance(key))
+            except RuntimeError:  # indeterminant system
+                _LOG.warning("Marginals failed at %s; covariance left NaN", np.round(pos, 3))
+        used = w > 0.5
+        r = tdoas.predicted(pos) - tdoas.taus
+        rms = float(np.sqrt(np.mean(r[used] ** 2))) if np.any(used) else float("nan")
+        observable = bool(cond <= self.max_condition and not ambiguous)
+        return SourceFix(position=pos, covariance=cov, information=info, weights=np.asarray(w),
+                         tdoas_used=int(used.sum()), residual_rms_s=rms, condition_number=cond,
+                         observable=observable, mirror_ambiguous=ambiguous,
+                         mirror_position=mirror_pos)
+
+    def _mirror_test(self, tdoas: WindowTdoas, pos: NDArray, w: NDArray
+                     ) -> tuple[NDArray, NDArray, bool]:
+        """(position, mirror position or NaN, ambiguous) after the mirror test."""
+        s = np.asarray(tdoas.sensors)
+        centre = s.mean(axis=0)
+        normal = np.linalg.svd(s - centre)[2][-1]  # normal of the best-fitting plane
+        height = float((pos - centre) @ normal)
+        none = np.full(3, np.nan)
+        if abs(height) < 1e-6 * _aperture(s):
+            return pos, none, False  # in the plane: its own mirror
+        other = _solve(tdoas, pos - 2.0 * height * normal, w)
+        if float((other - centre) @ normal) * height > 0:
+            return pos, none, False  # the mirror start slid back to this side: no rival
+        rise = 2.0 * (_cost(tdoas, other, w) - _cost(tdoas, pos, w))  # chi-square rise
+        if not self._in_water(other):
+            return pos, none, False  # a mirror outside the water column is no rival
+        if rise < -self.mirror_chi2 or (rise <= self.mirror_chi2 and not self._in_water(pos)):
+            return other, none, False  # the mirror fits clearly better, or is the physical one
+        if rise <= self.mirror_chi2:
+            return pos, other, True
+        return pos, none, False
+
+    def _in_water(self, p: NDArray) -> bool:
+        wc = self.region.water_column
+        return wc is None or bool(wc[0] <= p[2] <= wc[1])
+
+
+def _levels_to_fine(tdoas: WindowTdoas, step: float, shrink: float = 3.0) -> int:
+    """Coarse-to-fine levels from `step` down to :func:`fine_step`."""
+    target = fine_step(tdoas)
+    return max(0, int(np.ceil(np.log(max(step, target) / target) / np.log(shrink))))
+
+
+def _aperture(s: NDArray) -> float:
+    return float(np.max(np.linalg.norm(s[:, None] - s[None], axis=-1)))
+
+
+def _graph(tdoas: WindowTdoas, pos: NDArray, w: NDArray) -> tuple:
+    key = gtsam.symbol("x", 0)
+    weights = np.array(w, dtype=float)
+    graph = gtsam.NonlinearFactorGraph()
+    graph.add(weighted_tdoa_vector_factor(gtsam.noiseModel.Diagonal.Sigmas(np.asarray(tdoas.sigmas)),
+                                          key, tdoas.sensors, tdoas.pairs, tdoas.taus, weights,
+                                          c=tdoas.c))
+    values = gtsam.Values()
+    values.insert(key, gtsam.Point3(*np.asarray(pos, dtype=float)))
+    return graph, values, key
+
+
+def _cost(tdoas: WindowTdoas, pos: NDArray, w: NDArray) -> float:
+    """Graph error: half the weighted sum of squared whitened residuals."""
+    r = (tdoas.predicted(pos) - tdoas.taus) / np.asarray(tdoas.sigmas)
+    return float(0.5 * np.sum(np.maximum(w, 0.0) * r * r))
+
+
+def _solve(tdoas: WindowTdoas, start: NDArray, w: NDArray, iterations: int = 50) -> NDArray:
+    """Weighted least-squares position from `start` (Levenberg-Marquardt on a one-factor graph)."""
+    graph, values, key = _graph(tdoas, start, w)
+    params = gtsam.LevenbergMarquardtParams()
+    params.setMaxIterations(iterations)
+    params.setRelativeErrorTol(1e-12)
+    params.setAbsoluteErrorTol(1e-20)
+    result = gtsam.LevenbergMarquardtOptimizer(graph, values, params).optimize()
+    return np.asarray(result.atPoint3(key), dtype=float)
