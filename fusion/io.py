@@ -390,13 +390,14 @@ def _in_time_order(
         if np.any(dup):
             i = int(np.flatnonzero(dup)[0]) + 1
             group = f"{by} {keys[s][i]} has" if by is not None else "there are"
+            within = f" within a {by.removesuffix('_id')}" if by is not None else ""
             raise ValueError(f"{table.source}: {group} two rows at {time} {t[s][i]:g}; "
-                             f"{time}s must be distinct{' within a ' + by if by else ''} "
+                             f"{time}s must be distinct{within} "
                              "(merge or drop the repeats)")
     g = np.argsort(keys, kind="stable")
     if np.any((keys[g][1:] == keys[g][:-1]) & (np.diff(t[g]) < 0)):
         logger.warning("%s: rows were not in %s order%s; sorted by %s (stable)", table.source,
-                       time, f" within each {by}" if by else "", time)
+                       time, f" within each {by.removesuffix('_id')}" if by else "", time)
         return table.select(np.argsort(t, kind="stable"))
     return table
 
