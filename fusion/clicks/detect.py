@@ -281,7 +281,8 @@ class ClickDetector:
         Each block keeps the clicks between the midpoints of its overlaps with its neighbours;
         at least a guard of :meth:`guard_s` lies between any kept click and the block's edges,
         so its frames, background segments and neighbouring candidates are the ones whole-signal
-        detection sees.
+        detection sees. A block that ends within the previous one (the short remainder a block
+        reader yields at the end of a file) adds nothing and is skipped.
         """
         guard = self.guard_s(fs)
         kept: list[list[ChannelClicks]] = []
@@ -297,14 +298,18 @@ class ClickDetector:
                 x = x[:, None]
             if n_ch is not None and x.ndim == 2 and x.shape[1] != n_ch:
                 raise ValueError(f"block at t0={t0} has {x.shape[1]} channels, expected {n_ch}")
+            end = t0 + x.shape[0] / fs
+            if prev is not None and t0 <= prev[0]:
+                raise ValueError(f"blocks must start in increasing time, got {t0} after {prev[0]}")
+            if prev is not None and end <= prev[1]:
+                # inside the previous block (a stream's short last block): nothing new
+                logger.debug("block at t0=%.6g lies inside the previous one; skipped", t0)
+                continue
             clicks = self.detect(x, fs, t0=t0)
             n_ch = x.shape[1]
-            end = t0 + x.shape[0] / fs
             lo = -np.inf
             if prev is not None:
                 p_t0, p_end, p_clicks, p_lo = prev
-                if t0 <= p_t0:
-                    raise ValueError(f"blocks must start in increasing time, got {t0} after {p_t0}")
                 if p_end - t0 < 2.0 * guard:
                     raise ValueError(
                         f"blocks overlap by {p_end - t0:.4g} s, need >= {2 * guard:.4g} s "
