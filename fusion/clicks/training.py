@@ -12,7 +12,8 @@ method's frequency-domain Hann shading of half-width ``N/8`` bins, which for lar
 ``h(t) = sinc(x) / (1 - x^2)``, ``x = t fs_syn / 4`` (:func:`scm1_pulse`, peak 1, main lobe
 +-8 samples). A click on sensor ``a`` at ``t_a`` and one of sensor ``b`` at ``t_b`` (shifted)
 leave ``h(t - t_a) h(t - t_b)`` in the SCM2: amplitude 1 for a perfect match, less for a
-partial one, nothing for clicks more than a main lobe apart.
+partial one; pairs more than a main-lobe width (16 samples) apart, whose main lobes do not
+overlap, are left out. A series is the sum of these pulses over all pairs of the two lists.
 
 Training assumptions (the classes, each drawn with its own random parameters per series):
 
@@ -188,7 +189,7 @@ def synthetic_scm2(
     rows, ta, tb = [], [], []
     for i in range(int(n)):
         a = b = np.empty(0)
-        while a.size == 0:  # a correlation peak has at least one coincidence
+        while not np.any(np.abs(a - b) < 8.0 / fs):  # a correlation peak needs a coincidence
             a, b = _draw_pairs(kind, rng, **opts)
         rows.append(np.full(a.size, i))
         ta.append(a)
@@ -293,10 +294,10 @@ def _draw_pairs(kind: str, rng: np.random.Generator, *, T: float, fs: float, ici
     t_b = np.concatenate([t_b, clutter() + lag])
     t_a = t_a[(t_a >= 0.0) & (t_a < T)]
     t_b = t_b[(t_b >= lo_b) & (t_b < hi_b)]
-    # clicks less than a main-lobe half-width apart leave a pulse; sort b and look each a up
+    # clicks whose pulses' main lobes overlap leave a pulse; sort b and look each a up
     t_b.sort()
-    lo = np.searchsorted(t_b, t_a - half_main)
-    hi = np.searchsorted(t_b, t_a + half_main)
+    lo = np.searchsorted(t_b, t_a - 2.0 * half_main)
+    hi = np.searchsorted(t_b, t_a + 2.0 * half_main)
     ia = np.repeat(np.arange(t_a.size), hi - lo)
     ib = lo[ia] + np.arange(ia.size) - np.repeat(np.cumsum(hi - lo) - (hi - lo), hi - lo)
     return t_a[ia], t_b[ib]

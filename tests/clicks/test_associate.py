@@ -60,6 +60,11 @@ class TestClickMatch:
         p, q = rng.uniform(0, 2, 400), rng.uniform(0, 2, 300)
         assert_allclose(click_match(p, q, 5e-3), brute_match(p, q, 5e-3), rtol=1e-7)
 
+    def test_long_lists_are_linear(self):
+        """10^5 clicks against themselves (10^10 pairs if done densely) count 10^5 at once."""
+        t = np.arange(100_000) * 0.37
+        assert_allclose(click_match(t, t[::-1], SIG), 100_000, rtol=1e-12)
+
     def test_empty_and_bad_input(self):
         """Empty lists give 0; a bad sigma or non-finite time raises ValueError."""
         assert click_match([], [1.0, 2.0], SIG) == 0.0
