@@ -75,7 +75,8 @@ FEATURE_NAMES: tuple[str, ...] = ("specmax", "mu1", "mu2", "mu3")
 MODEL_FORMAT = "fusion.clicks.TdoaValidator"
 #: ``version`` key of a saved validator model this module reads and writes.
 MODEL_VERSION = 1
-#: Where the shipped default model is installed (trained on simulated SCM2s of the full chain).
+#: Where the default model goes once trained on simulated SCM2s of the full chain (not yet
+#: present; installing it needs ``data/*.npz`` in the package data of ``fusion.clicks``).
 DEFAULT_MODEL_PATH = Path(__file__).parent / "data" / "validator_v1.npz"
 
 _BLOCK = 16  # series per FFT block in scm2_features
@@ -277,7 +278,8 @@ class TdoaValidator:
         Returns
         -------
         ndarray, shape (m,)
-            LLR per row; ``-inf`` for a row with a non-finite feature (an empty SCM2).
+            LLR per row (``m = 1`` for a single vector); ``-inf`` for a row with a non-finite
+            feature (an empty SCM2).
         """
         x = np.atleast_2d(np.asarray(z, dtype=float))
         d = self.feature_mean.shape[0]
