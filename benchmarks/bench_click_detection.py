@@ -110,8 +110,9 @@ def throughput(duration_s: float = 20.0) -> dict:
         rep = load_replica().at(fs)
         correlate_replica(x[: int(fs)], rep)
         t = time.process_time()
-        correlate_replica(x, rep)
-        out["replica_correlation_x_realtime"] = round(duration_s / (time.process_time() - t), 1)
+        for _ in range(3):
+            correlate_replica(x, rep)
+        out["replica_correlation_x_realtime"] = round(3 * duration_s / (time.process_time() - t), 1)
         for method in ("stft", "envelope"):
             det = ClickDetector(method=method)
             det.detect(x[: int(fs)], fs)  # kernels

@@ -176,8 +176,11 @@ def generic_replica(
     microseconds spanning roughly 25-50 kHz; the default keeps the part of such a sweep that a
     96 kHz recording represents (26-46 kHz) over 270 us. The method text starts its replica
     estimate from one high-SNR click ([0028]); this analytic sweep stands in for that click when
-    none has been picked. Its defaults are the ones that wrote ``data/replica_v1.npz``
-    (at ``GENERIC_FS``).
+    none has been picked. Its defaults wrote ``data/replica_v1.npz``::
+
+        write_replica(GENERIC_PATH, Replica(generic_replica(), GENERIC_FS, GENERIC_VERSION))
+
+    (a test checks that the shipped file still equals it).
 
     Examples
     --------
