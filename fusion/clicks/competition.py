@@ -19,12 +19,19 @@ flat, ``w_km = 1/K`` (eq. 19), and each iteration alternates
     on the TDOAs they hold, or that split the same TDOAs between them, become one; a candidate
     holding too little (``sum_m w_km < min_weight``) or whose TDOAs of weight > 0.5 span fewer
     than ``min_independent`` independent sensor pairs (the rank of their incidence; 3 fix a
-    3-D position) is dropped.
+    3-D position) is dropped;
+(d) **growth** (once converged): a candidate refits with the TDOAs left to clutter that are
+    associated (``alpha >= min_alpha_link``) with its own; if all then fit within
+    ``gate_sigmas`` it keeps them and the iterations resume. (A candidate that starts far from
+    its source can settle on a subset of the source's TDOAs that fits a ghost position, the
+    rest lost to clutter on the way; their association with the kept ones gives it away.)
 
 The delay scale of (a) and (b) starts at the candidate grid's smoothing and shrinks by
 ``anneal_factor`` per iteration to the TDOA sigmas (a deterministic annealing: a candidate a
 grid cell off its source sees its TDOAs' residuals of up to a few cell delays; with the TDOA
-sigma at once every weight would vanish). ``sigma_t`` of eq. (20) is ``beta_scale`` times that
+sigma at once every weight would vanish). Each candidate has its own scale, never smaller than
+the largest delay change of its last move, so a candidate still travelling towards its source
+does not lose that source's TDOAs to clutter on the way. ``sigma_t`` of eq. (20) is ``beta_scale`` times that
 scale: with the text's factor 4 in the exponent, ``beta_scale = 4`` gives ``beta = 0.78`` at a
 one-sigma residual and 0.1 at three.
 
@@ -86,6 +93,11 @@ class CompetitionSettings:
     tol : float
         Convergence: largest weight change, and largest position change in units of
         ``min(sigma) c``.
+    min_alpha_link : float
+        Association count that links two TDOAs for the growth step (default 3:
+        ``1 - exp(-3/4) = 0.53`` in eq. 21).
+    gate_sigmas : float
+        Residual gate, in TDOA sigmas, of the growth step.
     """
 
     clutter_fraction: float = 0.1
@@ -100,18 +112,22 @@ class CompetitionSettings:
     pair_exclusive: bool = True
     solver_iterations: int = 10
     tol: float = 1e-2
+    min_alpha_link: float = 3.0
+    gate_sigmas: float = 3.0
 
     def __post_init__(self) -> None:
         for name in ("clutter_fraction", "anneal_factor"):
             v = getattr(self, name)
             if not 0.0 < v < 1.0:
                 raise ValueError(f"{name} must lie in (0, 1), got {v!r}")
-        for name in ("beta_scale", "merge_sigmas", "tol"):
+        for name in ("beta_scale", "merge_sigmas", "tol", "gate_sigmas"):
             v = getattr(self, name)
             if not (np.isfinite(v) and v > 0):
                 raise ValueError(f"{name} must be positive, got {v!r}")
         if not 0.0 < self.max_overlap <= 1.0:
             raise ValueError(f"max_overlap must lie in (0, 1], got {self.max_overlap!r}")
+        if not (np.isfinite(self.min_alpha_link) and self.min_alpha_link >= 0.0):
+            raise ValueError(f"min_alpha_link must be >= 0, got {self.min_alpha_link!r}")
         if not self.min_weight >= 0.0:
             raise ValueError(f"min_weight must be >= 0, got {self.min_weight!r}")
         for name in ("max_iterations", "min_independent", "solver_iterations"):
@@ -162,17 +178,23 @@ class _CandidateGraph:
             tdoas.pairs, tdoas.taus, self.weights, c=tdoas.c)
         self.graph = gtsam.NonlinearFactorGraph()
         self.graph.add(self.factor)
-        self.params = gtsam.LevenbergMarquardtParams()
-        self.params.setMaxIterations(int(iterations))
-        self.params.setRelativeErrorTol(1e-10)
-        self.params.setAbsoluteErrorTol(1e-20)
+        self.params, self.params_long = gtsam.LevenbergMarquardtParams(), gtsam.LevenbergMarquardtParams()
+        for params, limit in ((self.params, int(iterations)), (self.params_long, 100)):
+            params.setMaxIterations(limit)
+            params.setRelativeErrorTol(1e-10)
+            params.setAbsoluteErrorTol(1e-20)
 
-    def solve(self, x0: NDArray[np.float64], w: NDArray[np.float64]) -> NDArray[np.float64]:
-        """Weighted least-squares position from `x0` with weights `w` (eq. 22 update)."""
+    def solve(self, x0: NDArray[np.float64], w: NDArray[np.float64], *, full: bool = False
+              ) -> NDArray[np.float64]:
+        """Weighted least-squares position from `x0` with weights `w` (eq. 22 update).
+
+        `full` runs up to 100 Levenberg-Marquardt iterations instead of ``solver_iterations``.
+        """
         self.weights[:] = w
         values = gtsam.Values()
         values.insert(self.key, gtsam.Point3(*x0))
-        result = gtsam.LevenbergMarquardtOptimizer(self.graph, values, self.params).optimize()
+        params = self.params_long if full else self.params
+        result = gtsam.LevenbergMarquardtOptimizer(self.graph, values, params).optimize()
         return np.asarray(result.atPoint3(self.key), dtype=float)
 
 
@@ -227,6 +249,29 @@ def _same_source(
     return rms < settings.merge_sigmas or shared > settings.max_overlap
 
 
+def _grow(
+    tdoas: WindowTdoas, graph: _CandidateGraph, x: NDArray, w: NDArray, clutter: NDArray,
+    cfg: CompetitionSettings,
+) -> tuple[NDArray, NDArray] | None:
+    """Refit a candidate with the clutter TDOAs associated with its own; None if none fit."""
+    owned = w > 0.5
+    if tdoas.alpha is None or not np.any(owned):
+        return None
+    linked = np.any(np.asarray(tdoas.alpha)[:, owned] >= cfg.min_alpha_link, axis=1)
+    extra = linked & (clutter > 0.5) & ~owned
+    gate = cfg.gate_sigmas * np.asarray(tdoas.sigmas)
+    while np.any(extra):
+        trial = (owned | extra).astype(float)  # hard: a half-held TDOA must not pull the fit
+        new = graph.solve(x, trial, full=True)
+        fits = np.abs(tdoas.predicted(new) - tdoas.taus) <= gate
+        if not np.all(fits[owned]):
+            return None
+        if np.all(fits[extra]):
+            return new, trial
+        extra &= fits
+    return None
+
+
 def compete(
     tdoas: WindowTdoas,
     starts: ArrayLike,
@@ -278,34 +323,38 @@ def compete(
     log_pi = np.full(k0, np.log((1.0 - cfg.clutter_fraction) / max(k0, 1)))
     alive = np.ones(k0, dtype=bool)
     graphs = [_CandidateGraph(tdoas, cfg.solver_iterations) for _ in range(k0)]
-    s0 = max(float(start_scale_s), float(sig.max()))
+    # per-candidate delay scale: shrinks by anneal_factor per iteration, but never below the
+    # delay change of the candidate's last move (a travelling candidate keeps its TDOAs)
+    spread = np.full(k0, max(float(start_scale_s), float(sig.max())))
     tol_m = cfg.tol * float(sig.min()) * tdoas.c
-    converged, it = False, 0
+    converged, it, grow_passes = False, 0, 2
     for it in range(1, cfg.max_iterations + 1):
-        scale = np.maximum(sig, s0 * cfg.anneal_factor ** (it - 1))  # annealed delay scale
-        annealed = bool(np.all(scale == sig))
         idx = np.flatnonzero(alive)
         if idx.size == 0:
             break
+        scale = np.maximum(sig[None, :], spread[idx, None])  # (K', M), s
         # (a) candidate update, eq. (20)-(22)
         r = tdoas.predicted(x[idx]) - tdoas.taus  # d_m(x_k) - tau_m, (K', M)
         beta = np.exp(-(r * r) / ((cfg.beta_scale * scale) ** 2 / 4.0))  # eq. (20)
         gamma = beta * (beta @ assoc) if assoc is not None else beta  # eq. (21)
         wt[idx] = w[idx] * gamma  # eq. (22)
         moved = 0.0
-        for k in idx:
+        for row, k in enumerate(idx):
             strong = wt[k] > 1e-6 * max(float(wt[k].max()), 1e-300)
-            if independent_pairs(pairs, strong) < 3:
-                continue  # too little to fix a position: leave it, the weights decide
-            new = graphs[k].solve(x[k], wt[k])
-            moved = max(moved, float(np.linalg.norm(new - x[k])))
-            x[k] = new
+            step_s = 0.0
+            if independent_pairs(pairs, strong) >= 3:  # else too little to fix a position
+                new = graphs[k].solve(x[k], wt[k])
+                moved = max(moved, float(np.linalg.norm(new - x[k])))
+                step_s = float(np.max(np.abs(tdoas.predicted(new) - r[row] - tdoas.taus)))
+                x[k] = new
+            spread[k] = max(spread[k] * cfg.anneal_factor, step_s)
+        annealed = bool(np.all(spread[idx] <= sig.min()))
+        scale = np.maximum(sig[None, :], spread[idx, None])
         # (b) weight update: responsibilities with a uniform clutter component
         r = tdoas.predicted(x[idx]) - tdoas.taus
         loglik = log_pi[idx, None] - 0.5 * (r / scale) ** 2 - np.log(np.sqrt(2 * np.pi) * scale)
         both = np.vstack([loglik, log_clutter[None]])
-        top = both.max(axis=0)
-        resp = np.exp(both - top)
+        resp = np.exp(both - both.max(axis=0))
         resp = (resp / resp.sum(axis=0))[:-1]
         if cfg.pair_exclusive:
             resp = _cap_per_pair(resp, pair_id)
@@ -316,26 +365,41 @@ def compete(
             log_pi[idx] = np.log((1.0 - cfg.clutter_fraction) * np.maximum(totals, 1e-300)
                                  / totals.sum())
         # (c) merge candidates explaining the same TDOAs (the one holding more survives)
-        for a_pos, a in enumerate(idx):
-            if not alive[a]:
-                continue
-            for b in idx[a_pos + 1:]:
-                if alive[b] and _same_source(tdoas, x[a], x[b], w[a], w[b], scale, cfg):
+        for pa, a in enumerate(idx):
+            for pb in range(pa + 1, idx.size):
+                b = idx[pb]
+                if not (alive[a] and alive[b]):
+                    continue
+                if _same_source(tdoas, x[a], x[b], w[a], w[b],
+                                np.maximum(scale[pa], scale[pb]), cfg):
                     loser = b if w[a].sum() >= w[b].sum() else a
                     alive[loser] = False
+                    w[a + b - loser] = np.minimum(w[a] + w[b], 1.0)  # joined: the TDOAs of both
                     _LOG.debug("iteration %d: candidate %d merged into %d", it, loser, a + b - loser)
-                    if loser == a:
-                        break
         # ... and drop those holding too little (fully once annealed)
         for k in np.flatnonzero(alive):
-            floor = cfg.min_weight if annealed else min(1.0, cfg.min_weight)
-            if w[k].sum() < floor or (annealed and independent_pairs(pairs, w[k] > 0.5)
+            done = spread[k] <= sig.min()
+            floor = cfg.min_weight if done else min(1.0, cfg.min_weight)
+            if w[k].sum() < floor or (done and independent_pairs(pairs, w[k] > 0.5)
                                       < cfg.min_independent):
                 alive[k] = False
                 _LOG.debug("iteration %d: candidate %d dropped (weight %.2f)", it, k, w[k].sum())
         if annealed and moved < tol_m and change < cfg.tol:
-            converged = True
-            break
+            # growth: a candidate that settled on a subset of its source's TDOAs (the others
+            # lost to clutter on the way) refits with the associated clutter TDOAs
+            grew = False
+            if grow_passes:
+                left = 1.0 - w[alive].sum(axis=0)
+                for k in np.flatnonzero(alive):
+                    out = _grow(tdoas, graphs[k], x[k], w[k], left, cfg)
+                    if out is not None:
+                        x[k], w[k] = out
+                        grew = True
+                        _LOG.debug("iteration %d: candidate %d grew", it, k)
+                grow_passes -= 1
+            if not grew:
+                converged = True
+                break
     idx = np.flatnonzero(alive)
     clutter = 1.0 - w[idx].sum(axis=0) if idx.size else np.ones(m)
     _LOG.debug("competition: %d of %d candidates survive after %d iterations (converged %s)",

@@ -173,12 +173,9 @@ class MultiSourceLocalizer:
         Delay smoothing of the surfaces in grid cells (:func:`smoothing_sigma`).
     max_rounds : int, keyword-only
         Competition rounds (default 2). After a round, the largest group of TDOAs left to
-        clutter that are linked by ``alpha >= min_alpha_link`` (all leftovers without
-        ``alpha``), if it could fix a source, gets its own surface and candidates, and all
-        candidates compete again: a source the coarse surface merged with a neighbour.
-    min_alpha_link : float, keyword-only
-        Association count linking two leftover TDOAs (default 3: ``1 - exp(-3/4) = 0.53`` in
-        eq. 21).
+        clutter that are linked by ``alpha >= competition.min_alpha_link`` (all leftovers
+        without ``alpha``), if it could fix a source, gets its own surface and candidates, and
+        all candidates compete again: a source the coarse surface merged with a neighbour.
 
     Examples
     --------
@@ -207,7 +204,6 @@ class MultiSourceLocalizer:
         mirror_chi2: float = 4.0,
         smoothing_cells: float = 1.0,
         max_rounds: int = 2,
-        min_alpha_link: float = 3.0,
     ) -> None:
         if method not in METHODS:
             raise ValueError(f"method must be one of {METHODS}, got {method!r}")
@@ -217,8 +213,6 @@ class MultiSourceLocalizer:
                 raise ValueError(f"{name} must be positive and finite, got {v!r}")
         if int(max_rounds) != max_rounds or max_rounds < 1:
             raise ValueError(f"max_rounds must be a positive integer, got {max_rounds!r}")
-        if not (np.isfinite(min_alpha_link) and min_alpha_link >= 0):
-            raise ValueError(f"min_alpha_link must be >= 0, got {min_alpha_link!r}")
         if not (np.isfinite(min_tdoas) and min_tdoas >= 0):
             raise ValueError(f"min_tdoas must be >= 0, got {min_tdoas!r}")
         self.method = method
@@ -232,7 +226,6 @@ class MultiSourceLocalizer:
         self.mirror_chi2 = float(mirror_chi2)
         self.smoothing_cells = float(smoothing_cells)
         self.max_rounds = int(max_rounds)
-        self.min_alpha_link = float(min_alpha_link)
 
     # ------------------------------------------------------------------ entry point
     def localize(
@@ -337,7 +330,7 @@ class MultiSourceLocalizer:
         if left.size < max(self.min_tdoas, 3):
             return None
         if tdoas.alpha is not None:
-            links = np.asarray(tdoas.alpha)[np.ix_(left, left)] >= self.min_alpha_link
+            links = np.asarray(tdoas.alpha)[np.ix_(left, left)] >= self.competition.min_alpha_link
             _, label = connected_components(csr_matrix(links), directed=False)
             left = left[label == np.argmax(np.bincount(label))]
         mask = np.zeros(tdoas.m, dtype=bool)

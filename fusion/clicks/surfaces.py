@@ -214,7 +214,7 @@ class SearchRegion:
         Budget of points of the coarse grid (the spacing is the isotropic one that fits).
     """
 
-    extent_factor: float = 1.0
+    extent_factor: float = 2.0
     water_column: tuple[float, float] | None = None
     max_points: int = 32_768
 
