@@ -56,7 +56,13 @@ from numpy.typing import ArrayLike, NDArray
 from factors.tdoa import weighted_tdoa_vector_factor
 from fusion.clicks.surfaces import WindowTdoas
 
-__all__ = ["CompetitionResult", "CompetitionSettings", "compete", "independent_pairs"]
+__all__ = [
+    "CompetitionResult",
+    "CompetitionSettings",
+    "association_weights",
+    "compete",
+    "independent_pairs",
+]
 
 _LOG = logging.getLogger(__name__)
 
@@ -249,6 +255,42 @@ def _same_source(
     return rms < settings.merge_sigmas or shared > settings.max_overlap
 
 
+def association_weights(
+    residuals: ArrayLike, sigma_t: ArrayLike, alpha: ArrayLike | None = None
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Delay-fit weights ``beta`` (eq. 20) and association weights ``gamma`` (eq. 21).
+
+    Parameters
+    ----------
+    residuals : array_like, shape (K, M)
+        ``d_m(x_k) - tau_m`` of each TDOA at each candidate, s.
+    sigma_t : float or array_like, broadcastable to (K, M)
+        Delay scale ``sigma_t`` of eq. (20), s.
+    alpha : array_like, shape (M, M), optional
+        Cross-pair association (symmetric); None gives ``gamma = beta``.
+
+    Returns
+    -------
+    beta : ndarray, shape (K, M)
+        ``exp(-(d_m - tau_m)^2 / (sigma_t^2 / 4))``.
+    gamma : ndarray, shape (K, M)
+        ``sum_l (1 - exp(-alpha_ml / 4)) beta_kl beta_km``.
+
+    Examples
+    --------
+    >>> alpha = 1e9 * (1.0 - np.eye(3))  # three strongly associated TDOAs
+    >>> beta, gamma = association_weights([[0.0, 0.0, 2.0]], 1.0, alpha)
+    >>> np.round(gamma, 6)  # two fitting TDOAs confirm each other; the third fits nothing
+    array([[1., 1., 0.]])
+    """
+    r = np.asarray(residuals, dtype=float)
+    beta = np.exp(-(r * r) / (np.asarray(sigma_t, dtype=float) ** 2 / 4.0))  # eq. (20)
+    if alpha is None:
+        return beta, beta
+    link = 1.0 - np.exp(-np.asarray(alpha, dtype=float) / 4.0)  # 1 - exp(-alpha_ml / 4)
+    return beta, beta * (beta @ link)  # eq. (21), alpha symmetric
+
+
 def _grow(
     tdoas: WindowTdoas, graph: _CandidateGraph, x: NDArray, w: NDArray, clutter: NDArray,
     cfg: CompetitionSettings,
@@ -311,9 +353,7 @@ def compete(
         raise ValueError(f"start_scale_s must be positive, got {start_scale_s!r}")
     m, k0 = tdoas.m, x.shape[0]
     sig = np.asarray(tdoas.sigmas)
-    assoc = None
-    if cfg.use_alpha and tdoas.alpha is not None:
-        assoc = 1.0 - np.exp(-np.asarray(tdoas.alpha) / 4.0)  # (1 - exp(-alpha_ml/4)), eq. (21)
+    alpha = np.asarray(tdoas.alpha) if cfg.use_alpha and tdoas.alpha is not None else None
     pairs = np.asarray(tdoas.pairs)
     pair_id = _pair_ids(pairs)
     # uniform clutter density over the physically possible delays of each pair
@@ -335,8 +375,7 @@ def compete(
         scale = np.maximum(sig[None, :], spread[idx, None])  # (K', M), s
         # (a) candidate update, eq. (20)-(22)
         r = tdoas.predicted(x[idx]) - tdoas.taus  # d_m(x_k) - tau_m, (K', M)
-        beta = np.exp(-(r * r) / ((cfg.beta_scale * scale) ** 2 / 4.0))  # eq. (20)
-        gamma = beta * (beta @ assoc) if assoc is not None else beta  # eq. (21)
+        _, gamma = association_weights(r, cfg.beta_scale * scale, alpha)
         wt[idx] = w[idx] * gamma  # eq. (22)
         moved = 0.0
         for row, k in enumerate(idx):

@@ -200,7 +200,7 @@ class MultiSourceLocalizer:
         polish: bool = True,
         gate_sigmas: float = 3.0,
         min_tdoas: float = 4.0,
-        max_condition: float = 1e5,
+        max_condition: float = 1e6,
         mirror_chi2: float = 4.0,
         smoothing_cells: float = 1.0,
         max_rounds: int = 2,
