@@ -19,6 +19,7 @@ SIMULATORS: dict[str, str] = {
     "amplitudes": "fusion.simulate.amplitudes:write_scenario",
     "tma": "fusion.simulate.tma:write_scenario",
     "multistatic": "fusion.simulate.multistatic:write_scenario",
+    "passive": "fusion.simulate.passive:write_scenario",
 }
 
 

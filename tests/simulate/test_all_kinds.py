@@ -12,6 +12,7 @@ READ_BACK = {
     "clicks": lambda d: io.read_audio(d / "audio.flac",
                                       n_channels=io.read_array(d / "array.json").n_sensors)[0].shape[0],
     "cube": lambda d: io.read_cube(d / "cube.npz").n_scans,
+    "passive": lambda d: io.read_cube(d / "cube.npz").n_scans,
     "bearings": lambda d: len(io.read_bearings(d / "bearings.csv")),
     "amplitudes": lambda d: len(io.read_amplitudes(d / "amplitudes.csv")),
     "multistatic": lambda d: len(io.read_detections(d / "detections.csv")),
