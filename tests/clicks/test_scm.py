@@ -96,9 +96,9 @@ def test_identical_trains_peak_at_the_delay_with_value_n(delay):
 
 
 @settings(max_examples=25, deadline=None)
-@given(delay=st.floats(-1.5, 1.5), shift=st.floats(-1.5, 1.5))
+@given(delay=st.floats(-1.0, 1.0), shift=st.floats(-1.0, 1.0))
 def test_tdoa_antisymmetric_in_pair_order(delay, shift):
-    """Pair (j, i) finds minus the TDOA of pair (i, j)."""
+    """Pair (j, i) finds minus the TDOA of pair (i, j) (both trains well inside the window)."""
     ti = 6.0 + shift + np.arange(4) * 0.4
     cor = ClickMapCorrelator(max_peaks=1)
     a = cor.correlate_times([ti, ti - delay], t0_s=0.0, max_delay_s=[2.0], pairs=[(0, 1), (1, 0)])
