@@ -38,7 +38,15 @@ import scipy.fft
 from numpy.typing import ArrayLike, NDArray
 
 from fusion.geometry import SensorArray
-from fusion.io import read_array, read_audio, read_json, write_array, write_audio, write_json
+from fusion.io import (
+    read_array,
+    read_audio,
+    read_json,
+    write_array,
+    write_audio,
+    write_json,
+    write_table,
+)
 
 __all__ = [
     "ClickScenario",
@@ -843,7 +851,7 @@ def truth_document(scenario: ClickScenario, *, audio_scale: float = 1.0) -> dict
 
 
 def write_click_scenario(out_dir: Path | str, scenario: ClickScenario) -> list[Path]:
-    """Write a scenario as ``audio.flac``, ``array.json`` and ``truth.json``.
+    """Write a scenario as ``audio.flac``, ``array.json``, ``truth.json`` and ``tdoa_labels.csv``.
 
     Parameters
     ----------
@@ -859,9 +867,12 @@ def write_click_scenario(out_dir: Path | str, scenario: ClickScenario) -> list[P
 
     Notes
     -----
-    FLAC holds 24-bit integers in ``[-1, 1)``: the audio is scaled so its largest magnitude is
-    :data:`FILE_PEAK` and the factor is stored as ``truth.json["audio_scale"]`` (file sample =
-    ``audio_scale`` x scenario value). Every file is written atomically.
+    ``tdoa_labels.csv`` (``time,i,j,tau,source``) holds the direct-path TDOA of every click and
+    sensor pair, the labels ``fusion train-validator`` takes: ``time`` is the click's arrival at
+    sensor ``i``, ``tau`` its arrival at ``i`` minus at ``j``, s. FLAC holds 24-bit integers in
+    ``[-1, 1)``: the audio is scaled so its largest magnitude is :data:`FILE_PEAK` and the
+    factor is stored as ``truth.json["audio_scale"]`` (file sample = ``audio_scale`` x scenario
+    value). Every file is written atomically.
     """
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
@@ -872,8 +883,21 @@ def write_click_scenario(out_dir: Path | str, scenario: ClickScenario) -> list[P
     audio_path = write_audio(out / "audio.flac", scenario.audio * np.float32(scale), scenario.fs)
     array_path = write_array(out / "array.json", scenario.sensors)
     truth_path = write_json(out / "truth.json", truth_document(scenario, audio_scale=scale))
+    cols: dict[str, list[NDArray]] = {"time": [], "i": [], "j": [], "tau": [], "source": []}
+    for src in scenario.sources:
+        arr = src.arrival_times
+        for i, j in scenario.pairs():
+            n = arr.shape[0]
+            for key, v in (("time", arr[:, i]), ("i", np.full(n, i)), ("j", np.full(n, j)),
+                           ("tau", arr[:, i] - arr[:, j]), ("source", np.full(n, src.source_id))):
+                cols[key].append(v)
+    labels = {k: np.concatenate(v) if v else np.empty(0) for k, v in cols.items()}
+    order = np.argsort(labels["time"], kind="stable")
+    labels_path = write_table(out / "tdoa_labels.csv",
+                              {k: (v[order].astype(int) if k in ("i", "j", "source") else v[order])
+                               for k, v in labels.items()}, float_format="%.9f")
     logger.info("wrote click scenario (seed %d) to %s", scenario.seed, out)
-    return [audio_path, array_path, truth_path]
+    return [audio_path, array_path, truth_path, labels_path]
 
 
 def write_scenario(out_dir: Path, *, seed: int) -> list[Path]:

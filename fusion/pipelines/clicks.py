@@ -1,0 +1,526 @@
+"""The click front end as one pipeline: audio in, validated and associated TDOAs out.
+
+Chains the stages of :mod:`fusion.clicks` in the order of *Localization of Short Duration
+Periodic Signals* (Baggenstoss, NUWC 102089, FIG. 2, steps 34-54):
+
+=====  ============================================  ==========================================
+step   stage                                         part (in :mod:`fusion.clicks`)
+=====  ============================================  ==========================================
+34-42  replica correlation, click detection          :class:`detect.ClickDetector`
+44-48  smoothed click maps, correlation, peaks       :class:`scm.ClickMapCorrelator`
+50     SCM2, ACF features, GMM likelihood ratio      :func:`scm.scm2`, :class:`validate.TdoaValidator`
+--     sub-sample TDOA, sigma and CRB (added)        :class:`tdoa.TdoaRefiner`
+52     association across time (eq. 12)              :class:`associate.TimeAssociator`
+54     association across pairs (eq. 13), closure    :func:`associate.cross_pair_alpha`,
+                                                     :func:`associate.closure_check`
+=====  ============================================  ==========================================
+
+The pipeline holds no algorithm of its own. It streams: audio arrives in consecutive blocks
+(:func:`fusion.io.iter_audio_blocks` with block = hop), clicks are detected once per sample (each
+block with a guard margin on both sides, so the result equals whole-signal detection), and a
+processing window (``window_s``, every ``hop_s``; 12 s every 2 s by default, as in the text) is
+processed as soon as its clicks are final. Only the last ``window_s`` plus two guards of audio are
+held in memory, whatever the length of the recording.
+
+Acceptance (decisions where the text leaves a choice, documented here):
+
+* a TDOA **passes validation** when its GMM log-likelihood ratio (eq. 11) is at least the
+  validator's threshold;
+* it is **confirmed** when the time association links it to a TDOA of the previous *or* the next
+  window ([0041]: seen in two consecutive updates); a window is therefore reported one update
+  after it is processed, when its successor is known;
+* it is **valid** (the ``valid`` of the result file) when it passes validation and is confirmed;
+* the triangle closure ``tau_ab + tau_bc - tau_ac`` is reported per TDOA (``consistent``), not
+  used to reject: a TDOA of a pair whose third side was missed is untested, not wrong.
+
+Examples
+--------
+>>> from fusion.simulate.clicks import simulate_clicks
+>>> sc = simulate_clicks(seed=3, n_sensors=4, n_sources=1, duration_s=16.0, snr_db=30.0)
+>>> fe = ClickFrontEnd()
+>>> windows = fe.run_array(sc.audio, sc.fs, sc.sensors)
+>>> [round(w.t_start, 1) for w in windows]
+[0.0, 2.0, 4.0]
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections.abc import Callable, Iterable, Iterator, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from fusion._validation import check_positive
+from fusion.clicks.associate import (
+    TdoaClicks,
+    TimeAssociator,
+    closure_check,
+    cross_pair_alpha,
+)
+from fusion.clicks.detect import ClickDetector
+from fusion.clicks.scm import ClickMapCorrelator, ScmConfig, scm2
+from fusion.clicks.tdoa import TdoaRefiner
+from fusion.clicks.types import ChannelClicks, frozen_array
+from fusion.clicks.validate import TdoaValidator, scm2_features
+from fusion.geometry import SensorArray
+
+__all__ = ["ClickFrontEnd", "ClickWindow", "WindowTdoa", "default_validator", "window_starts"]
+
+logger = logging.getLogger(__name__)
+
+
+def default_validator() -> TdoaValidator:
+    """The validator shipped with the package (``fusion/clicks/data/validator_v1.npz``)."""
+    from pathlib import Path
+
+    return TdoaValidator.load(Path(__file__).resolve().parents[1] / "clicks" / "data" / "validator_v1.npz")
+
+
+@dataclass(frozen=True)
+class WindowTdoa:
+    """One candidate TDOA of a processing window and everything measured about it.
+
+    Attributes
+    ----------
+    pair : tuple of int
+        Sensor indices ``(i, j)``, ``i < j``.
+    tau_s : float
+        ``t_i - t_j`` at the window centre, s: the refined value where the waveforms allowed a
+        refinement, else the SCM peak.
+    tau_coarse_s : float
+        The SCM correlation peak (eq. 6), s.
+    sigma_s : float
+        Standard deviation of `tau_s`, s (refined: from the data; coarse: the SCM pulse width).
+    crb_s : float
+        Cramér-Rao bound of the refined TDOA at the measured SNR, s (NaN when not refined).
+    scm_peak : float
+        Correlation value at the peak (about the number of matching clicks, eq. 4-6).
+    n_clicks : int
+        Source clicks the SCM2 matched.
+    features : ndarray, shape (4,)
+        ``[specmax, mu1, mu2', mu3']`` of the SCM2 (eq. 10).
+    llr : float
+        Validation log-likelihood ratio (eq. 11).
+    passes : bool
+        ``llr`` at or above the validator's threshold.
+    confirmed : bool
+        Linked across time to the previous or the next window (eq. 12, [0041]).
+    consistent : bool
+        Passes the triangle closure check (True when no triangle tested it).
+    click_times_s : ndarray, shape (k,)
+        Source click times at sensor ``i``, s from the start of the audio: the clicks the
+        refinement matched along the delay's drift through the window where it succeeded,
+        else the SCM2's (used by the association, eq. 12-13).
+    """
+
+    pair: tuple[int, int]
+    tau_s: float
+    tau_coarse_s: float
+    sigma_s: float
+    crb_s: float
+    scm_peak: float
+    n_clicks: int
+    features: NDArray[np.float64]
+    llr: float
+    passes: bool
+    confirmed: bool = False
+    consistent: bool = True
+    click_times_s: NDArray[np.float64] = field(default_factory=lambda: frozen_array([]))
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "features", frozen_array(self.features))
+        object.__setattr__(self, "click_times_s", frozen_array(self.click_times_s))
+
+    @property
+    def valid(self) -> bool:
+        """Passes validation and is confirmed across time."""
+        return bool(self.passes and self.confirmed)
+
+    def as_clicks(self) -> TdoaClicks:
+        """The TDOA with its click times, as the association stage takes it."""
+        return TdoaClicks(self.pair, self.tau_s, self.click_times_s, self.sigma_s)
+
+
+@dataclass(frozen=True)
+class ClickWindow:
+    """The front end's result for one processing window.
+
+    Attributes
+    ----------
+    t_start, t_end : float
+        Window, s from the start of the audio.
+    clicks : tuple of ChannelClicks
+        Clicks detected on each channel within the window.
+    tdoas : tuple of WindowTdoa
+        Every candidate TDOA (valid or not).
+    alpha : ndarray, shape (M, M)
+        Cross-pair association (eq. 13) among `tdoas` (0 between TDOAs not sharing exactly
+        one sensor).
+    links_previous : tuple of (int, int)
+        ``(index in the previous window, index here)`` of the time association.
+    """
+
+    t_start: float
+    t_end: float
+    clicks: tuple[ChannelClicks, ...]
+    tdoas: tuple[WindowTdoa, ...]
+    alpha: NDArray[np.float64]
+    links_previous: tuple[tuple[int, int], ...] = ()
+
+    @property
+    def valid_tdoas(self) -> tuple[WindowTdoa, ...]:
+        """The TDOAs that pass validation and are confirmed."""
+        return tuple(d for d in self.tdoas if d.valid)
+
+
+def window_starts(duration_s: float, window_s: float, hop_s: float) -> NDArray[np.float64]:
+    """Start times of the processing windows of a recording.
+
+    Windows ``[k hop, k hop + window)`` that fit inside the recording; a recording shorter than
+    one window gives one window over all of it.
+    """
+    n = int(math.floor((duration_s - window_s) / hop_s + 1e-9)) + 1
+    return np.arange(max(n, 1)) * hop_s
+
+
+class _AudioRing:
+    """The most recent audio blocks, contiguous in time (a sliding buffer)."""
+
+    def __init__(self, fs: float) -> None:
+        self.fs = fs
+        self.blocks: list[tuple[int, NDArray]] = []  # (first sample index, samples)
+
+    @property
+    def end(self) -> int:
+        return self.blocks[-1][0] + self.blocks[-1][1].shape[0] if self.blocks else 0
+
+    @property
+    def start(self) -> int:
+        return self.blocks[0][0] if self.blocks else 0
+
+    def append(self, first: int, x: NDArray) -> None:
+        if self.blocks and first != self.end:
+            raise ValueError(f"audio blocks must be contiguous: block at sample {first}, "
+                             f"expected {self.end}")
+        self.blocks.append((first, x))
+
+    def drop_before(self, sample: int) -> None:
+        while self.blocks and self.blocks[0][0] + self.blocks[0][1].shape[0] <= sample:
+            self.blocks.pop(0)
+
+    def cut(self, a: int, b: int) -> tuple[int, NDArray]:
+        """Samples ``[max(a, start), min(b, end))`` and the index of the first."""
+        a, b = max(a, self.start), min(b, self.end)
+        parts = [x[max(a - s, 0):max(min(b - s, x.shape[0]), 0)] for s, x in self.blocks
+                 if s < b and s + x.shape[0] > a]
+        return a, (np.concatenate(parts, axis=0) if len(parts) > 1 else parts[0])
+
+
+class ClickFrontEnd:
+    """Audio to validated, associated TDOAs, window by window (steps 34-54).
+
+    Parameters
+    ----------
+    detector : ClickDetector, optional
+        Click detection (default: the method's parameters).
+    correlator : ClickMapCorrelator, optional
+        Smoothed click maps and their correlation; its ``config.window_s`` is the processing
+        window (default 12 s, 3 kHz synthetic rate).
+    validator : TdoaValidator or False, optional
+        The GMM validator (default: the model shipped with the package). ``False`` computes
+        the features only (``llr`` NaN, every TDOA passes): the mode of training.
+    refiner : callable, optional
+        ``fs -> TdoaRefiner``; default ``TdoaRefiner(fs_hz=fs)``. ``False`` skips refinement
+        (TDOAs stay on the SCM grid, as in the text).
+    associator : TimeAssociator, optional
+        Association across time (default: beta > 7, |dtau| < 3 ms at a 2 s update, scaled with
+        `hop_s`).
+    hop_s : float, optional
+        Update period, s (default 2).
+    sigma_t_s : float, optional
+        Click-time tolerance of eq. 12-13, s (default 1 ms).
+    scm_level : float, optional
+        Smallest normalised SCM2 peak counted as a source click.
+    """
+
+    def __init__(
+        self,
+        *,
+        detector: ClickDetector | None = None,
+        correlator: ClickMapCorrelator | None = None,
+        validator: TdoaValidator | bool | None = None,
+        refiner: Callable[[float], TdoaRefiner] | bool | None = None,
+        associator: TimeAssociator | None = None,
+        hop_s: float = 2.0,
+        sigma_t_s: float = 1e-3,
+        scm_level: float = 0.5,
+    ) -> None:
+        check_positive("hop_s", hop_s)
+        check_positive("sigma_t_s", sigma_t_s)
+        self.detector = detector if detector is not None else ClickDetector()
+        self.correlator = correlator if correlator is not None else ClickMapCorrelator()
+        self.config: ScmConfig = self.correlator.config
+        if hop_s > self.config.window_s:
+            raise ValueError(f"hop_s {hop_s} is longer than the window {self.config.window_s} s")
+        if validator is None or validator is True:
+            validator = default_validator()
+        self.validator: TdoaValidator | None = validator if validator is not False else None
+        if refiner is None or refiner is True:
+            self._make_refiner: Callable[[float], TdoaRefiner] | None = (
+                lambda fs: TdoaRefiner(fs_hz=fs))
+        elif refiner is False:
+            self._make_refiner = None
+        else:
+            self._make_refiner = refiner
+        self.associator = (associator if associator is not None
+                           else TimeAssociator(sigma_t_s=sigma_t_s, update_period_s=hop_s))
+        self.hop_s = float(hop_s)
+        self.sigma_t_s = float(sigma_t_s)
+        self.scm_level = float(scm_level)
+
+    @property
+    def window_s(self) -> float:
+        """Processing window length, s."""
+        return float(self.config.window_s)
+
+    # ----------------------------------------------------------------------------------------
+    def measure_window(
+        self,
+        clicks: Sequence[ChannelClicks],
+        *,
+        t0_s: float,
+        sensors: SensorArray,
+        audio: NDArray | None = None,
+        audio_t0_s: float = 0.0,
+        fs: float | None = None,
+    ) -> list[WindowTdoa]:
+        """Candidate TDOAs of one window, validated (not yet associated across time).
+
+        Parameters
+        ----------
+        clicks : sequence of ChannelClicks
+            Each channel's clicks (any times; the window's are used).
+        t0_s : float
+            Window start, s.
+        sensors : SensorArray
+            The array (pairs and their physically possible delays).
+        audio : ndarray, shape (n, n_sensors), optional
+            Audio covering the window, for sub-sample refinement; without it the TDOAs stay
+            on the SCM grid.
+        audio_t0_s : float, optional
+            Time of ``audio[0]``, s.
+        fs : float, optional
+            Sample rate of `audio`, Hz.
+
+        Returns
+        -------
+        list of WindowTdoa
+            In pair order, strongest peak first within a pair.
+        """
+        t1 = t0_s + self.window_s
+        inside = [c.between(t0_s, t1) for c in clicks]
+        corr = self.correlator.correlate(inside, t0_s=t0_s, sensors=sensors)
+        if not corr.peaks:
+            return []
+        refiner = (self._make_refiner(fs) if (self._make_refiner is not None and audio is not None
+                                              and fs is not None) else None)
+        maps = []
+        for peak in corr.peaks:
+            i, j = peak.pair
+            maps.append(scm2(inside[i].times_s, inside[j].times_s, peak.tau_s, t0_s=t0_s,
+                             config=self.config, level=self.scm_level, pair=peak.pair))
+        z = scm2_features(np.stack([m.series for m in maps]), self.config.fs_hz, T=self.window_s)
+        if self.validator is None:  # features only (training)
+            llr = np.full(len(maps), np.nan)
+            passes = np.ones(len(maps), dtype=bool)
+        else:
+            llr = self.validator.llr(z)
+            passes = llr >= self.validator.threshold
+        out = []
+        for k, (peak, s2) in enumerate(zip(corr.peaks, maps, strict=True)):
+            i, j = peak.pair
+            tau, sigma, crb = peak.tau_s, self.config.pulse_halfwidth_s, math.nan
+            times = s2.click_times_s
+            # refine only what passed validation: the rest is dropped downstream anyway
+            if refiner is not None and passes[k] and s2.index_i.size:
+                ref = refiner.refine(audio, peak.pair, inside[i].times_s[s2.index_i],
+                                     inside[j].times_s[s2.index_j], audio_t0_s=audio_t0_s,
+                                     reference_time_s=t0_s + 0.5 * self.window_s)
+                if ref is not None and abs(ref.tau_s - peak.tau_s) < 2.0 * self.config.pulse_halfwidth_s:
+                    tau, sigma, crb = ref.tau_s, ref.sigma_s, ref.crb_s
+                    # the clicks matched along the delay's drift through the whole window
+                    # (the SCM2 matches only those within its pulse width of the coarse delay)
+                    if ref.click_times_s.size >= times.size:
+                        times = np.sort(ref.click_times_s)
+            out.append(WindowTdoa(
+                pair=peak.pair, tau_s=float(tau), tau_coarse_s=float(peak.tau_s),
+                sigma_s=float(sigma), crb_s=float(crb), scm_peak=float(peak.value),
+                n_clicks=int(s2.click_times_s.size), features=z[k], llr=float(llr[k]),
+                passes=bool(passes[k]), click_times_s=times))
+        return out
+
+    def _finish(self, window: ClickWindow, linked_next: NDArray[np.bool_]) -> ClickWindow:
+        """Mark confirmations from the next window; closure and alpha on the final TDOAs."""
+        tdoas = [
+            WindowTdoa(**{**d.__dict__, "confirmed": bool(d.confirmed or linked_next[k])})
+            for k, d in enumerate(window.tdoas)
+        ]
+        alpha = cross_pair_alpha([d.as_clicks() for d in tdoas], sigma_t_s=self.sigma_t_s)
+        if tdoas:
+            check = closure_check([d.as_clicks() for d in tdoas], alpha)
+            tdoas = [WindowTdoa(**{**d.__dict__, "consistent": bool(check.consistent[k])})
+                     for k, d in enumerate(tdoas)]
+        return ClickWindow(window.t_start, window.t_end, window.clicks, tuple(tdoas), alpha,
+                           window.links_previous)
+
+    # ----------------------------------------------------------------------------------------
+    def iter_windows(
+        self,
+        blocks: Iterable[tuple[float, ArrayLike]] | Iterable[tuple[float, ArrayLike, float]],
+        *,
+        fs: float,
+        sensors: SensorArray,
+        duration_s: float | None = None,
+    ) -> Iterator[ClickWindow]:
+        """Process a stream of consecutive audio blocks; yield each finished window in order.
+
+        Parameters
+        ----------
+        blocks : iterable of (t0, samples) or (t0, samples, fs)
+            Consecutive, non-overlapping blocks (n, n_sensors) in time order, the first at 0.
+        fs : float
+            Sample rate, Hz.
+        sensors : SensorArray
+            The array; channel i is sensor i.
+        duration_s : float, optional
+            Length of the recording, s (to place the windows before the end is reached);
+            default: windows are placed as the audio arrives, and a recording shorter than
+            one window gives one window over all of it.
+
+        Yields
+        ------
+        ClickWindow
+            Each window once its successor's time association is known (the last at the end).
+        """
+        check_positive("fs", fs)
+        guard = self.detector.guard_s(fs)
+        g = int(math.ceil(guard * fs))
+        margin = int(math.ceil(0.01 * fs))  # audio beyond the window for click cuts
+        ring = _AudioRing(fs)
+        final_until = 0  # clicks before this sample are final
+        clicks: list[list[ChannelClicks]] = [[] for _ in range(sensors.n_sensors)]
+        next_k = 0
+        pending: ClickWindow | None = None
+        prev_tdoas: list[WindowTdoa] = []
+
+        def detect(a: int, b: int, keep_to: int) -> None:
+            first, x = ring.cut(a, b)
+            found = self.detector.detect(x, fs, t0=first / fs)
+            for ch, c in enumerate(found):
+                clicks[ch].append(c.between(final_until / fs, keep_to / fs))
+
+        def merged(t0: float, t1: float) -> list[ChannelClicks]:
+            out = []
+            for ch, parts in enumerate(clicks):
+                sel = [p.between(t0, t1) for p in parts if p.n_clicks]
+                sel = [p for p in sel if p.n_clicks]
+                if not sel:
+                    out.append(ChannelClicks(ch))
+                    continue
+                out.append(ChannelClicks(ch, np.concatenate([p.times_s for p in sel]),
+                                         np.concatenate([p.power for p in sel]),
+                                         np.concatenate([p.centre_freq_hz for p in sel])))
+            return out
+
+        def process(t0: float, t1: float) -> Iterator[ClickWindow]:
+            nonlocal pending, prev_tdoas
+            a, b = int(round(t0 * fs)) - margin, int(round(t1 * fs)) + margin
+            first, x = ring.cut(a, b)
+            window_clicks = merged(t0, t1)
+            tdoas = self.measure_window(window_clicks, t0_s=t0, sensors=sensors, audio=x,
+                                        audio_t0_s=first / fs, fs=fs)
+            assoc = self.associator.associate([d.as_clicks() for d in prev_tdoas],
+                                              [d.as_clicks() for d in tdoas])
+            tdoas = [WindowTdoa(**{**d.__dict__, "confirmed": bool(assoc.confirmed[k])})
+                     for k, d in enumerate(tdoas)]
+            links = tuple((lk.previous, lk.current) for lk in assoc.links)
+            if pending is not None:
+                yield self._finish(pending, assoc.previous_linked)
+            pending = ClickWindow(t0, t1, tuple(window_clicks), tuple(tdoas),
+                                  np.zeros((len(tdoas), len(tdoas))), links)
+            prev_tdoas = tdoas
+            # forget clicks and audio no later window needs
+            keep_from = (t0 + self.hop_s)
+            ring.drop_before(int(round(keep_from * fs)) - margin - 2 * g)
+            for ch in range(len(clicks)):
+                clicks[ch] = [p for p in clicks[ch] if p.n_clicks and p.times_s[-1] >= keep_from]
+
+        def starts_ready() -> Iterator[float]:
+            nonlocal next_k
+            while True:
+                t0 = next_k * self.hop_s
+                t1 = t0 + self.window_s
+                if duration_s is not None:
+                    starts = window_starts(duration_s, self.window_s, self.hop_s)
+                    if next_k >= starts.size:
+                        return
+                    t1 = min(t1, duration_s)
+                if t1 * fs <= final_until:
+                    next_k += 1
+                    yield t0
+                else:
+                    return
+
+        n_sensors = sensors.n_sensors
+        first_sample = 0
+        for item in blocks:
+            t_blk, x = float(item[0]), np.asarray(item[1])
+            if len(item) == 3 and float(item[2]) != float(fs):
+                raise ValueError(f"block at {t_blk} s has sample rate {item[2]}, expected {fs}")
+            if x.ndim != 2 or x.shape[1] != n_sensors:
+                raise ValueError(f"audio block has shape {x.shape}, expected (n, {n_sensors})")
+            if x.shape[0] == 0:
+                continue
+            if not np.all(np.isfinite(x)):
+                raise ValueError(f"audio block at {t_blk} s contains NaN or infinite samples")
+            if abs(t_blk * fs - first_sample) > 0.5:
+                raise ValueError(f"audio blocks must be consecutive: block at {t_blk} s, "
+                                 f"expected {first_sample / fs} s")
+            ring.append(first_sample, x.astype(np.float32, copy=False))
+            first_sample += x.shape[0]
+            # clicks are final up to a guard before the end of the audio seen so far
+            keep_to = ring.end - g
+            if keep_to > final_until:
+                detect(final_until - 2 * g, ring.end, keep_to)
+                final_until = keep_to
+            for t0 in list(starts_ready()):
+                yield from process(t0, t0 + self.window_s)
+        if ring.end == 0:
+            raise ValueError("no audio samples")
+        if ring.end > final_until:
+            detect(final_until - 2 * g, ring.end, ring.end + 1)
+            final_until = ring.end + 1
+        end_s = ring.end / fs
+        total = duration_s if duration_s is not None else end_s
+        starts = window_starts(total, self.window_s, self.hop_s)
+        while next_k < starts.size:
+            t0 = float(starts[next_k])
+            next_k += 1
+            yield from process(t0, min(t0 + self.window_s, end_s))
+        if pending is not None:
+            yield self._finish(pending, np.zeros(len(pending.tdoas), dtype=bool))
+
+    def run_array(
+        self, audio: ArrayLike, fs: float, sensors: SensorArray, *, block_s: float | None = None
+    ) -> list[ClickWindow]:
+        """Process audio held in memory (n, n_sensors); returns every window."""
+        x = np.asarray(audio)
+        if x.ndim != 2:
+            raise ValueError(f"audio must have shape (n, n_sensors), got {x.shape}")
+        step = int(round((block_s or self.hop_s) * fs))
+        blocks = ((a / fs, x[a:a + step]) for a in range(0, x.shape[0], step))
+        return list(self.iter_windows(blocks, fs=fs, sensors=sensors,
+                                      duration_s=x.shape[0] / fs))
