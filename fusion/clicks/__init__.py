@@ -7,6 +7,7 @@ One module per stage, in the order data flows through them:
 ``detect``   click detection and screening (steps 38-42, eq. 2)
 ``scm``      smoothed click maps, their correlation and TDOA peaks (steps 44-48, eq. 3-6), SCM2
 ``tdoa``     sub-sample TDOA refinement from the matched click waveforms and the Cramér-Rao bound
+``delaytrack`` a pair's delay track through a window: matching along it, robust drift fit
 ``validate`` TDOA validation: SCM2 autocorrelation features and the GMM likelihood ratio (eq. 7-11)
 ``associate`` click-matching association across time (eq. 12) and across sensor pairs (eq. 13)
 ``types``    the data that flows between them

@@ -25,8 +25,8 @@ peaks at ``tau = t_i - t_j``, the TDOA of pair ``(i, j)`` as in the file formats
 The correlation value approximates the number of clicks the two maps share, each weighted by
 the time window of eq. 5 at its time (1 at the window centre, 0.37 at a quarter window from it,
 0.45 on average over the window) and by the correlation pulse at its residual mismatch (1 at no
-mismatch, 0.5 at 1.7 synthetic samples). A single click correlated with itself gives exactly 1
-(eq. 4).
+mismatch, 0.5 at about 5 synthetic samples, 1.7 ms). A single click correlated with itself
+gives exactly 1 (eq. 4).
 
 Examples
 --------
@@ -543,7 +543,7 @@ def scm2(
         The synthetic grid.
     level : float, optional
         Smallest normalised SCM2 peak counted as a source click, in ``(0, 1]``; default 0.5:
-        the two clicks agree to within about 5.8 synthetic samples (1.9 ms at 3 kHz).
+        the two clicks agree to within about 5.6 synthetic samples (1.9 ms at 3 kHz).
     pair : (int, int), optional
         Sensor indices, recorded in the result.
 
