@@ -167,10 +167,13 @@ def _true_crossings(
             if bins[a] != bins[b]:
                 continue
             both = present[:, a] & present[:, b]
+            sgn = np.sign(bearing_deg[:, a] - bearing_deg[:, b])
+            # a strict sign change over a step, or a step onto an exact meeting
+            k = np.flatnonzero(both[:-1] & both[1:] & (sgn[:-1] != 0)
+                               & ((sgn[:-1] * sgn[1:] < 0) | (sgn[1:] == 0)))
             d = bearing_deg[:, a] - bearing_deg[:, b]
-            k = np.flatnonzero(both[:-1] & both[1:] & (np.sign(d[:-1]) != np.sign(d[1:])))
             for i in k:
-                frac = d[i] / (d[i] - d[i + 1]) if d[i] != d[i + 1] else 0.0
+                frac = d[i] / (d[i] - d[i + 1])
                 out.append((a, b, float(time[i] + frac * (time[i + 1] - time[i]))))
     return sorted(out, key=lambda c: c[2])
 
