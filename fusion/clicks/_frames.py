@@ -167,7 +167,7 @@ def gather_frames(
 
 
 def segment_medians(
-    values: NDArray[np.floating], frames: NDArray[np.int64], seg_len: int
+    values: NDArray[np.floating], frames: NDArray[np.int64], seg_len: int, min_count: int = 1
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Median of `values` over each absolute segment of `seg_len` frames.
 
@@ -179,6 +179,9 @@ def segment_medians(
         Absolute frame indices.
     seg_len : int
         Frames per segment; segment ``m`` holds frames ``m seg_len .. (m + 1) seg_len - 1``.
+    min_count : int, optional
+        Segments with fewer values (cut short by the ends of the audio) get no node; when none
+        has enough, one node holds the median of all values.
 
     Returns
     -------
@@ -190,6 +193,10 @@ def segment_medians(
     cuts = np.flatnonzero(np.diff(seg)) + 1
     starts = np.concatenate([[0], cuts])
     ends = np.concatenate([cuts, [frames.size]])
+    full = (ends - starts) >= min_count
+    if not full.any():
+        return np.array([float(frames.mean())]), np.median(values, axis=1)[:, None].astype(float)
+    starts, ends = starts[full], ends[full]
     med = np.stack([np.median(values[:, a:b], axis=1) for a, b in zip(starts, ends, strict=True)],
                    axis=1)
     nodes = seg[starts] * seg_len + 0.5 * (seg_len - 1)

@@ -24,10 +24,12 @@ Choices the text leaves open (each an option of :class:`ClickDetector`):
   the method's own formulation, is the default.
 * **Background.** Medians over absolute time segments of `background_s`, taken on every
   `background_decimation`-th frame, placed at the segment centres and interpolated linearly
-  between them. Each bin's power is exponential in Gaussian noise, so its mean is estimated as
-  ``median / ln 2``; the STFT statistic (flat weights summing to 1) then has unit mean in noise.
-  The envelope statistic's median is turned into a mean with the median-to-mean ratio of the
-  gamma law that fits it in white noise (Satterthwaite), so both share the threshold scale.
+  between them (constant beyond the first and last; a segment cut to under a quarter by an end
+  of the audio has no node of its own). Each bin's power is exponential in Gaussian noise, so
+  its mean is estimated as ``median / ln 2``; the STFT statistic (flat weights summing to 1)
+  then has unit mean in noise. The envelope statistic's median is turned into a mean with the
+  median-to-mean ratio of the gamma law that fits it in white noise (Satterthwaite), so both
+  share the threshold scale.
 * **Timing.** Parabolic interpolation of the *logarithm* of the power (exact for a Gaussian
   peak): on the 6-sample hop the linear-power parabola is biased by up to half a sample, the
   log-power one by under 0.05 sample.
@@ -360,7 +362,9 @@ class ClickDetector:
         spec = gather_frames(x, s0, frames[sub], k.full)
         p_sub = spec[..., 0::2] ** 2 + spec[..., 1::2] ** 2  # (ch, k, n_bins)
         seg_len = self._seg_len(fs)
-        nodes, med = segment_medians(p_sub, frames[sub], seg_len)
+        # a segment cut to under a quarter by an end of the audio gets no node of its own
+        min_count = max(1, -(-seg_len // self.background_decimation) // 4)
+        nodes, med = segment_medians(p_sub, frames[sub], seg_len, min_count)
         bin_bg = np.maximum(med / np.log(2.0), _TINY)  # mean = median / ln 2 (exponential)
         left, wgt = interp_nodes(frames.astype(float), nodes)
         lap("background")
@@ -371,7 +375,7 @@ class ClickDetector:
             stat = self._chunked(x, s0, j_a, n_frames, k, coef.astype(np.float32), left, wgt)
         else:
             env = self._chunked(x, s0, j_a, n_frames, k, None, left, wgt)
-            _, env_bg = segment_medians(env[:, sub], frames[sub], seg_len)
+            _, env_bg = segment_medians(env[:, sub], frames[sub], seg_len, min_count)
             env_bg = np.maximum(env_bg / k.env_median_to_mean, _TINY)  # mean-equivalent
             right = np.minimum(left + 1, nodes.size - 1)
             bg = env_bg[:, left] * (1.0 - wgt) + env_bg[:, right] * wgt
