@@ -213,7 +213,8 @@ def linear_bearing_factors(
     ----------
     noise : gtsam.noiseModel.Base
         One-dimensional bearing noise model, rad (Gaussian, or ``noiseModel.Robust`` around a
-        Gaussian one: the robust loss acts on each bearing alone).
+        Gaussian one: the robust loss acts on each bearing alone); or, for many calls, the
+        ``n``-dimensional model :func:`state_bearing_noise` made from it once.
     keys : sequence of int, length m
         Key of the ``Vector(n)`` state of each bearing (component 0 the bearing, rad).
     bearings : array_like, shape (m,)
@@ -247,9 +248,10 @@ def linear_bearing_factors(
     """
     key_list, z = _check_bearings(keys, bearings)
     x = np.asarray(estimates, dtype=float)
-    if x.ndim != 2 or x.shape[0] != z.size or x.shape[1] < 1 or not np.all(np.isfinite(x)):
+    if x.ndim != 2 or x.shape[0] != z.size or x.shape[1] < 1 or not np.isfinite(x).all():
         raise ValueError(f"estimates must be finite with shape ({z.size}, n), got {x.shape}")
-    state_noise = state_bearing_noise(noise, x.shape[1])
+    n = x.shape[1]
+    state_noise = noise if n > 1 and int(noise.dim()) == n else state_bearing_noise(noise, n)
     means = x.copy()
     means[:, 0] = nearest_branch(z, x[:, 0])  # z' = theta_hat + wrap(z - theta_hat)
     return [gtsam.PriorFactorVector(k, mu, state_noise)

@@ -16,8 +16,9 @@ part of the residual goes through :func:`factors.angles.wrap_angle`, so a track 
 Two forms of the same factor:
 
 - :func:`constant_velocity_factor` -- a ``CustomFactor`` (a Python callback per evaluation).
-- :func:`linear_constant_velocity_factor` and, for a whole track, :func:`constant_velocity_chain`
-  -- the model is linear, so the factor is a built-in ``JacobianFactor``
+- :func:`linear_constant_velocity_factor` and, set up many at once, :func:`constant_velocity_steps`
+  (one step of many tracks) and :func:`constant_velocity_chain` (a whole track) -- the model is
+  linear, so the factor is a built-in ``JacobianFactor``
   ``[-R F, R] [dx_prev; dx_next] - b`` (``R`` the square-root information of ``Q``) held by a
   ``LinearContainerFactor`` at a linearisation point, evaluated and relinearised in C++.
   ``BetweenFactorVector`` cannot express it (it models ``x_next - x_prev``, not
@@ -36,6 +37,7 @@ from factors.angles import wrap_angle
 __all__ = [
     "constant_velocity_chain",
     "constant_velocity_factor",
+    "constant_velocity_steps",
     "linear_constant_velocity_factor",
     "transition_matrix",
     "wna_covariance",
@@ -208,22 +210,25 @@ def wna_sqrt_information(dt: np.ndarray | float, q: float, d: int) -> np.ndarray
     True
     """
     dt_arr = np.asarray(dt, dtype=float)
-    if not np.all(np.isfinite(dt_arr)) or np.any(dt_arr <= 0.0):
+    if not (np.isfinite(dt_arr).all() and (dt_arr > 0.0).all()):
         raise ValueError("dt must be finite and > 0 seconds")
     d = _check_d(d)
     q = float(q)
     if not np.isfinite(q) or q <= 0.0:
         raise ValueError(f"q (acceleration PSD) must be finite and > 0, got {q!r}")
     s = 1.0 / np.sqrt(q)
+    a = s * dt_arr**-1.5
     block = np.zeros(dt_arr.shape + (2, 2))
-    block[..., 0, 0] = s * np.sqrt(3.0) * dt_arr**-1.5  # 1 / L11
-    block[..., 1, 0] = -3.0 * s * dt_arr**-1.5  # -L21 / (L11 L22)
-    block[..., 1, 1] = 2.0 * s * dt_arr**-0.5  # 1 / L22
+    block[..., 0, 0] = np.sqrt(3.0) * a  # 1 / L11
+    block[..., 1, 0] = -3.0 * a  # -L21 / (L11 L22)
+    block[..., 1, 1] = 2.0 * s / np.sqrt(dt_arr)  # 1 / L22
     return _kron_eye(block, d)
 
 
 def _kron_eye(block: np.ndarray, d: int) -> np.ndarray:
     """``kron(block, I_d)`` over the last two axes of a stack of 2 x 2 blocks."""
+    if d == 1:
+        return block
     out = block[..., :, None, :, None] * np.eye(d)[:, None, :]
     return out.reshape(block.shape[:-2] + (2 * d, 2 * d))
 
@@ -307,6 +312,77 @@ def linear_constant_velocity_factor(
                       gtsam.noiseModel.Unit.Create(dim), residual)
 
 
+def constant_velocity_steps(
+    keys_prev: np.ndarray | list[int],
+    keys_next: np.ndarray | list[int],
+    dt: np.ndarray | float,
+    q: float,
+    *,
+    estimates_prev: np.ndarray,
+    estimates_next: np.ndarray,
+    wrap: bool | None = None,
+) -> gtsam.NonlinearFactorGraph:
+    """Many linear constant-velocity factors set up at once (vectorised).
+
+    Parameters
+    ----------
+    keys_prev, keys_next : array_like of int, shape (m,)
+        Keys of the ``Vector(2 d)`` states of each step, at ``t`` and ``t + dt``.
+    dt : float or array_like, shape (m,)
+        Time step of each factor, s (> 0).
+    q : float
+        Acceleration power spectral density, unit^2 / s^3 (> 0); the noise of factor ``i`` is
+        ``wna_covariance(dt[i], q, d)``.
+    estimates_prev, estimates_next : array_like, shape (m, 2 d), keyword-only
+        Linearisation point of each factor (estimates of a key that appears twice must agree).
+    wrap : bool or None, keyword-only
+        As in :func:`linear_constant_velocity_factor`.
+
+    Returns
+    -------
+    gtsam.NonlinearFactorGraph
+        ``m`` ``LinearContainerFactor`` s (add them with ``graph.push_back``): the factors of
+        :func:`linear_constant_velocity_factor` with ``Gaussian.Covariance(wna_covariance(...))``
+        noise, with ``F`` and ``R`` computed for all steps at once and the containers made in
+        C++ (``LinearContainerFactor.ConvertLinearGraph``). Used for a whole track
+        (:func:`constant_velocity_chain`) and for one step of many tracks.
+    """
+    kp = [int(k) for k in np.atleast_1d(keys_prev)]
+    kn = [int(k) for k in np.atleast_1d(keys_next)]
+    x0 = np.asarray(estimates_prev, dtype=float)
+    x1 = np.asarray(estimates_next, dtype=float)
+    m = len(kp)
+    if len(kn) != m or x0.ndim != 2 or x0.shape[0] != m or x1.shape != x0.shape:
+        raise ValueError(f"{m} previous keys, {len(kn)} next keys, estimates of shapes "
+                         f"{x0.shape} and {x1.shape}: give one key pair and estimate pair per step")
+    if x0.shape[1] < 2 or x0.shape[1] % 2:
+        raise ValueError(f"estimates must have shape (m, 2 d), got {x0.shape}")
+    if not (np.all(np.isfinite(x0)) and np.all(np.isfinite(x1))):
+        raise ValueError("estimates must be finite")
+    step = np.broadcast_to(np.asarray(dt, dtype=float), (m,))
+    d = x0.shape[1] // 2
+    R = wna_sqrt_information(step, q, d)  # (m, 2d, 2d); checks dt > 0 and q > 0
+    fb = np.zeros((m, 2, 2))
+    fb[:, 0, 0] = fb[:, 1, 1] = 1.0
+    fb[:, 0, 1] = step
+    F = _kron_eye(fb, d)  # (m, 2d, 2d)
+    residual = x1 - (F @ x0[:, :, None])[:, :, 0]  # e_0 = x_{k+1} - F x_k
+    if ((d == 1) if wrap is None else bool(wrap)) and not (np.abs(residual[:, :d]) < np.pi).all():
+        residual[:, :d] = wrap_angle(residual[:, :d])
+    A_prev = -(R @ F)
+    b = -(R @ residual[:, :, None])[:, :, 0]
+    unit = gtsam.noiseModel.Unit.Create(2 * d)
+    linear = gtsam.GaussianFactorGraph()
+    point = gtsam.Values()
+    for i in range(m):
+        linear.push_back(gtsam.JacobianFactor(kp[i], A_prev[i], kn[i], R[i], b[i], unit))
+        for key, x in ((kp[i], x0[i]), (kn[i], x1[i])):
+            if not point.exists(key):
+                point.insert(key, x)
+    # one LinearContainerFactor per JacobianFactor, each holding its keys' linearisation point
+    return gtsam.LinearContainerFactor.ConvertLinearGraph(linear, point)
+
+
 def constant_velocity_chain(
     keys: np.ndarray | list[int],
     times: np.ndarray,
@@ -314,7 +390,7 @@ def constant_velocity_chain(
     *,
     estimates: np.ndarray,
     wrap: bool | None = None,
-) -> list[gtsam.LinearContainerFactor]:
+) -> gtsam.NonlinearFactorGraph:
     """Linear constant-velocity factors along a whole track (vectorised set-up).
 
     Parameters
@@ -333,10 +409,19 @@ def constant_velocity_chain(
 
     Returns
     -------
-    list of gtsam.LinearContainerFactor, length n - 1
-        Factor ``k`` ties states ``k`` and ``k + 1``; the same factors as
-        :func:`linear_constant_velocity_factor` with ``Gaussian.Covariance(wna_covariance(...))``
-        noise, with ``F`` and ``R`` computed for all steps at once.
+    gtsam.NonlinearFactorGraph
+        ``n - 1`` ``LinearContainerFactor`` s (:func:`constant_velocity_steps`); factor ``k``
+        ties states ``k`` and ``k + 1``.
+
+    Examples
+    --------
+    >>> x = np.array([[0.1, 0.01], [0.11, 0.01], [0.12, 0.01]])
+    >>> chain = constant_velocity_chain([0, 1, 2], [0.0, 1.0, 2.0], 1e-6, estimates=x)
+    >>> v = gtsam.Values()
+    >>> for k in range(3):
+    ...     v.insert(k, x[k])
+    >>> chain.size(), chain.error(v) < 1e-20
+    (2, True)
     """
     key_arr = np.asarray(keys)
     t = np.asarray(times, dtype=float)
@@ -345,30 +430,12 @@ def constant_velocity_chain(
         raise ValueError(f"keys and times must be 1-D of equal length, got {key_arr.shape}, {t.shape}")
     if x.ndim != 2 or x.shape[0] != t.size or x.shape[1] < 2 or x.shape[1] % 2:
         raise ValueError(f"estimates must have shape ({t.size}, 2 d), got {x.shape}")
-    if not (np.all(np.isfinite(t)) and np.all(np.isfinite(x))):
-        raise ValueError("times and estimates must be finite")
+    if not np.all(np.isfinite(t)):
+        raise ValueError("times must be finite")
     if t.size < 2:
-        return []
+        return gtsam.NonlinearFactorGraph()
     dt = np.diff(t)
     if np.any(dt <= 0.0):
         raise ValueError("times must be strictly increasing")
-    d = x.shape[1] // 2
-    R = wna_sqrt_information(dt, q, d)  # (n-1, 2d, 2d)
-    fb = np.zeros(dt.shape + (2, 2))
-    fb[:, 0, 0] = fb[:, 1, 1] = 1.0
-    fb[:, 0, 1] = dt
-    F = _kron_eye(fb, d)  # (n-1, 2d, 2d)
-    residual = x[1:] - np.einsum("kij,kj->ki", F, x[:-1])  # e_0 = x_{k+1} - F x_k
-    if (d == 1) if wrap is None else bool(wrap):
-        residual[:, :d] = wrap_angle(residual[:, :d])
-    A_prev = -np.einsum("kij,kjl->kil", R, F)
-    b = -np.einsum("kij,kj->ki", R, residual)
-    unit = gtsam.noiseModel.Unit.Create(2 * d)
-    out = []
-    for k in range(dt.size):
-        point = gtsam.Values()
-        point.insert(int(key_arr[k]), x[k])
-        point.insert(int(key_arr[k + 1]), x[k + 1])
-        jf = gtsam.JacobianFactor(int(key_arr[k]), A_prev[k], int(key_arr[k + 1]), R[k], b[k], unit)
-        out.append(gtsam.LinearContainerFactor(jf, point))
-    return out
+    return constant_velocity_steps(key_arr[:-1], key_arr[1:], dt, q, estimates_prev=x[:-1],
+                                   estimates_next=x[1:], wrap=wrap)

@@ -10,7 +10,8 @@ design notes ("Factor graphs"):
 - :class:`BearingSmoother` -- batch Levenberg-Marquardt over one track, covariances from
   ``gtsam.Marginals``, optional Huber/Cauchy noise for outlier bearings. On linear-Gaussian data
   it equals a Rauch-Tung-Striebel smoother.
-- :class:`OnlineBearingSmoother` -- the same graph grown one scan at a time with iSAM2.
+- :class:`OnlineBearingSmoother` -- the same graph grown one scan at a time with iSAM2;
+  :class:`OnlineBearingSmootherSet` grows many tracks in one iSAM2, one update per scan.
 - :class:`NearestNeighbourTracker` -- a Kalman (filterpy) bearing tracker with global nearest
   neighbour assignment. Alone it is the baseline; with ``crossing_aware=True`` it predicts
   crossings and lets tracks coast through them, leaving the ambiguous detections shared.
@@ -38,8 +39,14 @@ from filterpy.kalman import KalmanFilter, rts_smoother
 from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import linear_sum_assignment
 
-from factors.bearing import bearing_factor
-from factors.motion import constant_velocity_factor, transition_matrix, wna_covariance
+from factors.angles import nearest_branch
+from factors.bearing import linear_bearing_factors, state_bearing_noise
+from factors.motion import (
+    constant_velocity_chain,
+    constant_velocity_steps,
+    transition_matrix,
+    wna_covariance,
+)
 from factors.weighted import weighted_factor
 from fusion._validation import check_positive
 from fusion.geometry import wrap_angle
@@ -51,6 +58,7 @@ __all__ = [
     "MultiTrackSmoother",
     "NearestNeighbourTracker",
     "OnlineBearingSmoother",
+    "OnlineBearingSmootherSet",
     "SmoothedTrack",
     "TrackPrior",
     "TrackerResult",
@@ -67,6 +75,9 @@ FloatArray = NDArray[np.float64]
 
 #: Robust loss names accepted by the smoothers.
 ROBUST_LOSSES = ("none", "huber", "cauchy")
+
+#: Solves of one graph at most, re-centring the bearings on the previous solution each time.
+_MAX_RECENTRE = 5
 
 
 # --------------------------------------------------------------------------------------------
@@ -297,30 +308,98 @@ def _build_graph(
     model: _Model,
     loss: str,
     weights: FloatArray | None,
+    states: FloatArray,
 ) -> gtsam.NonlinearFactorGraph:
-    """The bearing-rate graph of one track over `times` (keys 0..n-1)."""
+    """The bearing-rate graph of one track over `times` (keys 0..n-1), built-in linear factors
+    linearised at (and bearings re-centred on) the estimate `states` (n, 2)."""
     graph = gtsam.NonlinearFactorGraph()
     if prior is not None:
+        mean = prior.mean
+        mean[0] = nearest_branch(mean[0], states[0, 0])  # the prior bearing wraps too
         graph.add(
-            gtsam.PriorFactorVector(
-                0, prior.mean, gtsam.noiseModel.Gaussian.Covariance(prior.covariance)
-            )
+            gtsam.PriorFactorVector(0, mean, gtsam.noiseModel.Gaussian.Covariance(prior.covariance))
         )
-    for k, dt in enumerate(np.diff(times)):
-        cov = wna_covariance(dt, model.q, 1) if dt > 0 else 1e-12 * np.eye(2)
-        noise = gtsam.noiseModel.Gaussian.Covariance(cov)
-        graph.add(constant_velocity_factor(noise, k, k + 1, float(dt)))
+    graph.push_back(constant_velocity_chain(np.arange(times.size), times, model.q,
+                                            estimates=states))
+    if meas.state.size == 0:
+        return graph
     gauss = gtsam.noiseModel.Isotropic.Sigma(1, model.sigma_bearing)
-    hard_noise = _robust_noise(gauss, loss, model.k)
-    wrap_noise = _robust_noise(gtsam.noiseModel.Unit.Create(1), loss, model.k)
     widx = meas.weight_index if meas.weight_index.size else np.full(meas.state.size, -1)
-    for s, z, w in zip(meas.state, meas.bearing, widx, strict=True):
-        if w < 0:
-            graph.add(bearing_factor(hard_noise, int(s), float(z)))
-        else:
-            inner = bearing_factor(gauss, int(s), float(z))
-            graph.add(weighted_factor(inner, weights, int(w), noise=wrap_noise))
+    hard = widx < 0
+    if hard.any():
+        for factor in linear_bearing_factors(
+            _robust_noise(gauss, loss, model.k), meas.state[hard], meas.bearing[hard],
+            estimates=states[meas.state[hard]],
+        ):
+            graph.add(factor)
+    if not hard.all():
+        wrap_noise = _robust_noise(gtsam.noiseModel.Unit.Create(2), loss, model.k)
+        inner = linear_bearing_factors(gauss, meas.state[~hard], meas.bearing[~hard],
+                                       estimates=states[meas.state[~hard]])
+        for factor, w in zip(inner, widx[~hard], strict=True):
+            graph.add(weighted_factor(factor, weights, int(w), noise=wrap_noise))
     return graph
+
+
+def _branches(
+    times: FloatArray, meas: _Measurements, prior: TrackPrior | None, states: FloatArray
+) -> FloatArray:
+    """Whole turns (rad) added to each bearing, the prior bearing and each motion residual by
+    re-centring on `states`."""
+    z_turns = nearest_branch(meas.bearing, states[meas.state, 0]) - meas.bearing
+    p_turns = [] if prior is None else [nearest_branch(prior.bearing, states[0, 0]) - prior.bearing]
+    e = states[1:, 0] - states[:-1, 0] - np.diff(times) * states[:-1, 1]  # bearing part of e_k
+    return np.concatenate([z_turns, p_turns, wrap_angle(e) - e])
+
+
+def _optimize(
+    times: FloatArray,
+    meas: _Measurements,
+    prior: TrackPrior | None,
+    model: _Model,
+    loss: str,
+    weights: FloatArray | None,
+    states: FloatArray,
+) -> tuple[gtsam.NonlinearFactorGraph | gtsam.GaussianFactorGraph, gtsam.Values, FloatArray]:
+    """Minimise the graph built at `states`; rebuilt at the solution and solved again while the
+    solution moved a bearing or motion residual onto another branch.
+
+    Without a robust loss every factor is linear, so one Gauss-Newton step (one sparse linear
+    solve) reaches the minimum and the linear graph is returned for the marginals; a robust
+    loss is minimised by Levenberg-Marquardt.
+    """
+    for _ in range(_MAX_RECENTRE):
+        graph = _build_graph(times, meas, prior, model, loss, weights, states)
+        values = gtsam.Values()
+        for k in range(times.size):
+            values.insert(k, states[k])
+        if loss == "none":
+            graph = graph.linearize(values)
+            values = values.retract(graph.optimize())  # x = x_0 + argmin ||A dx - b||^2
+        else:
+            values = gtsam.LevenbergMarquardtOptimizer(
+                graph, values, _lm_params(model.max_iterations)
+            ).optimize()
+        new = np.array([values.atVector(k) for k in range(times.size)])
+        same = np.all(np.abs(_branches(times, meas, prior, new)
+                             - _branches(times, meas, prior, states)) < np.pi)
+        states = new
+        if same:
+            break
+    else:
+        logger.warning("bearing branches still changing after %d re-centred solves",
+                       _MAX_RECENTRE)
+    return graph, values, states
+
+
+def _row_medians(a: FloatArray) -> FloatArray:
+    """Median of each row of `a` (n, w) ignoring NaN; every row holds at least one number."""
+    srt = np.sort(a, axis=1)  # NaN last
+    cnt = np.sum(~np.isnan(a), axis=1)
+    rows = np.arange(a.shape[0])
+    upper = srt[rows, cnt // 2]
+    lower = srt[rows, np.maximum(cnt - 1, 0) // 2]
+    return np.where(cnt % 2 == 1, upper, (lower + upper) / 2.0)
 
 
 def _initial_states(times: FloatArray, meas: _Measurements, prior: TrackPrior | None) -> FloatArray:
@@ -333,20 +412,25 @@ def _initial_states(times: FloatArray, meas: _Measurements, prior: TrackPrior | 
         r0 = prior.rate if prior is not None else 0.0
         return np.column_stack([b0 + r0 * (times - times[0]), np.full(n, r0)])
     half = 3
-    uniq = np.unique(meas.state)
-    med = np.empty(uniq.size)
-    for i, s in enumerate(uniq):
-        zs = meas.bearing[np.abs(meas.state - s) <= half]
-        ref = float(np.angle(np.sum(np.exp(1j * zs))))
-        med[i] = ref + np.median(wrap_angle(zs - ref))
+    order = np.argsort(meas.state, kind="stable")
+    st, zz = meas.state[order], meas.bearing[order]
+    uniq = np.unique(st)
+    lo = np.searchsorted(st, uniq - half, side="left")  # measurements of states s-3 .. s+3
+    hi = np.searchsorted(st, uniq + half, side="right")
+    width = int((hi - lo).max())
+    idx = lo[:, None] + np.arange(width)[None, :]
+    inside = idx < hi[:, None]
+    zs = np.where(inside, zz[np.minimum(idx, zz.size - 1)], np.nan)
+    ref = np.angle(np.nansum(np.exp(1j * zs), axis=1))  # circular mean of each window
+    med = ref + _row_medians(wrap_angle(zs - ref[:, None]))
     med = np.unwrap(med)
     ts = times[uniq]
     theta = np.interp(times, ts, med)
     if uniq.size >= 2:
         slope = np.diff(med) / np.maximum(np.diff(ts), 1e-12)
         mid = 0.5 * (ts[1:] + ts[:-1])
-        sm = np.array([np.median(slope[max(0, i - half): i + half + 1])
-                       for i in range(slope.size)])
+        padded = np.concatenate([np.full(half, np.nan), slope, np.full(half, np.nan)])
+        sm = _row_medians(np.lib.stride_tricks.sliding_window_view(padded, 2 * half + 1))
         rate = np.interp(times, mid, sm)
     else:
         rate = np.full(n, prior.rate if prior is not None else 0.0)
@@ -364,23 +448,16 @@ def _solve(
     marginals: bool = False,
 ) -> tuple[FloatArray, FloatArray | None]:
     """Levenberg-Marquardt over one track graph; states (n, 2) and optionally sigmas (n, 2)."""
-    x0 = _initial_states(times, meas, prior) if init is None else init
-    values = gtsam.Values()
-    for k in range(times.size):
-        values.insert(k, np.asarray(x0[k], dtype=float))
+    states = np.asarray(_initial_states(times, meas, prior) if init is None else init, float)
     losses = [model.loss] if model.loss != "cauchy" else ["huber", "cauchy"]
-    graph = None
+    graph = values = None
     for loss in losses:  # a redescending loss starts from the convex Huber solution
-        graph = _build_graph(times, meas, prior, model, loss, weights)
-        values = gtsam.LevenbergMarquardtOptimizer(
-            graph, values, _lm_params(model.max_iterations)
-        ).optimize()
-    states = np.array([values.atVector(k) for k in range(times.size)])
+        graph, values, states = _optimize(times, meas, prior, model, loss, weights, states)
     if not marginals:
         return states, None
     marg = gtsam.Marginals(graph, values)
-    sig = np.array([np.sqrt(np.diag(marg.marginalCovariance(k))) for k in range(times.size)])
-    return states, sig
+    var = np.array([marg.marginalCovariance(k).diagonal() for k in range(times.size)])
+    return states, np.sqrt(var)
 
 
 def _solve_cov(
@@ -393,13 +470,8 @@ def _solve_cov(
 ) -> tuple[FloatArray, list[FloatArray]]:
     """Levenberg-Marquardt over one track graph (hard factors); states (n, 2) and the marginal
     covariances (2, 2) of the states `keys`."""
-    values = gtsam.Values()
-    for k in range(times.size):
-        values.insert(k, np.asarray(init[k], dtype=float))
-    graph = _build_graph(times, meas, prior, model, "none", None)
-    values = gtsam.LevenbergMarquardtOptimizer(
-        graph, values, _lm_params(model.max_iterations)).optimize()
-    states = np.array([values.atVector(k) for k in range(times.size)])
+    graph, values, states = _optimize(times, meas, prior, model, "none", None,
+                                      np.asarray(init, float))
     marg = gtsam.Marginals(graph, values)
     return states, [np.asarray(marg.marginalCovariance(int(k))) for k in keys]
 
@@ -564,8 +636,187 @@ def rts_reference(
     return rts_smoother(np.array(xs), np.array(ps), fs, qs)
 
 
+class OnlineBearingSmootherSet:
+    """Several bearing tracks grown scan by scan in one iSAM2: one update per scan.
+
+    Every track is the bearing-rate graph of :class:`BearingSmoother`; the tracks share the scan
+    times and one ``gtsam.ISAM2``, so a scan costs one update whatever the number of tracks.
+
+    Parameters
+    ----------
+    priors : sequence of TrackPrior, keyword-only
+        Prior on each track's state at `t0` (one per track, at least one).
+    t0 : float, keyword-only
+        Time of the first states, s.
+    sigma_bearing, q, robust, robust_k :
+        As in :class:`BearingSmoother`.
+    relinearize_threshold : float, keyword-only
+        iSAM2 relinearization threshold (tangent-space step), default 1e-3; used with a robust
+        loss only.
+
+    Notes
+    -----
+    Built-in linear factors (:func:`factors.motion.constant_velocity_steps` for the motion of all
+    tracks over a scan, :func:`factors.bearing.linear_bearing_factors`): a new state enters at its
+    constant-rate prediction and its bearings on the branch nearest that prediction. Without a
+    robust loss every factor is linear, so relinearization cannot change the estimate and is
+    switched off; with one, iSAM2 relinearizes (the robust weights depend on the estimate).
+    The cost of an iSAM2 update grows slowly with the length of the chains it holds.
+
+    Examples
+    --------
+    >>> priors = [TrackPrior(bearing=b, rate=0.0, sigma_bearing=0.1, sigma_rate=0.01)
+    ...           for b in (0.3, -2.0)]
+    >>> on = OnlineBearingSmootherSet(priors=priors, t0=0.0, sigma_bearing=0.01, q=1e-8)
+    >>> for k in range(1, 10):
+    ...     est = on.step(float(k), [[0.3 + 0.002 * k], []])
+    >>> est.shape, bool(abs(est[0, 1] - 0.002) < 5e-4)
+    ((2, 2), True)
+    """
+
+    def __init__(
+        self,
+        *,
+        priors: Sequence[TrackPrior],
+        t0: float,
+        sigma_bearing: float,
+        q: float,
+        robust: str = "none",
+        robust_k: float = 1.345,
+        relinearize_threshold: float = 1e-3,
+    ) -> None:
+        self.model = _Model(
+            sigma_bearing=check_positive("sigma_bearing", sigma_bearing),
+            q=check_positive("q", q),
+            loss=_check_loss(robust),
+            k=check_positive("robust_k", robust_k),
+            max_iterations=1,
+        )
+        if not np.isfinite(t0):
+            raise ValueError("t0 must be finite")
+        priors = list(priors)
+        if not priors or not all(isinstance(p, TrackPrior) for p in priors):
+            raise ValueError("priors must be a non-empty sequence of TrackPrior")
+        self._n = len(priors)
+        params = gtsam.ISAM2Params()
+        params.enableRelinearization = self.model.loss != "none"
+        params.setRelinearizeThreshold(float(relinearize_threshold))
+        params.relinearizeSkip = 1
+        self._isam = gtsam.ISAM2(params)
+        self._times: list[float] = [float(t0)]
+        self._last = np.array([p.mean for p in priors])  # (n_tracks, 2)
+        graph = gtsam.NonlinearFactorGraph()
+        values = gtsam.Values()
+        for j, p in enumerate(priors):
+            graph.add(gtsam.PriorFactorVector(self._key(0, j), p.mean,
+                                              gtsam.noiseModel.Gaussian.Covariance(p.covariance)))
+            values.insert(self._key(0, j), p.mean)
+        self._isam.update(graph, values)
+        base = gtsam.noiseModel.Isotropic.Sigma(1, self.model.sigma_bearing)
+        self._state_noise = state_bearing_noise(_robust_noise(base, self.model.loss, self.model.k), 2)
+
+    def _key(self, k: int, track: int) -> int:
+        """Key of state `k` of `track`."""
+        return k * self._n + track
+
+    def _check_track(self, track: int) -> int:
+        if isinstance(track, bool) or int(track) != track or not 0 <= int(track) < self._n:
+            raise ValueError(f"track must be an index in [0, {self._n}), got {track!r}")
+        return int(track)
+
+    @property
+    def n_tracks(self) -> int:
+        """Number of tracks."""
+        return self._n
+
+    @property
+    def n_states(self) -> int:
+        """Number of states of each track so far."""
+        return len(self._times)
+
+    def step(self, time: float, bearings: Sequence[Sequence[float]]) -> FloatArray:
+        """Add one scan of every track and update.
+
+        Parameters
+        ----------
+        time : float
+            Scan time, s, after the previous one (equal to it adds bearings to the last states).
+        bearings : sequence of sequence of float, length n_tracks
+            Each track's bearings of this scan, rad (empty for a miss).
+
+        Returns
+        -------
+        ndarray, shape (n_tracks, 2)
+            Current (filtered) states ``[bearing (rad, wrapped), rate (rad/s)]``.
+        """
+        time = float(time)
+        if not np.isfinite(time) or time < self._times[-1]:
+            raise ValueError(f"scan time {time!r} is before the previous scan {self._times[-1]}")
+        if len(bearings) != self._n:
+            raise ValueError(f"{len(bearings)} bearing lists for {self._n} tracks")
+        zs = [np.asarray(b, dtype=float).ravel() for b in bearings]
+        owner = np.repeat(np.arange(self._n), [z.size for z in zs])
+        z = np.concatenate(zs) if zs else np.zeros(0)
+        if not np.all(np.isfinite(z)):
+            raise ValueError("bearings must be finite")
+        graph = gtsam.NonlinearFactorGraph()
+        values = gtsam.Values()
+        dt = time - self._times[-1]
+        ref = self._last
+        k = len(self._times) - 1
+        if dt > 0:
+            ref = self._last.copy()
+            ref[:, 0] += dt * self._last[:, 1]  # F x_{k-1}
+            keys_prev = [self._key(k, j) for j in range(self._n)]
+            k += 1
+            keys_next = [self._key(k, j) for j in range(self._n)]
+            graph.push_back(constant_velocity_steps(keys_prev, keys_next, dt, self.model.q,
+                                                    estimates_prev=self._last,
+                                                    estimates_next=ref))
+            for key, x in zip(keys_next, ref, strict=True):
+                values.insert(key, x)
+            self._times.append(time)
+        if z.size:
+            for factor in linear_bearing_factors(
+                self._state_noise, [self._key(k, j) for j in owner], z, estimates=ref[owner]
+            ):
+                graph.add(factor)
+        self._isam.update(graph, values)
+        self._last = np.array([self._isam.calculateEstimateVector(self._key(k, j))
+                               for j in range(self._n)])
+        return np.column_stack([wrap_angle(self._last[:, 0]), self._last[:, 1]])
+
+    def covariance(self, track: int) -> FloatArray:
+        """Marginal covariance of a track's latest state, shape (2, 2)."""
+        return self._isam.marginalCovariance(self._key(len(self._times) - 1,
+                                                       self._check_track(track)))
+
+    def result(self, track: int, *, track_id: int | None = None) -> SmoothedTrack:
+        """One track's states smoothed by the current iSAM2 estimate, with marginal sigmas.
+
+        Parameters
+        ----------
+        track : int
+            Track index (order of `priors`).
+        track_id : int, optional, keyword-only
+            Identifier copied to the result; default the index.
+        """
+        track = self._check_track(track)
+        est = self._isam.calculateBestEstimate()
+        n = len(self._times)
+        keys = [self._key(k, track) for k in range(n)]
+        states = np.array([est.atVector(key) for key in keys])
+        var = np.array([self._isam.marginalCovariance(key).diagonal() for key in keys])
+        sig = np.sqrt(var)
+        return SmoothedTrack(track if track_id is None else int(track_id),
+                             np.array(self._times), np.asarray(wrap_angle(states[:, 0])),
+                             states[:, 1].copy(), sig[:, 0], sig[:, 1])
+
+
 class OnlineBearingSmoother:
     """The bearing-rate graph of one track grown scan by scan with iSAM2.
+
+    A :class:`OnlineBearingSmootherSet` of one track.
 
     Parameters
     ----------
@@ -573,10 +824,8 @@ class OnlineBearingSmoother:
         Prior on the state at `t0`.
     t0 : float, keyword-only
         Time of the first state, s.
-    sigma_bearing, q, robust, robust_k :
-        As in :class:`BearingSmoother`.
-    relinearize_threshold : float, keyword-only
-        iSAM2 relinearization threshold (tangent-space step), default 1e-3.
+    sigma_bearing, q, robust, robust_k, relinearize_threshold :
+        As in :class:`OnlineBearingSmootherSet`.
 
     Examples
     --------
@@ -599,34 +848,15 @@ class OnlineBearingSmoother:
         robust_k: float = 1.345,
         relinearize_threshold: float = 1e-3,
     ) -> None:
-        self.model = _Model(
-            sigma_bearing=check_positive("sigma_bearing", sigma_bearing),
-            q=check_positive("q", q),
-            loss=_check_loss(robust),
-            k=check_positive("robust_k", robust_k),
-            max_iterations=1,
-        )
-        if not np.isfinite(t0):
-            raise ValueError("t0 must be finite")
-        params = gtsam.ISAM2Params()
-        params.setRelinearizeThreshold(float(relinearize_threshold))
-        params.relinearizeSkip = 1
-        self._isam = gtsam.ISAM2(params)
-        self._times: list[float] = [float(t0)]
-        self._last = prior.mean.copy()
-        graph = gtsam.NonlinearFactorGraph()
-        graph.add(gtsam.PriorFactorVector(0, prior.mean,
-                                          gtsam.noiseModel.Gaussian.Covariance(prior.covariance)))
-        values = gtsam.Values()
-        values.insert(0, prior.mean)
-        self._isam.update(graph, values)
-        base = gtsam.noiseModel.Isotropic.Sigma(1, self.model.sigma_bearing)
-        self._bearing_noise = _robust_noise(base, self.model.loss, self.model.k)
+        self._set = OnlineBearingSmootherSet(
+            priors=[prior], t0=t0, sigma_bearing=sigma_bearing, q=q, robust=robust,
+            robust_k=robust_k, relinearize_threshold=relinearize_threshold)
+        self.model = self._set.model
 
     @property
     def n_states(self) -> int:
         """Number of states so far."""
-        return len(self._times)
+        return self._set.n_states
 
     def step(self, time: float, bearings: Sequence[float]) -> FloatArray:
         """Add one scan and update.
@@ -643,40 +873,15 @@ class OnlineBearingSmoother:
         ndarray, shape (2,)
             Current (filtered) state ``[bearing (rad, wrapped), rate (rad/s)]``.
         """
-        time = float(time)
-        if not np.isfinite(time) or time < self._times[-1]:
-            raise ValueError(f"scan time {time!r} is before the previous scan {self._times[-1]}")
-        graph = gtsam.NonlinearFactorGraph()
-        values = gtsam.Values()
-        dt = time - self._times[-1]
-        if dt > 0:
-            k = len(self._times)
-            noise = gtsam.noiseModel.Gaussian.Covariance(wna_covariance(dt, self.model.q, 1))
-            graph.add(constant_velocity_factor(noise, k - 1, k, dt))
-            values.insert(k, transition_matrix(dt, 1) @ self._last)
-            self._times.append(time)
-        k = len(self._times) - 1
-        for z in bearings:
-            if not np.isfinite(z):
-                raise ValueError("bearings must be finite")
-            graph.add(bearing_factor(self._bearing_noise, k, float(z)))
-        self._isam.update(graph, values)
-        self._last = self._isam.calculateEstimateVector(k)
-        return np.array([wrap_angle(self._last[0]), self._last[1]])
+        return self._set.step(time, [bearings])[0]
 
     def covariance(self) -> FloatArray:
         """Marginal covariance of the latest state, shape (2, 2)."""
-        return self._isam.marginalCovariance(len(self._times) - 1)
+        return self._set.covariance(0)
 
     def result(self, *, track_id: int = 0) -> SmoothedTrack:
         """All states smoothed by the current iSAM2 estimate, with marginal sigmas."""
-        est = self._isam.calculateBestEstimate()
-        n = len(self._times)
-        states = np.array([est.atVector(k) for k in range(n)])
-        sig = np.array([np.sqrt(np.diag(self._isam.marginalCovariance(k))) for k in range(n)])
-        return SmoothedTrack(int(track_id), np.array(self._times),
-                             np.asarray(wrap_angle(states[:, 0])), states[:, 1].copy(),
-                             sig[:, 0], sig[:, 1])
+        return self._set.result(0, track_id=track_id)
 
 
 # --------------------------------------------------------------------------------------------

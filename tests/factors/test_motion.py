@@ -9,6 +9,7 @@ from numpy.testing import assert_allclose
 from factors.motion import (
     constant_velocity_chain,
     constant_velocity_factor,
+    constant_velocity_steps,
     linear_constant_velocity_factor,
     transition_matrix,
     wna_covariance,
@@ -148,9 +149,10 @@ def test_linear_zero_at_truth_and_chain_equals_single_factors():
     q = 0.02
     x = rng.normal(size=(8, 4))
     chain = constant_velocity_chain(np.arange(8), t, q, estimates=x)
-    assert len(chain) == 7
+    assert chain.size() == 7
     v = _values(*x)
-    for k, f in enumerate(chain):
+    for k in range(chain.size()):
+        f = chain.at(k)
         dt = t[k + 1] - t[k]
         noise = gtsam.noiseModel.Gaussian.Covariance(wna_covariance(dt, q, 2))
         one = linear_constant_velocity_factor(noise, k, k + 1, dt, estimate_prev=x[k],
@@ -158,7 +160,7 @@ def test_linear_zero_at_truth_and_chain_equals_single_factors():
         assert_allclose(f.error(v), one.error(v), rtol=1e-10)
         truth = _values(*[np.zeros(4)] * k, x[k], transition_matrix(dt, 2) @ x[k])
         assert f.error(truth) < 1e-20
-    assert constant_velocity_chain([0], [0.0], q, estimates=x[:1]) == []
+    assert constant_velocity_chain([0], [0.0], q, estimates=x[:1]).size() == 0
 
 
 def test_linear_chain_graph_matches_scalar_graph():
@@ -180,8 +182,7 @@ def test_linear_chain_graph_matches_scalar_graph():
                 noise = gtsam.noiseModel.Gaussian.Covariance(wna_covariance(dt, q, 1))
                 g.add(constant_velocity_factor(noise, k, k + 1, dt))
         else:
-            for f in constant_velocity_chain(np.arange(n), t, q, estimates=init):
-                g.add(f)
+            g.push_back(constant_velocity_chain(np.arange(n), t, q, estimates=init))
         for k in range(n):
             g.add(gtsam.PriorFactorVector(
                 k, np.array([init[k, 0], 0.0]),
@@ -216,3 +217,29 @@ def test_linear_bad_input():
         constant_velocity_chain([0, 1], [0.0, 1.0], 0.1, estimates=np.zeros((2, 3)))
     with pytest.raises(ValueError, match="dt"):
         wna_sqrt_information(np.array([1.0, 0.0]), 0.1, 1)
+
+
+def test_steps_of_many_tracks_equal_single_factors():
+    """One vectorised call for one step of many tracks (different dt, d=2) builds the factors
+    of linear_constant_velocity_factor; a key shared by two steps keeps one estimate."""
+    rng = np.random.default_rng(95)
+    m, q = 6, 0.05
+    dt = rng.uniform(0.5, 9.0, m)
+    x0, x1 = rng.normal(size=(m, 4)), rng.normal(size=(m, 4))
+    kp, kn = np.arange(m), np.arange(m) + 100
+    steps = constant_velocity_steps(kp, kn, dt, q, estimates_prev=x0, estimates_next=x1)
+    assert steps.size() == m
+    v = gtsam.Values()
+    for i in range(m):
+        v.insert(int(kp[i]), x0[i] + 0.1 * rng.normal(size=4))
+        v.insert(int(kn[i]), x1[i])
+    for i in range(m):
+        noise = gtsam.noiseModel.Gaussian.Covariance(wna_covariance(dt[i], q, 2))
+        one = linear_constant_velocity_factor(noise, int(kp[i]), int(kn[i]), dt[i],
+                                              estimate_prev=x0[i], estimate_next=x1[i])
+        assert_allclose(steps.at(i).error(v), one.error(v), rtol=1e-10)
+    shared = constant_velocity_steps([0, 1], [1, 2], 1.0, q, estimates_prev=x0[:2, :2] * 0,
+                                     estimates_next=x0[:2, :2] * 0)
+    assert shared.size() == 2
+    with pytest.raises(ValueError, match="one key pair"):
+        constant_velocity_steps([0, 1], [1], 1.0, q, estimates_prev=x0[:2], estimates_next=x1[:2])
