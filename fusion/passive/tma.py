@@ -8,11 +8,14 @@ Formulation (design notes, "Factor graphs", bearings-only target motion analysis
 models, chosen with ``motion``:
 
 * ``"single"`` (default, the classical TMA): one ``Vector4`` state ``s_0 = [x, y, vx, vy]`` at the
-  first bearing time; the bearing taken at ``t_k`` sees ``s_0`` propagated by ``dt = t_k - t_0``
-  (:func:`factors.target.target_bearing_factor` with ``dt``). Per-time states and covariances
-  follow as ``s_k = F(dt) s_0`` and ``P_k = F P_0 F^T``.
-* ``"chain"``: one state per bearing time, a bearing factor on each, linked by constant-velocity
-  factors (:func:`factors.motion.constant_velocity_factor`) with the white-noise-acceleration
+  first bearing time; the bearing taken at ``t_k`` sees ``s_0`` propagated by ``dt = t_k - t_0``.
+  All bearings enter through one vector factor
+  (:func:`factors.target.target_bearing_batch_factor` with ``dt``): one Python callback per
+  evaluation, whatever the number of bearings. Per-time states and covariances follow as
+  ``s_k = F(dt) s_0`` and ``P_k = F P_0 F^T``.
+* ``"chain"``: one state per bearing time, bearing factors on them (one vector factor per few
+  neighbouring states), linked by built-in linear constant-velocity factors
+  (:func:`factors.motion.constant_velocity_chain`) with the white-noise-acceleration
   covariance ``Q(dt)`` of a small spectral density ``q``: the target may drift slowly off a
   straight line.
 
@@ -21,7 +24,8 @@ covariance is consistent (the chain's process noise makes the covariance conserv
 target), it is better conditioned and several times faster. ``"chain"`` suits slowly
 manoeuvring targets.
 
-Both models use bearing factors that may be robust (Huber, Cauchy or Tukey); a diffuse prior on
+Both models use bearing factors that may be robust (Huber, Cauchy or Tukey, acting on each
+bearing alone); a diffuse prior on
 the first state (100 km, 100 m/s by default), centred on the initial guess, keeps the optimiser
 from wandering along an unobservable range direction and is negligible whenever the bearings
 determine the state. Covariances come from ``gtsam.Marginals``; when its Cholesky factorisation
@@ -29,10 +33,11 @@ finds the information matrix indeterminate (range unobservable, or a tiny ``q`` 
 diffuse prior), from the singular value decomposition of the dense whitened Jacobian instead
 (the same matrix, factored without squaring its condition number).
 
-Initialisation needs no truth: the classical single-state problem is solved with scipy's
-``least_squares`` from a pseudo-linear estimate and from a bank of guesses along the first
-bearing at geometrically spaced ranges (target at rest); the candidate with the lowest cost seeds
-the graph, which Levenberg-Marquardt then refines.
+Initialisation needs no truth and no second solver: closed-form candidates (the pseudo-linear
+estimate, and states along the first bearing at geometrically spaced ranges with their
+pseudo-linear velocities) are scored by the cost of the graph's bearing factor, with the robust
+loss when one is set; the lowest-cost candidate seeds the graph, which one Levenberg-Marquardt
+run solves.
 
 Observability: range is unobservable when the own-ship keeps a constant velocity (the target's
 relative track can be scaled without changing a single bearing). Two checks flag it, each with a
@@ -50,11 +55,10 @@ from dataclasses import dataclass, field
 import gtsam
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.optimize import least_squares
-from threadpoolctl import threadpool_limits
+from threadpoolctl import ThreadpoolController
 
-from factors.motion import constant_velocity_factor, transition_matrix, wna_covariance
-from factors.target import target_bearing, target_bearing_factor, target_bearing_jacobian
+from factors.motion import constant_velocity_chain
+from factors.target import target_bearing, target_bearing_batch_factor, target_bearing_jacobian
 from fusion._validation import check_positive
 from fusion.geometry import wrap_angle
 
@@ -69,8 +73,12 @@ _ROBUST = {
     "cauchy": gtsam.noiseModel.mEstimator.Cauchy,
     "tukey": gtsam.noiseModel.mEstimator.Tukey,
 }
-# scipy's least_squares has no Tukey loss; the initial fit uses Cauchy for it.
-_SCIPY_LOSS = {None: "linear", "huber": "huber", "cauchy": "cauchy", "tukey": "cauchy"}
+#: Robust losses act on each bearing of a vector bearing factor alone.
+_PER_BEARING = gtsam.noiseModel.mEstimator.Base.ReweightScheme.Scalar
+#: States per vector bearing factor of the "chain" model (a factor couples its states).
+_CHAIN_WINDOW = 8
+#: Bearings used to score the initial candidates (evenly spread over the window).
+_SCORE_BEARINGS = 200
 
 
 def _finite_1d(name: str, a: ArrayLike) -> NDArray[np.float64]:
@@ -294,6 +302,24 @@ def range_rel_sigma(
     return float(np.linalg.norm((vt @ u) / sv)) / r  # sqrt(u^T V S^-2 V^T u) / r
 
 
+def _transitions(dt: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Constant-velocity transition matrices ``F(dt)`` of a ``[x, y, vx, vy]`` state, (n, 4, 4)."""
+    F = np.broadcast_to(np.eye(4), (dt.size, 4, 4)).copy()
+    F[:, 0, 2] = F[:, 1, 3] = dt  # x += vx dt, y += vy dt
+    return F
+
+
+_BLAS: list[ThreadpoolController] = []
+
+
+def _one_blas_thread():
+    """Context limiting BLAS/LAPACK to one thread (threaded LAPACK on small matrices is far
+    slower on a busy machine); the controller is made once."""
+    if not _BLAS:
+        _BLAS.append(ThreadpoolController())
+    return _BLAS[0].limit(limits=1)
+
+
 def _pseudo_linear(
     dt: NDArray[np.float64], z: NDArray[np.float64], o: NDArray[np.float64]
 ) -> NDArray[np.float64]:
@@ -306,6 +332,34 @@ def _pseudo_linear(
     b = c * o[:, 0] - s * o[:, 1]
     sol, *_ = np.linalg.lstsq(A, b, rcond=None)
     return sol
+
+
+def _range_candidates(
+    dt: NDArray[np.float64], z: NDArray[np.float64], o: NDArray[np.float64],
+    ranges: NDArray[np.float64],
+) -> NDArray[np.float64]:
+    """Closed-form states along the first bearing, shape (r + r^2, 4).
+
+    For each range ``r_0`` of `ranges` on the first bearing: the state whose velocity best
+    satisfies the pseudo-linear equations with that position held,
+    ``vx dt cos z - vy dt sin z = -(x - x_o) cos z + (y - y_o) sin z`` (least squares, all ranges
+    at once); and for each pair ``(r_0, r_1)`` the straight track from range ``r_0`` on the first
+    bearing to range ``r_1`` on the last (it fits both bearings exactly).
+    """
+    c, s = np.cos(z), np.sin(z)
+    u0 = np.array([np.sin(z[0]), np.cos(z[0])])
+    u1 = np.array([np.sin(z[-1]), np.cos(z[-1])])
+    pos = o[0] + np.outer(ranges, u0)  # (r, 2)
+    A = np.column_stack([c * dt, -s * dt])
+    B = -np.outer(c, pos[:, 0]) + np.outer(s, pos[:, 1]) + (c * o[:, 0] - s * o[:, 1])[:, None]
+    vel, *_ = np.linalg.lstsq(A, B, rcond=None)  # (2, r)
+    held = np.column_stack([pos, vel.T])
+    end = o[-1] + np.outer(ranges, u1)  # (r, 2)
+    p0 = np.repeat(pos, ranges.size, axis=0)
+    p1 = np.tile(end, (ranges.size, 1))
+    span = dt[-1] if dt[-1] > 0 else 1.0
+    two = np.column_stack([p0, (p1 - p0) / span])  # straight track between the two ranges
+    return np.vstack([held, two])
 
 
 class BearingsOnlyTMA:
@@ -413,7 +467,7 @@ class BearingsOnlyTMA:
     def initial_state(
         self, times: NDArray[np.float64], bearings: NDArray[np.float64], own: NDArray[np.float64]
     ) -> NDArray[np.float64]:
-        """Single constant-velocity state at ``times[0]`` that best explains the bearings.
+        """Starting state of the graph solve: the candidate that best explains the bearings.
 
         Parameters
         ----------
@@ -431,50 +485,44 @@ class BearingsOnlyTMA:
 
         Notes
         -----
-        Candidates: the pseudo-linear estimate and, for each range ``r`` of
-        `initial_ranges_m`, a target at rest at ``own[0] + r (sin z0, cos z0)``. Each is refined
-        by ``scipy.optimize.least_squares`` on the wrapped, whitened bearing residuals (with the
-        robust loss when one is set); the lowest cost wins, unless the fit puts the target within
-        `min_range_m` of the own-ship.
+        Candidates, all closed-form (no optimisation): the pseudo-linear estimate; for each
+        range ``r`` of `initial_ranges_m` the target at ``own[0] + r (sin z0, cos z0)`` with the
+        velocity that best satisfies the pseudo-linear equations from that position; and for
+        each pair of ranges the straight track from the first bearing to the last. Each is
+        scored by the sum of squared whitened bearing residuals (each capped at `robust_k`
+        when a robust loss is set) on at most 200 bearings spread over the window; the lowest
+        score wins, skipping candidates that put the target within `min_range_m` of the
+        own-ship at those bearings (the zero-range solution fits any bearings when range is
+        unobservable).
         """
         dt = times - times[0]
-        sigma = self.bearing_sigma
-
-        def resid(s: NDArray[np.float64]) -> NDArray[np.float64]:
-            return wrap_angle(target_bearing(s, own, dt=dt) - bearings) / sigma
-
-        def jac(s: NDArray[np.float64]) -> NDArray[np.float64]:
-            return target_bearing_jacobian(s, own, dt=dt) / sigma
-
-        z0 = bearings[0]
-        candidates = [_pseudo_linear(dt, bearings, own)]
-        for r in self.initial_ranges_m:
-            candidates.append(
-                np.array([own[0, 0] + r * np.sin(z0), own[0, 1] + r * np.cos(z0), 0.0, 0.0])
-            )
-        loss = _SCIPY_LOSS[self.robust]
-        best, best_cost = candidates[1], np.inf
-        for s0 in candidates:
-            if not np.all(np.isfinite(s0)):
-                continue
-            sol = least_squares(
-                resid, s0, jac=jac, method="trf", loss=loss, f_scale=self.robust_k,
-                x_scale="jac", max_nfev=200,
-            )
-            if not np.all(np.isfinite(sol.x)) or sol.cost >= best_cost:
-                continue
-            pos = sol.x[:2] + np.outer(dt, sol.x[2:]) - own  # target - own-ship, every time
-            if np.min(np.hypot(pos[:, 0], pos[:, 1])) < self.min_range_m:
-                continue  # collapsed onto the own-ship: the degenerate zero-range solution
-            best, best_cost = sol.x, float(sol.cost)
-        return best
+        candidates = np.vstack([_pseudo_linear(dt, bearings, own)[None, :],
+                                _range_candidates(dt, bearings, own, self.initial_ranges_m)])
+        candidates = candidates[np.all(np.isfinite(candidates), axis=1)]
+        # score on at most _SCORE_BEARINGS bearings spread over the window, all candidates at once
+        pick = np.unique(np.linspace(0, times.size - 1, min(times.size, _SCORE_BEARINGS))
+                         .round().astype(int))
+        dt_p, own_p = dt[pick], own[pick]
+        rel = (candidates[:, None, :2] + dt_p[None, :, None] * candidates[:, None, 2:]
+               - own_p[None, :, :])  # target - own-ship, every candidate and scored time
+        far = np.min(np.hypot(rel[..., 0], rel[..., 1]), axis=1) >= self.min_range_m
+        if not far.any():  # the degenerate zero-range solution fits any bearings
+            return candidates[min(1, candidates.shape[0] - 1)]
+        candidates = candidates[far]
+        u = wrap_angle(target_bearing(candidates[:, None, :], own_p[None], dt=dt_p[None])
+                       - bearings[None, pick]) / self.bearing_sigma  # whitened residuals
+        if self.robust is not None:
+            u = np.minimum(np.abs(u), self.robust_k)  # a robust loss: bounded influence
+        return candidates[int(np.argmin(np.sum(u * u, axis=1)))]
 
     # ------------------------------------------------------------------ graph
-    def _bearing_noise(self) -> gtsam.noiseModel.Base:
-        base = gtsam.noiseModel.Isotropic.Sigma(1, self.bearing_sigma)
+    def _bearing_noise(self, m: int) -> gtsam.noiseModel.Base:
+        """Noise of a batch of m bearings; a robust loss acts on each bearing alone."""
+        base = gtsam.noiseModel.Isotropic.Sigma(m, self.bearing_sigma)
         if self.robust is None:
             return base
-        return gtsam.noiseModel.Robust.Create(_ROBUST[self.robust].Create(self.robust_k), base)
+        estimator = _ROBUST[self.robust].Create(self.robust_k, _PER_BEARING)
+        return gtsam.noiseModel.Robust.Create(estimator, base)
 
     def _solve(
         self, motion: str, times: NDArray[np.float64], bearings: NDArray[np.float64],
@@ -488,7 +536,7 @@ class BearingsOnlyTMA:
         params.setAbsoluteErrorTol(1e-12)
         solution = gtsam.LevenbergMarquardtOptimizer(graph, values, params).optimize()
         if motion == "single":
-            F = np.stack([transition_matrix(d, 2) for d in times - times[0]])
+            F = _transitions(times - times[0])
             states = F @ solution.atVector(keys[0])  # s_k = F(t_k - t_0) s_0
         else:
             states = np.stack([solution.atVector(k) for k in keys])
@@ -502,8 +550,7 @@ class BearingsOnlyTMA:
         except RuntimeError:  # gtsam's IndeterminantLinearSystemException
             logger.debug("TMA: Marginals found the information matrix indeterminate; using SVD")
             A, _ = graph.linearize(solution).jacobian(gtsam.Ordering(keys))
-            with threadpool_limits(1):  # threaded LAPACK is far slower on a busy machine
-                _, sv, vt = np.linalg.svd(A, full_matrices=False)
+            _, sv, vt = np.linalg.svd(A, full_matrices=False)
             inv_sv = np.where(sv > sv[0] * 1e-15, 1.0 / np.maximum(sv, 1e-300), np.inf)
             full = (vt.T * inv_sv**2) @ vt  # (A^T A)^-1 = V S^-2 V^T
             blocks = np.stack([full[4 * i : 4 * i + 4, 4 * i : 4 * i + 4]
@@ -518,7 +565,6 @@ class BearingsOnlyTMA:
     ) -> tuple[gtsam.NonlinearFactorGraph, gtsam.Values, list[int]]:
         graph = gtsam.NonlinearFactorGraph()
         values = gtsam.Values()
-        noise = self._bearing_noise()
         prior = gtsam.noiseModel.Diagonal.Sigmas(
             np.array([self.prior_sigma_m] * 2 + [self.prior_sigma_mps] * 2)
         )
@@ -527,17 +573,19 @@ class BearingsOnlyTMA:
             key = gtsam.symbol("s", 0)
             values.insert(key, s0)
             graph.add(gtsam.PriorFactorVector(key, s0, prior))
-            for k in range(times.size):
-                graph.add(target_bearing_factor(noise, key, own[k], bearings[k], dt=dt[k]))
+            # every bearing on the one state: one vector factor
+            graph.add(target_bearing_batch_factor(self._bearing_noise(times.size), key, own,
+                                                  bearings, dt=dt))
             return graph, values, [key]
         keys = [gtsam.symbol("x", k) for k in range(times.size)]
-        for k, key in enumerate(keys):
-            values.insert(key, transition_matrix(dt[k], 2) @ s0)  # x_k = F(t_k - t_0) s_0
-            graph.add(target_bearing_factor(noise, key, own[k], bearings[k]))
-            if k > 0:
-                step = times[k] - times[k - 1]
-                cv_noise = gtsam.noiseModel.Gaussian.Covariance(wna_covariance(step, self.q, 2))
-                graph.add(constant_velocity_factor(cv_noise, keys[k - 1], key, step))
+        states = _transitions(dt) @ s0
+        for key, state in zip(keys, states, strict=True):
+            values.insert(key, state)  # x_k = F(t_k - t_0) s_0
+        for a in range(0, times.size, _CHAIN_WINDOW):  # bearings of a few neighbouring states
+            b = min(a + _CHAIN_WINDOW, times.size)
+            graph.add(target_bearing_batch_factor(self._bearing_noise(b - a), keys[a:b], own[a:b],
+                                                  bearings[a:b]))
+        graph.push_back(constant_velocity_chain(keys, times, self.q, estimates=states, wrap=False))
         graph.add(gtsam.PriorFactorVector(keys[0], s0, prior))
         return graph, values, keys
 
@@ -578,23 +626,23 @@ class BearingsOnlyTMA:
         z = np.asarray(wrap_angle(z), dtype=float)
         own = ownship.at(t)
 
-        manoeuvre = ownship_manoeuvre(t, own)
-        s0 = self.initial_state(t, z, own)
-        motion = self.motion
-        if motion == "chain" and manoeuvre < self.min_manoeuvre_m:
-            # Without an own-ship manoeuvre the chain's optimum collapses onto the own-ship (the
-            # target then follows the own-ship's constant velocity at zero CV cost); the
-            # single-state model keeps the initial range instead.
-            motion = "single"
-        states, covs = self._solve(motion, t, z, own, s0)
-        if motion == "chain" and np.min(_ranges(states, own)) < self.min_range_m:
-            logger.info("TMA chain solution collapsed onto the own-ship; using a single state")
-            motion = "single"
+        with _one_blas_thread():
+            manoeuvre = ownship_manoeuvre(t, own)
+            s0 = self.initial_state(t, z, own)
+            motion = self.motion
+            if motion == "chain" and manoeuvre < self.min_manoeuvre_m:
+                # Without an own-ship manoeuvre the chain's optimum collapses onto the own-ship
+                # (the target then follows the own-ship's constant velocity at zero CV cost);
+                # the single-state model keeps the initial range instead.
+                motion = "single"
             states, covs = self._solve(motion, t, z, own, s0)
-
-        resid = wrap_angle(target_bearing(states, own) - z)
-        rms_deg = float(np.degrees(np.sqrt(np.mean(np.square(resid)))))
-        rel = range_rel_sigma(states[-1], own[-1], t - t[-1], own, self.bearing_sigma)
+            if motion == "chain" and np.min(_ranges(states, own)) < self.min_range_m:
+                logger.info("TMA chain solution collapsed onto the own-ship; using a single state")
+                motion = "single"
+                states, covs = self._solve(motion, t, z, own, s0)
+            resid = wrap_angle(target_bearing(states, own) - z)
+            rms_deg = float(np.degrees(np.sqrt(np.mean(np.square(resid)))))
+            rel = range_rel_sigma(states[-1], own[-1], t - t[-1], own, self.bearing_sigma)
         reasons = []
         if manoeuvre < self.min_manoeuvre_m:
             reasons.append(

@@ -114,6 +114,23 @@ def test_robust_loss_resists_an_outlier():
     assert err["huber"] < 0.2 * err[None]
 
 
+def test_tukey_loss_is_tukey_and_rejects_a_gross_outlier():
+    """The one graph solve uses Tukey itself: a 40 deg outlier gets zero weight, so the estimate
+    equals the one without that bearing; Cauchy's bounded, non-zero influence moves it."""
+    sc = simulate_tma(seed=2, **SHORT)
+    z = sc.bearings.copy()
+    z[20] += np.radians(40.0)
+    keep = np.arange(z.size) != 20
+    moved = {}
+    for robust in ("tukey", "cauchy"):
+        tma = BearingsOnlyTMA(bearing_sigma_deg=1.0, robust=robust)
+        with_outlier = tma.estimate(sc.times, z, _track(sc)).states[-1]
+        without = tma.estimate(sc.times[keep], sc.bearings[keep], _track(sc)).states[-1]
+        moved[robust] = float(np.hypot(*(with_outlier[:2] - without[:2])))
+    assert moved["tukey"] < 0.01
+    assert moved["cauchy"] > 0.1
+
+
 def test_ownship_manoeuvre_and_range_information():
     """CV own-ship: zero departure and infinite relative range sigma; a turn makes both finite."""
     t = np.linspace(0.0, 600.0, 31)
@@ -219,3 +236,28 @@ def test_cli_bad_input_exit_2(tmp_path, run_cli):
         assert code == 2
         assert len(err.strip().splitlines()) == 1 and expected in err
         assert not (tmp_path / "o.csv").exists()
+
+
+def test_one_graph_solve(monkeypatch):
+    """Each estimate is one Levenberg-Marquardt run on the graph (no first-pass solver)."""
+    import gtsam
+
+    import fusion.passive.tma as tma_module
+
+    runs = []
+    real = gtsam.LevenbergMarquardtOptimizer
+
+    def counting(*args):
+        runs.append(args[0].size())
+        return real(*args)
+
+    monkeypatch.setattr(tma_module.gtsam, "LevenbergMarquardtOptimizer", counting)
+    sc = simulate_tma(seed=3, **SHORT)
+    for motion, n_factors in (("single", 2), ("chain", None)):
+        runs.clear()
+        res = BearingsOnlyTMA(bearing_sigma_deg=1.0, motion=motion).estimate(
+            sc.times, sc.bearings, _track(sc))
+        assert res.motion == motion and len(runs) == 1
+        if n_factors is not None:
+            assert runs[0] == n_factors  # prior + one vector bearing factor
+    assert not hasattr(tma_module, "least_squares")
