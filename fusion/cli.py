@@ -56,6 +56,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "tma": ("fusion.commands.tma", "bearings-only target motion analysis"),
     "smooth": ("fusion.commands.smooth", "smooth bearing tracks (labelled, or detections of unknown origin)"),
     "track": ("fusion.commands.track", "track targets in active-sonar (or any position) detections"),
+    "passive": ("fusion.commands.passive", "track narrowband lines through beam/frequency/time cubes"),
     "localize": ("fusion.commands.localize", "localize clicking sources (whales) from multichannel audio"),
     "train-validator": ("fusion.commands.train_validator", "retrain the TDOA validator on labelled audio"),
 }

@@ -1,0 +1,148 @@
+"""``fusion passive --cube C.npz [--cube C2.npz ...] (--click B,F | --clicks K.csv | --auto) --out DIR``.
+
+Runs the passive pipeline (:class:`fusion.pipelines.passive.PassivePipeline`) over one cube or
+consecutive cubes of one recording and writes into DIR:
+
+- ``tracks.csv``: ``track_id,time,bearing_deg,bearing_rate_deg_per_min,sigma_bearing_deg,tqi``,
+  one row per track per scan, fixed-lag smoothed; ``tqi`` is empty at a track's first state
+  (the acquisition's prior, before any update);
+- ``alerts.csv``: ``time,track_a,track_b,t_cross,kind``, the crossing alerts.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+from pathlib import Path
+
+import numpy as np
+
+from fusion.cli import emit, number
+from fusion.io import Cube, read_cube, read_table, write_table
+
+logger = logging.getLogger(__name__)
+
+
+def _click(text: str):
+    """``BEAM,FREQ`` or ``BEAM,FREQ,TIME`` (an argparse type)."""
+    from fusion.pipelines.passive_types import Click
+
+    parts = text.split(",")
+    try:
+        if len(parts) not in (2, 3):
+            raise ValueError
+        beam, freq = int(parts[0]), float(parts[1])
+        time = float(parts[2]) if len(parts) == 3 else None
+        return Click(beam, freq, time)
+    except ValueError as e:
+        detail = f": {e}" if str(e) else ""
+        raise argparse.ArgumentTypeError(
+            f"{text!r} is not BEAM,FREQ or BEAM,FREQ,TIME{detail}") from None
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    """Add the ``passive`` subcommand."""
+    p = sub.add_parser(
+        "passive",
+        help="track narrowband lines through beam/frequency/time cubes",
+        description=(
+            "Passive narrowband tracking: clicked (or automatically found) lines are acquired, "
+            "each track's bearing and bearing rate is held in a GTSAM fixed-lag graph, the track "
+            "quality indicator ends lost tracks, and predicted crossings are resolved through "
+            "the association-weighted multi-track graph. Several --cube files are consecutive "
+            "parts of one recording. Writes tracks.csv and alerts.csv into --out."
+        ),
+    )
+    p.add_argument("--cube", type=Path, action="append", required=True,
+                   help="cube .npz (repeat for consecutive cubes of one recording)")
+    starts = p.add_mutually_exclusive_group(required=True)
+    starts.add_argument("--click", type=_click, action="append", metavar="BEAM,FREQ[,TIME]",
+                        help="an operator click (repeatable); without TIME as soon as the "
+                             "acquisition window is full")
+    starts.add_argument("--clicks", type=Path, help="CSV of clicks: beam,freq[,time]")
+    starts.add_argument("--auto", action="store_true",
+                        help="start tracks automatically on the strongest lines")
+    p.add_argument("--out", type=Path, required=True, help="output folder")
+    g = p.add_argument_group("pipeline")
+    g.add_argument("--acq-scans", type=number(int, ge=3), default=60,
+                   help="scans the acquisition looks back over (60)")
+    g.add_argument("--lag", type=number(float, gt=0), default=200.0,
+                   help="fixed lag of the tracks' graphs, s (200)")
+    g.add_argument("--accel-sigma", type=number(float, gt=0), default=2.0,
+                   help="bearing-acceleration standard deviation, deg/min^2 (2)")
+    g.add_argument("--beam-sigma", type=number(float, gt=0), default=0.5,
+                   help="standard deviation of a measured peak, beams (0.5)")
+    g.add_argument("-J", "--window", type=number(int, ge=3), default=12, metavar="J",
+                   help="crossing detector: samples per least-squares window (12)")
+    g.add_argument("-K", "--period", type=number(float, gt=0), default=None, metavar="K",
+                   help="crossing detector: sample period, s (default 5 scan periods)")
+    g.add_argument("--snr0-db", type=number(float), default=3.0,
+                   help="TQI design SNR of the tracker threshold, dB (3)")
+    g.add_argument("--snr1-db", type=number(float), default=10.0,
+                   help="TQI design SNR of a strong track, dB (10)")
+    g.add_argument("--normalize", action="store_true",
+                   help="normalise the cubes to unit noise mean first (split-window median over "
+                        "frequency, pooled over 60 scans); default: cubes are already normalised")
+    p.set_defaults(handler=run, inputs=("cube", "clicks"), out_is_dir=True)
+
+
+def _read_clicks(path: Path) -> list:
+    from fusion.pipelines.passive_types import Click
+
+    table = read_table(path, required=("beam", "freq"), optional=("time",), integer=("beam",))
+    times = table["time"] if "time" in table else [None] * len(table)
+    try:
+        return [Click(int(b), float(f), None if t is None else float(t))
+                for b, f, t in zip(table["beam"], table["freq"], times, strict=True)]
+    except ValueError as e:
+        raise ValueError(f"{path}: {e}") from None
+
+
+def _normalized(cube: Cube) -> Cube:
+    from fusion.passive.acquisition import normalize_spectra
+
+    pool = min(60, cube.n_scans)
+    return Cube(power=normalize_spectra(cube.power, pool_scans=pool), freqs=cube.freqs,
+                scan_period=cube.scan_period, aperture=cube.aperture,
+                sound_speed=cube.sound_speed)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Read the cubes and clicks, run the pipeline, write the tracks and alerts."""
+    from fusion.passive.acquisition import Acquisition
+    from fusion.passive.crossing import CrossingDetector
+    from fusion.passive.quality import TrackQualityIndicator
+    from fusion.pipelines.passive import PassivePipeline, SmootherSettings
+    from fusion.pipelines.passive_measure import LineStarter
+
+    if not args.snr1_db > args.snr0_db:
+        raise ValueError(f"--snr1-db ({args.snr1_db:g}) must exceed --snr0-db ({args.snr0_db:g})")
+    cubes = [read_cube(c) for c in args.cube]
+    if args.normalize:
+        cubes = [_normalized(c) for c in cubes]
+    n_scans = sum(c.n_scans for c in cubes)
+    if n_scans < args.acq_scans:
+        raise ValueError(f"the cubes hold {n_scans} scans, fewer than --acq-scans "
+                         f"{args.acq_scans}: no track can start")
+    clicks = list(args.click or []) + (_read_clicks(args.clicks) if args.clicks else [])
+    period = 5.0 * cubes[0].scan_period if args.period is None else args.period
+    pipe = PassivePipeline(
+        acquisition=Acquisition(),
+        tqi=TrackQualityIndicator(snr0_db=args.snr0_db, snr1_db=args.snr1_db),
+        crossing=CrossingDetector(J=args.window, K=period),
+        smoother=SmootherSettings(lag_s=args.lag, accel_sigma_deg_per_min2=args.accel_sigma,
+                                  beam_sigma=args.beam_sigma),
+        starter=LineStarter() if args.auto else None,
+        acquisition_scans=args.acq_scans,
+    )
+    res = pipe.run(cubes, clicks)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    write_table(out / "tracks.csv", res.track_columns())
+    write_table(out / "alerts.csv", res.alert_columns())
+    n_lost = sum(t.end is not None for t in res.tracks)
+    n_pred = int(np.sum(res.alert_columns()["kind"] == "predicted"))
+    emit(f"{len(res.tracks)} track(s) ({n_lost} ended lost) over {res.n_scans} scans, "
+         f"{len(res.alerts)} alert(s) ({n_pred} predicted), {len(res.resolutions)} crossing(s) "
+         f"resolved -> {out}/tracks.csv, {out}/alerts.csv")
+    return 0
