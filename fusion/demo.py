@@ -29,6 +29,7 @@ PARTS: list[tuple[str, str]] = [
     ("crossings", "fusion.commands.crossings:run_demo"),
     ("active", "fusion.simulate.multistatic:run_demo"),
     ("smoothing", "fusion.commands.smooth:run_demo"),
+    ("passive", "fusion.demos.passive:run_demo"),
 ]
 
 
