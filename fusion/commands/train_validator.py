@@ -46,8 +46,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", type=Path, required=True, help="validator model .npz")
     p.add_argument("--replica-out", type=Path, default=None,
                    help="also write a replica re-estimated from the recordings' clicks (.npz)")
-    p.add_argument("--tolerance", type=number(float, gt=0), default=1e-3,
-                   help="largest |tau - label| of a valid candidate, s (default 0.001)")
+    p.add_argument("--tolerance", type=number(float, gt=0), default=3e-3,
+                   help="largest |tau - label| of a valid candidate's smoothed-click-map "
+                        "delay, s (default 0.003, about the SCM pulse half-width)")
     p.add_argument("--components", type=number(int, ge=1), default=None,
                    help="mixture components per class (default: chosen by BIC, 1-4)")
     p.add_argument("--target-far", type=number(float, gt=0, le=0.5), default=0.02,
@@ -118,7 +119,8 @@ def run(args: argparse.Namespace) -> int:
         emit(f"{audio_p}: {sum(len(w.tdoas) for w in windows)} candidate TDOAs, "
              f"{int(sum(y.sum() for y in ys))} valid so far", err=True)
     if args.simulated:
-        sim = simulated_training_set(range(args.simulated), front_end=front)
+        sim = simulated_training_set(range(args.simulated), front_end=front,
+                                     tol_s=args.tolerance)
         zs.append(sim.z)
         ys.append(sim.valid)
         ss.append(-1 - sim.seed)

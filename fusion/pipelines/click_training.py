@@ -125,11 +125,16 @@ def scenario_labels(scenario) -> TdoaLabels:
 
 
 def label_windows(
-    windows: Sequence[ClickWindow], labels: TdoaLabels, *, tol_s: float = 1e-3
+    windows: Sequence[ClickWindow], labels: TdoaLabels, *, tol_s: float = 3e-3,
+    coarse: bool = False,
 ) -> list[NDArray[np.bool_]]:
     """Label each window's candidate TDOAs: within `tol_s` of a labelled TDOA of its pair.
 
     The labelled TDOA is taken at the window centre (the reference time of the refined TDOA).
+    ``coarse=True`` labels the SCM peak (``tau_coarse_s``) instead of the refined TDOA. The
+    default tolerance, 3 ms, is about the half-width of the SCM pulse: the coarse delay of a
+    moving source lies within it, while inter-click-interval aliases (>= 0.2 s away) and
+    coincidences do not.
     """
     out = []
     for w in windows:
@@ -137,7 +142,8 @@ def label_windows(
         y = np.zeros(len(w.tdoas), dtype=bool)
         for k, d in enumerate(w.tdoas):
             ref = labels.tau_at(d.pair, mid, w.t_start, w.t_end)
-            y[k] = bool(ref.size and np.min(np.abs(ref - d.tau_s)) < tol_s)
+            tau = d.tau_coarse_s if coarse else d.tau_s
+            y[k] = bool(ref.size and np.min(np.abs(ref - tau)) < tol_s)
         out.append(y)
     return out
 
@@ -184,7 +190,7 @@ def varied_scenario(seed: int, *, duration_s: float = 30.0):
 
 
 def simulated_training_set(
-    seeds: Iterable[int], *, duration_s: float = 30.0, tol_s: float = 1e-3,
+    seeds: Iterable[int], *, duration_s: float = 30.0, tol_s: float = 3e-3,
     front_end: ClickFrontEnd | None = None,
 ) -> CandidateSet:
     """Run the front end (without validation) on varied simulated scenarios and label it."""

@@ -96,6 +96,8 @@ class WindowTdoa:
         Standard deviation of `tau_s`, s (refined: from the data; coarse: the SCM pulse width).
     crb_s : float
         Cramér-Rao bound of the refined TDOA at the measured SNR, s (NaN when not refined).
+    snr_db : float
+        Click SNR the refinement measured (the weaker sensor's), dB (NaN when not refined).
     scm_peak : float
         Correlation value at the peak (about the number of matching clicks, eq. 4-6).
     n_clicks : int
@@ -121,6 +123,7 @@ class WindowTdoa:
     tau_coarse_s: float
     sigma_s: float
     crb_s: float
+    snr_db: float
     scm_peak: float
     n_clicks: int
     features: NDArray[np.float64]
@@ -157,8 +160,8 @@ class ClickWindow:
     tdoas : tuple of WindowTdoa
         Every candidate TDOA (valid or not).
     alpha : ndarray, shape (M, M)
-        Cross-pair association (eq. 13) among `tdoas` (0 between TDOAs not sharing exactly
-        one sensor).
+        Cross-pair association (eq. 13) among the `tdoas` that pass validation (0 between
+        TDOAs not sharing exactly one sensor, and for TDOAs that failed validation).
     links_previous : tuple of (int, int)
         ``(index in the previous window, index here)`` of the time association.
     """
@@ -244,6 +247,10 @@ class ClickFrontEnd:
         Click-time tolerance of eq. 12-13, s (default 1 ms).
     scm_level : float, optional
         Smallest normalised SCM2 peak counted as a source click.
+    feature_decimation : int, optional
+        Block size of the SCM2 before its ACF features (see
+        :func:`fusion.clicks.validate.scm2_features`; 10 at the default 3 kHz grid). The
+        shipped validator was trained with the default.
     """
 
     def __init__(
@@ -257,6 +264,7 @@ class ClickFrontEnd:
         hop_s: float = 2.0,
         sigma_t_s: float = 1e-3,
         scm_level: float = 0.5,
+        feature_decimation: int = 10,
     ) -> None:
         check_positive("hop_s", hop_s)
         check_positive("sigma_t_s", sigma_t_s)
@@ -280,6 +288,7 @@ class ClickFrontEnd:
         self.hop_s = float(hop_s)
         self.sigma_t_s = float(sigma_t_s)
         self.scm_level = float(scm_level)
+        self.feature_decimation = int(feature_decimation)
 
     @property
     def window_s(self) -> float:
@@ -332,7 +341,8 @@ class ClickFrontEnd:
             i, j = peak.pair
             maps.append(scm2(inside[i].times_s, inside[j].times_s, peak.tau_s, t0_s=t0_s,
                              config=self.config, level=self.scm_level, pair=peak.pair))
-        z = scm2_features(np.stack([m.series for m in maps]), self.config.fs_hz, T=self.window_s)
+        z = scm2_features(np.stack([m.series for m in maps]), self.config.fs_hz, T=self.window_s,
+                          decimate=self.feature_decimation)
         if self.validator is None:  # features only (training)
             llr = np.full(len(maps), np.nan)
             passes = np.ones(len(maps), dtype=bool)
@@ -342,7 +352,7 @@ class ClickFrontEnd:
         out = []
         for k, (peak, s2) in enumerate(zip(corr.peaks, maps, strict=True)):
             i, j = peak.pair
-            tau, sigma, crb = peak.tau_s, self.config.pulse_halfwidth_s, math.nan
+            tau, sigma, crb, snr = peak.tau_s, self.config.pulse_halfwidth_s, math.nan, math.nan
             times = s2.click_times_s
             # refine only what passed validation: the rest is dropped downstream anyway
             if refiner is not None and passes[k] and s2.index_i.size:
@@ -350,14 +360,14 @@ class ClickFrontEnd:
                                      inside[j].times_s[s2.index_j], audio_t0_s=audio_t0_s,
                                      reference_time_s=t0_s + 0.5 * self.window_s)
                 if ref is not None and abs(ref.tau_s - peak.tau_s) < 2.0 * self.config.pulse_halfwidth_s:
-                    tau, sigma, crb = ref.tau_s, ref.sigma_s, ref.crb_s
+                    tau, sigma, crb, snr = ref.tau_s, ref.sigma_s, ref.crb_s, ref.snr_db
                     # the clicks matched along the delay's drift through the whole window
                     # (the SCM2 matches only those within its pulse width of the coarse delay)
                     if ref.click_times_s.size >= times.size:
                         times = np.sort(ref.click_times_s)
             out.append(WindowTdoa(
                 pair=peak.pair, tau_s=float(tau), tau_coarse_s=float(peak.tau_s),
-                sigma_s=float(sigma), crb_s=float(crb), scm_peak=float(peak.value),
+                sigma_s=float(sigma), crb_s=float(crb), snr_db=float(snr), scm_peak=float(peak.value),
                 n_clicks=int(s2.click_times_s.size), features=z[k], llr=float(llr[k]),
                 passes=bool(passes[k]), click_times_s=times))
         return out
@@ -368,11 +378,17 @@ class ClickFrontEnd:
             WindowTdoa(**{**d.__dict__, "confirmed": bool(d.confirmed or linked_next[k])})
             for k, d in enumerate(window.tdoas)
         ]
-        alpha = cross_pair_alpha([d.as_clicks() for d in tdoas], sigma_t_s=self.sigma_t_s)
-        if tdoas:
-            check = closure_check([d.as_clicks() for d in tdoas], alpha)
-            tdoas = [WindowTdoa(**{**d.__dict__, "consistent": bool(check.consistent[k])})
-                     for k, d in enumerate(tdoas)]
+        # alpha and closure among the TDOAs that passed validation (the others are not used)
+        keep = np.array([k for k, d in enumerate(tdoas) if d.passes], dtype=int)
+        alpha = np.zeros((len(tdoas), len(tdoas)))
+        if keep.size:
+            sub = [tdoas[k].as_clicks() for k in keep]
+            a_sub = cross_pair_alpha(sub, sigma_t_s=self.sigma_t_s)
+            alpha[np.ix_(keep, keep)] = a_sub
+            check = closure_check(sub, a_sub)
+            for n, k in enumerate(keep):
+                tdoas[k] = WindowTdoa(**{**tdoas[k].__dict__,
+                                         "consistent": bool(check.consistent[n])})
         return ClickWindow(window.t_start, window.t_end, window.clicks, tuple(tdoas), alpha,
                            window.links_previous)
 
