@@ -192,59 +192,60 @@ def run_demo(out_dir: Path, *, seed: int) -> dict:
 
 
 def _demo_cube(out_dir: Path, *, seed: int, plt) -> dict:
-    """Acquisition -> bearing tracker -> TQI on a simulated cube (skipped if the parts are absent)."""
-    try:
-        from fusion.passive.acquisition import Acquisition
-        from fusion.simulate.cube import simulate_cube
-    except ImportError:  # pragma: no cover - the acquisition or cube simulator is not installed
-        logger.warning("acquisition or cube simulator unavailable: cube tracking run skipped")
-        return {}
-    from fusion.io import Cube
+    """The passive pipeline (acquisition -> fixed-lag track -> TQI) on a simulated cube."""
+    from fusion.geometry import beam_from_bearing
+    from fusion.passive.acquisition import Acquisition
+    from fusion.passive.crossing import CrossingDetector
     from fusion.passive.quality import TrackQuality
-    from fusion.passive.tracker import BearingTracker
+    from fusion.pipelines.passive import PassivePipeline
+    from fusion.pipelines.passive_types import Click, scans_of
+    from fusion.simulate.cube import simulate_cube
 
     window, n_track = 60, 60
     sc = simulate_cube(seed=seed, n_scans=window + n_track + 1, bearing0_deg=50.0,
                        bearing_rate_deg_per_min=25.0, snr_db=6.0)
     c = sc.cube
     latest = window - 1
-    click = int(np.floor(sc.beam_track[latest] + 0.5))
-    acq = Acquisition().acquire(
-        Cube(power=c.power[:window], freqs=c.freqs, scan_period=c.scan_period,
-             aperture=c.aperture, sound_speed=c.sound_speed),
-        beam=click, freq_hz=sc.click_freq)
-    h = BearingTracker().track(c, bearing_deg=acq.bearing_deg,
-                               bearing_rate_deg_per_min=acq.bearing_rate_deg_per_min,
-                               freq_hz=sc.click_freq, init_scan=latest, n_scans=n_track)
-    q = TrackQualityIndicator().run(h.amplitude, h.residual_deg)
-    truth = sc.shown_bearing_deg[h.scan]
+    click = Click(int(np.floor(sc.beam_track[latest] + 0.5)), sc.click_freq)
+    pipe = PassivePipeline(acquisition=Acquisition(), tqi=TrackQualityIndicator(),
+                           crossing=CrossingDetector(J=12, K=5.0), acquisition_scans=window)
+    ups = []  # the track's filtered state, amplitude, residual and TQI after every scan
+    for i, scan in enumerate(scans_of(c)):
+        if i > latest + n_track:
+            break
+        ups += pipe.step(scan, clicks=[click] if i == 0 else ()).updates
+    start = pipe.result().tracks[0].start
+    scan_k = np.array([int(round(u.time / c.scan_period)) for u in ups])
+    brg = np.array([u.bearing_deg for u in ups])
+    labels = np.array([u.tqi for u in ups])
+    truth = sc.shown_bearing_deg[scan_k]
     write_table(out_dir / "cube_track.csv", {
-        "time": h.time, "bearing_deg": h.bearing_deg,
-        "bearing_rate_deg_per_min": h.bearing_rate_deg_per_min, "true_bearing_deg": truth,
-        "amplitude": h.amplitude, "residual": h.residual_deg, "tqi": q.labels()[:, 0]})
+        "time": np.array([u.time for u in ups]), "bearing_deg": brg,
+        "bearing_rate_deg_per_min": np.array([u.bearing_rate_deg_per_min for u in ups]),
+        "true_bearing_deg": truth, "amplitude": np.array([u.amplitude for u in ups]),
+        "residual": np.array([u.residual_deg for u in ups]), "tqi": labels})
     fig, ax = plt.subplots(2, 1, figsize=(9, 6), sharex=True)
     ax[0].imshow(c.power[:, :, int(np.argmin(np.abs(c.freqs - sc.click_freq)))],
                  aspect="auto", origin="lower", cmap="viridis",
                  extent=(-0.5, c.n_beams - 0.5, -0.5, c.n_scans - 0.5))
-    ax[0].plot(h.beam, h.scan, "r.", ms=3, label="tracker")
+    ax[0].plot(beam_from_bearing(np.radians(brg), c.n_beams), scan_k, "r.", ms=3,
+               label="tracker")
     ax[0].axhline(latest, color="w", lw=0.8, ls="--")
     ax[0].set_xlabel("beam")
     ax[0].set_ylabel("scan")
     ax[0].legend(loc="upper right", fontsize=7)
-    ax[1].plot(h.scan, h.bearing_deg - truth)
+    ax[1].plot(scan_k, brg - truth)
     ax[1].set_xlabel("scan")
     ax[1].set_ylabel("bearing error, deg")
     fig.tight_layout()
     fig.savefig(out_dir / "cube_track.png", dpi=100)
     plt.close(fig)
-    states = q.state[:, 0]
     return {
-        "cube_acq_rate_deg_per_min": round(float(acq.bearing_rate_deg_per_min), 2),
+        "cube_acq_rate_deg_per_min": round(float(start.bearing_rate_deg_per_min), 2),
         "cube_true_rate_deg_per_min": 25.0,
-        "cube_final_bearing_error_deg": round(float(h.bearing_deg[-1] - truth[-1]), 3),
-        "cube_rms_bearing_error_deg": round(float(np.sqrt(np.mean((h.bearing_deg - truth) ** 2))),
-                                            3),
-        "cube_never_lost": bool(np.all(states != TrackQuality.LOST)),
-        "cube_updates_strong": int(np.sum(states == TrackQuality.STRONG)),
-        "cube_updates_low_snr": int(np.sum(states == TrackQuality.LOW_SNR)),
+        "cube_final_bearing_error_deg": round(float(brg[-1] - truth[-1]), 3),
+        "cube_rms_bearing_error_deg": round(float(np.sqrt(np.mean((brg - truth) ** 2))), 3),
+        "cube_never_lost": bool(np.all(labels != TrackQuality.LOST.label)),
+        "cube_updates_strong": int(np.sum(labels == TrackQuality.STRONG.label)),
+        "cube_updates_low_snr": int(np.sum(labels == TrackQuality.LOW_SNR.label)),
     }
