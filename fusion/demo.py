@@ -23,7 +23,7 @@ logger = logging.getLogger(__name__)
 #: (part name, "module:function") in the order the demo runs them.
 PARTS: list[tuple[str, str]] = [
     ("acquisition", "fusion.simulate.cube:run_demo"),
-    ("clicks-scenario", "fusion.simulate.clicks:run_demo"),
+    ("clicks-scenario", "fusion.demos.clicks:run_demo"),
     ("tma", "fusion.simulate.tma:run_demo"),
     ("tqi", "fusion.commands.tqi:run_demo"),
     ("crossings", "fusion.commands.crossings:run_demo"),

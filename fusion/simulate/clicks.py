@@ -39,9 +39,6 @@ from numpy.typing import ArrayLike, NDArray
 
 from fusion.geometry import SensorArray
 from fusion.io import (
-    read_array,
-    read_audio,
-    read_json,
     write_array,
     write_audio,
     write_json,
@@ -53,7 +50,6 @@ __all__ = [
     "ClickWaveform",
     "WhaleTrack",
     "draw_emission_times",
-    "run_demo",
     "simulate_clicks",
     "truth_document",
     "write_click_scenario",
@@ -919,157 +915,3 @@ def write_scenario(out_dir: Path, *, seed: int) -> list[Path]:
     if out.exists() and not out.is_dir():
         raise ValueError(f"{out}: output path exists and is not a folder")
     return write_click_scenario(out, simulate_clicks(seed=seed))
-
-
-# --------------------------------------------------------------------------------------------
-# demo
-# --------------------------------------------------------------------------------------------
-def _xcorr_delay(
-    x: NDArray[np.float64], y: NDArray[np.float64], fs: float, *, upsample: int = 32
-) -> float:
-    """Delay of `y` relative to `x` (s) at the peak of their band-limited interpolated
-    cross-correlation (zero-padded cross-spectrum)."""
-    n = scipy.fft.next_fast_len(len(x) + len(y))
-    cross = np.conj(scipy.fft.rfft(x, n)) * scipy.fft.rfft(y, n)
-    cc = scipy.fft.irfft(cross, n * upsample)  # lag k / (fs * upsample), circular
-    k = int(np.argmax(cc))
-    if k > n * upsample // 2:
-        k -= n * upsample
-    return k / (fs * upsample)
-
-
-def _tdoa_check(
-    samples: NDArray[np.float64], fs: float, track: dict[str, Any], pair: tuple[int, int],
-    *, noise_std: float, min_snr: float = 10.0, isolation_s: float = 0.02,
-    all_arrivals: list[NDArray[np.float64]],
-) -> NDArray[np.float64]:
-    """Cross-correlation TDOA minus geometric TDOA (s) for isolated strong clicks of a track."""
-    i, j = pair
-    t_arr = np.asarray(track["arrival_times"])
-    amp = np.abs(np.asarray(track["arrival_amplitudes"]))
-    n = samples.shape[0]
-    errs = []
-    half = int(0.002 * fs)  # 2 ms window around the click on sensor i
-    search = int(0.005 * fs)  # +-5 ms search around the geometric delay on sensor j
-    for k in range(t_arr.shape[0]):
-        ti, tj = t_arr[k, i], t_arr[k, j]
-        if min(amp[k, i], amp[k, j]) < min_snr * max(noise_std, 1e-12):
-            continue
-        ok = True
-        for ch, t in ((i, ti), (j, tj)):
-            others = all_arrivals[ch]
-            near = np.abs(others - t) < isolation_s
-            if near.sum() != 1:  # only itself
-                ok = False
-        a0, b0 = int(round(ti * fs)) - half, int(round(tj * fs)) - half - search
-        if not ok or a0 < 0 or b0 < 0 or a0 + 2 * half >= n or b0 + 2 * (half + search) >= n:
-            continue
-        x = samples[a0:a0 + 2 * half, i]
-        y = samples[b0:b0 + 2 * (half + search), j]
-        # y starts at b0: delay of y's click relative to x's, in file time
-        d = _xcorr_delay(x, y, fs) + (b0 - a0) / fs
-        errs.append((ti - tj) - (-d))
-    return np.asarray(errs)
-
-
-def run_demo(out_dir: Path, *, seed: int) -> dict[str, Any]:
-    """Demo part ``clicks-scenario``: write a scenario, read it back, plot it, measure TDOAs.
-
-    Parameters
-    ----------
-    out_dir : pathlib.Path
-        Output folder of this part.
-    seed : int
-        Scenario seed.
-
-    Returns
-    -------
-    dict
-        ``n_sensors``, ``n_sources``, ``n_clicks`` (emitted), ``channels_read``, ``fs_read``,
-        ``tdoa_pair``, ``tdoa_n_clicks`` and the median / max absolute error (us) of
-        cross-correlation TDOAs against geometric TDOAs on the pair with the strongest clicks.
-    """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    from scipy.signal import spectrogram
-
-    out = Path(out_dir)
-    scenario = simulate_clicks(seed=seed, duration_s=12.0)
-    write_click_scenario(out, scenario)
-    array = read_array(out / "array.json")
-    samples, fs = read_audio(out / "audio.flac", n_channels=array.n_sensors)
-    truth = read_json(out / "truth.json")
-    scale = float(truth["audio_scale"])
-
-    # every arrival per channel (direct + echo, all sources, transients) for isolation checks
-    arrivals = []
-    for ch in range(array.n_sensors):
-        ts = [np.asarray(s["arrival_times"])[:, ch] for s in truth["sources"]]
-        ts += [np.asarray(s["echo_arrival_times"])[:, ch] for s in truth["sources"]]
-        ts.append(np.array([t["time"] for t in truth["transients"] if t["channel"] == ch]))
-        arrivals.append(np.concatenate(ts))
-    src0 = truth["sources"][0]
-    amp0 = np.median(np.abs(np.asarray(src0["arrival_amplitudes"])), axis=0)
-    pair = tuple(int(v) for v in np.argsort(amp0)[::-1][:2])
-    pair = (min(pair), max(pair))
-    errs = _tdoa_check(
-        samples, fs, src0, pair, noise_std=truth["noise_std_band"] * scale,
-        all_arrivals=arrivals,
-    )
-
-    fig, axes = plt.subplots(1, 3, figsize=(16, 5))
-    ch = pair[0]
-    t_ch = np.asarray(src0["arrival_times"])[:, ch]
-    t_click = float(t_ch[t_ch > 0.3][0])
-    # (a) the received trace over 1.5 s with the true direct and echo arrivals marked
-    a, b = max(int((t_click - 0.3) * fs), 0), int((t_click + 1.2) * fs)
-    tt = np.arange(a, b) / fs
-    axes[0].plot(tt, samples[a:b, ch] / scale, lw=0.4, color="0.3")
-    for sid, s in enumerate(truth["sources"]):
-        for key, mk in (("arrival_times", "v"), ("echo_arrival_times", "x")):
-            ta = np.asarray(s[key])[:, ch]
-            ta = ta[(ta >= tt[0]) & (ta <= tt[-1])]
-            axes[0].plot(ta, np.full(ta.shape, 1.05 * np.abs(samples[a:b, ch]).max() / scale),
-                         mk, color=f"C{sid}", label=f"whale {sid} {key.split('_')[0]}")
-    axes[0].set(xlabel="time (s)", ylabel="pressure (scenario units)",
-                title=f"channel {array.ids[ch]}: direct (v) and surface echo (x)")
-    axes[0].legend(loc="lower right", fontsize=7)
-    # (b) spectrogram of one click: the 25-45 kHz upsweep
-    a, b = max(int((t_click - 0.003) * fs), 0), int((t_click + 0.003) * fs)
-    f, t, sxx = spectrogram(samples[a:b, ch], fs=fs, nperseg=16, noverlap=15, nfft=64)
-    axes[1].pcolormesh((t + a / fs - t_click) * 1e3, f / 1e3, 10 * np.log10(sxx + 1e-20),
-                       shading="auto")
-    axes[1].set(xlabel="time from arrival (ms)", ylabel="frequency (kHz)",
-                title="spectrogram of one click")
-    # (c) plan view
-    ax = axes[2]
-    ax.plot(array.positions[:, 0] / 1e3, array.positions[:, 1] / 1e3, "k^", ms=9,
-            label="hydrophones")
-    for sid, s in enumerate(truth["sources"]):
-        p = np.asarray(s["positions"])
-        (line,) = ax.plot(p[:, 0] / 1e3, p[:, 1] / 1e3, "-", lw=3, label=f"whale {sid}")
-        ax.plot(p[0, 0] / 1e3, p[0, 1] / 1e3, "o", color=line.get_color())
-        ax.annotate(f" z={p[0, 2]:.0f} m, {s['speed_mps']:.1f} m/s",
-                    (p[-1, 0] / 1e3, p[-1, 1] / 1e3), fontsize=8)
-    ax.set(xlabel="x east (km)", ylabel="y north (km)", aspect="equal",
-           title="plan view (o: start of track)")
-    ax.legend(loc="best", fontsize=8)
-    fig.tight_layout()
-    fig.savefig(out / "clicks_scenario.png", dpi=90)
-    plt.close(fig)
-
-    abs_us = np.abs(errs) * 1e6
-    return {
-        "n_sensors": int(array.n_sensors),
-        "n_sources": len(truth["sources"]),
-        "n_clicks": int(sum(len(s["emission_times"]) for s in truth["sources"])),
-        "channels_read": int(samples.shape[1]),
-        "fs_read": float(fs),
-        "tdoa_pair": list(pair),
-        "tdoa_n_clicks": int(abs_us.size),
-        "tdoa_abs_error_median_us": round(float(np.median(abs_us)), 3) if abs_us.size else None,
-        "tdoa_abs_error_max_us": round(float(np.max(abs_us)), 3) if abs_us.size else None,
-        "sample_period_us": round(1e6 / fs, 3),
-    }

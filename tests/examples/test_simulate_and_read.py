@@ -25,7 +25,8 @@ def test_example_runs_small(tmp_path, capsys):
     main = _load_main()
     summary = main(["--seed", "1", "--duration", "2", "--sensors", "3", "--sources", "1",
                     "--out", str(tmp_path)])
-    assert {p.name for p in tmp_path.iterdir()} == {"audio.flac", "array.json", "truth.json"}
+    assert {p.name for p in tmp_path.iterdir()} == {"audio.flac", "array.json", "truth.json",
+                                                    "tdoa_labels.csv"}
     assert summary["channels"] == 3 and len(summary["sensors"]) == 3
     assert summary["fs"] == 96_000.0
     assert summary["duration_s"] == pytest.approx(2.0)
