@@ -69,6 +69,9 @@ class CandidateFinder:
         Width (grid points, odd) of the neighbourhood a local maximum dominates. Default 3.
     refine_levels : int, keyword-only
         Coarse-to-fine levels run on each maximum (0: the grid point itself). Default 2.
+    refine_half : int, keyword-only
+        Half-width in points of each refinement grid (3 times finer than the last, so the
+        default 3 spans one coarser cell each side).
     min_separation_cells : float, keyword-only
         Two candidates closer than this many coarse cells are one (the weaker is dropped).
 
@@ -90,6 +93,7 @@ class CandidateFinder:
         min_relative: float = 0.05,
         footprint: int = 3,
         refine_levels: int = 2,
+        refine_half: int = 3,
         min_separation_cells: float = 1.5,
     ) -> None:
         if int(max_candidates) != max_candidates or max_candidates < 1:
@@ -100,12 +104,15 @@ class CandidateFinder:
             raise ValueError(f"footprint must be an odd integer >= 3, got {footprint!r}")
         if int(refine_levels) != refine_levels or refine_levels < 0:
             raise ValueError(f"refine_levels must be an integer >= 0, got {refine_levels!r}")
+        if int(refine_half) != refine_half or refine_half < 1:
+            raise ValueError(f"refine_half must be a positive integer, got {refine_half!r}")
         if not min_separation_cells >= 0.0:
             raise ValueError(f"min_separation_cells must be >= 0, got {min_separation_cells!r}")
         self.max_candidates = int(max_candidates)
         self.min_relative = float(min_relative)
         self.footprint = int(footprint)
         self.refine_levels = int(refine_levels)
+        self.refine_half = int(refine_half)
         self.min_separation_cells = float(min_separation_cells)
 
     def _maxima(self, volume: IntensityVolume) -> tuple[NDArray[np.intp], NDArray[np.float64]]:
@@ -167,7 +174,8 @@ class CandidateFinder:
         if self.refine_levels and tdoas is not None and pos.shape[0]:
             for k in range(pos.shape[0]):
                 pos[k], inten[k], fine = refine_peak(tdoas, pos[k], step, equation=volume.equation,
-                                                     levels=self.refine_levels, lo=lo, hi=hi)
+                                                     levels=self.refine_levels,
+                                                     half=self.refine_half, lo=lo, hi=hi)
             # two coarse maxima refined onto one peak are one candidate
             order = np.argsort(-inten, kind="stable")
             pos, inten, rel = pos[order], inten[order], rel[order]

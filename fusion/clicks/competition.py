@@ -16,10 +16,12 @@ flat, ``w_km = 1/K`` (eq. 19), and each iteration alternates
     the mixing proportions follow the responsibilities. Optionally a candidate keeps at most
     one TDOA's worth of weight per sensor pair (a source makes one delay per pair);
 (c) **merge and drop**: two candidates whose predicted delays agree within ``merge_sigmas``
-    on the TDOAs they hold, or that split the same TDOAs between them, become one; a candidate
-    holding too little (``sum_m w_km < min_weight``) or whose TDOAs of weight > 0.5 span fewer
-    than ``min_independent`` independent sensor pairs (the rank of their incidence; 3 fix a
-    3-D position) is dropped;
+    on the TDOAs they hold, or that split the same TDOAs between them, become one; once
+    annealed, a candidate is dropped that holds too little (``sum_m w_km < min_weight``) or
+    whose TDOAs of weight > 0.5 span fewer than ``min_independent`` independent sensor pairs
+    (the rank of their incidence; 3 fix a 3-D position), counting with ``alpha`` only TDOAs
+    associated with another of its TDOAs (:func:`supported_weights`: a ghost made of a few
+    TDOAs of a source plus a clutter TDOA that happens to fit does not count the clutter one);
 (d) **growth** (once converged): a candidate refits with the TDOAs left to clutter that are
     associated (``alpha >= min_alpha_link``) with its own; if all then fit within
     ``gate_sigmas`` it keeps them and the iterations resume. (A candidate that starts far from
@@ -61,7 +63,9 @@ __all__ = [
     "CompetitionSettings",
     "association_weights",
     "compete",
+    "holds_a_source",
     "independent_pairs",
+    "supported_weights",
 ]
 
 _LOG = logging.getLogger(__name__)
@@ -82,7 +86,8 @@ class CompetitionSettings:
     max_iterations : int
         Iteration limit.
     min_weight : float
-        Smallest total weight ``sum_m w_km`` a candidate keeps once annealed.
+        Smallest total weight ``sum_m w_km`` a candidate keeps once annealed (3.5: about four
+        TDOAs, one more than the unknowns).
     min_independent : int
         Smallest rank of the incidence of a candidate's TDOAs of weight > 0.5.
     merge_sigmas : float
@@ -110,7 +115,7 @@ class CompetitionSettings:
     beta_scale: float = 4.0
     anneal_factor: float = 0.3
     max_iterations: int = 40
-    min_weight: float = 4.0
+    min_weight: float = 3.5
     min_independent: int = 3
     merge_sigmas: float = 3.0
     max_overlap: float = 0.5
@@ -291,6 +296,29 @@ def association_weights(
     return beta, beta * (beta @ link)  # eq. (21), alpha symmetric
 
 
+def supported_weights(w: NDArray[np.float64], alpha: NDArray[np.float64] | None,
+                      min_alpha_link: float) -> NDArray[np.float64]:
+    """A candidate's TDOA weights, zero where a TDOA is associated with none of its others.
+
+    With ``alpha``, TDOA ``m`` counts only if some other TDOA of weight > 0.5 is linked to it
+    (``alpha_ml >= min_alpha_link``): a true source's TDOAs share its clicks, a chance fit of a
+    clutter TDOA does not. Without ``alpha`` the weights are returned unchanged.
+    """
+    if alpha is None:
+        return w
+    held = w > 0.5
+    linked = np.any((np.asarray(alpha) >= min_alpha_link) & held[None, :], axis=1)
+    return np.where(linked, w, 0.0)
+
+
+def holds_a_source(w: NDArray[np.float64], pairs: NDArray[np.intp],
+                   alpha: NDArray[np.float64] | None, cfg: CompetitionSettings) -> bool:
+    """Whether weights `w` hold enough associated TDOAs to fix a source (the drop rule)."""
+    ws = supported_weights(w, alpha, cfg.min_alpha_link)
+    return bool(ws.sum() >= cfg.min_weight
+                and independent_pairs(pairs, ws > 0.5) >= cfg.min_independent)
+
+
 def _grow(
     tdoas: WindowTdoas, graph: _CandidateGraph, x: NDArray, w: NDArray, clutter: NDArray,
     cfg: CompetitionSettings,
@@ -320,6 +348,7 @@ def compete(
     *,
     start_scale_s: float,
     settings: CompetitionSettings | None = None,
+    z_range: tuple[float, float] | None = None,
 ) -> CompetitionResult:
     """Let candidate positions compete for the TDOAs of one window.
 
@@ -334,6 +363,11 @@ def compete(
         from); the annealing starts there.
     settings : CompetitionSettings, optional, keyword-only
         Options; default :class:`CompetitionSettings()`.
+    z_range : (float, float), optional, keyword-only
+        The water column ``(z_bottom, z_surface)``, m. A candidate that leaves it (by more than
+        1 % of its height) is moved once to its mirror image through the sensors' best-fitting
+        plane and re-annealed, if that image is in the water, and dropped otherwise (on a
+        near-planar array a candidate started at the wrong depth can settle on the far side).
 
     Returns
     -------
@@ -365,8 +399,13 @@ def compete(
     graphs = [_CandidateGraph(tdoas, cfg.solver_iterations) for _ in range(k0)]
     # per-candidate delay scale: shrinks by anneal_factor per iteration, but never below the
     # delay change of the candidate's last move (a travelling candidate keeps its TDOAs)
-    spread = np.full(k0, max(float(start_scale_s), float(sig.max())))
+    spread0 = max(float(start_scale_s), float(sig.max()))
+    spread = np.full(k0, spread0)
+    mirrored = np.zeros(k0, dtype=bool)
+    centre = np.asarray(tdoas.sensors).mean(axis=0)
+    normal = np.linalg.svd(np.asarray(tdoas.sensors) - centre)[2][-1]  # of the best-fit plane
     tol_m = cfg.tol * float(sig.min()) * tdoas.c
+    z_margin = 0.01 * (z_range[1] - z_range[0]) if z_range is not None else 0.0
     converged, it, grow_passes = False, 0, 2
     for it in range(1, cfg.max_iterations + 1):
         idx = np.flatnonzero(alive)
@@ -389,6 +428,24 @@ def compete(
             spread[k] = max(spread[k] * cfg.anneal_factor, step_s)
         annealed = bool(np.all(spread[idx] <= sig.min()))
         scale = np.maximum(sig[None, :], spread[idx, None])
+        # a candidate that left the water column (e.g. below the sea floor) sits on the wrong
+        # side of the sensors' plane: it jumps to its mirror image once, else it is dropped
+        if z_range is not None:
+            for k in idx:
+                if z_range[0] - z_margin <= x[k, 2] <= z_range[1] + z_margin:
+                    continue
+                image = x[k] - 2.0 * float((x[k] - centre) @ normal) * normal
+                if not mirrored[k] and z_range[0] <= image[2] <= z_range[1]:
+                    _LOG.debug("iteration %d: candidate %d (z = %.1f m) to its mirror image", it,
+                               k, x[k, 2])
+                    x[k], spread[k], mirrored[k] = image, spread0, True
+                else:
+                    alive[k] = False
+                    _LOG.debug("iteration %d: candidate %d dropped (z = %.1f m)", it, k, x[k, 2])
+            idx = np.flatnonzero(alive)
+            if idx.size == 0:
+                break
+            scale = np.maximum(sig[None, :], spread[idx, None])
         # (b) weight update: responsibilities with a uniform clutter component
         r = tdoas.predicted(x[idx]) - tdoas.taus
         loglik = log_pi[idx, None] - 0.5 * (r / scale) ** 2 - np.log(np.sqrt(2 * np.pi) * scale)
@@ -417,12 +474,15 @@ def compete(
                     _LOG.debug("iteration %d: candidate %d merged into %d", it, loser, a + b - loser)
         # ... and drop those holding too little (fully once annealed)
         for k in np.flatnonzero(alive):
-            done = spread[k] <= sig.min()
-            floor = cfg.min_weight if done else min(1.0, cfg.min_weight)
-            if w[k].sum() < floor or (done and independent_pairs(pairs, w[k] > 0.5)
-                                      < cfg.min_independent):
+            if spread[k] > sig.min():  # still annealing: only the empty ones go
+                if w[k].sum() < min(1.0, cfg.min_weight):
+                    alive[k] = False
+                    _LOG.debug("iteration %d: candidate %d dropped (weight %.2f)", it, k,
+                               w[k].sum())
+            elif not holds_a_source(w[k], pairs, alpha, cfg):
                 alive[k] = False
-                _LOG.debug("iteration %d: candidate %d dropped (weight %.2f)", it, k, w[k].sum())
+                _LOG.debug("iteration %d: candidate %d dropped (weight %.2f, supported %.2f)", it,
+                           k, w[k].sum(), supported_weights(w[k], alpha, cfg.min_alpha_link).sum())
         if annealed and moved < tol_m and change < cfg.tol:
             # growth: a candidate that settled on a subset of its source's TDOAs (the others
             # lost to clutter on the way) refits with the associated clutter TDOAs

@@ -18,7 +18,8 @@ covariance, the TDOAs it uses, observability flags). Four methods, for use and c
     One source: unweighted least squares over all TDOAs from the eq. (17) peak.
 
 Every method drops a source using fewer than ``min_tdoas`` TDOAs or fewer than three
-independent pairs, so they differ only in how TDOAs are assigned to sources.
+independent pairs (the competition counts only TDOAs associated with another of the source's
+TDOAs when ``alpha`` is given), so the methods differ in how TDOAs are assigned to sources.
 
 Observability: the position information ``J^T W J`` of the source's TDOAs gives a condition
 number; a fix is flagged unobservable when it exceeds ``max_condition`` (e.g. a planar array
@@ -47,12 +48,19 @@ from scipy.sparse.csgraph import connected_components
 
 from factors.tdoa import weighted_tdoa_vector_factor
 from fusion.clicks.candidates import CandidateFinder
-from fusion.clicks.competition import CompetitionSettings, compete, independent_pairs
+from fusion.clicks.competition import (
+    CompetitionSettings,
+    compete,
+    independent_pairs,
+    supported_weights,
+)
 from fusion.clicks.surfaces import (
+    SearchGrid,
     SearchRegion,
     WindowTdoas,
     fine_step,
     intensity_volume,
+    sensor_distances,
     smoothing_sigma,
 )
 
@@ -172,10 +180,11 @@ class MultiSourceLocalizer:
     smoothing_cells : float, keyword-only
         Delay smoothing of the surfaces in grid cells (:func:`smoothing_sigma`).
     max_rounds : int, keyword-only
-        Competition rounds (default 2). After a round, the largest group of TDOAs left to
-        clutter that are linked by ``alpha >= competition.min_alpha_link`` (all leftovers
-        without ``alpha``), if it could fix a source, gets its own surface and candidates, and
-        all candidates compete again: a source the coarse surface merged with a neighbour.
+        Competition rounds (default 3). After a round, each group of TDOAs left to clutter that
+        are linked by ``alpha >= competition.min_alpha_link`` (all leftovers without
+        ``alpha``) and could fix a source gets its own surface and candidates, and all
+        candidates compete again: sources the coarse surface merged with a neighbour. Rounds
+        stop as soon as no such group is left.
 
     Examples
     --------
@@ -199,11 +208,11 @@ class MultiSourceLocalizer:
         competition: CompetitionSettings | None = None,
         polish: bool = True,
         gate_sigmas: float = 3.0,
-        min_tdoas: float = 4.0,
+        min_tdoas: float = 3.5,
         max_condition: float = 1e6,
         mirror_chi2: float = 4.0,
         smoothing_cells: float = 1.0,
-        max_rounds: int = 2,
+        max_rounds: int = 3,
     ) -> None:
         if method not in METHODS:
             raise ValueError(f"method must be one of {METHODS}, got {method!r}")
@@ -226,6 +235,7 @@ class MultiSourceLocalizer:
         self.mirror_chi2 = float(mirror_chi2)
         self.smoothing_cells = float(smoothing_cells)
         self.max_rounds = int(max_rounds)
+        self._grid_cache: tuple[bytes, SearchGrid, NDArray[np.float64]] | None = None
 
     # ------------------------------------------------------------------ entry point
     def localize(
@@ -270,13 +280,15 @@ class MultiSourceLocalizer:
         """:meth:`localize` for an already checked :class:`WindowTdoas`."""
         equation = 17 if self.method in ("eq17", "lsq") or tdoas.alpha is None else 18
         lo, hi = self.region.bounds(tdoas.sensors)
-        grid = self.region.volume(tdoas.sensors)
-        volume = intensity_volume(tdoas, grid, equation=equation, cells=self.smoothing_cells)
+        grid, ranges = self._coarse(tdoas.sensors)
+        volume = intensity_volume(tdoas, grid, equation=equation, cells=self.smoothing_cells,
+                                  distances=ranges)
         finder = self.finder
         if self.method in ("eq17", "eq18"):  # refine every peak to the fine level
             finder = CandidateFinder(max_candidates=finder.max_candidates,
                                      min_relative=finder.min_relative, footprint=finder.footprint,
                                      refine_levels=_levels_to_fine(tdoas, grid.step),
+                                     refine_half=finder.refine_half,
                                      min_separation_cells=finder.min_separation_cells)
         cand = finder.find(volume, tdoas, lo=lo, hi=hi)
         if self.method == "competition":
@@ -285,33 +297,41 @@ class MultiSourceLocalizer:
             return self._lsq(tdoas, cand.positions)
         return self._surface_peaks(tdoas, cand.positions)
 
+    def _coarse(self, sensors: NDArray[np.float64]) -> tuple[SearchGrid, NDArray[np.float64]]:
+        """The coarse grid of the array and its sensor ranges (kept for the next window)."""
+        key = np.asarray(sensors, dtype=float).tobytes()
+        if self._grid_cache is None or self._grid_cache[0] != key:
+            grid = self.region.volume(sensors)
+            self._grid_cache = (key, grid, sensor_distances(grid, sensors))
+        return self._grid_cache[1], self._grid_cache[2]
+
     # ------------------------------------------------------------------ methods
     def _competition(self, tdoas: WindowTdoas, starts: NDArray, step: float) -> LocalizationOutput:
         scale = float(np.max(smoothing_sigma(tdoas.sigmas, step, c=tdoas.c,
                                              cells=self.smoothing_cells)))
         if starts.shape[0] == 0:
             return self._output((), tdoas, starts, 0, True)
-        res = compete(tdoas, starts, start_scale_s=scale, settings=self.competition)
+        res = compete(tdoas, starts, start_scale_s=scale, settings=self.competition,
+                          z_range=self.region.water_column)
         iterations = res.iterations
+        grid, ranges = self._coarse(tdoas.sensors)
+        lo, hi = self.region.bounds(tdoas.sensors)
         for _ in range(self.max_rounds - 1):
-            group = self._unexplained(tdoas, res.clutter)
-            if group is None:
-                break
-            # a source the coarse surface merged with a neighbour: look again with the
-            # associated TDOAs no candidate explains, and let everyone compete anew
-            sub = tdoas.subset(group)
-            vol = intensity_volume(sub, self.region.volume(tdoas.sensors),
-                                   equation=17 if sub.alpha is None else 18,
-                                   cells=self.smoothing_cells)
-            lo, hi = self.region.bounds(tdoas.sensors)
-            extra = self.finder.find(vol, sub, lo=lo, hi=hi).positions
+            groups = self._unexplained(tdoas, res.clutter)
+            # sources the coarse surface merged with a neighbour: look again, one surface per
+            # group of associated TDOAs no candidate explains, and let everyone compete anew
+            extra = [self.finder.find(
+                intensity_volume(sub, grid, equation=17 if sub.alpha is None else 18,
+                                 cells=self.smoothing_cells, distances=ranges),
+                sub, lo=lo, hi=hi).positions for sub in (tdoas.subset(g) for g in groups)]
+            extra = np.vstack(extra) if extra else np.zeros((0, 3))
             if extra.shape[0] == 0:
                 break
-            _LOG.debug("%d unexplained associated TDOAs: %d more candidates", group.size,
-                       extra.shape[0])
+            _LOG.debug("%d groups of unexplained associated TDOAs: %d more candidates",
+                       len(groups), extra.shape[0])
             starts = np.vstack([starts, extra])
             res = compete(tdoas, np.vstack([res.positions, extra]), start_scale_s=scale,
-                          settings=self.competition)
+                          settings=self.competition, z_range=self.region.water_column)
             iterations += res.iterations
         fixes = []
         for k in range(res.positions.shape[0]):
@@ -324,26 +344,34 @@ class MultiSourceLocalizer:
             fixes.append(self._fix(tdoas, pos, w))
         return self._output(fixes, tdoas, starts, iterations, res.converged)
 
-    def _unexplained(self, tdoas: WindowTdoas, clutter: NDArray) -> NDArray[np.intp] | None:
-        """Largest group of mutually associated TDOAs left to clutter, if it could be a source."""
+    def _unexplained(self, tdoas: WindowTdoas, clutter: NDArray) -> list[NDArray[np.intp]]:
+        """Groups of TDOAs left to clutter that could each fix a source.
+
+        The groups are the connected components of the leftovers linked by
+        ``alpha >= min_alpha_link`` (all leftovers form one group without ``alpha``); a group
+        qualifies with at least ``min_tdoas`` TDOAs spanning three independent pairs.
+        """
         left = np.flatnonzero(clutter > 0.5)
         if left.size < max(self.min_tdoas, 3):
-            return None
+            return []
+        label = np.zeros(left.size, dtype=int)
         if tdoas.alpha is not None:
             links = np.asarray(tdoas.alpha)[np.ix_(left, left)] >= self.competition.min_alpha_link
             _, label = connected_components(csr_matrix(links), directed=False)
-            left = left[label == np.argmax(np.bincount(label))]
-        mask = np.zeros(tdoas.m, dtype=bool)
-        mask[left] = True
-        if left.size < self.min_tdoas or independent_pairs(np.asarray(tdoas.pairs), mask) < 3:
-            return None
-        return left
+        pairs = np.asarray(tdoas.pairs)
+        groups = []
+        for g in np.unique(label):
+            mask = np.zeros(tdoas.m, dtype=bool)
+            mask[left[label == g]] = True
+            if mask.sum() >= self.min_tdoas and independent_pairs(pairs, mask) >= 3:
+                groups.append(left[label == g])
+        return groups
 
     def _surface_peaks(self, tdoas: WindowTdoas, peaks: NDArray) -> LocalizationOutput:
         fixes = []
         for p in peaks:
             w = self._gate(tdoas, p)
-            if self._enough(tdoas, w):
+            if self._enough(tdoas, w, associated=False):
                 fixes.append(self._fix(tdoas, p, w, mirror=False))
         return self._output(fixes, tdoas, peaks, 0, True)
 
@@ -359,9 +387,16 @@ class MultiSourceLocalizer:
         r = tdoas.predicted(p) - tdoas.taus
         return (np.abs(r) <= self.gate_sigmas * np.asarray(tdoas.sigmas)).astype(float)
 
-    def _enough(self, tdoas: WindowTdoas, w: NDArray) -> bool:
-        return bool(w.sum() >= self.min_tdoas
-                    and independent_pairs(np.asarray(tdoas.pairs), w > 0.5) >= 3)
+    def _enough(self, tdoas: WindowTdoas, w: NDArray, *, associated: bool = True) -> bool:
+        """The drop rule: enough TDOAs spanning three independent pairs.
+
+        With `associated` (the competition) and ``alpha``, only TDOAs associated with another
+        of the fix's TDOAs count (:func:`fusion.clicks.competition.supported_weights`).
+        """
+        alpha = tdoas.alpha if associated and self.competition.use_alpha else None
+        ws = supported_weights(w, alpha, self.competition.min_alpha_link)
+        return bool(ws.sum() >= self.min_tdoas
+                    and independent_pairs(np.asarray(tdoas.pairs), ws > 0.5) >= 3)
 
     def _output(self, fixes, tdoas: WindowTdoas, starts: NDArray, iterations: int,
                 converged: bool) -> LocalizationOutput:

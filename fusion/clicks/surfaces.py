@@ -39,6 +39,7 @@ __all__ = [
     "fine_step",
     "intensity_volume",
     "refine_peak",
+    "sensor_distances",
     "smoothing_sigma",
     "tdoa_intensities",
 ]
@@ -370,6 +371,7 @@ def intensity_volume(
     equation: int = 18,
     cells: float = 1.0,
     chunk_points: int = 8192,
+    distances: NDArray[np.float64] | None = None,
 ) -> IntensityVolume:
     """Sample the intensity of eq. (17) or (18) on a grid, in chunks of points.
 
@@ -385,6 +387,9 @@ def intensity_volume(
         Smoothing in grid cells (:func:`smoothing_sigma`).
     chunk_points : int, keyword-only
         Grid points evaluated at once (memory ``chunk_points x M`` floats).
+    distances : ndarray, shape (grid.size, n), optional, keyword-only
+        Ranges from the grid points to the sensors, m (:func:`sensor_distances`): a cache for
+        grids used again and again (the coarse grid of every window of one array).
 
     Returns
     -------
@@ -409,11 +414,35 @@ def intensity_volume(
         raise ValueError(f"chunk_points must be a positive integer, got {chunk_points!r}")
     sig = smoothing_sigma(tdoas.sigmas, grid.step, c=tdoas.c, cells=cells)
     out = np.empty(grid.size)
+    first, second = tdoas.pairs[:, 0], tdoas.pairs[:, 1]
+    if distances is not None and np.shape(distances) != (grid.size, tdoas.sensors.shape[0]):
+        raise ValueError(f"distances must have shape ({grid.size}, {tdoas.sensors.shape[0]}), "
+                         f"got {np.shape(distances)}")
     for start in range(0, grid.size, int(chunk_points)):
-        i = tdoa_intensities(grid.points(start, start + int(chunk_points)), tdoas, sig)
+        stop = min(start + int(chunk_points), grid.size)
+        if distances is None:
+            i = tdoa_intensities(grid.points(start, stop), tdoas, sig)
+        else:  # eq. (16) from the cached ranges |p - s_i|
+            d = distances[start:stop]
+            r = ((d[:, first] - d[:, second]) / tdoas.c - tdoas.taus) / sig
+            i = np.exp(-0.5 * r * r)
         out[start:start + i.shape[0]] = (i.sum(axis=1) if equation == 17  # eq. (17)
                                          else associated_intensity(i, tdoas.alpha))  # eq. (18)
     return IntensityVolume(grid, out.reshape(grid.shape), equation, sig)
+
+
+def sensor_distances(grid: SearchGrid, sensors: ArrayLike, *, chunk_points: int = 8192
+                     ) -> NDArray[np.float64]:
+    """Ranges ``|p - s_i|`` from every grid point to every sensor, shape (grid.size, n), m."""
+    s = np.asarray(sensors, dtype=float)
+    centre = s.mean(axis=0)
+    sc = s - centre  # centred: |p - s|^2 = |p|^2 + |s|^2 - 2 p.s loses little precision
+    out = np.empty((grid.size, s.shape[0]))
+    for start in range(0, grid.size, int(chunk_points)):
+        p = grid.points(start, start + int(chunk_points)) - centre
+        d2 = (p * p).sum(1)[:, None] + (sc * sc).sum(1)[None, :] - 2.0 * (p @ sc.T)
+        out[start:start + p.shape[0]] = np.sqrt(np.maximum(d2, 0.0))
+    return out
 
 
 def fine_step(tdoas: WindowTdoas) -> float:
