@@ -4,10 +4,11 @@
   Gaussian prior on the track's first state, with an uncertainty derived from the acquisition's
   own SNR, beamwidth and trace length.
 - :class:`FixedLagBearingTrack` holds one track's states ``x_k = (bearing, bearing rate)`` on a
-  GTSAM ``IncrementalFixedLagSmoother`` built only from GTSAM's linear factors: the constant-rate
-  motion model and the bearing measurements are exact linear relations, wrapped as
-  ``LinearContainerFactor`` around a whitened ``JacobianFactor``, so the graph is linearised in
-  C++ and never calls back into Python.
+  GTSAM ``IncrementalFixedLagSmoother`` built only from GTSAM's built-in factors: the
+  constant-rate motion model and the bearing measurements are exact linear relations
+  (:func:`factors.motion.linear_constant_velocity_factor`,
+  :func:`factors.bearing.linear_bearing_factor`), so the graph is linearised in C++ and never
+  calls back into Python.
 """
 
 from __future__ import annotations
@@ -20,7 +21,8 @@ import gtsam
 import numpy as np
 from numpy.typing import NDArray
 
-from factors.motion import transition_matrix, wna_covariance
+from factors.bearing import linear_bearing_factor
+from factors.motion import linear_constant_velocity_factor, transition_matrix, wna_covariance
 from fusion._validation import check_positive
 from fusion.geometry import beam_from_bearing, beamwidth_cos, bearing_from_beam
 from fusion.passive.acquisition import AcquisitionResult
@@ -33,9 +35,6 @@ logger = logging.getLogger(__name__)
 
 FloatArray = NDArray[np.float64]
 
-_UNIT1 = gtsam.noiseModel.Unit.Create(1)
-_UNIT2 = gtsam.noiseModel.Unit.Create(2)
-_H_BEARING = np.array([[1.0, 0.0]])
 
 
 class AcquisitionPrior:
@@ -189,10 +188,12 @@ class FixedLagBearingTrack:
     Factors (design notes, "Bearing-rate graph"): a prior ``x_0 ~ N(m, P_0)``; between states
     ``dt`` apart the motion factor ``x_k - F(dt) x_(k-1) ~ N(0, s Q(dt))`` with ``s`` the
     process-noise scale of that update; a bearing ``z`` with standard deviation ``sigma`` gives
-    ``[1, 0] x_k - z ~ N(0, sigma^2)``. Each is a ``JacobianFactor`` whitened by hand (``A``,
-    ``b`` multiplied by the inverse Cholesky factor of the covariance, unit noise), wrapped in a
-    ``LinearContainerFactor`` linearised at 0, so that it is exact at any linearisation point.
-    Bearings are cone angles of a line array, ``[0, pi]``, never wrapped. The latest estimate of
+    ``[1, 0] x_k - z ~ N(0, sigma^2)``. The prior is a ``PriorFactorVector``, the motion factor
+    a whitened ``JacobianFactor`` in a ``LinearContainerFactor``
+    (:func:`factors.motion.linear_constant_velocity_factor`), the bearing a ``PriorFactorVector``
+    whose noise weighs the bearing alone (:func:`factors.bearing.linear_bearing_factor`): all
+    built in, all exact for this linear model at any linearisation point. Bearings are cone
+    angles of a line array, ``[0, pi]``, so no residual comes near the wrap. The latest estimate of
     an incremental smoother of a linear-Gaussian chain is the Kalman filter's; each state's
     estimate when it leaves the lag is the fixed-lag smoothed one.
     """
@@ -222,43 +223,37 @@ class FixedLagBearingTrack:
         self._stamps: list[float] = []
         self._final: dict[int, tuple[FloatArray, FloatArray]] = {}
         self._first_live = 0  # first key still in the smoother
-        self._motion_cache: dict[tuple[float, float], tuple[FloatArray, FloatArray]] = {}
+        self._motion_cache: dict[tuple[float, float], gtsam.noiseModel.Base] = {}
         self._model_cache: dict[float, tuple[FloatArray, FloatArray]] = {}
         graph = gtsam.NonlinearFactorGraph()
-        chol = np.linalg.cholesky(prior.covariance)
-        w = np.linalg.inv(chol)
-        graph.add(self._linear(gtsam.JacobianFactor(0, w, w @ prior.mean, _UNIT2), (0,)))
+        graph.add(gtsam.PriorFactorVector(
+            0, prior.mean, gtsam.noiseModel.Gaussian.Covariance(prior.covariance, False)))
         self._push(graph, float(t0), prior.mean)
         self._x = prior.mean.copy()
         self._p = prior.covariance.copy()
 
     # -- factors ----------------------------------------------------------------------------
-    @staticmethod
-    def _linear(factor: gtsam.JacobianFactor, keys: tuple[int, ...]) -> gtsam.LinearContainerFactor:
-        zero = gtsam.Values()
-        for k in keys:
-            zero.insert(k, np.zeros(2))
-        return gtsam.LinearContainerFactor(factor, zero)
-
     def _model(self, dt: float) -> tuple[FloatArray, FloatArray]:
         """``F(dt)`` and ``Q(dt)`` of the constant-rate model (cached per step length)."""
         if dt not in self._model_cache:
             self._model_cache[dt] = (transition_matrix(dt, 1), wna_covariance(dt, self.q, 1))
         return self._model_cache[dt]
 
-    def _motion(self, dt: float, scale: float) -> tuple[FloatArray, FloatArray]:
-        """Whitened ``(-W F, W)`` of the motion factor over `dt` with process-noise `scale`."""
+    def _motion_noise(self, dt: float, scale: float) -> gtsam.noiseModel.Base:
+        """Gaussian noise ``scale Q(dt)`` of a motion factor (cached)."""
         key = (dt, scale)
         if key not in self._motion_cache:
-            f, q = self._model(dt)
-            w = np.linalg.inv(np.linalg.cholesky(scale * q))  # W' W = (s Q)^-1
-            self._motion_cache[key] = (-w @ f, w)
+            # smart=False: the default turns a covariance whose off-diagonal terms are below
+            # 1e-9 (q dt^2 / 2 of a slow bearing track) into a diagonal model
+            self._motion_cache[key] = gtsam.noiseModel.Gaussian.Covariance(
+                scale * self._model(dt)[1], False)
         return self._motion_cache[key]
 
-    def _bearing_factor(self, key: int, bearing: float, sigma: float) -> gtsam.LinearContainerFactor:
-        return self._linear(
-            gtsam.JacobianFactor(key, _H_BEARING / sigma, np.array([bearing / sigma]), _UNIT1),
-            (key,))
+    @staticmethod
+    def _bearing_factor(key: int, bearing: float, sigma: float,
+                        estimate: FloatArray) -> gtsam.NonlinearFactor:
+        return linear_bearing_factor(gtsam.noiseModel.Isotropic.Sigma(1, sigma), key, bearing,
+                                     estimate=estimate)
 
     # -- bookkeeping ------------------------------------------------------------------------
     def _stamp(self, time: float) -> float:
@@ -349,15 +344,16 @@ class FixedLagBearingTrack:
         if not dt > 0:
             raise ValueError(f"time {time!r} is not after the latest state ({self._times[-1]})")
         key = len(self._times)
-        a_prev, a_next = self._motion(dt, check_positive("q_scale", q_scale))
+        guess = self._model(dt)[0] @ self._x  # F x: the linearisation point of the new state
         graph = gtsam.NonlinearFactorGraph()
-        graph.add(self._linear(gtsam.JacobianFactor(key - 1, a_prev, key, a_next, np.zeros(2),
-                                                    _UNIT2), (key - 1, key)))
+        graph.add(linear_constant_velocity_factor(
+            self._motion_noise(dt, check_positive("q_scale", q_scale)), key - 1, key, dt,
+            estimate_prev=self._x, estimate_next=guess))
         if bearing is not None:
             if sigma is None or not (math.isfinite(bearing) and sigma > 0):
                 raise ValueError("a bearing needs a finite value and a positive sigma")
-            graph.add(self._bearing_factor(key, float(bearing), float(sigma)))
-        self._push(graph, time, self._model(dt)[0] @ self._x)
+            graph.add(self._bearing_factor(key, float(bearing), float(sigma), guess))
+        self._push(graph, time, guess)
         self._x, self._p = self._latest()
         return self._x.copy(), self._p.copy()
 
@@ -386,7 +382,8 @@ class FixedLagBearingTrack:
             k = index.get(float(t))
             if k is None:
                 continue
-            graph.add(self._bearing_factor(k, float(z), float(s)))
+            estimate = np.asarray(self._smoother.calculateEstimateVector(k), dtype=float)
+            graph.add(self._bearing_factor(k, float(z), float(s), estimate))
             n += 1
         if n:
             self._smoother.update(graph, gtsam.Values(), {})
