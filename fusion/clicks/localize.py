@@ -7,9 +7,12 @@ covariance, the TDOAs it uses, observability flags). Four methods, for use and c
 ``"competition"`` (default)
     Association-weighted volume (eq. 18; eq. 17 when the window has no ``alpha``) over the
     search region, its local maxima as candidates, and the candidates competing for the TDOAs
-    on factor graphs (:func:`fusion.clicks.competition.compete`, eq. 19-22). Each survivor is
-    then re-solved with its EM weights (``polish``), which makes it the weighted least-squares
-    fit of the TDOAs it owns; its covariance comes from the same graph.
+    on factor graphs (:func:`fusion.clicks.competition.compete`, eq. 19-22). TDOAs the
+    survivors leave to clutter that still form associated groups able to fix a source (two
+    whales the coarse surface merged into one peak) get a surface of their own and new
+    candidates, and all compete again (``max_rounds``). Each survivor is then re-solved with
+    its EM weights (``polish``), which makes it the weighted least-squares fit of the TDOAs it
+    owns; its covariance comes from the same graph.
 ``"eq17"`` / ``"eq18"``
     The plain surface methods: every local maximum of eq. (17) / eq. (18) above the finder's
     floor, refined coarse to fine until one TDOA sigma spans about two cells, is a source; it
@@ -261,7 +264,9 @@ class MultiSourceLocalizer:
         sigmas : float or array_like, shape (M,)
             Delay standard deviations, s.
         alpha : array_like, shape (M, M), optional
-            Cross-pair association (eq. 13): symmetric, zero diagonal; needed by ``"eq18"``.
+            Cross-pair association (eq. 13): symmetric, zero diagonal. Used by
+            ``"competition"`` (eq. 18 surface, eq. 21 weights, the drop rule), needed by
+            ``"eq18"``, ignored by ``"eq17"`` and ``"lsq"``.
         c : float, keyword-only
             Sound speed, m/s.
 
@@ -312,7 +317,7 @@ class MultiSourceLocalizer:
         if starts.shape[0] == 0:
             return self._output((), tdoas, starts, 0, True)
         res = compete(tdoas, starts, start_scale_s=scale, settings=self.competition,
-                          z_range=self.region.water_column)
+                      z_range=self.region.water_column)
         iterations = res.iterations
         grid, ranges = self._coarse(tdoas.sensors)
         lo, hi = self.region.bounds(tdoas.sensors)

@@ -11,7 +11,9 @@ from fusion.clicks.competition import (
     CompetitionSettings,
     association_weights,
     compete,
+    holds_a_source,
     independent_pairs,
+    supported_weights,
 )
 from fusion.clicks.localize import MultiSourceLocalizer
 from fusion.clicks.surfaces import SearchRegion, WindowTdoas
@@ -141,6 +143,48 @@ def test_competition_drops_a_start_with_no_tdoas():
     assert list(res.origin) == [0]
     assert res.converged
     assert np.linalg.norm(res.positions[0] - truth) < 1.0
+
+
+def test_candidate_below_the_sea_floor_jumps_to_its_mirror():
+    """A start mirrored below the sea floor settles there alone; with the water column it jumps."""
+    truth = np.array([300.0, -200.0, -900.0])
+    w = simulate_tdoa_window(RING, [truth], c=C, seed=2, noise_range_s=(SIGMA, SIGMA))
+    t = WindowTdoas(RING, w.pairs, w.taus, np.full(10, SIGMA), c=C, alpha=w.alpha)
+    centre = RING.mean(0)
+    normal = np.linalg.svd(RING - centre)[2][-1]
+    start = truth - 2 * ((truth - centre) @ normal) * normal  # about 2.3 km deep
+    free = compete(t, start[None], start_scale_s=5e-3)
+    assert free.positions[0, 2] < -1750.0  # a ghost below the sea floor
+    sea = compete(t, start[None], start_scale_s=5e-3, z_range=(-1750.0, 0.0))
+    assert np.linalg.norm(sea.positions[0] - truth) < 1.0
+    assert_allclose(sea.weights[0], 1.0, atol=1e-3)
+
+
+def test_supported_weights_ignore_unassociated_tdoas():
+    """A held TDOA associated with none of the others does not count towards a source."""
+    pairs = np.array([[0, 1], [0, 2], [0, 3], [1, 4]])
+    alpha = np.zeros((4, 4))
+    alpha[0, 1] = alpha[1, 0] = alpha[1, 2] = alpha[2, 1] = 20.0  # TDOA 3 linked to nothing
+    w = np.ones(4)
+    assert_allclose(supported_weights(w, alpha, 3.0), [1, 1, 1, 0])
+    assert_allclose(supported_weights(w, None, 3.0), w)
+    cfg = CompetitionSettings()
+    assert not holds_a_source(w, pairs, alpha, cfg)  # 3 associated TDOAs < 3.5
+    alpha[3, 0] = alpha[0, 3] = 20.0
+    assert holds_a_source(w, pairs, alpha, cfg)
+
+
+def test_second_round_finds_a_whale_merged_on_the_coarse_surface():
+    """Two whales 220 m apart share one coarse peak; the next round's surface separates them."""
+    truths = np.array([[-500.0, 500.0, -800.0], [-300.0, 500.0, -900.0]])
+    w = simulate_tdoa_window(RING, truths, c=C, seed=0, noise_range_s=(SIGMA, SIGMA))
+    one = MultiSourceLocalizer(region=SEA, max_rounds=1).localize(RING, w.pairs, w.taus, SIGMA,
+                                                                  w.alpha, c=C)
+    assert len(one.sources) == 1
+    out = MultiSourceLocalizer(region=SEA).localize(RING, w.pairs, w.taus, SIGMA, w.alpha, c=C)
+    assert len(out.sources) == 2
+    for k, i in enumerate(match(out, truths)):
+        assert mahalanobis2(out.sources[i], truths[k]) < CHI2_3SIGMA
 
 
 #: A planar array (all hydrophones at one depth, 1 km square plus centre).
