@@ -274,6 +274,9 @@ class MultiSourceLocalizer:
         -------
         LocalizationOutput
         """
+        if np.size(taus) == 0:  # a window without validated TDOAs has no source
+            return LocalizationOutput((), self.method, _frozen(np.zeros(0)), _frozen(np.zeros((0, 3))),
+                                      0, True)
         tdoas = WindowTdoas(sensors, np.asarray(pairs), taus,
                             np.broadcast_to(np.asarray(sigmas, dtype=float), np.shape(taus)),
                             c=c, alpha=alpha)

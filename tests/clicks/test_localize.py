@@ -243,6 +243,18 @@ def test_surface_methods_find_a_noise_free_source(method):
     assert out.sources[0].tdoas_used == 10
 
 
+def test_window_without_tdoas_has_no_source():
+    """No TDOAs (or too few to fix anything) give an empty output, not an error."""
+    loc = MultiSourceLocalizer(region=SEA)
+    out = loc.localize(RING, np.zeros((0, 2), int), np.zeros(0), SIGMA, np.zeros((0, 0)), c=C)
+    assert out.sources == () and out.clutter_weights.shape == (0,)
+    pairs = np.array([[0, 1], [0, 2]])
+    taus = predicted_tdoas([0.0, 0, -800], RING, pairs, c=C)
+    out = loc.localize(RING, pairs, taus, SIGMA, np.array([[0, 20.0], [20.0, 0]]), c=C)
+    assert out.sources == ()
+    assert_allclose(out.clutter_weights, 1.0)
+
+
 def test_localizer_checks_inputs():
     """Unknown methods, eq18 without alpha, and bad options are ValueErrors."""
     with pytest.raises(ValueError, match="method"):
