@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import inspect
 from pathlib import Path
 
 from fusion.cli import emit, number
@@ -19,12 +20,17 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("kind", choices=sorted(SIMULATORS), help="scenario kind")
     p.add_argument("--seed", type=number(int, ge=0), default=0, help="random seed (default 0)")
     p.add_argument("--out", type=Path, required=True, help="output folder")
+    p.add_argument("--vary", action="store_true",
+                   help="draw the physical assumptions from the simulator's documented ranges")
     p.set_defaults(handler=run, inputs=(), out_is_dir=True)
 
 
 def run(args: argparse.Namespace) -> int:
     """Write the scenario; print the written paths."""
-    paths = get_writer(args.kind)(args.out, seed=args.seed)
+    writer = get_writer(args.kind)
+    if args.vary and "vary" not in inspect.signature(writer).parameters:
+        raise ValueError(f"scenario kind {args.kind!r} has no --vary")
+    paths = writer(args.out, seed=args.seed, **({"vary": True} if args.vary else {}))
     for path in paths:
         emit(str(path))
     return 0

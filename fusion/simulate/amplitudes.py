@@ -31,6 +31,10 @@ Conditions (truth per update):
     No signal in the cell.
 
 Near-threshold SNRs get a per-segment jitter of ``near_jitter_db`` (uniform, dB).
+
+With ``write_scenario(..., vary=True)`` the assumptions are drawn per scenario from
+:data:`VARIED_RANGES` (:func:`varied_settings`): update period, strong SNR and manoeuvre bias
+per segment, near-threshold jitter, and segment lengths in seconds.
 """
 
 from __future__ import annotations
@@ -46,11 +50,13 @@ from fusion.io import write_table
 
 __all__ = [
     "CONDITIONS",
+    "VARIED_RANGES",
     "AmplitudeScenario",
     "condition_snr_db",
     "draw_amplitudes",
     "draw_residuals",
     "simulate_amplitudes",
+    "varied_settings",
     "write_scenario",
 ]
 
@@ -58,6 +64,25 @@ logger = logging.getLogger(__name__)
 
 #: Condition names, in the order of their codes.
 CONDITIONS: tuple[str, ...] = ("strong", "near_strong", "near_lost", "manoeuvre", "lost")
+
+#: Ranges of the assumptions of a varied scenario (:func:`varied_settings`); the update period is
+#: drawn log-uniformly per scenario, the others uniformly (per segment where the option is a pair).
+VARIED_RANGES: dict[str, tuple[float, float]] = {
+    "update_period_s": (1.0, 10.0),  # s, per scenario
+    "segment_s": (40.0, 600.0),  # length of one condition, s, per segment
+    "segments_per_track": (3, 7),
+    "strong_snr_db": (12.0, 25.0),  # per segment, dB
+    "near_jitter_db": (0.5, 2.0),  # half-width of the near-threshold jitter, dB, per scenario
+    "manoeuvre_bias_deg": (1.5, 5.0),  # per segment, deg
+}
+
+
+def _draw(rng: np.random.Generator, value: float | tuple[float, float]) -> float:
+    """`value` itself, or a uniform draw when it is an interval ``(lo, hi)``."""
+    if np.ndim(value) == 0:
+        return float(value)
+    lo, hi = value
+    return float(rng.uniform(lo, hi))
 
 
 def condition_snr_db(
@@ -193,9 +218,10 @@ def simulate_amplitudes(
     n_looks: int = 1,
     snr0_db: float = 3.0,
     snr1_db: float = 10.0,
-    strong_snr_db: float = 15.0,
+    strong_snr_db: float | tuple[float, float] = 15.0,
     near_jitter_db: float = 0.5,
-    manoeuvre_bias_deg: float = 2.5,
+    manoeuvre_bias_deg: float | tuple[float, float] = 2.5,
+    segment_s: tuple[float, float] | None = None,
 ) -> AmplitudeScenario:
     """Tracks passing through strong, near-threshold, manoeuvre and lost segments.
 
@@ -211,19 +237,23 @@ def simulate_amplitudes(
     segments_per_track : int, optional
         Segments per track.
     segment_updates : (int, int), optional
-        Inclusive range of segment lengths, updates.
+        Inclusive range of segment lengths, updates (unless `segment_s` is given).
     update_period_s : float, optional
         Time between updates, s.
     n_looks : int, optional
         Periodogram looks per cell.
     snr0_db, snr1_db : float, optional
         Design SNRs of the track quality indicator the near-threshold conditions refer to, dB.
-    strong_snr_db : float, optional
-        SNR of strong and manoeuvre segments, dB.
+    strong_snr_db : float or (float, float), optional
+        SNR of strong and manoeuvre segments, dB; an interval draws it per segment (uniform).
     near_jitter_db : float, optional
         Half-width of the uniform jitter of near-threshold SNRs, dB.
-    manoeuvre_bias_deg : float, optional
-        Residual bias during a manoeuvre, deg (sign drawn per segment).
+    manoeuvre_bias_deg : float or (float, float), optional
+        Residual bias during a manoeuvre, deg (sign drawn per segment); an interval draws its
+        size per segment (uniform).
+    segment_s : (float, float), optional
+        Segment lengths in seconds, uniform in this interval and rounded to whole updates (at
+        least one); replaces `segment_updates`.
 
     Returns
     -------
@@ -239,6 +269,12 @@ def simulate_amplitudes(
         raise ValueError(f"update_period_s must be positive, got {update_period_s!r}")
     if not np.isfinite(near_jitter_db) or near_jitter_db < 0:
         raise ValueError(f"near_jitter_db must be >= 0, got {near_jitter_db!r}")
+    if segment_s is not None and not (np.all(np.isfinite(segment_s))
+                                      and 0 < segment_s[0] <= segment_s[1]):
+        raise ValueError(f"segment_s must be an interval 0 < lo <= hi, got {segment_s!r}")
+    for name, v in (("strong_snr_db", strong_snr_db), ("manoeuvre_bias_deg", manoeuvre_bias_deg)):
+        if not (np.all(np.isfinite(v)) and np.ndim(v) in (0, 1) and np.size(v) in (1, 2)):
+            raise ValueError(f"{name} must be a number or an interval (lo, hi), got {v!r}")
     rng = np.random.default_rng(seed)
     cols: dict[str, list[NDArray]] = {k: [] for k in ("track_id", "time", "condition", "snr_db",
                                                       "bias", "segment")}
@@ -249,12 +285,17 @@ def simulate_amplitudes(
             kinds.append(choices[int(rng.integers(len(choices)))])
         t0 = 0
         for j, kind in enumerate(kinds):
-            m = int(rng.integers(lo, hi + 1))
-            snr = condition_snr_db(kind, snr0_db=snr0_db, snr1_db=snr1_db,
-                                   strong_snr_db=strong_snr_db)
+            if segment_s is None:
+                m = int(rng.integers(lo, hi + 1))
+            else:
+                m = max(1, int(round(rng.uniform(*segment_s) / update_period_s)))
+            strong = _draw(rng, strong_snr_db) if kind in ("strong", "manoeuvre") else 0.0
+            snr = condition_snr_db(kind, snr0_db=snr0_db, snr1_db=snr1_db, strong_snr_db=strong)
             if kind.startswith("near"):
                 snr += float(rng.uniform(-near_jitter_db, near_jitter_db))
-            bias = manoeuvre_bias_deg * rng.choice([-1.0, 1.0]) if kind == "manoeuvre" else 0.0
+            bias = 0.0
+            if kind == "manoeuvre":
+                bias = _draw(rng, manoeuvre_bias_deg) * rng.choice([-1.0, 1.0])
             cols["track_id"].append(np.full(m, tid, dtype=np.int64))
             cols["time"].append((t0 + np.arange(m)) * update_period_s)
             cols["condition"].append(np.full(m, kind))
@@ -272,7 +313,36 @@ def simulate_amplitudes(
     )
 
 
-def write_scenario(out_dir: Path, *, seed: int) -> list[Path]:
+def varied_settings(seed: int) -> dict:
+    """Keyword arguments of :func:`simulate_amplitudes` drawn from :data:`VARIED_RANGES`.
+
+    Parameters
+    ----------
+    seed : int
+        Scenario seed; the settings come from their own generator seeded by ``(seed, 3)``.
+
+    Returns
+    -------
+    dict
+        ``seed``, the update period and segment count drawn, and the intervals of strong SNR,
+        manoeuvre bias and segment length (drawn per segment by the simulator).
+    """
+    rng = np.random.default_rng([int(seed), 3])
+    r = VARIED_RANGES
+    lo, hi = np.log(r["update_period_s"])
+    return {
+        "seed": int(seed),
+        "update_period_s": float(np.exp(rng.uniform(lo, hi))),
+        "segments_per_track": int(rng.integers(int(r["segments_per_track"][0]),
+                                               int(r["segments_per_track"][1]) + 1)),
+        "near_jitter_db": float(rng.uniform(*r["near_jitter_db"])),
+        "strong_snr_db": r["strong_snr_db"],
+        "manoeuvre_bias_deg": r["manoeuvre_bias_deg"],
+        "segment_s": r["segment_s"],
+    }
+
+
+def write_scenario(out_dir: Path, *, seed: int, vary: bool = False) -> list[Path]:
     """Write ``amplitudes.csv`` (``track_id,time,amplitude,residual``) and ``truth.csv``.
 
     ``truth.csv`` holds ``track_id,time,condition,snr_linear,segment`` per update (``snr_linear``
@@ -284,13 +354,17 @@ def write_scenario(out_dir: Path, *, seed: int) -> list[Path]:
         Output folder (created if missing).
     seed : int
         Scenario seed.
+    vary : bool, optional
+        Draw the update period, SNR levels, manoeuvre biases and segment lengths from
+        :data:`VARIED_RANGES` (:func:`varied_settings`) instead of the defaults of
+        :func:`simulate_amplitudes`.
 
     Returns
     -------
     list of pathlib.Path
         The written files.
     """
-    sc = simulate_amplitudes(seed=seed)
+    sc = simulate_amplitudes(**varied_settings(seed)) if vary else simulate_amplitudes(seed=seed)
     out_dir = Path(out_dir)
     amp = write_table(out_dir / "amplitudes.csv", {
         "track_id": sc.track_id, "time": sc.time, "amplitude": sc.amplitude,

@@ -24,14 +24,16 @@ every ``sample_period_s`` with detection probability ``p_detect``, plus optional
 distributed detections of unknown origin (``track_id`` = -1).
 
 Files (``write_scenario``): ``bearings.csv`` (``track_id,time,bearing_deg``, bearings in
-[0, 360) deg clockwise from north), ``truth.json`` and ``truth_bearings.csv``.
+[0, 360) deg clockwise from north), ``truth.json`` and ``truth_bearings.csv``. With
+``vary=True`` the physical assumptions are drawn per scenario from :data:`VARIED_RANGES`
+(:func:`varied_settings`) instead of the fixed defaults.
 """
 
 from __future__ import annotations
 
 import logging
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import NamedTuple
 
@@ -42,20 +44,41 @@ from scipy.optimize import brentq
 from fusion._validation import check_positive
 from fusion.geometry import wrap_angle
 from fusion.io import write_json, write_table
+from fusion.simulate._bearing_motion import Builder, Motion, unit
 
 __all__ = [
+    "VARIED_RANGES",
     "BearingScenario",
     "TrueCrossing",
     "find_true_crossings",
     "simulate_bearings",
+    "varied_settings",
     "write_scenario",
 ]
 
 logger = logging.getLogger(__name__)
 
-#: Attempts at placing one pair of tracks before giving up.
-_MAX_ATTEMPTS = 2000
-
+#: Ranges of the physical assumptions of a varied scenario (:func:`varied_settings`). Scales
+#: marked log-uniform in the comments are drawn uniformly in their logarithm; counts are integers
+#: drawn uniformly, bounds included.
+VARIED_RANGES: dict[str, tuple[float, float]] = {
+    "sample_period_s": (1.0, 20.0),  # log-uniform, s
+    "duration_s": (1800.0, 3600.0),  # s
+    "n_crossing_pairs": (2, 4),
+    "n_near_miss_pairs": (1, 2),
+    "n_parallel_pairs": (0, 1),
+    "n_free_tracks": (0, 3),
+    "noise_deg": (0.2, 2.0),  # per track, log-uniform, deg
+    "crossing_rate_deg_per_min": (0.3, 20.0),  # per planned crossing, log-uniform
+    "miss_deg": (2.0, 8.0),  # closest approach of near misses, deg
+    "gaps_per_hour": (0.0, 3.0),  # per track
+    "gap_s": (10.0, 120.0),  # length of one gap, s
+    "p_detect": (0.8, 1.0),
+    "clutter_rate": (0.0, 0.5),  # detections of unknown origin per sample time
+    "ownship_speed_mps": (0.0, 6.0),
+    "target_speed_mps": (1.0, 10.0),
+    "range_m": (1000.0, 15000.0),
+}
 
 class TrueCrossing(NamedTuple):
     """A true bearing crossing of two tracks.
@@ -114,11 +137,18 @@ class BearingScenario:
     sample_period_s : float
         Sample period K, s.
     noise_deg : float
-        Standard deviation of the bearing noise, deg.
+        Standard deviation of the bearing noise, deg (the median over tracks when it differs
+        between tracks).
     duration_s : float
         Scenario length, s.
     seed : int
         Seed that produced the scenario.
+    track_noise_deg : ndarray, shape (n_tracks,)
+        Standard deviation of each track's bearing noise, deg.
+    crossing_rate_diff_deg_per_min : tuple of float
+        Bearing rate of ``track_b`` minus that of ``track_a`` at each of `crossings`, deg/min.
+    gaps : tuple of (int, float, float)
+        Spans ``(track, start_s, end_s)`` in which a track was not measured.
     """
 
     track_id: NDArray[np.int64]
@@ -141,43 +171,14 @@ class BearingScenario:
     noise_deg: float
     duration_s: float
     seed: int
+    track_noise_deg: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
+    crossing_rate_diff_deg_per_min: tuple[float, ...] = ()
+    gaps: tuple[tuple[int, float, float], ...] = ()
 
     @property
     def n_tracks(self) -> int:
         """Number of tracks."""
         return int(self.track_ids.size)
-
-
-@dataclass(frozen=True)
-class _Motion:
-    """Straight-line relative motion ``D(t) = d0 + u t`` of a target about the platform."""
-
-    d0: NDArray[np.float64]  # (2,) relative position at t = 0, m
-    u: NDArray[np.float64]  # (2,) relative velocity, m/s
-
-    def rel(self, t: NDArray[np.float64]) -> NDArray[np.float64]:
-        """Relative positions, shape (len(t), 2), m."""
-        return self.d0 + np.multiply.outer(np.asarray(t, dtype=float), self.u)
-
-    def bearing(self, t: NDArray[np.float64] | float) -> NDArray[np.float64]:
-        """Compass bearing, rad (unwrapped by arctan2 into (-pi, pi])."""
-        d = self.rel(np.atleast_1d(t))
-        return np.arctan2(d[:, 0], d[:, 1])
-
-    def bearing_rate(self, t: NDArray[np.float64]) -> NDArray[np.float64]:
-        """Bearing rate, rad/s: (Dy ux - Dx uy) / R^2 for theta = atan2(Dx, Dy)."""
-        d = self.rel(t)
-        return (d[:, 1] * self.u[0] - d[:, 0] * self.u[1]) / np.sum(d * d, axis=1)
-
-
-def _unit(theta: float) -> NDArray[np.float64]:
-    """Unit vector of compass bearing `theta` (rad), (east, north)."""
-    return np.array([np.sin(theta), np.cos(theta)])
-
-
-def _tangent(theta: float) -> NDArray[np.float64]:
-    """d(unit)/d(theta): direction of increasing compass bearing."""
-    return np.array([np.cos(theta), -np.sin(theta)])
 
 
 def _check_interval(name: str, lo_hi: tuple[float, float], *, positive: bool = True) -> None:
@@ -235,111 +236,19 @@ def find_true_crossings(
     return out
 
 
-class _Builder:
-    """Draws target motions under the scenario's constraints (rejection sampling)."""
-
-    def __init__(
-        self,
-        rng: np.random.Generator,
-        *,
-        ownship_v: NDArray[np.float64],
-        duration_s: float,
-        range_m: tuple[float, float],
-        target_speed_mps: tuple[float, float],
-        min_range_m: float,
-    ) -> None:
-        self.rng = rng
-        self.v_o = ownship_v
-        self.duration_s = duration_s
-        self.range_m = range_m
-        self.speed = target_speed_mps
-        self.min_range_m = min_range_m
-        self.check_t = np.linspace(0.0, duration_s, 361)
-
-    def random_velocity(self) -> NDArray[np.float64]:
-        """A target velocity over ground, m/s, random heading and speed in range."""
-        return self.rng.uniform(*self.speed) * _unit(self.rng.uniform(0.0, 2 * np.pi))
-
-    def motion(self, t_ref: float, theta: float, r: float, v: NDArray[np.float64]) -> _Motion:
-        """Motion that is at bearing `theta`, range `r` at `t_ref` with ground velocity `v`."""
-        u = v - self.v_o
-        return _Motion(r * _unit(theta) - u * t_ref, u)
-
-    def plausible(self, m: _Motion) -> bool:
-        """Target keeps at least ``min_range_m`` from the platform over the whole scenario."""
-        d = m.rel(self.check_t)
-        return bool(np.min(np.hypot(d[:, 0], d[:, 1])) >= self.min_range_m)
-
-    def speed_ok(self, m: _Motion) -> bool:
-        s = float(np.hypot(*(m.u + self.v_o)))
-        return self.speed[0] * 0.5 <= s <= self.speed[1] * 1.5
-
-    def free(self) -> _Motion:
-        for _ in range(_MAX_ATTEMPTS):
-            m = self.motion(
-                self.duration_s / 2,
-                self.rng.uniform(0.0, 2 * np.pi),
-                self.rng.uniform(*self.range_m),
-                self.random_velocity(),
-            )
-            if self.plausible(m):
-                return m
-        raise ValueError("could not place a free track; widen range_m or lower target speeds")
-
-    def crossing(
-        self, *, theta_c: float | None, min_rate_diff: float, window: tuple[float, float]
-    ) -> tuple[_Motion, _Motion, float]:
-        """Two motions whose bearings are equal at a random time in `window`."""
-        for _ in range(_MAX_ATTEMPTS):
-            t_c = self.rng.uniform(*window)
-            th = self.rng.uniform(0.0, 2 * np.pi) if theta_c is None else theta_c
-            r_a = self.rng.uniform(*self.range_m)
-            s = self.rng.uniform(0.5, 0.8) if self.rng.random() < 0.5 else self.rng.uniform(1.25, 2.0)
-            a = self.motion(t_c, th, r_a, self.random_velocity())
-            b = self.motion(t_c, th, s * r_a, self.random_velocity())
-            rates = [m.bearing_rate(np.array([t_c]))[0] for m in (a, b)]
-            if abs(rates[0] - rates[1]) < min_rate_diff:
-                continue
-            if self.plausible(a) and self.plausible(b):
-                return a, b, t_c
-        raise ValueError("could not place a crossing pair; lower min_crossing_rate_deg_per_min")
-
-    def near_miss(
-        self, *, miss: tuple[float, float], window: tuple[float, float], grid: NDArray[np.float64]
-    ) -> tuple[_Motion, _Motion]:
-        """Two motions whose bearings come within `miss` (rad) of each other but never cross."""
-        for _ in range(_MAX_ATTEMPTS):
-            t_m = self.rng.uniform(*window)
-            th = self.rng.uniform(0.0, 2 * np.pi)
-            r_a = self.rng.uniform(*self.range_m)
-            a = self.motion(t_m, th, r_a, self.random_velocity())
-            delta = self.rng.uniform(*miss) * self.rng.choice([-1.0, 1.0])
-            r_b = r_a * self.rng.uniform(0.6, 1.6)
-            th_b = th + delta
-            # Same bearing rate as `a` at t_m: tangential relative speed = rate * range.
-            rate_a = a.bearing_rate(np.array([t_m]))[0]
-            radial = self.rng.uniform(-self.speed[1], self.speed[1])
-            u_b = rate_a * r_b * _tangent(th_b) + radial * _unit(th_b)
-            b = _Motion(r_b * _unit(th_b) - u_b * t_m, u_b)
-            if not (self.speed_ok(b) and self.plausible(a) and self.plausible(b)):
-                continue
-            d = np.asarray(wrap_angle(b.bearing(grid) - a.bearing(grid)))
-            if np.all(np.sign(d) == np.sign(delta)) and np.min(np.abs(d)) >= miss[0]:
-                return a, b
-        raise ValueError("could not place a near-miss pair; widen max_miss_deg")
-
-    def parallel(self, *, offset: tuple[float, float]) -> tuple[_Motion, _Motion]:
-        """Two motions with a constant bearing offset (one rotated about the platform)."""
-        for _ in range(_MAX_ATTEMPTS):
-            a = self.free()
-            alpha = self.rng.uniform(*offset) * self.rng.choice([-1.0, 1.0])
-            s = self.rng.uniform(0.6, 1.6)
-            # Clockwise rotation by alpha in (east, north) coordinates adds alpha to the bearing.
-            rot = s * np.array([[np.cos(alpha), np.sin(alpha)], [-np.sin(alpha), np.cos(alpha)]])
-            b = _Motion(rot @ a.d0, rot @ a.u)
-            if self.speed_ok(b) and self.plausible(b):
-                return a, b
-        raise ValueError("could not place a parallel pair; widen target_speed_mps")
+def _draw_gaps(
+    rng: np.random.Generator, n_tracks: int, duration_s: float, per_hour: float,
+    length_s: tuple[float, float],
+) -> list[tuple[int, float, float]]:
+    """Measurement gaps ``(track, start, end)``: Poisson count per track, uniform start and length."""
+    if per_hour <= 0:
+        return []
+    out = []
+    for k in range(n_tracks):
+        for _ in range(int(rng.poisson(per_hour * duration_s / 3600.0))):
+            g0 = float(rng.uniform(0.0, duration_s))
+            out.append((k, g0, g0 + float(rng.uniform(*length_s))))
+    return out
 
 
 def simulate_bearings(
@@ -348,7 +257,7 @@ def simulate_bearings(
     n_tracks: int = 6,
     duration_s: float = 1800.0,
     sample_period_s: float = 10.0,
-    noise_deg: float = 0.5,
+    noise_deg: float | Sequence[float] = 0.5,
     n_crossing_pairs: int = 2,
     n_wrap_crossings: int = 1,
     n_near_miss_pairs: int = 1,
@@ -363,6 +272,9 @@ def simulate_bearings(
     miss_deg: tuple[float, float] = (3.0, 8.0),
     parallel_offset_deg: tuple[float, float] = (3.0, 15.0),
     event_window: tuple[float, float] = (0.2, 0.8),
+    crossing_rate_deg_per_min: tuple[float, float] | None = None,
+    gaps_per_hour: float = 0.0,
+    gap_s: tuple[float, float] = (20.0, 120.0),
 ) -> BearingScenario:
     """Simulate bearing tracks with crossings, near misses and parallel tracks.
 
@@ -377,8 +289,9 @@ def simulate_bearings(
         Scenario length, s.
     sample_period_s : float, optional
         Sample period K of the bearing measurements, s.
-    noise_deg : float, optional
-        Standard deviation of the Gaussian bearing noise, deg.
+    noise_deg : float or sequence of float, optional
+        Standard deviation of the Gaussian bearing noise, deg: one value for every track, or
+        one per track (shape (n_tracks,)).
     n_crossing_pairs : int, optional
         Pairs built to cross once at a known time.
     n_wrap_crossings : int, optional
@@ -409,6 +322,14 @@ def simulate_bearings(
         Constant bearing offset of parallel pairs, deg.
     event_window : (float, float), optional
         Planned crossings and closest approaches happen in this fraction of the duration.
+    crossing_rate_deg_per_min : (float, float), optional
+        If given, each planned crossing pair's bearing-rate difference at its crossing is drawn
+        log-uniformly in this interval (random sign), deg/min; otherwise both velocities are
+        random, subject to `min_crossing_rate_deg_per_min`.
+    gaps_per_hour : float, optional
+        Mean number of measurement gaps per track per hour (Poisson; 0: none).
+    gap_s : (float, float), optional
+        Length interval of a gap, s (uniform).
 
     Returns
     -------
@@ -450,7 +371,18 @@ def simulate_bearings(
     check_positive("sample_period_s", sample_period_s)
     if sample_period_s > duration_s:
         raise ValueError("sample_period_s must not exceed duration_s")
-    check_positive("noise_deg", noise_deg, allow_zero=True)
+    noise_arr = np.asarray(noise_deg, dtype=float)
+    if noise_arr.ndim == 0:
+        noise_arr = np.full(int(n_tracks), float(noise_arr))
+    if noise_arr.shape != (int(n_tracks),):
+        raise ValueError(f"noise_deg must be one number or one per track ({n_tracks}), "
+                         f"got shape {noise_arr.shape}")
+    if not np.all(np.isfinite(noise_arr) & (noise_arr >= 0)):
+        raise ValueError(f"noise_deg must be finite and >= 0, got {noise_deg!r}")
+    if crossing_rate_deg_per_min is not None:
+        _check_interval("crossing_rate_deg_per_min", crossing_rate_deg_per_min)
+    check_positive("gaps_per_hour", gaps_per_hour, allow_zero=True)
+    _check_interval("gap_s", gap_s)
     if not 0.0 < p_detect <= 1.0:
         raise ValueError(f"p_detect must lie in (0, 1], got {p_detect!r}")
     check_positive("clutter_rate", clutter_rate, allow_zero=True)
@@ -465,8 +397,8 @@ def simulate_bearings(
         raise ValueError(f"event_window must satisfy 0 <= lo <= hi <= 1, got {event_window!r}")
 
     rng = np.random.default_rng(seed)
-    ownship_v = ownship_speed_mps * _unit(rng.uniform(0.0, 2 * np.pi))
-    builder = _Builder(
+    ownship_v = ownship_speed_mps * unit(rng.uniform(0.0, 2 * np.pi))
+    builder = Builder(
         rng,
         ownship_v=ownship_v,
         duration_s=float(duration_s),
@@ -478,7 +410,7 @@ def simulate_bearings(
     step = min(1.0, sample_period_s / 4.0)
     fine = np.linspace(0.0, duration_s, int(np.ceil(duration_s / step)) + 1)
 
-    motions: list[_Motion] = []
+    motions: list[Motion] = []
     planned_cross: list[tuple[int, int]] = []
     planned_tc: list[TrueCrossing] = []
     near: list[tuple[int, int]] = []
@@ -488,10 +420,15 @@ def simulate_bearings(
         theta_c = None
         if k < n_wrap_crossings:
             theta_c = wrap_bearings[k % 2] + rng.uniform(-0.5, 0.5) * np.pi / 180.0
+        rate_diff = None
+        if crossing_rate_deg_per_min is not None:
+            lo, hi = np.log(crossing_rate_deg_per_min)
+            rate_diff = np.radians(np.exp(rng.uniform(lo, hi))) / 60.0 * rng.choice([-1.0, 1.0])
         a, b, t_c = builder.crossing(
             theta_c=theta_c,
             min_rate_diff=np.radians(min_crossing_rate_deg_per_min) / 60.0,
             window=window,
+            rate_diff=rate_diff,
         )
         planned_cross.append((len(motions), len(motions) + 1))
         planned_tc.append(TrueCrossing(len(motions), len(motions) + 1, float(t_c)))
@@ -526,7 +463,10 @@ def simulate_bearings(
 
     # Measurements: detected rows plus clutter rows, sorted by (time, track_id).
     detected = rng.random((n_tracks, n_t)) < p_detect
-    noise = rng.normal(0.0, noise_deg, size=(n_tracks, n_t))
+    noise = rng.normal(0.0, 1.0, size=(n_tracks, n_t)) * noise_arr[:, None]
+    gaps = _draw_gaps(rng, n_tracks, float(duration_s), gaps_per_hour, gap_s)
+    for k, g0, g1 in gaps:
+        detected[k, (t_grid >= g0) & (t_grid <= g1)] = False
     tid_grid = np.broadcast_to(np.arange(n_tracks)[:, None], (n_tracks, n_t))
     time_grid = np.broadcast_to(t_grid[None, :], (n_tracks, n_t))
     track_id = tid_grid[detected]
@@ -563,13 +503,71 @@ def simulate_bearings(
         planned_crossing_pairs=tuple(planned_cross),
         planned_crossings=tuple(planned_tc),
         sample_period_s=float(sample_period_s),
-        noise_deg=float(noise_deg),
+        noise_deg=float(np.median(noise_arr)),
         duration_s=float(duration_s),
         seed=int(seed),
+        track_noise_deg=noise_arr,
+        crossing_rate_diff_deg_per_min=tuple(
+            float(np.degrees(motions[c.track_b].bearing_rate(np.array([c.t_cross]))[0]
+                             - motions[c.track_a].bearing_rate(np.array([c.t_cross]))[0]) * 60.0)
+            for c in crossings),
+        gaps=tuple(gaps),
     )
 
 
-def write_scenario(out_dir: Path, *, seed: int) -> list[Path]:
+def varied_settings(seed: int) -> dict:
+    """Keyword arguments of :func:`simulate_bearings` drawn from :data:`VARIED_RANGES`.
+
+    Parameters
+    ----------
+    seed : int
+        Scenario seed; the settings come from their own generator seeded by ``(seed, 2)``, so the
+        scenario drawn with them from ``seed`` does not share random numbers with them.
+
+    Returns
+    -------
+    dict
+        ``seed`` plus every option drawn: sample period, duration, track and pair counts
+        (one wrap crossing in two scenarios), per-track noise, the interval of crossing rate
+        differences, near-miss distance, gaps, detection probability, clutter, speeds and ranges.
+    """
+    rng = np.random.default_rng([int(seed), 2])
+    r = VARIED_RANGES
+
+    def log_uniform(lo_hi: tuple[float, float], size: int | None = None):
+        return np.exp(rng.uniform(np.log(lo_hi[0]), np.log(lo_hi[1]), size))
+
+    def count(name: str) -> int:
+        lo, hi = r[name]
+        return int(rng.integers(int(lo), int(hi) + 1))
+
+    n_cross, n_near, n_par = count("n_crossing_pairs"), count("n_near_miss_pairs"), \
+        count("n_parallel_pairs")
+    n_tracks = 2 * (n_cross + n_near + n_par) + count("n_free_tracks")
+    return {
+        "seed": int(seed),
+        "n_tracks": n_tracks,
+        "n_crossing_pairs": n_cross,
+        "n_wrap_crossings": int(rng.random() < 0.5),
+        "n_near_miss_pairs": n_near,
+        "n_parallel_pairs": n_par,
+        "sample_period_s": float(log_uniform(r["sample_period_s"])),
+        "duration_s": float(rng.uniform(*r["duration_s"])),
+        "noise_deg": log_uniform(r["noise_deg"], n_tracks).tolist(),
+        "crossing_rate_deg_per_min": r["crossing_rate_deg_per_min"],
+        "miss_deg": r["miss_deg"],
+        "gaps_per_hour": float(rng.uniform(*r["gaps_per_hour"])),
+        "gap_s": r["gap_s"],
+        "p_detect": float(rng.uniform(*r["p_detect"])),
+        "clutter_rate": float(rng.uniform(*r["clutter_rate"])),
+        "ownship_speed_mps": float(rng.uniform(*r["ownship_speed_mps"])),
+        "target_speed_mps": r["target_speed_mps"],
+        "range_m": r["range_m"],
+        "min_range_m": 500.0,
+    }
+
+
+def write_scenario(out_dir: Path, *, seed: int, vary: bool = False) -> list[Path]:
     """Write a bearing scenario: ``bearings.csv``, ``truth.json``, ``truth_bearings.csv``.
 
     Parameters
@@ -578,6 +576,10 @@ def write_scenario(out_dir: Path, *, seed: int) -> list[Path]:
         Output folder (created if missing).
     seed : int
         Scenario seed.
+    vary : bool, optional
+        Draw the physical assumptions from :data:`VARIED_RANGES` (:func:`varied_settings`)
+        instead of the fixed scenario below; ``truth.json`` then records them under
+        ``settings``.
 
     Returns
     -------
@@ -586,16 +588,21 @@ def write_scenario(out_dir: Path, *, seed: int) -> list[Path]:
 
     Notes
     -----
-    The scenario has 8 tracks over 1800 s sampled every 10 s with 0.5 deg noise: two crossing
-    pairs (one through north), a near-miss pair, a parallel pair and two free tracks, plus
-    clutter (0.2 detections of unknown origin per sample time).
+    The fixed scenario has 8 tracks over 1800 s sampled every 10 s with 0.5 deg noise: two
+    crossing pairs (one through north), a near-miss pair, a parallel pair and two free tracks,
+    plus clutter (0.2 detections of unknown origin per sample time).
     """
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    sc = simulate_bearings(
-        seed=seed, n_tracks=8, n_crossing_pairs=2, n_wrap_crossings=1, n_near_miss_pairs=1,
-        n_parallel_pairs=1, clutter_rate=0.2,
-    )
+    if vary:
+        settings = varied_settings(seed)
+        sc = simulate_bearings(**settings)
+    else:
+        settings = None
+        sc = simulate_bearings(
+            seed=seed, n_tracks=8, n_crossing_pairs=2, n_wrap_crossings=1, n_near_miss_pairs=1,
+            n_parallel_pairs=1, clutter_rate=0.2,
+        )
     paths = [
         write_table(
             out_dir / "bearings.csv",
@@ -624,7 +631,11 @@ def write_scenario(out_dir: Path, *, seed: int) -> list[Path]:
                 "near_miss_pairs": [list(p) for p in sc.near_miss_pairs],
                 "parallel_pairs": [list(p) for p in sc.parallel_pairs],
                 "non_crossing_pairs": [list(p) for p in sc.non_crossing_pairs],
+                "crossing_rate_diff_deg_per_min": list(sc.crossing_rate_diff_deg_per_min),
+                "track_noise_deg": sc.track_noise_deg,
+                "gaps": [list(g) for g in sc.gaps],
                 "truth_file": "truth_bearings.csv",
+                **({"settings": settings} if settings is not None else {}),
             },
         ),
     ]

@@ -12,10 +12,12 @@ from fusion.passive.tracker import cell_power_statistics
 from fusion.simulate import get_writer
 from fusion.simulate.amplitudes import (
     CONDITIONS,
+    VARIED_RANGES,
     condition_snr_db,
     draw_amplitudes,
     draw_residuals,
     simulate_amplitudes,
+    varied_settings,
 )
 
 
@@ -99,3 +101,29 @@ def test_bad_options():
         simulate_amplitudes(seed=0, segment_updates=(5, 2))
     with pytest.raises(ValueError, match="n_looks"):
         draw_amplitudes([1.0], rng=np.random.default_rng(0), n_looks=0)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_varied_scenario_follows_documented_ranges(seed):
+    """A varied scenario's period, segment lengths, strong SNRs and biases lie in VARIED_RANGES."""
+    st = varied_settings(seed)
+    r = VARIED_RANGES
+    assert r["update_period_s"][0] <= st["update_period_s"] <= r["update_period_s"][1]
+    sc = simulate_amplitudes(**st)
+    for tid in np.unique(sc.track_id):
+        rows = sc.track_id == tid
+        assert_allclose(np.diff(sc.time[rows]), st["update_period_s"], rtol=1e-9)
+        lengths = np.bincount(sc.segment[rows]) * st["update_period_s"]
+        assert np.all(lengths >= r["segment_s"][0] - st["update_period_s"])
+        assert np.all(lengths <= r["segment_s"][1] + st["update_period_s"])
+    strong = np.isin(sc.condition, ("strong", "manoeuvre"))
+    assert np.all((sc.snr_db[strong] >= 12.0) & (sc.snr_db[strong] <= 25.0))
+    assert np.unique(sc.snr_db[strong]).size > 1  # drawn per segment
+
+
+def test_write_varied_scenario(tmp_path):
+    """`fusion simulate amplitudes --vary` writes updates at the drawn period."""
+    get_writer("amplitudes")(tmp_path, seed=1, vary=True)
+    amp = read_amplitudes(tmp_path / "amplitudes.csv")
+    step = np.diff(amp["time"][amp["track_id"] == 0])
+    assert_allclose(step, varied_settings(1)["update_period_s"], rtol=1e-5)

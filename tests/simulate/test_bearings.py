@@ -9,7 +9,7 @@ from numpy.testing import assert_allclose, assert_array_equal
 from fusion.geometry import compass_bearing_deg, wrap_deg
 from fusion.io import read_bearings, read_json, read_table
 from fusion.simulate import get_writer
-from fusion.simulate.bearings import simulate_bearings
+from fusion.simulate.bearings import VARIED_RANGES, simulate_bearings, varied_settings
 
 
 @pytest.fixture(scope="module")
@@ -119,3 +119,67 @@ def test_write_scenario_files(tmp_path):
     tt = read_table(tmp_path / "truth_bearings.csv",
                     required=("track_id", "time", "bearing_deg", "bearing_rate_deg_per_min"))
     assert len(tt) == 8 * 181
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_varied_settings_lie_in_documented_ranges(seed):
+    """Every drawn assumption of a varied scenario lies in VARIED_RANGES."""
+    st = varied_settings(seed)
+    r = VARIED_RANGES
+    assert r["sample_period_s"][0] <= st["sample_period_s"] <= r["sample_period_s"][1]
+    assert r["duration_s"][0] <= st["duration_s"] <= r["duration_s"][1]
+    assert np.all((np.array(st["noise_deg"]) >= 0.2) & (np.array(st["noise_deg"]) <= 2.0))
+    assert len(st["noise_deg"]) == st["n_tracks"]
+    assert r["n_crossing_pairs"][0] <= st["n_crossing_pairs"] <= r["n_crossing_pairs"][1]
+    assert st == varied_settings(seed)
+    assert st != varied_settings(seed + 1)
+
+
+def test_varied_scenario_rates_noise_and_gaps():
+    """Planned crossings have the drawn rate differences; per-track noise and gaps are applied."""
+    sc = simulate_bearings(seed=5, n_tracks=8, n_crossing_pairs=3, n_wrap_crossings=0,
+                           n_near_miss_pairs=1, noise_deg=[0.2, 2.0] * 4,
+                           crossing_rate_deg_per_min=(0.3, 20.0), gaps_per_hour=4.0,
+                           gap_s=(60.0, 60.0), range_m=(1000.0, 15000.0),
+                           target_speed_mps=(1.0, 10.0), min_range_m=500.0)
+    rate = dict(zip(sc.crossings, sc.crossing_rate_diff_deg_per_min, strict=True))
+    for c in sc.planned_crossings:
+        listed = [x for x in sc.crossings if (x.track_a, x.track_b) == (c.track_a, c.track_b)
+                  and abs(x.t_cross - c.t_cross) < 1e-6]
+        assert 0.3 - 1e-6 <= abs(rate[listed[0]]) <= 20.0 + 1e-6
+        # independent check: the truth table's rate difference at the nearest sample
+        k = int(np.argmin(np.abs(sc.truth_time - c.t_cross)))
+        ref = 60 * (sc.truth_bearing_rate_deg_per_s[c.track_b, k]
+                    - sc.truth_bearing_rate_deg_per_s[c.track_a, k])
+        assert abs(ref - rate[listed[0]]) < 0.05 * abs(rate[listed[0]]) + 0.05
+    known = sc.track_id >= 0
+    err = wrap_deg(sc.bearing_deg[known] - sc.true_bearing_deg[known])
+    for k, sd in ((0, 0.2), (1, 2.0)):
+        assert abs(np.std(err[sc.track_id[known] == k]) / sd - 1.0) < 0.15
+    assert_allclose(sc.track_noise_deg, [0.2, 2.0] * 4)
+    assert len(sc.gaps) > 0
+    for k, g0, g1 in sc.gaps:
+        inside = (sc.track_id == k) & (sc.time >= g0) & (sc.time <= g1)
+        assert not np.any(inside) and g1 - g0 == 60.0
+
+
+def test_write_varied_scenario_records_settings(tmp_path):
+    """`fusion simulate bearings --vary` writes the drawn settings; the files follow them."""
+    paths = get_writer("bearings")(tmp_path, seed=2, vary=True)
+    truth = read_json(tmp_path / "truth.json")
+    st = varied_settings(2)
+    assert truth["settings"]["sample_period_s"] == pytest.approx(st["sample_period_s"])
+    assert truth["sample_period_s"] == pytest.approx(st["sample_period_s"])
+    b = read_bearings(paths[0])
+    assert np.unique(b["track_id"][b["track_id"] >= 0]).size == st["n_tracks"]
+    assert len(truth["crossing_rate_diff_deg_per_min"]) == len(truth["crossings"])
+
+
+def test_cli_vary_switch(tmp_path, capsys):
+    """`fusion simulate bearings --vary` writes the varied scenario of the seed."""
+    from fusion.cli import main
+
+    assert main(["simulate", "bearings", "--vary", "--seed", "4", "--out", str(tmp_path)]) == 0
+    truth = read_json(tmp_path / "truth.json")
+    assert truth["settings"]["n_tracks"] == varied_settings(4)["n_tracks"]
+    assert "bearings.csv" in capsys.readouterr().out
