@@ -303,10 +303,13 @@ class PassivePipeline:
             return [], []
         t = scan.time
         meas: list[BearingMeasurement] = []
+        preds = []
         for tr in self._live:
-            x_pred, _ = tr.graph.predict(t)
-            row = scan.power[:, list(tr.bins)].mean(axis=1)
-            meas.append(self.measurer.measure(row, float(x_pred[0]), search_beams=tr.search))
+            preds.append(tr.graph.predict(t))
+            row = scan.power[:, tr.bins[0]] if len(tr.bins) == 1 else (
+                scan.power[:, list(tr.bins)].mean(axis=1))
+            meas.append(self.measurer.measure(row, float(preds[-1][0][0]),
+                                              search_beams=tr.search))
         self._memory = self.tqi.step(self._memory, np.array([m.amplitude for m in meas]),
                                      np.array([m.residual_deg for m in meas]))
         states = self._memory.state
@@ -318,7 +321,7 @@ class PassivePipeline:
             state = TrackQuality(int(states[i]))
             lost = state == TrackQuality.LOST
             q_scale = self.smoother.uncertain_q_factor if state == TrackQuality.UNCERTAIN else 1.0
-            x_pred, p_pred = tr.graph.predict(t, q_scale=q_scale)
+            x_pred, p_pred = preds[i] if q_scale == 1.0 else tr.graph.predict(t, q_scale=q_scale)
             s_innov = math.sqrt(p_pred[0, 0] + m.sigma**2)
             episode = self._episodes.member_of(tr.track_id)
             use = (not lost and episode is None and m.local_peak

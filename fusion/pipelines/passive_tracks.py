@@ -270,7 +270,8 @@ class FixedLagBearingTrack:
             self._final[k] = self._read(k)  # the first read walks the tree, the rest reuse it
             k += 1
         values = gtsam.Values()
-        values.insert(key, np.asarray(guess, dtype=float))
+        self._guess = np.asarray(guess, dtype=float)  # the new state's linearisation point
+        values.insert(key, self._guess)
         self._times.append(time)
         self._stamps.append(stamp)
         self._smoother.update(graph, values, {key: stamp})
@@ -391,9 +392,17 @@ class FixedLagBearingTrack:
         return n
 
     def _latest(self) -> tuple[FloatArray, FloatArray]:
+        """Latest state and covariance from its marginal on the Bayes tree's root.
+
+        The root clique's conditional ``R d_k = d`` is the latest state's marginal in the tangent
+        space of its linearisation point, which (relinearisation off) is the guess it was
+        inserted with: ``x_k = guess + (R'R)^-1 R'd``. This reads one clique, where the estimate
+        of the whole tree (``calculateEstimate``) back-substitutes through every state.
+        """
         key = len(self._times) - 1
-        x = np.asarray(self._smoother.calculateEstimateVector(key), dtype=float)
-        return x, np.asarray(self._smoother.marginalCovariance(key))
+        ab = np.asarray(self._smoother.getISAM2().marginalFactor(key).augmentedInformation())
+        cov = np.linalg.inv(ab[:2, :2])  # information R'R of the root marginal
+        return self._guess + cov @ ab[:2, 2], cov
 
     def states(self) -> TrackStates:
         """Every state so far: fixed-lag smoothed, the last `lag_s` by all data so far."""
