@@ -2,14 +2,19 @@
 
 Every track is a chain of states ``x_k = (theta_k, theta_dot_k)`` (bearing, rad; bearing rate,
 rad/s) at the scan times, tied by constant-rate motion factors with white-noise-acceleration
-noise (:func:`factors.motion.constant_velocity_factor`, :func:`factors.motion.wna_covariance`)
-and by wrapped bearing factors (:func:`factors.bearing.bearing_factor`), with a prior on the
-first state (for instance from acquisition). This is the bearing-rate graph of the project's
-design notes ("Factor graphs"):
+noise (:func:`factors.motion.wna_covariance`) and by bearing factors, with a prior on the first
+state (for instance from acquisition). This is the bearing-rate graph of the project's design
+notes ("Factor graphs"). Apart from the wrap of the bearings the model is linear, so it is built
+from GTSAM's own linear factors, evaluated in C++ (:func:`factors.motion.constant_velocity_chain`,
+:func:`factors.bearing.linear_bearing_factors`): every bearing (and the prior bearing) is put on
+the branch nearest the current estimate, motion residuals are wrapped at the linearisation
+point, and a graph whose solution moved a residual onto another branch is re-centred there and
+solved again. The result is the optimum of the wrapped model of the scalar factors
+(:func:`factors.bearing.bearing_factor`, :func:`factors.motion.constant_velocity_factor`).
 
-- :class:`BearingSmoother` -- batch Levenberg-Marquardt over one track, covariances from
-  ``gtsam.Marginals``, optional Huber/Cauchy noise for outlier bearings. On linear-Gaussian data
-  it equals a Rauch-Tung-Striebel smoother.
+- :class:`BearingSmoother` -- batch smoothing of one track: one sparse linear solve (Gaussian
+  noise) or Levenberg-Marquardt (optional Huber/Cauchy noise for outlier bearings), covariances
+  from ``gtsam.Marginals``. On linear-Gaussian data it equals a Rauch-Tung-Striebel smoother.
 - :class:`OnlineBearingSmoother` -- the same graph grown one scan at a time with iSAM2;
   :class:`OnlineBearingSmootherSet` grows many tracks in one iSAM2, one update per scan.
 - :class:`NearestNeighbourTracker` -- a Kalman (filterpy) bearing tracker with global nearest
@@ -447,7 +452,7 @@ def _solve(
     weights: FloatArray | None = None,
     marginals: bool = False,
 ) -> tuple[FloatArray, FloatArray | None]:
-    """Levenberg-Marquardt over one track graph; states (n, 2) and optionally sigmas (n, 2)."""
+    """Minimise one track graph (:func:`_optimize`); states (n, 2) and optionally sigmas (n, 2)."""
     states = np.asarray(_initial_states(times, meas, prior) if init is None else init, float)
     losses = [model.loss] if model.loss != "cauchy" else ["huber", "cauchy"]
     graph = values = None
@@ -468,7 +473,7 @@ def _solve_cov(
     init: FloatArray,
     keys: Sequence[int],
 ) -> tuple[FloatArray, list[FloatArray]]:
-    """Levenberg-Marquardt over one track graph (hard factors); states (n, 2) and the marginal
+    """Minimise one track graph (hard factors, Gaussian); states (n, 2) and the marginal
     covariances (2, 2) of the states `keys`."""
     graph, values, states = _optimize(times, meas, prior, model, "none", None,
                                       np.asarray(init, float))
@@ -486,7 +491,7 @@ def _default_prior(z0: float, model: _Model, sigma_rate: float) -> TrackPrior:
 
 
 class BearingSmoother:
-    """Batch bearing-rate smoother of one track (Levenberg-Marquardt on the bearing-rate graph).
+    """Batch bearing-rate smoother of one track (the bearing-rate graph minimised at once).
 
     Parameters
     ----------
@@ -502,15 +507,16 @@ class BearingSmoother:
     prior_sigma_rate : float, keyword-only
         Rate standard deviation of the default prior (first bearing, zero rate), rad/s.
     max_iterations : int, keyword-only
-        Levenberg-Marquardt iteration cap.
+        Levenberg-Marquardt iteration cap (robust losses).
 
     Notes
     -----
     Cost: ``||x_0 - m_0||^2_P0 + sum_k ||x_{k+1} - F_k x_k||^2_{Q_k} + sum_j rho(wrap(theta_{k_j}
     - z_j) / sigma)``, with ``F_k`` and ``Q_k`` of :mod:`factors.motion`. With ``robust="none"``
     and no wrapping this is the linear-Gaussian smoothing problem whose solution is the
-    Rauch-Tung-Striebel smoother (same ``F``, ``Q``, ``H = [1, 0]``, ``R = sigma^2``, prior).
-    Several bearings may share a time (they all tie that state).
+    Rauch-Tung-Striebel smoother (same ``F``, ``Q``, ``H = [1, 0]``, ``R = sigma^2``, prior);
+    it is solved by one sparse linear solve. Several bearings may share a time (they all tie
+    that state).
 
     Examples
     --------
@@ -1149,7 +1155,7 @@ class MultiTrackSmoother:
        (:func:`factors.weighted.weighted_factor`). Per crossing cluster, EM: every track of the
        cluster gets a small graph over the cluster span plus `margin_scans` of context, with its
        own detections as hard factors and each shared detection ``j`` weighted by ``w_jm``.
-       Start ``w_jm = 1/M``; M-step: Levenberg-Marquardt per track; E-step:
+       Start ``w_jm = 1/M``; M-step: weighted least squares per track; E-step:
        ``w_jm = P_D N(wrap(z_j - theta_m(t_j)); 0, sigma^2) / (lambda + sum_m' P_D N(...))``
        with ``lambda`` the clutter density; repeat until the weights settle.
     5. Final smoothing of every whole track with the settled weights; marginals from

@@ -153,16 +153,21 @@ def test_first_linearisation_costs_no_more_than_later_ones():
         v.insert(k, x[k])
     w = rng.uniform(0.1, 1.0, n)
     noise = gtsam.noiseModel.Isotropic.Sigma(1, 0.01)
-    g = gtsam.NonlinearFactorGraph()
-    for k, f in enumerate(linear_bearing_factors(noise, range(n), x[:, 0] + 0.01, estimates=x)):
-        g.add(weighted_factor(f, w, k))
-    t0 = time.perf_counter()
-    first = g.linearize(v)
-    t1 = time.perf_counter()
-    again = g.linearize(v)
-    t2 = time.perf_counter()
-    assert (t1 - t0) < 4.0 * (t2 - t1) + 0.02
-    assert_allclose(first.jacobian()[1], again.jacobian()[1], rtol=0)
+    first, later = [], []
+    for _ in range(3):  # best of three: the cores are shared
+        g = gtsam.NonlinearFactorGraph()
+        for k, f in enumerate(linear_bearing_factors(noise, range(n), x[:, 0] + 0.01,
+                                                     estimates=x)):
+            g.add(weighted_factor(f, w, k))
+        t0 = time.process_time()
+        lin_first = g.linearize(v)
+        t1 = time.process_time()
+        lin_again = g.linearize(v)
+        t2 = time.process_time()
+        first.append(t1 - t0)
+        later.append(t2 - t1)
+    assert min(first) < 3.0 * min(later) + 0.01
+    assert_allclose(lin_first.jacobian()[1], lin_again.jacobian()[1], rtol=0)
 
 
 def test_index_sequence_bad_input():
