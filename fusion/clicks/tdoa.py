@@ -386,8 +386,9 @@ class TdoaRefiner:
             Sensor (channel) indices ``(i, j)``.
         times_i, times_j : array_like, shape (n,)
             Matched click times on sensors ``i`` and ``j``, s from the start of the audio
-            (``times_j[n]`` is the same emission as ``times_i[n]``, e.g. from
-            :func:`fusion.clicks.scm.scm2`).
+            (``times_j[n]`` is the same emission as ``times_i[n]``): the SCM2 matches
+            (:attr:`fusion.clicks.scm.Scm2.index_i`, ``index_j``), best extended through the
+            window by :func:`fusion.clicks.delaytrack.match_along_track`.
         audio_t0_s : float, optional
             Time of the first sample of `audio`, s.
         reference_time_s : float, optional
