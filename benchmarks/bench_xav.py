@@ -83,6 +83,10 @@ def _fmt(v: float | None, digits: int = 2) -> str:
     return f"{v:.{digits}f}" if abs(v) < 1e4 else f"{v:.2e}"  # diverged far-field solves
 
 
+def _flag(v: bool | None) -> str:
+    return "-" if v is None else ("yes" if v else "no")
+
+
 def _table(rows: list[dict], events: list[dict], path: Path) -> None:
     lines = [
         "| # | t (s) | band (Hz) | x, y, z (m) | 95 % interval x; y; z (m) | "
@@ -105,7 +109,7 @@ def _table(rows: list[dict], events: list[dict], path: Path) -> None:
             f"{e['f_low']:.0f}-{e['f_high']:.0f} | "
             f"{_fmt(e['x'])}, {_fmt(e['y'])}, {_fmt(e['z'])} | {iv} | {cov} | "
             f"{_fmt(None if rms is None else rms * 1e6, 0)} | {e['tdoas_used']} | "
-            f"{'yes' if e['observable'] else 'no'} | {'yes' if e['surface_agrees'] else 'no'} | "
+            f"{'yes' if e['observable'] else 'no'} | {_flag(e['surface_agrees'])} | "
             f"{'yes' if r['kept_by_notebook_filter'] == 'True' else 'no'} | {ref} | {inside} |")
     path.write_text("\n".join(lines) + "\n")
 
@@ -147,7 +151,7 @@ def main() -> None:
         "kept_halfwidth_ratio_xyz_median": np.round(np.median(ratio, axis=0), 2).tolist(),
         "observable": sum(e["observable"] for e in events),
         "in_search_box": sum(e["in_region"] for e in events),
-        "surface_agrees": sum(e["surface_agrees"] for e in events),
+        "surface_agrees": sum(bool(e["surface_agrees"]) for e in events),
         "kept_fit_rms_us_median": round(float(np.median(
             [events[k]["residual_rms_s"] for k in kept])) * 1e6, 1),
         "all_fit_rms_us_median": round(float(np.median(rms)) * 1e6, 1),

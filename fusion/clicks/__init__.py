@@ -10,5 +10,7 @@ One module per stage, in the order data flows through them:
 ``delaytrack`` a pair's delay track through a window: matching along it, robust drift fit
 ``validate`` TDOA validation: SCM2 autocorrelation features and the GMM likelihood ratio (eq. 7-11)
 ``associate`` click-matching association across time (eq. 12) and across sensor pairs (eq. 13)
+``event_tdoa`` waveform TDOAs of a detected event (any detector): band, band-passed correlation, closure
+``events``   localization of detected events: TDOAs, factor-graph solve, eq. (17) surface check
 ``types``    the data that flows between them
 """

@@ -153,10 +153,10 @@ class EventFix:
     in_region : bool
         Position inside the search box.
     surface_peak : ndarray, shape (3,)
-        Refined peak of the eq. (17) intensity over the box, m.
-    surface_agrees : bool
+        Refined peak of the eq. (17) intensity over the box, m (NaN when not computed).
+    surface_agrees : bool or None
         The peak lies within the 99 % ellipsoid of the solve (or within two of the surface's
-        final grid cells).
+        final grid cells); None when the check was not run.
     """
 
     event: Event
@@ -173,7 +173,7 @@ class EventFix:
     observable: bool
     in_region: bool
     surface_peak: NDArray[np.float64] = field(default_factory=lambda: frozen_array([np.nan] * 3))
-    surface_agrees: bool = False
+    surface_agrees: bool | None = None
 
     def __post_init__(self) -> None:
         for name in ("position", "covariance", "interval_95", "surface_peak"):
@@ -459,7 +459,7 @@ class EventLocalizer:
         interval = np.column_stack([pos - half, pos + half])
         resid_s = predicted_tdoas(pos, s, used.pairs, c=c) - used.taus
         in_region = bool(np.all(pos >= box[0]) and np.all(pos <= box[1]))
-        peak, agrees = nan3, False
+        peak, agrees = nan3, None
         if self.surface:
             peak, agrees = self._surface(scaled, grid, dist, box, pos, cov, observable)
         return EventFix(

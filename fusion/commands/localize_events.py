@@ -18,7 +18,8 @@ JSON::
                  "observable", "in_region", "surface_agrees", "surface_peak"}],
      "sound_speed": c, "sample_rate": fs}
 
-Numbers that do not exist (the covariance of an unobservable position) are ``null``. The
+Numbers that do not exist (the covariance of an unobservable position) are ``null``, and so is
+``surface_agrees`` when the surface check is off. The
 ``localize`` command adds ``--events`` and calls :func:`run_events`; :func:`add_event_options`
 adds this mode's options.
 """

@@ -73,7 +73,7 @@ def test_tuple_event_without_band_is_estimated(xav):
     src = np.array([-1.2, 0.4, -0.7])
     x, _ = burst_audio(xav.positions, src, xav.sound_speed, FS, snr_db=20.0, t0=1.5, dur=2.0)
     fix = EventLocalizer(surface=False).localize(x, FS, xav, [(1.46, 1.54)])[0]
-    assert fix.band_source == "estimated"
+    assert fix.band_source == "estimated" and fix.surface_agrees is None  # check not run
     assert fix.band_hz[0] < 300.0 and 1800.0 < fix.band_hz[1] < 2400.0
     assert np.linalg.norm(fix.position - src) < 0.01
 
