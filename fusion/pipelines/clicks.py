@@ -60,6 +60,7 @@ from fusion.clicks.associate import (
     closure_check,
     cross_pair_alpha,
 )
+from fusion.clicks.delaytrack import match_along_track
 from fusion.clicks.detect import ClickDetector
 from fusion.clicks.scm import ClickMapCorrelator, ScmConfig, scm2
 from fusion.clicks.tdoa import TdoaRefiner
@@ -98,6 +99,8 @@ class WindowTdoa:
         Cramér-Rao bound of the refined TDOA at the measured SNR, s (NaN when not refined).
     snr_db : float
         Click SNR the refinement measured (the weaker sensor's), dB (NaN when not refined).
+    rate : float
+        Drift of the delay through the window, s/s (the refinement's fit; 0 when not refined).
     scm_peak : float
         Correlation value at the peak (about the number of matching clicks, eq. 4-6).
     n_clicks : int
@@ -124,6 +127,7 @@ class WindowTdoa:
     sigma_s: float
     crb_s: float
     snr_db: float
+    rate: float
     scm_peak: float
     n_clicks: int
     features: NDArray[np.float64]
@@ -144,7 +148,7 @@ class WindowTdoa:
 
     def as_clicks(self) -> TdoaClicks:
         """The TDOA with its click times, as the association stage takes it."""
-        return TdoaClicks(self.pair, self.tau_s, self.click_times_s, self.sigma_s)
+        return TdoaClicks(self.pair, self.tau_s, self.click_times_s, self.sigma_s, self.rate)
 
 
 @dataclass(frozen=True)
@@ -352,22 +356,28 @@ class ClickFrontEnd:
         out = []
         for k, (peak, s2) in enumerate(zip(corr.peaks, maps, strict=True)):
             i, j = peak.pair
-            tau, sigma, crb, snr = peak.tau_s, self.config.pulse_halfwidth_s, math.nan, math.nan
+            tau, sigma, crb, snr, rate = (peak.tau_s, self.config.pulse_halfwidth_s, math.nan,
+                                          math.nan, 0.0)
             times = s2.click_times_s
             # refine only what passed validation: the rest is dropped downstream anyway
             if refiner is not None and passes[k] and s2.index_i.size:
-                ref = refiner.refine(audio, peak.pair, inside[i].times_s[s2.index_i],
-                                     inside[j].times_s[s2.index_j], audio_t0_s=audio_t0_s,
+                # the SCM2's matches, extended through the window along the delay's drift
+                ii, jj = match_along_track(inside[i].times_s, inside[j].times_s, s2.index_i,
+                                           s2.index_j, t_start_s=t0_s, t_end_s=t1)
+                ref = refiner.refine(audio, peak.pair, inside[i].times_s[ii],
+                                     inside[j].times_s[jj], audio_t0_s=audio_t0_s,
                                      reference_time_s=t0_s + 0.5 * self.window_s)
                 if ref is not None and abs(ref.tau_s - peak.tau_s) < 2.0 * self.config.pulse_halfwidth_s:
-                    tau, sigma, crb, snr = ref.tau_s, ref.sigma_s, ref.crb_s, ref.snr_db
+                    tau, sigma, crb, snr, rate = (ref.tau_s, ref.sigma_s, ref.crb_s, ref.snr_db,
+                                                  ref.rate)
                     # the clicks matched along the delay's drift through the whole window
                     # (the SCM2 matches only those within its pulse width of the coarse delay)
                     if ref.click_times_s.size >= times.size:
                         times = np.sort(ref.click_times_s)
             out.append(WindowTdoa(
                 pair=peak.pair, tau_s=float(tau), tau_coarse_s=float(peak.tau_s),
-                sigma_s=float(sigma), crb_s=float(crb), snr_db=float(snr), scm_peak=float(peak.value),
+                sigma_s=float(sigma), crb_s=float(crb), snr_db=float(snr), rate=float(rate),
+                scm_peak=float(peak.value),
                 n_clicks=int(s2.click_times_s.size), features=z[k], llr=float(llr[k]),
                 passes=bool(passes[k]), click_times_s=times))
         return out

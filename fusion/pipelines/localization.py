@@ -59,6 +59,9 @@ class ClickLocalization:
         (TDOAs only).
     min_tdoas : int, optional
         Fewest valid TDOAs a window needs to be localized (default 3, a 3-D fix).
+    sigma_floor_s : float, optional
+        Added in quadrature to every TDOA sigma, s (default 1 us): what the measured sigma
+        does not hold -- sensor positions, sound speed, the drift model.
     """
 
     def __init__(
@@ -67,24 +70,55 @@ class ClickLocalization:
         front_end: ClickFrontEnd | None = None,
         localizer: MultiSourceLocalizer | None | bool = True,
         min_tdoas: int = 3,
+        sigma_floor_s: float = 1e-6,
     ) -> None:
         self.front_end = front_end if front_end is not None else ClickFrontEnd()
         if localizer is True:
             localizer = MultiSourceLocalizer()
         self.localizer = localizer or None
         self.min_tdoas = int(min_tdoas)
+        self.sigma_floor_s = float(sigma_floor_s)
 
     def localize(self, window: ClickWindow, sensors: SensorArray) -> LocalizedWindow:
-        """Localize the sources of one front-end window from its valid TDOAs."""
+        """Localize the sources of one front-end window from its valid TDOAs.
+
+        Notes
+        -----
+        Each refined TDOA is measured at the window centre on the clock of its pair's first
+        sensor, and a moving source drifts it (``rate``, up to ~2.7 ms/s at 2 m/s). TDOAs of
+        different pairs therefore refer to different emission times, up to the array's
+        travel-time spread apart. Two passes: (1) every sigma is widened by the drift over half
+        that spread (plus `sigma_floor_s`); (2) each TDOA is moved along its drift to the
+        arrival time at its first sensor of one emission of the source that owns it (emitted
+        when the mean arrival is at the window centre) and the window is solved again with the
+        measured sigmas (plus the floor).
+        """
         idx = np.array([k for k, d in enumerate(window.tdoas) if d.valid], dtype=int)
         if self.localizer is None or idx.size < self.min_tdoas:
             return LocalizedWindow(window, idx, None)
         d = [window.tdoas[k] for k in idx]
+        pos = sensors.positions
+        c = sensors.sound_speed
+        pairs = np.array([t.pair for t in d])
+        taus = np.array([t.tau_s for t in d])
+        sig = np.hypot(np.array([t.sigma_s for t in d]), self.sigma_floor_s)
+        rate = np.array([t.rate for t in d])
+        alpha = window.alpha[np.ix_(idx, idx)]
+        spread = float(np.max(np.linalg.norm(pos[:, None] - pos[None], axis=2))) / c
         try:
-            out = self.localizer.localize(
-                sensors.positions, np.array([t.pair for t in d]), np.array([t.tau_s for t in d]),
-                np.array([t.sigma_s for t in d]), window.alpha[np.ix_(idx, idx)],
-                c=sensors.sound_speed)
+            out = self.localizer.localize(pos, pairs, taus, np.hypot(sig, rate * 0.5 * spread),
+                                          alpha, c=c)
+            if out.sources and np.any(rate != 0):
+                mid = 0.5 * (window.t_start + window.t_end)
+                w = np.stack([s.weights for s in out.sources])  # (K, M)
+                owner = np.argmax(w, axis=0)
+                retimed = taus.copy()
+                for m in range(taus.size):
+                    p = out.sources[owner[m]].position
+                    r = np.linalg.norm(pos - p, axis=1) / c
+                    t_i = mid + r[pairs[m, 0]] - r.mean()  # arrival at sensor i of one emission
+                    retimed[m] = taus[m] + rate[m] * (t_i - mid)
+                out = self.localizer.localize(pos, pairs, retimed, sig, alpha, c=c)
         except ValueError as e:  # e.g. too few independent pairs: no fix in this window
             logger.info("window %.1f s: not localized (%s)", window.t_start, e)
             out = None
