@@ -37,13 +37,12 @@ import time
 
 import numpy as np
 
-from fusion.geometry import bearing_from_beam
+from fusion.geometry import beamwidth_deg, bearing_from_beam
 from fusion.io import Cube
 from fusion.passive.acquisition import Acquisition, AcquisitionResult
 from fusion.passive.crossing import CrossingDetector
 from fusion.passive.quality import TrackQualityIndicator
 from fusion.passive.smoothing import TrackPrior
-from fusion.passive.tracker import beamwidth_deg
 from fusion.pipelines.passive import PassivePipeline
 from fusion.pipelines.passive_tracks import AcquisitionPrior
 from fusion.pipelines.passive_types import Click

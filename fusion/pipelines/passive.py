@@ -41,12 +41,11 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from fusion.geometry import beam_from_bearing, beam_tolerance, beamwidth_cos
+from fusion.geometry import beam_from_bearing, beam_tolerance, beamwidth_cos, beamwidth_deg
 from fusion.io import Cube
 from fusion.passive.acquisition import Acquisition, AcquisitionResult
 from fusion.passive.crossing import AlertKind, CrossingAlert, CrossingDetector
 from fusion.passive.quality import LABELS, TQIMemory, TrackQuality, TrackQualityIndicator
-from fusion.passive.tracker import beamwidth_deg
 from fusion.pipelines.passive_crossing import (
     CrossingResolution,
     CrossingResolver,
@@ -60,6 +59,7 @@ from fusion.pipelines.passive_types import (
     PassiveTrack,
     Scan,
     ScanResult,
+    SmootherSettings,
     TrackEnd,
     TrackStart,
     TrackUpdate,
@@ -69,54 +69,6 @@ from fusion.pipelines.passive_types import (
 __all__ = ["PassivePipeline", "SmootherSettings"]
 
 logger = logging.getLogger(__name__)
-
-
-@dataclass(frozen=True)
-class SmootherSettings:
-    """Settings of the tracks' fixed-lag graphs and of their crossing episodes.
-
-    Attributes
-    ----------
-    lag_s : float
-        Fixed lag, s; must hold a crossing episode and its context.
-    accel_sigma_deg_per_min2 : float
-        Bearing-acceleration standard deviation per scan, deg/min^2; the PSD of the white-noise-
-        acceleration model is ``q = sigma_a^2 T`` (T the scan period).
-    beam_sigma : float
-        Standard deviation of a measured peak, beams.
-    gate : float
-        Innovation gate of a measurement, standard deviations.
-    uncertain_q_factor : float
-        Process-noise scale of a step whose TQI is ``uncertain``.
-    block : int
-        Scans of states that leave the lag together (see `block_s` of
-        :class:`~fusion.pipelines.passive_tracks.FixedLagBearingTrack`).
-    context_scans : int
-        Own bearings of each track, from before a crossing episode, given to the multi-track
-        graph to tell the tracks apart.
-    separation_lobes : float
-        Half a crossing episode: the time for the pair to draw this many main lobes apart.
-    """
-
-    lag_s: float = 200.0
-    accel_sigma_deg_per_min2: float = 2.0
-    beam_sigma: float = 0.5
-    gate: float = 4.0
-    uncertain_q_factor: float = 10.0
-    block: int = 10
-    context_scans: int = 20
-    separation_lobes: float = 1.5
-
-    def __post_init__(self) -> None:
-        for name in ("lag_s", "accel_sigma_deg_per_min2", "beam_sigma", "gate",
-                     "uncertain_q_factor", "separation_lobes"):
-            v = getattr(self, name)
-            if not (np.isfinite(v) and v > 0):
-                raise ValueError(f"{name} must be finite and > 0, got {v!r}")
-        for name in ("block", "context_scans"):
-            v = getattr(self, name)
-            if int(v) != v or v < 1:
-                raise ValueError(f"{name} must be a positive integer, got {v!r}")
 
 
 @dataclass
@@ -327,12 +279,9 @@ class PassivePipeline:
             use = (not lost and episode is None and m.local_peak
                    and abs(m.bearing - x_pred[0]) <= self.smoother.gate * s_innov)
             if episode is not None:
-                if tr.track_id not in episode.context:
-                    episode.context[tr.track_id] = list(tr.recent)
-                if not any(d[0] == t and d[1] == m.bearing for d in episode.detections):
-                    episode.detections.append((t, m.bearing, m.sigma))
-                episode.predictions.setdefault(tr.track_id, []).append(
-                    (t, float(x_pred[0]), s_innov))
+                episode.record(tr.track_id, t, bearing=m.bearing, sigma=m.sigma,
+                               predicted=float(x_pred[0]), innovation_std=s_innov,
+                               context=list(tr.recent))
             x, p = tr.graph.update(t, bearing=m.bearing if use else None,
                                    sigma=m.sigma if use else None, q_scale=q_scale)
             if use:
@@ -489,6 +438,9 @@ class PassivePipeline:
     # -- output ---------------------------------------------------------------------------------
     def result(self) -> PassiveResult:
         """Smoothed tracks (fixed-lag; the last lag by all data so far), alerts, resolutions."""
+        if self._pending:
+            logger.warning("%d click(s) not served yet (their time or a full acquisition window "
+                           "of %d scans not reached)", len(self._pending), self.acquisition_scans)
         tracks = []
         for tr in sorted(self._done + self._live, key=lambda x: x.track_id):
             st = tr.graph.states()

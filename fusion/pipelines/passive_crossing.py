@@ -7,8 +7,10 @@ graphs) while every peak they find is kept as a detection of unknown origin. Whe
 closes, the detections go, with each track's own bearings from just before the episode, into the
 association-weighted multi-track graph (:class:`fusion.passive.smoothing.MultiTrackSmoother`,
 EM); the tracks it forms are matched to the pipeline's tracks through those labelled context
-bearings, and every detection it assigns is handed back to its track as a bearing on the state
-of its scan, still inside the track's fixed-lag window.
+bearings and checked against the tracks' own constant-rate predictions, and every detection it
+assigns is handed back to its track as a bearing on the state of its scan, still inside the
+track's fixed-lag window. When the match or the check fails, each scan's detections go to the
+nearest predictions instead.
 
 - :class:`EpisodeBook` keeps the episodes: scheduled from alerts, open, due.
 - :class:`CrossingResolver` resolves a closed episode (:meth:`CrossingResolver.resolve`).
@@ -64,6 +66,25 @@ class CrossingEpisode:
     predictions: dict[int, list[tuple[float, float, float]]] = field(default_factory=dict)
     opened: bool = False
     clear: int = 0
+
+    def record(
+        self,
+        track_id: int,
+        time: float,
+        *,
+        bearing: float,
+        sigma: float,
+        predicted: float,
+        innovation_std: float,
+        context: list[tuple[float, float, float]],
+    ) -> None:
+        """Keep one member's scan: its peak (once per peak), its prediction, and, on its first
+        scan in the episode, its own bearings from before (`context`)."""
+        if track_id not in self.context:
+            self.context[track_id] = list(context)
+        if not any(d[0] == time and d[1] == bearing for d in self.detections):
+            self.detections.append((time, bearing, sigma))  # two members on one peak: once
+        self.predictions.setdefault(track_id, []).append((time, predicted, innovation_std))
 
 
 @dataclass(frozen=True)
@@ -252,9 +273,9 @@ class CrossingResolver:
     bounced. Its association is therefore kept only if it agrees with the tracks' own motion:
     past the predicted crossing, at least `min_consistent` of the detections it gives a track
     are nearer (in innovation standard deviations) that track's constant-rate prediction than
-    any other track's. Otherwise, or if the match
-    fails, the detections of each scan are assigned to the tracks' predictions
-    (``scipy.optimize.linear_sum_assignment`` on squared normalised innovations, gated).
+    any other track's. Otherwise, or if the match fails, the detections of each scan are
+    assigned to the tracks' predictions (``scipy.optimize.linear_sum_assignment`` on squared
+    normalised innovations, gated).
     """
 
     def __init__(

@@ -24,10 +24,9 @@ from numpy.typing import NDArray
 from factors.bearing import linear_bearing_factor
 from factors.motion import linear_constant_velocity_factor, transition_matrix, wna_covariance
 from fusion._validation import check_positive
-from fusion.geometry import beam_from_bearing, beamwidth_cos, bearing_from_beam
+from fusion.geometry import beam_from_bearing, beamwidth_cos, beamwidth_deg, bearing_from_beam
 from fusion.passive.acquisition import AcquisitionResult
 from fusion.passive.smoothing import TrackPrior
-from fusion.passive.tracker import beamwidth_deg
 
 __all__ = ["AcquisitionPrior", "FixedLagBearingTrack", "TrackStates"]
 
@@ -57,7 +56,7 @@ class AcquisitionPrior:
     The acquisition (*Acquisition system particularly suited for tracking targets having high
     bearing rates*, segments 46-54) fits a constant-rate trace through ``n`` scans of the IBW
     BTR. Each scan places the line to about ``sigma_1 = BW / sqrt(2 snr)`` (BW the main-lobe
-    width in bearing at the estimate, :func:`fusion.passive.tracker.beamwidth_deg`; ``snr`` the
+    width in bearing at the estimate, :func:`fusion.geometry.beamwidth_deg`; ``snr`` the
     linear IBW SNR of the best trace, ``AcquisitionResult.snr_ibw``), and a straight-line fit of
     ``n`` equally spaced points has, at its latest end and in its slope,
 

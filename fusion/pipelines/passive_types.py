@@ -19,6 +19,7 @@ from fusion.pipelines.passive_crossing import CrossingResolution
 
 __all__ = [
     "Click",
+    "SmootherSettings",
     "PassiveResult",
     "PassiveTrack",
     "Scan",
@@ -133,6 +134,54 @@ class Click:
         if self.time is not None and not np.isfinite(self.time):
             raise ValueError(f"click time must be finite, got {self.time!r}")
         object.__setattr__(self, "beam", int(self.beam))
+
+
+@dataclass(frozen=True)
+class SmootherSettings:
+    """Settings of the tracks' fixed-lag graphs and of their crossing episodes.
+
+    Attributes
+    ----------
+    lag_s : float
+        Fixed lag, s; must hold a crossing episode and its context.
+    accel_sigma_deg_per_min2 : float
+        Bearing-acceleration standard deviation per scan, deg/min^2; the PSD of the white-noise-
+        acceleration model is ``q = sigma_a^2 T`` (T the scan period).
+    beam_sigma : float
+        Standard deviation of a measured peak, beams.
+    gate : float
+        Innovation gate of a measurement, standard deviations.
+    uncertain_q_factor : float
+        Process-noise scale of a step whose TQI is ``uncertain``.
+    block : int
+        Scans of states that leave the lag together (see `block_s` of
+        :class:`~fusion.pipelines.passive_tracks.FixedLagBearingTrack`).
+    context_scans : int
+        Own bearings of each track, from before a crossing episode, given to the multi-track
+        graph to tell the tracks apart.
+    separation_lobes : float
+        Half a crossing episode: the time for the pair to draw this many main lobes apart.
+    """
+
+    lag_s: float = 200.0
+    accel_sigma_deg_per_min2: float = 2.0
+    beam_sigma: float = 0.5
+    gate: float = 4.0
+    uncertain_q_factor: float = 10.0
+    block: int = 10
+    context_scans: int = 20
+    separation_lobes: float = 1.5
+
+    def __post_init__(self) -> None:
+        for name in ("lag_s", "accel_sigma_deg_per_min2", "beam_sigma", "gate",
+                     "uncertain_q_factor", "separation_lobes"):
+            v = getattr(self, name)
+            if not (np.isfinite(v) and v > 0):
+                raise ValueError(f"{name} must be finite and > 0, got {v!r}")
+        for name in ("block", "context_scans"):
+            v = getattr(self, name)
+            if int(v) != v or v < 1:
+                raise ValueError(f"{name} must be a positive integer, got {v!r}")
 
 
 @dataclass(frozen=True)

@@ -11,10 +11,9 @@ from numpy.testing import assert_allclose
 from scipy import stats
 
 from factors.motion import transition_matrix, wna_covariance
-from fusion.geometry import bearing_from_beam
+from fusion.geometry import beamwidth_deg, bearing_from_beam
 from fusion.passive.acquisition import Acquisition
 from fusion.passive.smoothing import TrackPrior, rts_reference
-from fusion.passive.tracker import beamwidth_deg
 from fusion.pipelines.passive_crossing import CrossingEpisode, CrossingResolver, EpisodeBook
 from fusion.pipelines.passive_measure import LineStarter, PeakMeasurer
 from fusion.pipelines.passive_tracks import AcquisitionPrior, FixedLagBearingTrack
