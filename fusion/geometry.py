@@ -22,6 +22,8 @@ from itertools import combinations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from factors.angles import wrap_angle  # the one angle-wrapping rule, re-exported here
+
 __all__ = [
     "SensorArray",
     "beam_from_bearing",
@@ -43,28 +45,6 @@ __all__ = [
 COLLINEAR_RTOL = 1e-6
 
 
-def wrap_angle(a: ArrayLike) -> NDArray[np.float64] | float:
-    """Wrap angles in radians to ``[-pi, pi)``.
-
-    Parameters
-    ----------
-    a : float or array_like
-        Angle(s), rad.
-
-    Returns
-    -------
-    float or ndarray
-        Same shape as `a`, in ``[-pi, pi)``.
-
-    Examples
-    --------
-    >>> float(wrap_angle(3 * np.pi / 2))
-    -1.5707963267948966
-    """
-    out = np.mod(np.asarray(a, dtype=float) + np.pi, 2.0 * np.pi) - np.pi
-    return float(out) if np.ndim(out) == 0 else out
-
-
 def wrap_deg(a: ArrayLike) -> NDArray[np.float64] | float:
     """Wrap angles in degrees to ``[-180, 180)``.
 
@@ -76,10 +56,23 @@ def wrap_deg(a: ArrayLike) -> NDArray[np.float64] | float:
     Returns
     -------
     float or ndarray
-        Same shape as `a`, in ``[-180, 180)``.
+        Same shape as `a`, in ``[-180, 180)``; a float for scalar input.
+
+    Notes
+    -----
+    The rule of :func:`factors.angles.wrap_angle` in degrees: ``mod(a + 180, 360) - 180``, with
+    a result that ``mod`` rounded up to ``+180`` (an `a` just below -180) moved to -180.
+
+    Examples
+    --------
+    >>> wrap_deg(190.0)
+    -170.0
+    >>> wrap_deg(180.0), wrap_deg(np.nextafter(-180.0, -360.0))
+    (-180.0, -180.0)
     """
     out = np.mod(np.asarray(a, dtype=float) + 180.0, 360.0) - 180.0
-    return float(out) if np.ndim(out) == 0 else out
+    out = np.where(out >= 180.0, out - 360.0, out)  # mod rounded up to 360: -180, not +180
+    return float(out) if out.ndim == 0 else out
 
 
 def _check_n_beams(n_beams: int) -> None:

@@ -50,6 +50,39 @@ def test_wrap_known_values():
     assert wrap_deg(180.0) == -180.0
 
 
+def test_wrap_angle_just_below_minus_pi_regression():
+    """Regression: an angle one ulp below -pi wraps to -pi, not to +pi outside [-pi, pi)."""
+    a = np.nextafter(-np.pi, -4.0)
+    assert wrap_angle(a) == -np.pi
+    many = np.nextafter(-np.pi, -4.0) - np.arange(8) * np.spacing(np.pi)  # a few ulps below
+    w = wrap_angle(many)
+    assert np.all((w >= -np.pi) & (w < np.pi))
+    assert_allclose(np.exp(1j * w), np.exp(1j * many), atol=1e-14)  # same angle
+
+
+def test_wrap_deg_just_below_minus_180_regression():
+    """Regression: a degree angle one ulp below -180 wraps to -180, not to +180."""
+    assert wrap_deg(np.nextafter(-180.0, -360.0)) == -180.0
+    many = np.nextafter(-180.0, -360.0) - np.arange(8) * np.spacing(180.0)
+    w = wrap_deg(many)
+    assert np.all((w >= -180.0) & (w < 180.0))
+    assert_allclose(np.exp(1j * np.radians(w)), np.exp(1j * np.radians(many)), atol=1e-14)
+
+
+@given(st.floats(-1e4, 1e4, allow_nan=False).map(lambda x: np.nextafter(x, -np.inf)))
+def test_wrap_angle_and_deg_half_open_everywhere(a):
+    """Both wraps stay half-open for values one ulp below any float (the rounding edge)."""
+    assert -np.pi <= wrap_angle(a) < np.pi
+    assert -180.0 <= wrap_deg(a) < 180.0
+
+
+def test_wrap_angle_is_the_factors_rule():
+    """fusion.geometry and factors.angles share one wrap_angle (one rule for every residual)."""
+    import factors.angles
+
+    assert wrap_angle is factors.angles.wrap_angle
+
+
 def test_beams_endfire_and_broadside():
     """Beam 0 is forward endfire, beam N-1 aft endfire, the middle beam broadside."""
     n = 65
