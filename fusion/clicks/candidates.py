@@ -4,8 +4,8 @@ The association-weighted volume of eq. (18) over depths has many local maxima; t
 become the candidate solutions that compete for the TDOAs (:mod:`fusion.clicks.competition`).
 :class:`CandidateFinder` finds the 3-D local maxima with :func:`scipy.ndimage.maximum_filter`,
 keeps those above a fraction of the largest, optionally refines each on finer grids
-(:func:`fusion.clicks.surfaces.refine_peak`), suppresses near-duplicates and returns at most
-``max_candidates``, strongest first.
+(:func:`fusion.clicks.surfaces.refine_peak`) and rescans its depth, suppresses near-duplicates
+and returns at most ``max_candidates``, strongest first.
 
 Notes
 -----
@@ -22,11 +22,14 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.ndimage import maximum_filter
 
-from fusion.clicks.surfaces import IntensityVolume, WindowTdoas, refine_peak
+from fusion.clicks.surfaces import IntensityVolume, WindowTdoas, refine_peak, scan_depth
 
 __all__ = ["CandidateFinder", "Candidates"]
 
 _LOG = logging.getLogger(__name__)
+
+#: Refinement levels run before the depth scan (the rest run after it).
+_SCAN_AFTER_LEVELS = 2
 
 
 @dataclass(frozen=True)
@@ -74,6 +77,11 @@ class CandidateFinder:
         default 3 spans one coarser cell each side).
     min_separation_cells : float, keyword-only
         Two candidates closer than this many coarse cells are one (the weaker is dropped).
+    scan_depth : bool, keyword-only
+        After the first two refinement levels, scan the whole vertical range of the box at the
+        refined ``x, y`` (:func:`fusion.clicks.surfaces.scan_depth`) and move to a better depth
+        if there is one, then refine on (default True; needs `lo`, `hi` and a volume with
+        several depths).
 
     Examples
     --------
@@ -95,6 +103,7 @@ class CandidateFinder:
         refine_levels: int = 2,
         refine_half: int = 3,
         min_separation_cells: float = 1.5,
+        scan_depth: bool = True,
     ) -> None:
         if int(max_candidates) != max_candidates or max_candidates < 1:
             raise ValueError(f"max_candidates must be a positive integer, got {max_candidates!r}")
@@ -113,6 +122,7 @@ class CandidateFinder:
         self.footprint = int(footprint)
         self.refine_levels = int(refine_levels)
         self.refine_half = int(refine_half)
+        self.scan_depth = bool(scan_depth)
         self.min_separation_cells = float(min_separation_cells)
 
     def _maxima(self, volume: IntensityVolume) -> tuple[NDArray[np.intp], NDArray[np.float64]]:
@@ -172,10 +182,23 @@ class CandidateFinder:
         inten = vals.copy()
         fine = step
         if self.refine_levels and tdoas is not None and pos.shape[0]:
+            scan = (self.scan_depth and volume.grid.shape[2] > 1 and lo is not None
+                    and hi is not None)
+            first = min(self.refine_levels, _SCAN_AFTER_LEVELS) if scan else self.refine_levels
             for k in range(pos.shape[0]):
                 pos[k], inten[k], fine = refine_peak(tdoas, pos[k], step, equation=volume.equation,
-                                                     levels=self.refine_levels,
-                                                     half=self.refine_half, lo=lo, hi=hi)
+                                                     levels=first, half=self.refine_half,
+                                                     lo=lo, hi=hi)
+                rest = self.refine_levels - first
+                if scan:  # the depth of a vertical ridge: scan it at the refined x, y
+                    p, v = scan_depth(tdoas, pos[k], fine, (float(lo[2]), float(hi[2])),
+                                      equation=volume.equation)
+                    if v > inten[k]:  # then refine around the new depth from one level up
+                        pos[k], inten[k], rest, fine = p, v, rest + 1, 3.0 * fine
+                if rest:
+                    pos[k], inten[k], fine = refine_peak(tdoas, pos[k], fine,
+                                                         equation=volume.equation, levels=rest,
+                                                         half=self.refine_half, lo=lo, hi=hi)
             # two coarse maxima refined onto one peak are one candidate
             order = np.argsort(-inten, kind="stable")
             pos, inten, rel = pos[order], inten[order], rel[order]

@@ -16,15 +16,17 @@ flat, ``w_km = 1/K`` (eq. 19), and each iteration alternates
     the mixing proportions follow the responsibilities. Optionally a candidate keeps at most
     one TDOA's worth of weight per sensor pair (a source makes one delay per pair);
 (c) **merge and drop**: two candidates whose predicted delays agree within ``merge_sigmas``
-    on the TDOAs they hold, or that split the same TDOAs between them, become one; once
+    (at the sharper one's scale) on the TDOAs they hold, or that, both annealed, split the
+    same TDOAs between them, become one and pool their weights; once
     annealed, a candidate is dropped that holds too little (``sum_m w_km < min_weight``) or
     whose TDOAs of weight > 0.5 span fewer than ``min_independent`` independent sensor pairs
     (the rank of their incidence; 3 fix a 3-D position), counting with ``alpha`` only TDOAs
     associated with another of its TDOAs (:func:`supported_weights`: a ghost made of a few
     TDOAs of a source plus a clutter TDOA that happens to fit does not count the clutter one);
 (d) **growth** (once converged): a candidate refits with the TDOAs left to clutter that are
-    associated (``alpha >= min_alpha_link``) with its own; if all then fit within
-    ``gate_sigmas`` it keeps them and the iterations resume. (A candidate that starts far from
+    associated (``alpha >= min_alpha_link``) with its own, from where it is and (with a water
+    column) from a few heights above and below; if all then fit within ``gate_sigmas`` it
+    keeps them and the iterations resume. (A candidate that starts far from
     its source can settle on a subset of the source's TDOAs that fits a ghost position, the
     rest lost to clutter on the way; their association with the kept ones gives it away.)
 
@@ -66,6 +68,7 @@ __all__ = [
     "holds_a_source",
     "independent_pairs",
     "supported_weights",
+    "vertical_starts",
 ]
 
 _LOG = logging.getLogger(__name__)
@@ -246,9 +249,13 @@ def _cap_per_pair(w: NDArray[np.float64], pair_id: NDArray[np.intp]) -> NDArray[
 
 def _same_source(
     tdoas: WindowTdoas, xa: NDArray, xb: NDArray, wa: NDArray, wb: NDArray, scale: NDArray,
-    settings: CompetitionSettings,
+    settings: CompetitionSettings, *, settled: bool,
 ) -> bool:
-    """Whether two candidates explain the same TDOAs (close in delay space, or shared weight)."""
+    """Whether two candidates explain the same TDOAs.
+
+    Close in delay space (at the sharper candidate's scale), or, once both are annealed,
+    splitting the same TDOAs between them (while annealing, broad candidates share naturally).
+    """
     union = np.maximum(wa, wb)
     e = (tdoas.predicted(xa) - tdoas.predicted(xb)) / scale
     if union.sum() > 0:
@@ -257,7 +264,7 @@ def _same_source(
         rms = float(np.sqrt(np.mean(e * e)))
     small = min(wa.sum(), wb.sum())
     shared = float(np.minimum(wa, wb).sum() / small) if small > 0 else 0.0
-    return rms < settings.merge_sigmas or shared > settings.max_overlap
+    return rms < settings.merge_sigmas or (settled and shared > settings.max_overlap)
 
 
 def association_weights(
@@ -319,27 +326,49 @@ def holds_a_source(w: NDArray[np.float64], pairs: NDArray[np.intp],
                 and independent_pairs(pairs, ws > 0.5) >= cfg.min_independent)
 
 
+def vertical_starts(x: NDArray, z_range: tuple[float, float] | None, levels: int = 4
+                     ) -> list[NDArray]:
+    """`x` and, with a water column, `x` moved to `levels` heights spread over it."""
+    if z_range is None:
+        return [x]
+    z = z_range[0] + (np.arange(levels) + 0.5) / levels * (z_range[1] - z_range[0])
+    return [x] + [np.array([x[0], x[1], zz]) for zz in z]
+
+
 def _grow(
     tdoas: WindowTdoas, graph: _CandidateGraph, x: NDArray, w: NDArray, clutter: NDArray,
-    cfg: CompetitionSettings,
+    cfg: CompetitionSettings, z_range: tuple[float, float] | None = None,
 ) -> tuple[NDArray, NDArray] | None:
-    """Refit a candidate with the clutter TDOAs associated with its own; None if none fit."""
+    """Refit a candidate with the clutter TDOAs associated with its own; None if none fit.
+
+    The refit starts from the candidate and, with a water column, from its ``x, y`` at a few
+    heights (a near-planar array's depth ambiguity); the fit explaining most TDOAs wins.
+    """
     owned = w > 0.5
     if tdoas.alpha is None or not np.any(owned):
         return None
     linked = np.any(np.asarray(tdoas.alpha)[:, owned] >= cfg.min_alpha_link, axis=1)
-    extra = linked & (clutter > 0.5) & ~owned
+    candidates_extra = linked & (clutter > 0.5) & ~owned
+    if not np.any(candidates_extra):
+        return None
     gate = cfg.gate_sigmas * np.asarray(tdoas.sigmas)
-    while np.any(extra):
-        trial = (owned | extra).astype(float)  # hard: a half-held TDOA must not pull the fit
-        new = graph.solve(x, trial, full=True)
-        fits = np.abs(tdoas.predicted(new) - tdoas.taus) <= gate
-        if not np.all(fits[owned]):
-            return None
-        if np.all(fits[extra]):
-            return new, trial
-        extra &= fits
-    return None
+    best: tuple[int, float, NDArray, NDArray] | None = None
+    for start in vertical_starts(x, z_range):
+        extra = candidates_extra.copy()
+        while np.any(extra):
+            trial = (owned | extra).astype(float)  # hard: a half-held TDOA must not pull the fit
+            new = graph.solve(start, trial, full=True)
+            r = tdoas.predicted(new) - tdoas.taus
+            fits = np.abs(r) <= gate
+            if not np.all(fits[owned]):
+                break
+            if np.all(fits[extra]):
+                cost = float(np.sum(trial * (r / np.asarray(tdoas.sigmas)) ** 2))
+                if best is None or (int(trial.sum()), -cost) > (best[0], -best[1]):
+                    best = (int(trial.sum()), cost, new, trial)
+                break
+            extra &= fits
+    return None if best is None else (best[2], best[3])
 
 
 def compete(
@@ -349,6 +378,8 @@ def compete(
     start_scale_s: float,
     settings: CompetitionSettings | None = None,
     z_range: tuple[float, float] | None = None,
+    weights: ArrayLike | None = None,
+    settled: ArrayLike | None = None,
 ) -> CompetitionResult:
     """Let candidate positions compete for the TDOAs of one window.
 
@@ -368,6 +399,11 @@ def compete(
         1 % of its height) is moved once to its mirror image through the sensors' best-fitting
         plane and re-annealed, if that image is in the water, and dropped otherwise (on a
         near-planar array a candidate started at the wrong depth can settle on the far side).
+    weights : array_like, shape (K, M), optional, keyword-only
+        Starting weights ``w_km`` in [0, 1] (a warm start); default flat ``1/K`` (eq. 19).
+    settled : array_like of bool, shape (K,), optional, keyword-only
+        Candidates that converged in an earlier round: their delay scale starts at the TDOA
+        sigmas instead of `start_scale_s`.
 
     Returns
     -------
@@ -393,14 +429,21 @@ def compete(
     # uniform clutter density over the physically possible delays of each pair
     log_clutter = np.log(cfg.clutter_fraction) - np.log(2.0 * np.maximum(tdoas.max_delay_s, sig))
     w = np.full((k0, m), 1.0 / max(k0, 1))  # eq. (19)
+    if weights is not None:  # a warm start (a later round)
+        w = np.array(weights, dtype=float)
+        if w.shape != (k0, m) or not np.all((w >= 0) & (w <= 1)):
+            raise ValueError(f"weights must have shape ({k0}, {m}) with values in [0, 1]")
     wt = np.zeros((k0, m))
-    log_pi = np.full(k0, np.log((1.0 - cfg.clutter_fraction) / max(k0, 1)))
+    totals = w.sum(axis=1) + 1e-12
+    log_pi = np.log((1.0 - cfg.clutter_fraction) * totals / totals.sum())
     alive = np.ones(k0, dtype=bool)
     graphs = [_CandidateGraph(tdoas, cfg.solver_iterations) for _ in range(k0)]
     # per-candidate delay scale: shrinks by anneal_factor per iteration, but never below the
     # delay change of the candidate's last move (a travelling candidate keeps its TDOAs)
     spread0 = max(float(start_scale_s), float(sig.max()))
     spread = np.full(k0, spread0)
+    if settled is not None:  # candidates already at their TDOA sigma level
+        spread[np.asarray(settled, dtype=bool)] = float(sig.min())
     mirrored = np.zeros(k0, dtype=bool)
     centre = np.asarray(tdoas.sensors).mean(axis=0)
     normal = np.linalg.svd(np.asarray(tdoas.sensors) - centre)[2][-1]  # of the best-fit plane
@@ -467,7 +510,8 @@ def compete(
                 if not (alive[a] and alive[b]):
                     continue
                 if _same_source(tdoas, x[a], x[b], w[a], w[b],
-                                np.maximum(scale[pa], scale[pb]), cfg):
+                                np.minimum(scale[pa], scale[pb]), cfg,
+                                settled=bool(max(spread[a], spread[b]) <= sig.min())):
                     loser = b if w[a].sum() >= w[b].sum() else a
                     alive[loser] = False
                     w[a + b - loser] = np.minimum(w[a] + w[b], 1.0)  # joined: the TDOAs of both
@@ -475,7 +519,7 @@ def compete(
         # ... and drop those holding too little (fully once annealed)
         for k in np.flatnonzero(alive):
             if spread[k] > sig.min():  # still annealing: only the empty ones go
-                if w[k].sum() < min(1.0, cfg.min_weight):
+                if w[k].sum() < min(0.25, cfg.min_weight):
                     alive[k] = False
                     _LOG.debug("iteration %d: candidate %d dropped (weight %.2f)", it, k,
                                w[k].sum())
@@ -490,7 +534,7 @@ def compete(
             if grow_passes:
                 left = 1.0 - w[alive].sum(axis=0)
                 for k in np.flatnonzero(alive):
-                    out = _grow(tdoas, graphs[k], x[k], w[k], left, cfg)
+                    out = _grow(tdoas, graphs[k], x[k], w[k], left, cfg, z_range)
                     if out is not None:
                         x[k], w[k] = out
                         grew = True

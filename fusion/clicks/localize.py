@@ -27,10 +27,11 @@ TDOAs when ``alpha`` is given), so the methods differ in how TDOAs are assigned 
 Observability: the position information ``J^T W J`` of the source's TDOAs gives a condition
 number; a fix is flagged unobservable when it exceeds ``max_condition`` (e.g. a planar array
 and a source far outside its aperture, whose depth the delays barely fix). The mirror test
-reflects the position through the sensors' best-fitting plane, re-solves from there, and calls
-the fix ambiguous when the mirrored solution fits within ``mirror_chi2`` of the original (the
-sign of ``z`` of a planar array). With a water column, a fix outside it whose mirror fits as
-well inside it is replaced by the mirror, and a mirror outside it is no rival.
+re-solves from the position's mirror image through the sensors' best-fitting plane and from
+its ``x, y`` at four heights, and calls the fix ambiguous when a distinct solution fits within
+``mirror_chi2`` of it (the sign of ``z`` of a planar array; a second depth of a near-planar
+array with few TDOAs). A clearly better solution replaces the fix; with a water column, a fix
+outside it whose rival fits as well inside it is replaced, and a rival outside it is none.
 
 Notes
 -----
@@ -56,6 +57,7 @@ from fusion.clicks.competition import (
     compete,
     independent_pairs,
     supported_weights,
+    vertical_starts,
 )
 from fusion.clicks.surfaces import (
     SearchGrid,
@@ -70,6 +72,9 @@ from fusion.clicks.surfaces import (
 __all__ = ["METHODS", "LocalizationOutput", "MultiSourceLocalizer", "SourceFix"]
 
 _LOG = logging.getLogger(__name__)
+
+#: 3-sigma ellipsoid of a 3-D Gaussian (chi-square, 3 degrees of freedom, 0.9973).
+_CHI2_3SIGMA = 14.16
 
 #: The localization methods of :class:`MultiSourceLocalizer`.
 METHODS: tuple[str, ...] = ("competition", "eq17", "eq18", "lsq")
@@ -297,7 +302,8 @@ class MultiSourceLocalizer:
                                      min_relative=finder.min_relative, footprint=finder.footprint,
                                      refine_levels=_levels_to_fine(tdoas, grid.step),
                                      refine_half=finder.refine_half,
-                                     min_separation_cells=finder.min_separation_cells)
+                                     min_separation_cells=finder.min_separation_cells,
+                                     scan_depth=finder.scan_depth)
         cand = finder.find(volume, tdoas, lo=lo, hi=hi)
         if self.method == "competition":
             return self._competition(tdoas, cand.positions, cand.step)
@@ -338,8 +344,13 @@ class MultiSourceLocalizer:
             _LOG.debug("%d groups of unexplained associated TDOAs: %d more candidates",
                        len(groups), extra.shape[0])
             starts = np.vstack([starts, extra])
+            # warm start: the survivors keep their TDOAs and scale, the newcomers share the rest
+            k_old, k_new = res.positions.shape[0], extra.shape[0]
+            weights = np.vstack([res.weights, np.tile(res.clutter / k_new, (k_new, 1))])
             res = compete(tdoas, np.vstack([res.positions, extra]), start_scale_s=scale,
-                          settings=self.competition, z_range=self.region.water_column)
+                          settings=self.competition, z_range=self.region.water_column,
+                          weights=np.clip(weights, 0.0, 1.0),
+                          settled=np.arange(k_old + k_new) < k_old)
             iterations += res.iterations
         fixes = []
         for k in range(res.positions.shape[0]):
@@ -443,25 +454,35 @@ class MultiSourceLocalizer:
 
     def _mirror_test(self, tdoas: WindowTdoas, pos: NDArray, w: NDArray
                      ) -> tuple[NDArray, NDArray, bool]:
-        """(position, mirror position or NaN, ambiguous) after the mirror test."""
+        """(position, rival position or NaN, ambiguous) after the mirror / depth test.
+
+        Re-solves with the fix's weights from its mirror image through the sensors' plane and
+        from its ``x, y`` at four heights over the search box; a distinct solution (more than
+        3 sigma away by the fix's information) that fits within `mirror_chi2` is a rival.
+        """
         s = np.asarray(tdoas.sensors)
         centre = s.mean(axis=0)
         normal = np.linalg.svd(s - centre)[2][-1]  # normal of the best-fitting plane
         height = float((pos - centre) @ normal)
+        lo, hi = self.region.bounds(s)
+        starts = [pos - 2.0 * height * normal] + vertical_starts(pos, (lo[2], hi[2]))[1:]
+        graph, values, _ = _graph(tdoas, pos, w)
+        a, _ = graph.linearize(values).jacobian()
+        info = a.T @ a
+        cost = _cost(tdoas, pos, w)
         none = np.full(3, np.nan)
-        if abs(height) < 1e-6 * _aperture(s):
-            return pos, none, False  # in the plane: its own mirror
-        other = _solve(tdoas, pos - 2.0 * height * normal, w)
-        if float((other - centre) @ normal) * height > 0:
-            return pos, none, False  # the mirror start slid back to this side: no rival
-        rise = 2.0 * (_cost(tdoas, other, w) - _cost(tdoas, pos, w))  # chi-square rise
-        if not self._in_water(other):
-            return pos, none, False  # a mirror outside the water column is no rival
-        if rise < -self.mirror_chi2 or (rise <= self.mirror_chi2 and not self._in_water(pos)):
-            return other, none, False  # the mirror fits clearly better, or is the physical one
-        if rise <= self.mirror_chi2:
-            return pos, other, True
-        return pos, none, False
+        rival: NDArray | None = None
+        for start in starts:
+            other = _solve(tdoas, start, w)
+            d = other - pos
+            if float(d @ info @ d) <= _CHI2_3SIGMA or not self._in_water(other):
+                continue  # the same solution, or a rival outside the water column
+            rise = 2.0 * (_cost(tdoas, other, w) - cost)  # chi-square rise
+            if rise < -self.mirror_chi2 or (rise <= self.mirror_chi2 and not self._in_water(pos)):
+                return self._mirror_test(tdoas, other, w)  # clearly better, or the physical one
+            if rise <= self.mirror_chi2 and rival is None:
+                rival = other
+        return (pos, none, False) if rival is None else (pos, rival, True)
 
     def _in_water(self, p: NDArray) -> bool:
         wc = self.region.water_column

@@ -39,6 +39,7 @@ __all__ = [
     "fine_step",
     "intensity_volume",
     "refine_peak",
+    "scan_depth",
     "sensor_distances",
     "smoothing_sigma",
     "tdoa_intensities",
@@ -452,6 +453,60 @@ def fine_step(tdoas: WindowTdoas) -> float:
     ``min(sigma) c / 2`` puts at least one cell, typically two, in one sigma.
     """
     return float(np.min(tdoas.sigmas) * tdoas.c / 2.0)
+
+
+def scan_depth(
+    tdoas: WindowTdoas,
+    point: ArrayLike,
+    step: float,
+    z_range: tuple[float, float],
+    *,
+    equation: int = 18,
+    cells: float = 1.0,
+    max_points: int = 512,
+) -> tuple[NDArray[np.float64], float]:
+    """Best height on the vertical line through `point` (the depth of a horizontal fix).
+
+    Parameters
+    ----------
+    tdoas : WindowTdoas
+        The TDOAs.
+    point : array_like, shape (3,)
+        Position whose ``x, y`` are kept, m.
+    step : float
+        Vertical spacing (and smoothing scale) of the scan, m.
+    z_range : (float, float)
+        Lowest and highest ``z`` scanned, m.
+    equation : {17, 18}, keyword-only
+        Which intensity.
+    cells : float, keyword-only
+        Smoothing in grid cells (:func:`smoothing_sigma`).
+    max_points : int, keyword-only
+        Largest number of heights (the spacing widens to fit).
+
+    Returns
+    -------
+    position : ndarray, shape (3,)
+        ``(x, y, z_best)``, m.
+    value : float
+        Intensity there.
+
+    Notes
+    -----
+    Step 62 of the localization text takes depth from a volume over depths. On a coarse grid of
+    a (near-)planar bottom array the intensity is a long vertical ridge whose local maximum can
+    sit far from the source's depth; a fine scan of the ridge at the refined ``x, y`` finds it.
+    """
+    _check_equation(equation, tdoas)
+    p = np.asarray(point, dtype=float)
+    n = int(min(max_points, max(2, np.ceil((z_range[1] - z_range[0]) / step) + 1)))
+    z = np.linspace(z_range[0], z_range[1], n)
+    column = np.column_stack([np.full(n, p[0]), np.full(n, p[1]), z])
+    sig = smoothing_sigma(tdoas.sigmas, max(step, float(z[1] - z[0])), c=tdoas.c, cells=cells)
+    i = tdoa_intensities(column, tdoas, sig)
+    values = i.sum(axis=1) if equation == 17 else associated_intensity(i, tdoas.alpha)
+    k = int(np.argmax(values))
+    return column[k], float(values[k])
 
 
 def refine_peak(

@@ -175,9 +175,9 @@ def test_supported_weights_ignore_unassociated_tdoas():
 
 
 def test_second_round_finds_a_whale_merged_on_the_coarse_surface():
-    """Two whales 220 m apart share one coarse peak; the next round's surface separates them."""
-    truths = np.array([[-500.0, 500.0, -800.0], [-300.0, 500.0, -900.0]])
-    w = simulate_tdoa_window(RING, truths, c=C, seed=0, noise_range_s=(SIGMA, SIGMA))
+    """Two whales 180 m apart share one coarse peak; the next round's surface separates them."""
+    truths = np.array([[-500.0, 500.0, -800.0], [-350.0, 500.0, -900.0]])
+    w = simulate_tdoa_window(RING, truths, c=C, seed=2, noise_range_s=(SIGMA, SIGMA))
     one = MultiSourceLocalizer(region=SEA, max_rounds=1).localize(RING, w.pairs, w.taus, SIGMA,
                                                                   w.alpha, c=C)
     assert len(one.sources) == 1
