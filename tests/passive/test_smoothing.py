@@ -18,14 +18,12 @@ from fusion.passive.smoothing import (
     OnlineBearingSmoother,
     OnlineBearingSmootherSet,
     TrackPrior,
-    _Measurements,
-    _Model,
-    _solve,
     crossing_outcomes,
     crossing_time,
     identity_swaps,
     rts_reference,
 )
+from fusion.passive.smoothing.graph import _Measurements, _Model, _solve
 
 SIG, Q = 0.01, 1e-8
 

@@ -1,0 +1,145 @@
+"""Scores of track identities through crossings against simulated truth.
+
+:func:`crossing_outcomes` says, per true crossing, whether the estimated tracks kept, swapped or
+lost the two targets' identities (:data:`CROSSING_OUTCOMES`); :func:`identity_swaps` is its swap
+column. The crossing detector's alert and interval scores (:func:`score_alerts`,
+:func:`score_intervals`, defined with the detector in :mod:`fusion.passive.crossing_score`) are
+listed here too, so every crossing metric is found in one place.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from fusion.passive.crossing_score import (
+    CrossingScore,
+    IntervalScore,
+    score_alerts,
+    score_intervals,
+)
+
+__all__ = [
+    "CROSSING_OUTCOMES",
+    "CrossingScore",
+    "IntervalScore",
+    "crossing_outcomes",
+    "identity_swaps",
+    "score_alerts",
+    "score_intervals",
+]
+
+#: What became of two tracks' identities at a true crossing (see :func:`crossing_outcomes`).
+CROSSING_OUTCOMES = ("kept", "swap", "lost", "unscored")
+
+
+def crossing_outcomes(
+    true_labels: ArrayLike,
+    est_labels: ArrayLike,
+    times: ArrayLike,
+    crossings: Sequence[tuple[int, int, float]],
+    *,
+    guard_s: float,
+    window_s: float,
+    min_fraction: float = 0.5,
+) -> NDArray[np.str_]:
+    """What became of the two tracks' identities at each true crossing.
+
+    Parameters
+    ----------
+    true_labels, est_labels : array_like of int, shape (n,)
+        True track of each detection (-1 clutter) and the estimated owner (-1 none).
+    times : array_like, shape (n,)
+        Detection times, s.
+    crossings : sequence of (int, int, float)
+        True crossings ``(track_a, track_b, t_cross)``.
+    guard_s : float
+        Half-width of the ambiguous interval around ``t_cross`` that is not scored, s.
+    window_s : float
+        Length of the scored windows ``[t_c - guard - window, t_c - guard)`` (before) and
+        ``(t_c + guard, t_c + guard + window]`` (after), s.
+    min_fraction : float, optional
+        Share of a true track's detections in a window that one estimated track must own to
+        follow it there (default 0.5).
+
+    Returns
+    -------
+    ndarray of str, shape (n_crossings,)
+        Per crossing, with ``f(x, W)`` the estimated track that follows true track ``x`` in
+        window ``W`` (the most frequent estimated label of x's detections there, if it owns at
+        least `min_fraction` of them):
+
+        - ``"unscored"``: a or b has no detection in one of the windows;
+        - ``"lost"``: a or b is followed by no track before or after, or by the same track as
+          the other one, or after the crossing by a track that followed neither before
+          (fragmented or restarted);
+        - ``"swap"``: after the crossing a is followed by b's track from before, or b by a's;
+        - ``"kept"``: both followed by their own tracks before and after.
+
+    Examples
+    --------
+    >>> t = np.repeat(np.arange(10.0), 2)
+    >>> true = np.tile([0, 1], 10)
+    >>> crossing_outcomes(true, true, t, [(0, 1, 5.0)], guard_s=0.5, window_s=4).tolist()
+    ['kept']
+    """
+    tl = np.asarray(true_labels)
+    el = np.asarray(est_labels)
+    t = np.asarray(times, float)
+    if not (tl.shape == el.shape == t.shape and tl.ndim == 1):
+        raise ValueError("true_labels, est_labels and times must be 1-D of equal length")
+
+    def follower(trk: int, sel_t: NDArray[np.bool_]) -> int | None:
+        sel = (tl == trk) & sel_t
+        n = int(sel.sum())
+        if n == 0:
+            return None
+        lab = el[sel]
+        lab = lab[lab >= 0]
+        if lab.size == 0:
+            return -1
+        u, c = np.unique(lab, return_counts=True)
+        i = int(np.argmax(c))
+        return int(u[i]) if c[i] >= min_fraction * n else -1
+
+    out = []
+    for a, b, tc in crossings:
+        before = (t >= tc - guard_s - window_s) & (t < tc - guard_s)
+        after = (t > tc + guard_s) & (t <= tc + guard_s + window_s)
+        fb = [follower(x, before) for x in (a, b)]
+        fa = [follower(x, after) for x in (a, b)]
+        if None in fb or None in fa:
+            out.append("unscored")
+        elif -1 in fb or -1 in fa or fb[0] == fb[1] or fa[0] == fa[1]:
+            out.append("lost")
+        elif fa[0] == fb[1] or fa[1] == fb[0]:
+            out.append("swap")
+        elif fa != fb:
+            out.append("lost")
+        else:
+            out.append("kept")
+    return np.array(out, dtype="<U8")
+
+
+def identity_swaps(
+    true_labels: ArrayLike,
+    est_labels: ArrayLike,
+    times: ArrayLike,
+    crossings: Sequence[tuple[int, int, float]],
+    *,
+    guard_s: float,
+    window_s: float,
+) -> NDArray[np.bool_]:
+    """Which true crossings exchanged the two tracks' identities.
+
+    ``crossing_outcomes(...) == "swap"``; lost or fragmented tracks are not swaps (see
+    :func:`crossing_outcomes`).
+
+    Returns
+    -------
+    ndarray of bool, shape (n_crossings,)
+    """
+    return crossing_outcomes(true_labels, est_labels, times, crossings, guard_s=guard_s,
+                             window_s=window_s) == "swap"

@@ -1,0 +1,68 @@
+"""Bearing-rate smoothing on factor graphs: one track, online, and many tracks through crossings.
+
+Every track is a chain of states ``x_k = (theta_k, theta_dot_k)`` (bearing, rad; bearing rate,
+rad/s) at the scan times, tied by constant-rate motion factors with white-noise-acceleration
+noise and by bearing factors, with a prior on the first state (for instance from acquisition):
+the bearing-rate graph of the project's design notes ("Factor graphs"), built and solved in
+:mod:`~fusion.passive.smoothing.graph` from GTSAM's built-in linear factors with the bearings
+re-centred on the wrap.
+
+Modules, one role each:
+
+- :mod:`~fusion.passive.smoothing.types` -- :class:`TrackPrior`, :class:`SmoothedTrack`,
+  :class:`TrackerResult`, :class:`MultiTrackResult`.
+- :mod:`~fusion.passive.smoothing.batch` -- :class:`BearingSmoother`, batch smoothing of one
+  track (one sparse linear solve, or Levenberg-Marquardt with a Huber/Cauchy loss for outlier
+  bearings), equal to a Rauch-Tung-Striebel smoother (:func:`rts_reference`) on linear-Gaussian
+  data.
+- :mod:`~fusion.passive.smoothing.online` -- :class:`OnlineBearingSmoother` and
+  :class:`OnlineBearingSmootherSet`, the same graphs grown one scan at a time with iSAM2.
+- :mod:`~fusion.passive.smoothing.nearest_neighbour` -- :class:`NearestNeighbourTracker`, a
+  Kalman (filterpy) bearing tracker with global nearest-neighbour assignment, optionally
+  crossing-aware.
+- :mod:`~fusion.passive.smoothing.multitrack` -- :class:`MultiTrackSmoother`, tracks from
+  unlabeled detections with expectation-maximisation around every crossing through
+  association-weighted factors.
+- :mod:`~fusion.passive.smoothing.table` -- :func:`smooth_bearings`, the rows of a bearing table
+  (labelled tracks alone, unknown-origin rows jointly).
+
+Crossings are predicted with equation (2) of "Target Track Crossing Prediction/Detection"
+(:func:`fusion.passive.crossing_time.crossing_time`, the one copy of that equation, re-exported
+here as :func:`crossing_time`). The identity scores :func:`crossing_outcomes` and
+:func:`identity_swaps` live in :mod:`fusion.metrics.crossings` and are re-exported here so that
+older imports keep working.
+"""
+
+from fusion.metrics.crossings import CROSSING_OUTCOMES, crossing_outcomes, identity_swaps
+from fusion.passive.crossing_time import crossing_time
+from fusion.passive.smoothing.batch import BearingSmoother, rts_reference
+from fusion.passive.smoothing.graph import ROBUST_LOSSES
+from fusion.passive.smoothing.multitrack import MultiTrackSmoother
+from fusion.passive.smoothing.nearest_neighbour import NearestNeighbourTracker
+from fusion.passive.smoothing.online import OnlineBearingSmoother, OnlineBearingSmootherSet
+from fusion.passive.smoothing.table import smooth_bearings
+from fusion.passive.smoothing.types import (
+    MultiTrackResult,
+    SmoothedTrack,
+    TrackerResult,
+    TrackPrior,
+)
+
+__all__ = [
+    "CROSSING_OUTCOMES",
+    "ROBUST_LOSSES",
+    "BearingSmoother",
+    "MultiTrackResult",
+    "MultiTrackSmoother",
+    "NearestNeighbourTracker",
+    "OnlineBearingSmoother",
+    "OnlineBearingSmootherSet",
+    "SmoothedTrack",
+    "TrackPrior",
+    "TrackerResult",
+    "crossing_outcomes",
+    "crossing_time",
+    "identity_swaps",
+    "rts_reference",
+    "smooth_bearings",
+]

@@ -1,0 +1,283 @@
+"""The bearing-rate graph of one track: build, re-centre on the wrap, solve, marginals.
+
+A chain of states ``x_k = (theta_k, theta_dot_k)`` (bearing, rad; bearing rate, rad/s) at the
+state times, tied by constant-rate motion factors with white-noise-acceleration noise
+(:func:`factors.motion.wna_covariance`) and by bearing factors, with an optional prior on the
+first state. Apart from the wrap of the bearings the model is linear, so it is built from GTSAM's
+own linear factors, evaluated in C++ (:func:`factors.motion.constant_velocity_chain`,
+:func:`factors.bearing.linear_bearing_factors`): every bearing (and the prior bearing) is put on
+the branch nearest the current estimate, motion residuals are wrapped at the linearisation point,
+and a graph whose solution moved a residual onto another branch is re-centred there and solved
+again. The result is the optimum of the wrapped model of the scalar factors
+(:func:`factors.bearing.bearing_factor`, :func:`factors.motion.constant_velocity_factor`).
+Bearings whose origin is uncertain enter through association-weighted factors
+(:func:`factors.weighted.weighted_factor`).
+
+The names here are the package's internals, shared by the batch, online and multi-track
+smoothers; the design notes ("Factor graphs", bearing-rate graph) describe the model.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import gtsam
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from factors.angles import nearest_branch
+from factors.bearing import linear_bearing_factors
+from factors.motion import constant_velocity_chain
+from factors.weighted import weighted_factor
+from fusion.geometry import wrap_angle
+from fusion.passive.smoothing.types import TrackPrior
+
+__all__ = ["ROBUST_LOSSES"]
+
+logger = logging.getLogger(__name__)
+
+FloatArray = NDArray[np.float64]
+
+#: Robust loss names accepted by the smoothers.
+ROBUST_LOSSES = ("none", "huber", "cauchy")
+
+#: Solves of one graph at most, re-centring the bearings on the previous solution each time.
+_MAX_RECENTRE = 5
+
+
+def _robust_noise(base: gtsam.noiseModel.Base, loss: str, k: float) -> gtsam.noiseModel.Base:
+    if loss == "none":
+        return base
+    if loss == "huber":
+        est = gtsam.noiseModel.mEstimator.Huber.Create(k)
+    else:
+        est = gtsam.noiseModel.mEstimator.Cauchy.Create(k)
+    return gtsam.noiseModel.Robust.Create(est, base)
+
+
+def _check_loss(loss: str) -> str:
+    if loss not in ROBUST_LOSSES:
+        raise ValueError(f"robust loss must be one of {', '.join(ROBUST_LOSSES)}, got {loss!r}")
+    return loss
+
+
+def _check_detections(times: ArrayLike, bearings: ArrayLike) -> tuple[FloatArray, FloatArray]:
+    t = np.asarray(times, dtype=float)
+    z = np.asarray(bearings, dtype=float)
+    if t.ndim != 1 or z.shape != t.shape:
+        raise ValueError(f"times and bearings must be 1-D of equal length, got {t.shape}, {z.shape}")
+    if t.size == 0:
+        raise ValueError("no bearings given")
+    if not (np.all(np.isfinite(t)) and np.all(np.isfinite(z))):
+        raise ValueError("times and bearings must be finite")
+    if np.any(np.diff(t) < 0):
+        raise ValueError("times must be non-decreasing")
+    return t, z
+
+
+def _lm_params(max_iterations: int) -> gtsam.LevenbergMarquardtParams:
+    params = gtsam.LevenbergMarquardtParams()
+    params.setMaxIterations(max_iterations)
+    params.setRelativeErrorTol(1e-12)
+    params.setAbsoluteErrorTol(1e-14)
+    return params
+
+
+@dataclass(frozen=True)
+class _Measurements:
+    """Bearings of one track graph: state index, bearing (rad), weight index (-1 = hard)."""
+
+    state: NDArray[np.int64]
+    bearing: FloatArray
+    weight_index: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, np.int64))
+
+
+@dataclass(frozen=True)
+class _Model:
+    sigma_bearing: float
+    q: float
+    loss: str
+    k: float
+    max_iterations: int
+
+
+def _build_graph(
+    times: FloatArray,
+    meas: _Measurements,
+    prior: TrackPrior | None,
+    model: _Model,
+    loss: str,
+    weights: FloatArray | None,
+    states: FloatArray,
+) -> gtsam.NonlinearFactorGraph:
+    """The bearing-rate graph of one track over `times` (keys 0..n-1), built-in linear factors
+    linearised at (and bearings re-centred on) the estimate `states` (n, 2)."""
+    graph = gtsam.NonlinearFactorGraph()
+    if prior is not None:
+        mean = prior.mean
+        mean[0] = nearest_branch(mean[0], states[0, 0])  # the prior bearing wraps too
+        graph.add(
+            gtsam.PriorFactorVector(0, mean, gtsam.noiseModel.Gaussian.Covariance(prior.covariance))
+        )
+    graph.push_back(constant_velocity_chain(np.arange(times.size), times, model.q,
+                                            estimates=states))
+    if meas.state.size == 0:
+        return graph
+    gauss = gtsam.noiseModel.Isotropic.Sigma(1, model.sigma_bearing)
+    widx = meas.weight_index if meas.weight_index.size else np.full(meas.state.size, -1)
+    hard = widx < 0
+    if hard.any():
+        for factor in linear_bearing_factors(
+            _robust_noise(gauss, loss, model.k), meas.state[hard], meas.bearing[hard],
+            estimates=states[meas.state[hard]],
+        ):
+            graph.add(factor)
+    if not hard.all():
+        wrap_noise = _robust_noise(gtsam.noiseModel.Unit.Create(2), loss, model.k)
+        inner = linear_bearing_factors(gauss, meas.state[~hard], meas.bearing[~hard],
+                                       estimates=states[meas.state[~hard]])
+        for factor, w in zip(inner, widx[~hard], strict=True):
+            graph.add(weighted_factor(factor, weights, int(w), noise=wrap_noise))
+    return graph
+
+
+def _branches(
+    times: FloatArray, meas: _Measurements, prior: TrackPrior | None, states: FloatArray
+) -> FloatArray:
+    """Whole turns (rad) added to each bearing, the prior bearing and each motion residual by
+    re-centring on `states`."""
+    z_turns = nearest_branch(meas.bearing, states[meas.state, 0]) - meas.bearing
+    p_turns = [] if prior is None else [nearest_branch(prior.bearing, states[0, 0]) - prior.bearing]
+    e = states[1:, 0] - states[:-1, 0] - np.diff(times) * states[:-1, 1]  # bearing part of e_k
+    return np.concatenate([z_turns, p_turns, wrap_angle(e) - e])
+
+
+def _optimize(
+    times: FloatArray,
+    meas: _Measurements,
+    prior: TrackPrior | None,
+    model: _Model,
+    loss: str,
+    weights: FloatArray | None,
+    states: FloatArray,
+) -> tuple[gtsam.NonlinearFactorGraph | gtsam.GaussianFactorGraph, gtsam.Values, FloatArray]:
+    """Minimise the graph built at `states`; rebuilt at the solution and solved again while the
+    solution moved a bearing or motion residual onto another branch.
+
+    Without a robust loss every factor is linear, so one Gauss-Newton step (one sparse linear
+    solve) reaches the minimum and the linear graph is returned for the marginals; a robust
+    loss is minimised by Levenberg-Marquardt.
+    """
+    for _ in range(_MAX_RECENTRE):
+        graph = _build_graph(times, meas, prior, model, loss, weights, states)
+        values = gtsam.Values()
+        for k in range(times.size):
+            values.insert(k, states[k])
+        if loss == "none":
+            graph = graph.linearize(values)
+            values = values.retract(graph.optimize())  # x = x_0 + argmin ||A dx - b||^2
+        else:
+            values = gtsam.LevenbergMarquardtOptimizer(
+                graph, values, _lm_params(model.max_iterations)
+            ).optimize()
+        new = np.array([values.atVector(k) for k in range(times.size)])
+        same = np.all(np.abs(_branches(times, meas, prior, new)
+                             - _branches(times, meas, prior, states)) < np.pi)
+        states = new
+        if same:
+            break
+    else:
+        logger.warning("bearing branches still changing after %d re-centred solves",
+                       _MAX_RECENTRE)
+    return graph, values, states
+
+
+def _row_medians(a: FloatArray) -> FloatArray:
+    """Median of each row of `a` (n, w) ignoring NaN; every row holds at least one number."""
+    srt = np.sort(a, axis=1)  # NaN last
+    cnt = np.sum(~np.isnan(a), axis=1)
+    rows = np.arange(a.shape[0])
+    upper = srt[rows, cnt // 2]
+    lower = srt[rows, np.maximum(cnt - 1, 0) // 2]
+    return np.where(cnt % 2 == 1, upper, (lower + upper) / 2.0)
+
+
+def _initial_states(times: FloatArray, meas: _Measurements, prior: TrackPrior | None) -> FloatArray:
+    """Initial ``(n, 2)`` states robust to outlier bearings: per state a running circular median
+    of the measurements within 3 states, unwrapped and interpolated; the rate is the running
+    median of the slopes."""
+    n = times.size
+    if meas.state.size == 0:
+        b0 = prior.bearing if prior is not None else 0.0
+        r0 = prior.rate if prior is not None else 0.0
+        return np.column_stack([b0 + r0 * (times - times[0]), np.full(n, r0)])
+    half = 3
+    order = np.argsort(meas.state, kind="stable")
+    st, zz = meas.state[order], meas.bearing[order]
+    uniq = np.unique(st)
+    lo = np.searchsorted(st, uniq - half, side="left")  # measurements of states s-3 .. s+3
+    hi = np.searchsorted(st, uniq + half, side="right")
+    width = int((hi - lo).max())
+    idx = lo[:, None] + np.arange(width)[None, :]
+    inside = idx < hi[:, None]
+    zs = np.where(inside, zz[np.minimum(idx, zz.size - 1)], np.nan)
+    ref = np.angle(np.nansum(np.exp(1j * zs), axis=1))  # circular mean of each window
+    med = ref + _row_medians(wrap_angle(zs - ref[:, None]))
+    med = np.unwrap(med)
+    ts = times[uniq]
+    theta = np.interp(times, ts, med)
+    if uniq.size >= 2:
+        slope = np.diff(med) / np.maximum(np.diff(ts), 1e-12)
+        mid = 0.5 * (ts[1:] + ts[:-1])
+        padded = np.concatenate([np.full(half, np.nan), slope, np.full(half, np.nan)])
+        sm = _row_medians(np.lib.stride_tricks.sliding_window_view(padded, 2 * half + 1))
+        rate = np.interp(times, mid, sm)
+    else:
+        rate = np.full(n, prior.rate if prior is not None else 0.0)
+    return np.column_stack([theta, rate])
+
+
+def _solve(
+    times: FloatArray,
+    meas: _Measurements,
+    prior: TrackPrior | None,
+    model: _Model,
+    *,
+    init: FloatArray | None = None,
+    weights: FloatArray | None = None,
+    marginals: bool = False,
+) -> tuple[FloatArray, FloatArray | None]:
+    """Minimise one track graph (:func:`_optimize`); states (n, 2) and optionally sigmas (n, 2)."""
+    states = np.asarray(_initial_states(times, meas, prior) if init is None else init, float)
+    losses = [model.loss] if model.loss != "cauchy" else ["huber", "cauchy"]
+    graph = values = None
+    for loss in losses:  # a redescending loss starts from the convex Huber solution
+        graph, values, states = _optimize(times, meas, prior, model, loss, weights, states)
+    if not marginals:
+        return states, None
+    marg = gtsam.Marginals(graph, values)
+    var = np.array([marg.marginalCovariance(k).diagonal() for k in range(times.size)])
+    return states, np.sqrt(var)
+
+
+def _solve_cov(
+    times: FloatArray,
+    meas: _Measurements,
+    prior: TrackPrior,
+    model: _Model,
+    init: FloatArray,
+    keys: Sequence[int],
+) -> tuple[FloatArray, list[FloatArray]]:
+    """Minimise one track graph (hard factors, Gaussian); states (n, 2) and the marginal
+    covariances (2, 2) of the states `keys`."""
+    graph, values, states = _optimize(times, meas, prior, model, "none", None,
+                                      np.asarray(init, float))
+    marg = gtsam.Marginals(graph, values)
+    return states, [np.asarray(marg.marginalCovariance(int(k))) for k in keys]
+
+
+def _default_prior(z0: float, model: _Model, sigma_rate: float) -> TrackPrior:
+    return TrackPrior(bearing=float(z0), rate=0.0, sigma_bearing=10.0 * model.sigma_bearing,
+                      sigma_rate=sigma_rate)

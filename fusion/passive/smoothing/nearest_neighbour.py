@@ -1,0 +1,224 @@
+"""A Kalman bearing tracker with global nearest-neighbour assignment, optionally crossing-aware.
+
+Alone it is the baseline tracker of unlabeled bearing detections; with ``crossing_aware=True``
+it predicts crossings with equation (2) of "Target Track Crossing Prediction/Detection"
+(:func:`fusion.passive.crossing_time.crossing_time`) and lets both tracks coast through them,
+leaving the ambiguous detections shared. :class:`fusion.passive.smoothing.multitrack.
+MultiTrackSmoother` starts from its tracks.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from filterpy.kalman import KalmanFilter
+from numpy.typing import ArrayLike
+from scipy.optimize import linear_sum_assignment
+
+from factors.motion import transition_matrix, wna_covariance
+from fusion._validation import check_positive
+from fusion.geometry import wrap_angle
+from fusion.passive.crossing_time import crossing_time
+from fusion.passive.smoothing.graph import _check_detections
+from fusion.passive.smoothing.types import TrackerResult
+
+__all__ = ["NearestNeighbourTracker"]
+
+
+class NearestNeighbourTracker:
+    """Kalman bearing tracker with global nearest-neighbour assignment, optionally
+    crossing-aware.
+
+    Parameters
+    ----------
+    sigma_bearing : float, keyword-only
+        Bearing measurement standard deviation, rad.
+    q : float, keyword-only
+        Bearing acceleration PSD, rad^2/s^3.
+    gate : float, keyword-only
+        Gate on the normalised innovation, standard deviations (default 4).
+    init_sigma_rate : float, keyword-only
+        Rate standard deviation of a new track, rad/s.
+    n_confirm : int, keyword-only
+        Hits that confirm a tentative track (default 3).
+    max_misses : int, keyword-only
+        Consecutive misses that end a track (default 5; 1 for a tentative track).
+    crossing_aware : bool, keyword-only
+        Predict crossings (Struzinski eq. (2)-(4)) and let both tracks coast on their
+        prediction while their bearings are closer than `separation`; detections gated by
+        several coasting tracks are left shared (their candidates recorded).
+    separation : float, keyword-only
+        Bearing separation below which a predicted crossing is ambiguous, rad (default
+        ``gate * sqrt(2) * sigma_bearing``).
+    window_scans : int, keyword-only
+        ``J`` of eq. (3)-(4): a crossing counts when ``|t_c|`` is within ``J`` scan periods.
+
+    Notes
+    -----
+    filterpy ``KalmanFilter`` per track, state ``[bearing, rate]``; the innovation is wrapped by
+    handing the filter the measurement on the branch nearest the prediction. Assignment:
+    ``scipy.optimize.linear_sum_assignment`` on squared normalised innovations, gated.
+    """
+
+    def __init__(
+        self,
+        *,
+        sigma_bearing: float,
+        q: float,
+        gate: float = 4.0,
+        init_sigma_rate: float = 0.01,
+        n_confirm: int = 3,
+        max_misses: int = 5,
+        crossing_aware: bool = False,
+        separation: float | None = None,
+        window_scans: int = 20,
+    ) -> None:
+        self.sigma_bearing = check_positive("sigma_bearing", sigma_bearing)
+        self.q = check_positive("q", q)
+        self.gate = check_positive("gate", gate)
+        self.init_sigma_rate = check_positive("init_sigma_rate", init_sigma_rate)
+        if n_confirm < 1 or max_misses < 1 or window_scans < 1:
+            raise ValueError("n_confirm, max_misses and window_scans must be >= 1")
+        self.n_confirm = int(n_confirm)
+        self.max_misses = int(max_misses)
+        self.crossing_aware = bool(crossing_aware)
+        sep = gate * np.sqrt(2.0) * sigma_bearing if separation is None else separation
+        self.separation = check_positive("separation", sep)
+        self.window_scans = int(window_scans)
+
+    def _new_filter(self, z: float) -> KalmanFilter:
+        kf = KalmanFilter(dim_x=2, dim_z=1)
+        kf.x = np.array([float(z), 0.0])
+        kf.P = np.diag([self.sigma_bearing**2, self.init_sigma_rate**2])
+        kf.H = np.array([[1.0, 0.0]])
+        kf.R = np.array([[self.sigma_bearing**2]])
+        return kf
+
+    def run(self, times: ArrayLike, bearings: ArrayLike) -> TrackerResult:
+        """Track unlabeled detections.
+
+        Parameters
+        ----------
+        times : array_like, shape (n,)
+            Detection times, s, non-decreasing; detections with equal time form a scan.
+        bearings : array_like, shape (n,)
+            Bearings, rad.
+
+        Returns
+        -------
+        TrackerResult
+        """
+        t, z = _check_detections(times, bearings)
+        scan_times, scan_of = np.unique(t, return_inverse=True)
+        starts = np.searchsorted(scan_of, np.arange(scan_times.size))
+        stops = np.append(starts[1:], t.size)
+        period = float(np.median(np.diff(scan_times))) if scan_times.size > 1 else 1.0
+        labels = np.full(t.size, -1, np.int64)
+        candidates: list[tuple[int, ...]] = [()] * t.size
+        tracks: list[dict] = []  # kf, first, states, hits, misses, confirmed, dets
+        s2 = self.sigma_bearing**2
+        for k, tk in enumerate(scan_times):
+            idx = np.arange(starts[k], stops[k])
+            live = [i for i, tr in enumerate(tracks) if tr["alive"]]
+            for i in live:  # predict
+                tr = tracks[i]
+                dt = tk - tr["t"]
+                if dt > 0:
+                    tr["kf"].predict(F=transition_matrix(dt, 1), Q=wna_covariance(dt, self.q, 1))
+                    tr["t"] = tk
+            coasting: set[int] = set()
+            if self.crossing_aware:
+                conf = [i for i in live if tracks[i]["confirmed"]]
+                for a_pos, a in enumerate(conf):
+                    for b in conf[a_pos + 1:]:
+                        xa, xb = tracks[a]["kf"].x, tracks[b]["kf"].x
+                        sep = abs(wrap_angle(xa[0] - xb[0]))
+                        tc = crossing_time(xa[0], xa[1], xb[0], xb[1])  # eq. (2), from now
+                        # eq. (3) predicted (0 < t_c <= J K) or eq. (4) detected (-J K <= t_c <= 0)
+                        if sep < self.separation and abs(tc) <= self.window_scans * period:
+                            coasting.update((a, b))
+            # gated cost matrix of squared normalised innovations
+            zk = z[idx]
+            cost = np.full((len(live), idx.size), np.inf)
+            for r, i in enumerate(live):
+                kf = tracks[i]["kf"]
+                S = kf.P[0, 0] + s2
+                nu = wrap_angle(zk - kf.x[0])
+                d2 = nu**2 / S
+                cost[r] = np.where(d2 < self.gate**2, d2, np.inf)
+            used = np.zeros(idx.size, bool)
+            assigned: dict[int, int] = {}
+            if coasting:
+                rows = [r for r, i in enumerate(live) if i in coasting]
+                for c in range(idx.size):
+                    owners = tuple(live[r] for r in rows if np.isfinite(cost[r, c]))
+                    if len(owners) >= 2:
+                        candidates[idx[c]] = owners
+                        used[c] = True
+                    elif len(owners) == 1:
+                        # gated by one coasting track only: still ambiguous near a crossing
+                        candidates[idx[c]] = owners
+                        used[c] = True
+            # global nearest neighbour: confirmed tracks first, tentative ones on the rest
+            for confirmed in (True, False):
+                free_rows = [r for r, i in enumerate(live)
+                             if i not in coasting and tracks[i]["confirmed"] == confirmed]
+                free_cols = np.flatnonzero(~used)
+                if not (free_rows and free_cols.size):
+                    continue
+                sub = cost[np.ix_(free_rows, free_cols)]
+                rr, cc = linear_sum_assignment(np.where(np.isfinite(sub), sub, 1e6))
+                for r, c in zip(rr, cc, strict=True):
+                    if np.isfinite(sub[r, c]):
+                        assigned[live[free_rows[r]]] = int(free_cols[c])
+                        used[free_cols[c]] = True
+            for i in live:
+                tr = tracks[i]
+                if i in assigned:
+                    c = assigned[i]
+                    kf = tr["kf"]
+                    kf.update(np.array([kf.x[0] + wrap_angle(zk[c] - kf.x[0])]))
+                    labels[idx[c]] = i
+                    tr["hits"] += 1
+                    tr["misses"] = 0
+                    if tr["hits"] >= self.n_confirm:
+                        tr["confirmed"] = True
+                elif i not in coasting:
+                    tr["misses"] += 1
+                limit = self.max_misses if tr["confirmed"] else 1
+                if tr["misses"] > limit:
+                    tr["alive"] = False
+                else:
+                    tr["states"].append(tr["kf"].x.copy())
+                    tr["last"] = k
+            for c in np.flatnonzero(~used):  # new tentative tracks
+                kf = self._new_filter(zk[c])
+                labels[idx[c]] = len(tracks)
+                tracks.append({"kf": kf, "t": tk, "first": k, "last": k, "states": [kf.x.copy()],
+                               "hits": 1, "misses": 0, "confirmed": False, "alive": True})
+        # keep confirmed tracks, drop trailing coasted states after the last hit
+        keep = [i for i, tr in enumerate(tracks) if tr["confirmed"]]
+        remap = np.full(len(tracks) + 1, -1, np.int64)
+        remap[keep] = np.arange(len(keep))
+        labels = remap[labels]
+        new_cands = tuple(
+            tuple(int(remap[o]) for o in c if remap[o] >= 0) if c else () for c in candidates
+        )
+        first, last, states = [], [], []
+        for i in keep:
+            tr = tracks[i]
+            own = np.flatnonzero(labels == remap[i])
+            shared = [j for j, c in enumerate(new_cands) if remap[i] in c]
+            last_det = int(max(scan_of[np.r_[own, shared].astype(int)])) if own.size else tr["last"]
+            last_scan = min(tr["last"], last_det)
+            first.append(tr["first"])
+            last.append(last_scan)
+            states.append(np.array(tr["states"][: last_scan - tr["first"] + 1]))
+        new_cands = tuple(c if len(c) >= 2 else () for c in new_cands)
+        # a detection left with a single candidate belongs to it
+        for j, c in enumerate(candidates):
+            if c and len(new_cands[j]) == 0:
+                owners = [int(remap[o]) for o in c if remap[o] >= 0]
+                if len(owners) == 1:
+                    labels[j] = owners[0]
+        return TrackerResult(labels, new_cands, np.array(first, np.int64),
+                             np.array(last, np.int64), tuple(states), scan_times)

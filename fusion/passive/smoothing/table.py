@@ -1,0 +1,67 @@
+"""Smoothing the rows of a bearing table: labelled tracks alone, unknown-origin rows jointly.
+
+The entry point of ``fusion smooth``: rows with a track id go to a :class:`~fusion.passive.
+smoothing.batch.BearingSmoother` track by track, rows of unknown origin (track id -1) to a
+:class:`~fusion.passive.smoothing.multitrack.MultiTrackSmoother`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from fusion.passive.smoothing.batch import BearingSmoother
+from fusion.passive.smoothing.multitrack import MultiTrackSmoother
+from fusion.passive.smoothing.types import SmoothedTrack
+
+__all__ = ["smooth_bearings"]
+
+
+def smooth_bearings(
+    track_id: ArrayLike,
+    times: ArrayLike,
+    bearings: ArrayLike,
+    *,
+    single: BearingSmoother,
+    multi: MultiTrackSmoother,
+) -> tuple[SmoothedTrack, ...]:
+    """Smooth a bearing file's rows: labelled tracks alone, unknown-origin rows jointly.
+
+    Parameters
+    ----------
+    track_id : array_like of int, shape (n,)
+        Track of each row; ``-1`` marks a detection of unknown origin.
+    times : array_like, shape (n,)
+        Times, s (any order).
+    bearings : array_like, shape (n,)
+        Bearings, rad.
+    single : BearingSmoother
+        Smoother of each labelled track (``track_id >= 0``).
+    multi : MultiTrackSmoother
+        Tracker-smoother of the unknown-origin rows; its tracks are numbered after the
+        largest labelled id.
+
+    Returns
+    -------
+    tuple of SmoothedTrack
+        Labelled tracks first (by id), then the tracks formed from unknown-origin rows.
+    """
+    ids = np.asarray(track_id)
+    t = np.asarray(times, float)
+    z = np.asarray(bearings, float)
+    if not (ids.shape == t.shape == z.shape and ids.ndim == 1):
+        raise ValueError("track_id, times and bearings must be 1-D of equal length")
+    out: list[SmoothedTrack] = []
+    for tid in np.unique(ids[ids >= 0]):
+        sel = np.flatnonzero(ids == tid)
+        sel = sel[np.argsort(t[sel], kind="stable")]
+        out.append(single.smooth(t[sel], z[sel], track_id=int(tid)))
+    unk = np.flatnonzero(ids < 0)
+    if unk.size:
+        unk = unk[np.argsort(t[unk], kind="stable")]
+        offset = int(ids.max()) + 1 if (ids >= 0).any() else 0
+        res = multi.run(t[unk], z[unk])
+        for tr in res.tracks:
+            out.append(SmoothedTrack(tr.track_id + offset, tr.times, tr.bearing, tr.rate,
+                                     tr.sigma_bearing, tr.sigma_rate))
+    return tuple(out)
