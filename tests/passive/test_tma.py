@@ -242,7 +242,7 @@ def test_one_graph_solve(monkeypatch):
     """Each estimate is one Levenberg-Marquardt run on the graph (no first-pass solver)."""
     import gtsam
 
-    import fusion.passive.tma as tma_module
+    import fusion.passive.tma.estimator as tma_module
 
     runs = []
     real = gtsam.LevenbergMarquardtOptimizer

@@ -1,56 +1,12 @@
-"""Bearings-only target motion analysis (TMA) on a factor graph.
+"""Bearings-only target motion analysis on a factor graph: :class:`BearingsOnlyTMA`.
 
-A platform (own-ship) with a known track measures true bearings of a target that moves at a
-(nearly) constant velocity. The target's position and velocity follow from the bearings only when
-the own-ship manoeuvres; the estimator reports its covariance and says when range is unobservable.
-
-Formulation (design notes, "Factor graphs", bearings-only target motion analysis). Two target
-models, chosen with ``motion``:
-
-* ``"single"`` (default, the classical TMA): one ``Vector4`` state ``s_0 = [x, y, vx, vy]`` at the
-  first bearing time; the bearing taken at ``t_k`` sees ``s_0`` propagated by ``dt = t_k - t_0``.
-  All bearings enter through one vector factor
-  (:func:`factors.target.target_bearing_batch_factor` with ``dt``): one Python callback per
-  evaluation, whatever the number of bearings. Per-time states and covariances follow as
-  ``s_k = F(dt) s_0`` and ``P_k = F P_0 F^T``.
-* ``"chain"``: one state per bearing time, bearing factors on them (one vector factor per few
-  neighbouring states), linked by built-in linear constant-velocity factors
-  (:func:`factors.motion.constant_velocity_chain`) with the white-noise-acceleration
-  covariance ``Q(dt)`` of a small spectral density ``q``: the target may drift slowly off a
-  straight line.
-
-Why ``"single"`` is the default: for a target that holds course it is the exact model, its
-covariance is consistent (the chain's process noise makes the covariance conservative for such a
-target), it is better conditioned and several times faster. ``"chain"`` suits slowly
-manoeuvring targets.
-
-Both models use bearing factors that may be robust (Huber, Cauchy or Tukey, acting on each
-bearing alone); a diffuse prior on
-the first state (100 km, 100 m/s by default), centred on the initial guess, keeps the optimiser
-from wandering along an unobservable range direction and is negligible whenever the bearings
-determine the state. Covariances come from ``gtsam.Marginals``; when its Cholesky factorisation
-finds the information matrix indeterminate (range unobservable, or a tiny ``q`` against the
-diffuse prior), from the singular value decomposition of the dense whitened Jacobian instead
-(the same matrix, factored without squaring its condition number).
-
-Initialisation needs no truth and no second solver: closed-form candidates (the pseudo-linear
-estimate, and states along the first bearing at geometrically spaced ranges with their
-pseudo-linear velocities) are scored by the cost of the graph's bearing factor, with the robust
-loss when one is set; the lowest-cost candidate seeds the graph, which one Levenberg-Marquardt
-run solves.
-
-Observability: range is unobservable when the own-ship keeps a constant velocity (the target's
-relative track can be scaled without changing a single bearing). Two checks flag it, each with a
-``logging`` warning and ``TmaResult.observable = False``: the own-ship's largest departure from a
-straight constant-speed track fitted to its positions (``min_manoeuvre_m``), and the relative
-standard deviation of the final range along the line of sight (``max_range_rel_sigma``), i.e. an
-ill-conditioned information matrix in the range direction.
+See :mod:`fusion.passive.tma` for the formulation (``"single"`` and ``"chain"`` target models,
+robust bearing factors, diffuse prior, covariances, initialisation and observability checks).
 """
 
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass, field
 
 import gtsam
 import numpy as np
@@ -58,13 +14,14 @@ from numpy.typing import ArrayLike, NDArray
 from threadpoolctl import ThreadpoolController
 
 from factors.motion import constant_velocity_chain
-from factors.target import target_bearing, target_bearing_batch_factor, target_bearing_jacobian
+from factors.target import target_bearing, target_bearing_batch_factor
 from fusion._validation import check_positive
 from fusion.geometry import wrap_angle
+from fusion.passive.tma.initial import _pseudo_linear, _range_candidates, _transitions
+from fusion.passive.tma.observability import ownship_manoeuvre, range_rel_sigma
+from fusion.passive.tma.types import OwnshipTrack, TmaResult, _finite_1d, _ranges
 
-__all__ = [
-    "BearingsOnlyTMA", "OwnshipTrack", "TmaResult", "ownship_manoeuvre", "range_rel_sigma",
-]
+__all__ = ["BearingsOnlyTMA"]
 
 logger = logging.getLogger(__name__)
 
@@ -81,234 +38,6 @@ _CHAIN_WINDOW = 8
 _SCORE_BEARINGS = 200
 
 
-def _finite_1d(name: str, a: ArrayLike) -> NDArray[np.float64]:
-    arr = np.asarray(a, dtype=float)
-    if arr.ndim != 1:
-        raise ValueError(f"{name} must be 1-D, got shape {arr.shape}")
-    if not np.all(np.isfinite(arr)):
-        raise ValueError(f"{name} must be finite")
-    return arr
-
-
-@dataclass(frozen=True)
-class OwnshipTrack:
-    """Known own-ship positions over time.
-
-    Attributes
-    ----------
-    times : ndarray, shape (n,)
-        Strictly increasing times, s.
-    xy : ndarray, shape (n, 2)
-        Positions ``[x east, y north]``, m.
-    """
-
-    times: NDArray[np.float64]
-    xy: NDArray[np.float64]
-
-    def __post_init__(self) -> None:
-        t = _finite_1d("own-ship times", self.times)
-        xy = np.asarray(self.xy, dtype=float)
-        if xy.shape != (t.size, 2) or not np.all(np.isfinite(xy)):
-            raise ValueError(
-                f"own-ship positions must be finite with shape ({t.size}, 2), got {xy.shape}"
-            )
-        if t.size < 2:
-            raise ValueError("own-ship track needs at least 2 positions")
-        if np.any(np.diff(t) <= 0):
-            raise ValueError("own-ship times must be strictly increasing")
-        object.__setattr__(self, "times", t)
-        object.__setattr__(self, "xy", xy)
-
-    def at(self, times: ArrayLike) -> NDArray[np.float64]:
-        """Own-ship positions at `times`, linearly interpolated (no extrapolation).
-
-        Parameters
-        ----------
-        times : array_like, shape (m,)
-            Query times, s, inside ``[times[0], times[-1]]``.
-
-        Returns
-        -------
-        ndarray, shape (m, 2)
-            Positions, m.
-
-        Raises
-        ------
-        ValueError
-            If a query time lies outside the own-ship track.
-        """
-        t = _finite_1d("times", times)
-        span = self.times[-1] - self.times[0]
-        tol = 1e-9 * max(1.0, span, float(np.max(np.abs(self.times))))
-        if t.size and (t.min() < self.times[0] - tol or t.max() > self.times[-1] + tol):
-            raise ValueError(
-                f"bearing times [{t.min():g}, {t.max():g}] s reach outside the own-ship track "
-                f"[{self.times[0]:g}, {self.times[-1]:g}] s"
-            )
-        return np.column_stack(
-            [np.interp(t, self.times, self.xy[:, 0]), np.interp(t, self.times, self.xy[:, 1])]
-        )
-
-
-@dataclass(frozen=True)
-class TmaResult:
-    """Target track estimated from bearings.
-
-    Attributes
-    ----------
-    times : ndarray, shape (n,)
-        Bearing times, s.
-    states : ndarray, shape (n, 4)
-        Target ``[x, y, vx, vy]`` at each time, m and m/s.
-    covariances : ndarray, shape (n, 4, 4)
-        Marginal covariance of each state, m^2, m^2/s, m^2/s^2.
-    ownship_xy : ndarray, shape (n, 2)
-        Own-ship positions at the bearing times, m.
-    observable : bool
-        False when either observability check failed (see `reason`).
-    reason : str
-        Why range is deemed unobservable; empty when observable.
-    ownship_manoeuvre_m : float
-        Largest distance, m, of the own-ship from a straight constant-speed track fitted to its
-        positions at the bearing times.
-    range_rel_sigma : float
-        Standard deviation of the final range along the line of sight divided by that range.
-    bearing_rms_deg : float
-        RMS of the bearing residuals at the solution, deg.
-    motion : str
-        Target model used, ``"single"`` or ``"chain"`` (see :class:`BearingsOnlyTMA`).
-    """
-
-    times: NDArray[np.float64]
-    states: NDArray[np.float64]
-    covariances: NDArray[np.float64]
-    ownship_xy: NDArray[np.float64]
-    observable: bool
-    reason: str
-    ownship_manoeuvre_m: float
-    range_rel_sigma: float
-    bearing_rms_deg: float
-    motion: str = field(default="single")
-
-    @property
-    def x(self) -> NDArray[np.float64]:
-        """East position, m, shape (n,)."""
-        return self.states[:, 0]
-
-    @property
-    def y(self) -> NDArray[np.float64]:
-        """North position, m, shape (n,)."""
-        return self.states[:, 1]
-
-    @property
-    def vx(self) -> NDArray[np.float64]:
-        """East velocity, m/s, shape (n,)."""
-        return self.states[:, 2]
-
-    @property
-    def vy(self) -> NDArray[np.float64]:
-        """North velocity, m/s, shape (n,)."""
-        return self.states[:, 3]
-
-    @property
-    def sigma_x(self) -> NDArray[np.float64]:
-        """Standard deviation of `x`, m, shape (n,)."""
-        return np.sqrt(self.covariances[:, 0, 0])
-
-    @property
-    def sigma_y(self) -> NDArray[np.float64]:
-        """Standard deviation of `y`, m, shape (n,)."""
-        return np.sqrt(self.covariances[:, 1, 1])
-
-    @property
-    def range(self) -> NDArray[np.float64]:
-        """Own-ship to target range, m, shape (n,)."""
-        return _ranges(self.states, self.ownship_xy)
-
-    @property
-    def bearing(self) -> NDArray[np.float64]:
-        """True bearing of the estimated target from the own-ship, rad, shape (n,)."""
-        return target_bearing(self.states, self.ownship_xy)
-
-
-def ownship_manoeuvre(times: ArrayLike, xy: ArrayLike) -> float:
-    """Largest departure of a track from its least-squares constant-velocity fit.
-
-    Parameters
-    ----------
-    times : array_like, shape (n,)
-        Times, s.
-    xy : array_like, shape (n, 2)
-        Positions, m.
-
-    Returns
-    -------
-    float
-        ``max_k |xy_k - (a + b t_k)|``, m, with ``a, b`` (2-vectors) fitted by least squares.
-        Zero for a constant-velocity track.
-    """
-    t = np.asarray(times, dtype=float)
-    p = np.asarray(xy, dtype=float)
-    A = np.column_stack([np.ones_like(t), t - t.mean()])
-    coef, *_ = np.linalg.lstsq(A, p, rcond=None)
-    return float(np.max(np.linalg.norm(p - A @ coef, axis=1)))
-
-
-def _ranges(states: NDArray[np.float64], own: NDArray[np.float64]) -> NDArray[np.float64]:
-    d = states[:, :2] - own
-    return np.hypot(d[:, 0], d[:, 1])
-
-
-def range_rel_sigma(
-    state: ArrayLike, own_ref: ArrayLike, dt: ArrayLike, own: ArrayLike, bearing_sigma: float
-) -> float:
-    """Relative range standard deviation that bearings alone give a constant-velocity target.
-
-    Parameters
-    ----------
-    state : array_like, shape (4,)
-        Target ``[x, y, vx, vy]`` at the reference time, m and m/s.
-    own_ref : array_like, shape (2,)
-        Own-ship position at the reference time, m.
-    dt : array_like, shape (n,)
-        Bearing times minus the reference time, s.
-    own : array_like, shape (n, 2)
-        Own-ship positions at the bearing times, m.
-    bearing_sigma : float
-        Bearing standard deviation, rad.
-
-    Returns
-    -------
-    float
-        ``sqrt(u^T P u) / r`` at the reference time, with ``u`` the unit line of sight, ``r`` the
-        range and ``P`` the position block of the Cramér-Rao bound ``(J^T J)^-1`` of the
-        whitened bearing Jacobian ``J`` (n, 4); ``inf`` when ``J`` is rank deficient (a
-        constant-velocity own-ship: scaling the relative track leaves every bearing unchanged).
-
-    Notes
-    -----
-    Uses no prior and no process noise, so it measures what the bearings themselves say about
-    range: the "information matrix ill-conditioned in range" test.
-    """
-    s = np.asarray(state, dtype=float)
-    o = np.asarray(own, dtype=float)
-    J = target_bearing_jacobian(s, o, dt=np.asarray(dt, dtype=float)) / bearing_sigma
-    _, sv, vt = np.linalg.svd(J, full_matrices=False)
-    los = s[:2] - np.asarray(own_ref, dtype=float)
-    r = float(np.hypot(*los))
-    if sv.size < 4 or sv[-1] <= sv[0] * 1e-10 or r == 0.0:
-        return float("inf")
-    u = np.concatenate([los / r, [0.0, 0.0]])
-    return float(np.linalg.norm((vt @ u) / sv)) / r  # sqrt(u^T V S^-2 V^T u) / r
-
-
-def _transitions(dt: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Constant-velocity transition matrices ``F(dt)`` of a ``[x, y, vx, vy]`` state, (n, 4, 4)."""
-    F = np.broadcast_to(np.eye(4), (dt.size, 4, 4)).copy()
-    F[:, 0, 2] = F[:, 1, 3] = dt  # x += vx dt, y += vy dt
-    return F
-
-
 _BLAS: list[ThreadpoolController] = []
 
 
@@ -318,48 +47,6 @@ def _one_blas_thread():
     if not _BLAS:
         _BLAS.append(ThreadpoolController())
     return _BLAS[0].limit(limits=1)
-
-
-def _pseudo_linear(
-    dt: NDArray[np.float64], z: NDArray[np.float64], o: NDArray[np.float64]
-) -> NDArray[np.float64]:
-    """Pseudo-linear estimate of the single state at the first bearing time.
-
-    From ``(x + vx dt - x_o) cos z - (y + vy dt - y_o) sin z = 0`` for every bearing ``z``.
-    """
-    c, s = np.cos(z), np.sin(z)
-    A = np.column_stack([c, -s, c * dt, -s * dt])
-    b = c * o[:, 0] - s * o[:, 1]
-    sol, *_ = np.linalg.lstsq(A, b, rcond=None)
-    return sol
-
-
-def _range_candidates(
-    dt: NDArray[np.float64], z: NDArray[np.float64], o: NDArray[np.float64],
-    ranges: NDArray[np.float64],
-) -> NDArray[np.float64]:
-    """Closed-form states along the first bearing, shape (r + r^2, 4).
-
-    For each range ``r_0`` of `ranges` on the first bearing: the state whose velocity best
-    satisfies the pseudo-linear equations with that position held,
-    ``vx dt cos z - vy dt sin z = -(x - x_o) cos z + (y - y_o) sin z`` (least squares, all ranges
-    at once); and for each pair ``(r_0, r_1)`` the straight track from range ``r_0`` on the first
-    bearing to range ``r_1`` on the last (it fits both bearings exactly).
-    """
-    c, s = np.cos(z), np.sin(z)
-    u0 = np.array([np.sin(z[0]), np.cos(z[0])])
-    u1 = np.array([np.sin(z[-1]), np.cos(z[-1])])
-    pos = o[0] + np.outer(ranges, u0)  # (r, 2)
-    A = np.column_stack([c * dt, -s * dt])
-    B = -np.outer(c, pos[:, 0]) + np.outer(s, pos[:, 1]) + (c * o[:, 0] - s * o[:, 1])[:, None]
-    vel, *_ = np.linalg.lstsq(A, B, rcond=None)  # (2, r)
-    held = np.column_stack([pos, vel.T])
-    end = o[-1] + np.outer(ranges, u1)  # (r, 2)
-    p0 = np.repeat(pos, ranges.size, axis=0)
-    p1 = np.tile(end, (ranges.size, 1))
-    span = dt[-1] if dt[-1] > 0 else 1.0
-    two = np.column_stack([p0, (p1 - p0) / span])  # straight track between the two ranges
-    return np.vstack([held, two])
 
 
 class BearingsOnlyTMA:
