@@ -67,6 +67,7 @@ from fusion.clicks.tdoa import TdoaRefiner
 from fusion.clicks.types import ChannelClicks, frozen_array
 from fusion.clicks.validate import TdoaValidator, scm2_features
 from fusion.geometry import SensorArray
+from fusion.pipelines.click_stream import MeasuredWindow, measure_stream, window_starts_count
 
 __all__ = ["ClickFrontEnd", "ClickWindow", "WindowTdoa", "default_validator", "window_starts"]
 
@@ -189,41 +190,7 @@ def window_starts(duration_s: float, window_s: float, hop_s: float) -> NDArray[n
     Windows ``[k hop, k hop + window)`` that fit inside the recording; a recording shorter than
     one window gives one window over all of it.
     """
-    n = int(math.floor((duration_s - window_s) / hop_s + 1e-9)) + 1
-    return np.arange(max(n, 1)) * hop_s
-
-
-class _AudioRing:
-    """The most recent audio blocks, contiguous in time (a sliding buffer)."""
-
-    def __init__(self, fs: float) -> None:
-        self.fs = fs
-        self.blocks: list[tuple[int, NDArray]] = []  # (first sample index, samples)
-
-    @property
-    def end(self) -> int:
-        return self.blocks[-1][0] + self.blocks[-1][1].shape[0] if self.blocks else 0
-
-    @property
-    def start(self) -> int:
-        return self.blocks[0][0] if self.blocks else 0
-
-    def append(self, first: int, x: NDArray) -> None:
-        if self.blocks and first != self.end:
-            raise ValueError(f"audio blocks must be contiguous: block at sample {first}, "
-                             f"expected {self.end}")
-        self.blocks.append((first, x))
-
-    def drop_before(self, sample: int) -> None:
-        while self.blocks and self.blocks[0][0] + self.blocks[0][1].shape[0] <= sample:
-            self.blocks.pop(0)
-
-    def cut(self, a: int, b: int) -> tuple[int, NDArray]:
-        """Samples ``[max(a, start), min(b, end))`` and the index of the first."""
-        a, b = max(a, self.start), min(b, self.end)
-        parts = [x[max(a - s, 0):max(min(b - s, x.shape[0]), 0)] for s, x in self.blocks
-                 if s < b and s + x.shape[0] > a]
-        return a, (np.concatenate(parts, axis=0) if len(parts) > 1 else parts[0])
+    return np.arange(window_starts_count(duration_s, window_s, hop_s)) * hop_s
 
 
 class ClickFrontEnd:
@@ -403,6 +370,59 @@ class ClickFrontEnd:
                            window.links_previous)
 
     # ----------------------------------------------------------------------------------------
+    def measure(
+        self,
+        blocks: Iterable[tuple[float, ArrayLike]] | Iterable[tuple[float, ArrayLike, float]],
+        *,
+        fs: float,
+        sensors: SensorArray,
+        duration_s: float | None = None,
+        start_sample: int = 0,
+        final_from: int = 0,
+        first_window: int = 0,
+        stop_window: int | None = None,
+    ) -> Iterator[MeasuredWindow]:
+        """Measure the windows of a stream of audio blocks, not yet associated across time.
+
+        See :func:`fusion.pipelines.click_stream.measure_stream` (the same parameters): clicks
+        are detected once per sample and each window is measured (:meth:`measure_window`) as
+        soon as its clicks are final; a stream may start part-way through a recording.
+        """
+        return measure_stream(self, blocks, fs=fs, sensors=sensors, duration_s=duration_s,
+                              start_sample=start_sample, final_from=final_from,
+                              first_window=first_window, stop_window=stop_window)
+
+    def associate(self, measured: Iterable[MeasuredWindow]) -> Iterator[ClickWindow]:
+        """Associate consecutive measured windows across time (eq. 12), then across pairs.
+
+        Parameters
+        ----------
+        measured : iterable of MeasuredWindow
+            Consecutive windows in order.
+
+        Yields
+        ------
+        ClickWindow
+            Each window once its successor is known (the last at the end): ``confirmed`` when
+            linked to the previous or the next window, closure and alpha (eq. 13) on the final
+            TDOAs. Depends only on the window and its two neighbours.
+        """
+        pending: ClickWindow | None = None
+        prev_tdoas: Sequence[WindowTdoa] = ()
+        for m in measured:
+            assoc = self.associator.associate([d.as_clicks() for d in prev_tdoas],
+                                              [d.as_clicks() for d in m.tdoas])
+            tdoas = [WindowTdoa(**{**d.__dict__, "confirmed": bool(assoc.confirmed[k])})
+                     for k, d in enumerate(m.tdoas)]
+            links = tuple((lk.previous, lk.current) for lk in assoc.links)
+            if pending is not None:
+                yield self._finish(pending, assoc.previous_linked)
+            pending = ClickWindow(m.t_start, m.t_end, m.clicks, tuple(tdoas),
+                                  np.zeros((len(tdoas), len(tdoas))), links)
+            prev_tdoas = m.tdoas
+        if pending is not None:
+            yield self._finish(pending, np.zeros(len(pending.tdoas), dtype=bool))
+
     def iter_windows(
         self,
         blocks: Iterable[tuple[float, ArrayLike]] | Iterable[tuple[float, ArrayLike, float]],
@@ -429,115 +449,11 @@ class ClickFrontEnd:
         Yields
         ------
         ClickWindow
-            Each window once its successor's time association is known (the last at the end).
+            Each window once its successor's time association is known (the last at the end):
+            :meth:`associate` over :meth:`measure`.
         """
-        check_positive("fs", fs)
-        guard = self.detector.guard_s(fs)
-        g = int(math.ceil(guard * fs))
-        margin = int(math.ceil(0.01 * fs))  # audio beyond the window for click cuts
-        ring = _AudioRing(fs)
-        final_until = 0  # clicks before this sample are final
-        clicks: list[list[ChannelClicks]] = [[] for _ in range(sensors.n_sensors)]
-        next_k = 0
-        pending: ClickWindow | None = None
-        prev_tdoas: list[WindowTdoa] = []
-
-        def detect(a: int, b: int, keep_to: int) -> None:
-            first, x = ring.cut(a, b)
-            found = self.detector.detect(x, fs, t0=first / fs)
-            for ch, c in enumerate(found):
-                clicks[ch].append(c.between(final_until / fs, keep_to / fs))
-
-        def merged(t0: float, t1: float) -> list[ChannelClicks]:
-            out = []
-            for ch, parts in enumerate(clicks):
-                sel = [p.between(t0, t1) for p in parts if p.n_clicks]
-                sel = [p for p in sel if p.n_clicks]
-                if not sel:
-                    out.append(ChannelClicks(ch))
-                    continue
-                out.append(ChannelClicks(ch, np.concatenate([p.times_s for p in sel]),
-                                         np.concatenate([p.power for p in sel]),
-                                         np.concatenate([p.centre_freq_hz for p in sel])))
-            return out
-
-        def process(t0: float, t1: float) -> Iterator[ClickWindow]:
-            nonlocal pending, prev_tdoas
-            a, b = int(round(t0 * fs)) - margin, int(round(t1 * fs)) + margin
-            first, x = ring.cut(a, b)
-            window_clicks = merged(t0, t1)
-            tdoas = self.measure_window(window_clicks, t0_s=t0, sensors=sensors, audio=x,
-                                        audio_t0_s=first / fs, fs=fs)
-            assoc = self.associator.associate([d.as_clicks() for d in prev_tdoas],
-                                              [d.as_clicks() for d in tdoas])
-            tdoas = [WindowTdoa(**{**d.__dict__, "confirmed": bool(assoc.confirmed[k])})
-                     for k, d in enumerate(tdoas)]
-            links = tuple((lk.previous, lk.current) for lk in assoc.links)
-            if pending is not None:
-                yield self._finish(pending, assoc.previous_linked)
-            pending = ClickWindow(t0, t1, tuple(window_clicks), tuple(tdoas),
-                                  np.zeros((len(tdoas), len(tdoas))), links)
-            prev_tdoas = tdoas
-            # forget clicks and audio no later window needs
-            keep_from = (t0 + self.hop_s)
-            ring.drop_before(int(round(keep_from * fs)) - margin - 2 * g)
-            for ch in range(len(clicks)):
-                clicks[ch] = [p for p in clicks[ch] if p.n_clicks and p.times_s[-1] >= keep_from]
-
-        def starts_ready() -> Iterator[float]:
-            nonlocal next_k
-            while True:
-                t0 = next_k * self.hop_s
-                t1 = t0 + self.window_s
-                if duration_s is not None:
-                    starts = window_starts(duration_s, self.window_s, self.hop_s)
-                    if next_k >= starts.size:
-                        return
-                    t1 = min(t1, duration_s)
-                if t1 * fs <= final_until:
-                    next_k += 1
-                    yield t0
-                else:
-                    return
-
-        n_sensors = sensors.n_sensors
-        first_sample = 0
-        for item in blocks:
-            t_blk, x = float(item[0]), np.asarray(item[1])
-            if len(item) == 3 and float(item[2]) != float(fs):
-                raise ValueError(f"block at {t_blk} s has sample rate {item[2]}, expected {fs}")
-            if x.ndim != 2 or x.shape[1] != n_sensors:
-                raise ValueError(f"audio block has shape {x.shape}, expected (n, {n_sensors})")
-            if x.shape[0] == 0:
-                continue
-            if not np.all(np.isfinite(x)):
-                raise ValueError(f"audio block at {t_blk} s contains NaN or infinite samples")
-            if abs(t_blk * fs - first_sample) > 0.5:
-                raise ValueError(f"audio blocks must be consecutive: block at {t_blk} s, "
-                                 f"expected {first_sample / fs} s")
-            ring.append(first_sample, x.astype(np.float32, copy=False))
-            first_sample += x.shape[0]
-            # clicks are final up to a guard before the end of the audio seen so far
-            keep_to = ring.end - g
-            if keep_to > final_until:
-                detect(final_until - 2 * g, ring.end, keep_to)
-                final_until = keep_to
-            for t0 in list(starts_ready()):
-                yield from process(t0, t0 + self.window_s)
-        if ring.end == 0:
-            raise ValueError("no audio samples")
-        if ring.end > final_until:
-            detect(final_until - 2 * g, ring.end, ring.end + 1)
-            final_until = ring.end + 1
-        end_s = ring.end / fs
-        total = duration_s if duration_s is not None else end_s
-        starts = window_starts(total, self.window_s, self.hop_s)
-        while next_k < starts.size:
-            t0 = float(starts[next_k])
-            next_k += 1
-            yield from process(t0, min(t0 + self.window_s, end_s))
-        if pending is not None:
-            yield self._finish(pending, np.zeros(len(pending.tdoas), dtype=bool))
+        yield from self.associate(self.measure(blocks, fs=fs, sensors=sensors,
+                                               duration_s=duration_s))
 
     def run_array(
         self, audio: ArrayLike, fs: float, sensors: SensorArray, *, block_s: float | None = None
