@@ -341,8 +341,9 @@ def _grow(
 ) -> tuple[NDArray, NDArray] | None:
     """Refit a candidate with the clutter TDOAs associated with its own; None if none fit.
 
-    The refit starts from the candidate and, with a water column, from its ``x, y`` at a few
-    heights (a near-planar array's depth ambiguity); the fit explaining most TDOAs wins.
+    The refit starts from the candidate and, if that fails, with a water column, from its
+    ``x, y`` at a few heights (a near-planar array's depth ambiguity); the fit explaining most
+    TDOAs wins.
     """
     owned = w > 0.5
     if tdoas.alpha is None or not np.any(owned):
@@ -354,6 +355,8 @@ def _grow(
     gate = cfg.gate_sigmas * np.asarray(tdoas.sigmas)
     best: tuple[int, float, NDArray, NDArray] | None = None
     for start in vertical_starts(x, z_range):
+        if best is not None:
+            break  # the other heights only when the candidate's own place fails
         extra = candidates_extra.copy()
         while np.any(extra):
             trial = (owned | extra).astype(float)  # hard: a half-held TDOA must not pull the fit

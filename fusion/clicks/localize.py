@@ -473,13 +473,14 @@ class MultiSourceLocalizer:
         none = np.full(3, np.nan)
         rival: NDArray | None = None
         for start in starts:
-            other = _solve(tdoas, start, w)
+            other = _solve(tdoas, start, w, iterations=30, tol=1e-6)  # a rival, roughly
             d = other - pos
             if float(d @ info @ d) <= _CHI2_3SIGMA or not self._in_water(other):
                 continue  # the same solution, or a rival outside the water column
             rise = 2.0 * (_cost(tdoas, other, w) - cost)  # chi-square rise
             if rise < -self.mirror_chi2 or (rise <= self.mirror_chi2 and not self._in_water(pos)):
-                return self._mirror_test(tdoas, other, w)  # clearly better, or the physical one
+                # clearly better, or the physical one: polish it and test again from there
+                return self._mirror_test(tdoas, _solve(tdoas, other, w), w)
             if rise <= self.mirror_chi2 and rival is None:
                 rival = other
         return (pos, none, False) if rival is None else (pos, rival, True)
@@ -517,12 +518,16 @@ def _cost(tdoas: WindowTdoas, pos: NDArray, w: NDArray) -> float:
     return float(0.5 * np.sum(np.maximum(w, 0.0) * r * r))
 
 
-def _solve(tdoas: WindowTdoas, start: NDArray, w: NDArray, iterations: int = 50) -> NDArray:
-    """Weighted least-squares position from `start` (Levenberg-Marquardt on a one-factor graph)."""
+def _solve(tdoas: WindowTdoas, start: NDArray, w: NDArray, iterations: int = 50,
+           tol: float = 1e-12) -> NDArray:
+    """Weighted least-squares position from `start` (Levenberg-Marquardt on a one-factor graph).
+
+    `tol` is the relative decrease of the error at which it stops.
+    """
     graph, values, key = _graph(tdoas, start, w)
     params = gtsam.LevenbergMarquardtParams()
     params.setMaxIterations(iterations)
-    params.setRelativeErrorTol(1e-12)
+    params.setRelativeErrorTol(tol)
     params.setAbsoluteErrorTol(1e-20)
     result = gtsam.LevenbergMarquardtOptimizer(graph, values, params).optimize()
     return np.asarray(result.atPoint3(key), dtype=float)
