@@ -47,7 +47,7 @@ from filterpy.kalman import KalmanFilter
 from numpy.typing import ArrayLike, NDArray
 
 from fusion.geometry import beam_from_bearing, beam_tolerance, beamwidth_deg, bearing_from_beam
-from fusion.io import Cube
+from fusion.types import Cube
 
 __all__ = ["BearingTracker", "TrackHistory", "beamwidth_deg", "cell_power_statistics"]
 

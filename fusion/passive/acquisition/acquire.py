@@ -19,7 +19,6 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fusion.geometry import beam_tolerance, beamwidth_deg, bearing_from_beam
-from fusion.io import Cube
 from fusion.passive.acquisition.btr import ibw_bins, ibw_btr
 from fusion.passive.acquisition.fans import (
     BestLine,
@@ -29,6 +28,7 @@ from fusion.passive.acquisition.fans import (
 )
 from fusion.passive.acquisition.normalise import normalize_spectra
 from fusion.passive.acquisition.snr import band_noise_level, snr_1hz_db
+from fusion.types import Cube
 
 __all__ = ["Acquisition", "AcquisitionResult", "acquire"]
 

@@ -1,0 +1,259 @@
+"""CSV tables: read with validation (:func:`read_table`), write atomically (:func:`write_table`).
+
+A table is a :class:`fusion.types.Table` (named columns of one length). Readers refuse anything
+that is not a well-formed table of finite numbers (see :mod:`fusion.io` for the limits); the
+named readers of each file kind are in :mod:`fusion.io.table_kinds`.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from collections.abc import Iterator, Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from fusion._output import atomic_output
+from fusion.io._files import (
+    _ROWS_PER_CHUNK,
+    _WHOLE_LIMIT,
+    MAX_ABS_VALUE,
+    MAX_CSV_BYTES,
+    MAX_LINE_CHARS,
+    PathLike,
+    _check_file,
+    _show,
+)
+from fusion.types import Table
+
+__all__ = ["Table", "read_table", "write_table"]
+
+
+def _csv_lines(p: Path, fh: Any) -> Iterator[str]:
+    """Lines of an open text file, refusing over-long lines, NUL bytes and non-UTF-8 text."""
+    lineno = 0
+    while True:
+        try:
+            line = fh.readline(MAX_LINE_CHARS + 1)
+        except UnicodeDecodeError:
+            raise ValueError(f"{p}: not a text CSV file (not UTF-8 after line {lineno})") from None
+        if not line:
+            return
+        lineno += 1
+        if len(line) > MAX_LINE_CHARS:
+            raise ValueError(f"{p}: line {lineno} is longer than {MAX_LINE_CHARS:,} characters; "
+                             "not a CSV table")
+        if "\x00" in line:
+            raise ValueError(f"{p}: not a text CSV file (NUL bytes in line {lineno})")
+        yield line
+
+
+def _csv_rows(p: Path, reader: Any) -> Iterator[list[str]]:
+    """Non-blank rows of a csv reader; its errors become ValueErrors naming file and line."""
+    while True:
+        try:
+            row = next(reader)
+        except StopIteration:
+            return
+        except csv.Error as e:
+            if "field larger than field limit" in str(e):
+                raise ValueError(f"{p}: line {reader.line_num}: a field is longer than "
+                                 f"{csv.field_size_limit():,} characters; not a CSV table") from None
+            raise ValueError(f"{p}: line {reader.line_num}: malformed CSV ({e})") from None
+        if row and (row[0].strip() or any(cell.strip() for cell in row)):
+            yield row
+
+
+def _number(cell: str, where: str, *, whole: bool, max_abs: float | None) -> float:
+    """A CSV cell as a finite float (a whole number if `whole`), bounded by `max_abs`."""
+    cell = cell.strip()
+    try:
+        x = float(cell)
+    except ValueError:
+        raise ValueError(f"{where}: {_show(cell)} is not a number") from None
+    if not math.isfinite(x):
+        raise ValueError(f"{where}: value is {cell}")
+    if max_abs is not None and abs(x) > max_abs:
+        raise ValueError(f"{where}: {_show(cell)} is beyond +-{max_abs:g}, implausible for this "
+                         "column (check units)")
+    if whole:
+        if x != round(x):
+            raise ValueError(f"{where}: {_show(cell)} is not a whole number")
+        if abs(x) > _WHOLE_LIMIT:
+            raise ValueError(f"{where}: {_show(cell)} is too large for a whole number")
+    return x
+
+
+def _numbers(
+    cells: list[str], lines: list[int], where: str, *, whole: bool, max_abs: float | None
+) -> NDArray[np.float64]:
+    """Cells of one column as checked float64 (see :func:`_number`); vectorized checks.
+
+    `where` is formatted with the line number of the first bad cell (``{line}``), whose message
+    is that of :func:`_number`.
+    """
+    try:
+        x = np.fromiter(map(float, cells), dtype=float, count=len(cells))
+    except ValueError:  # some cell is not a number
+        x = None
+    if x is not None:
+        bad = ~np.isfinite(x)
+        if max_abs is not None:
+            bad |= np.abs(x) > max_abs
+        if whole:
+            bad |= (x != np.round(x)) | (np.abs(x) > _WHOLE_LIMIT)
+        if not np.any(bad):
+            return x
+    for cell, line in zip(cells, lines, strict=True):  # the first bad cell raises
+        _number(cell, where.format(line=line), whole=whole, max_abs=max_abs)
+    raise AssertionError("a bad cell was expected")  # pragma: no cover
+
+
+def read_table(
+    path: PathLike,
+    *,
+    required: Sequence[str],
+    optional: Sequence[str] = (),
+    integer: Sequence[str] = (),
+    text: Sequence[str] = (),
+    max_abs: float | None = MAX_ABS_VALUE,
+) -> Table:
+    """Read a CSV file with a header line, keeping and validating the named columns.
+
+    Parameters
+    ----------
+    path : path-like
+        CSV file, UTF-8 (a byte-order mark is allowed), at most :data:`MAX_CSV_BYTES` bytes, lines
+        at most :data:`MAX_LINE_CHARS` characters, fields at most the csv module's limit (128 KiB).
+    required : sequence of str
+        Columns that must be present.
+    optional : sequence of str, optional
+        Columns read when present (absent ones are simply not in the result).
+    integer : sequence of str, optional
+        Columns that must hold whole numbers (returned as int64).
+    text : sequence of str, optional
+        Columns kept as strings (not checked as numbers).
+    max_abs : float or None, optional
+        Largest magnitude accepted in the numeric columns (default :data:`MAX_ABS_VALUE`);
+        ``None``: no bound beyond finiteness.
+
+    Returns
+    -------
+    Table
+        The required columns and the optional ones present, in file order; extra columns are
+        ignored; blank lines are skipped.
+
+    Raises
+    ------
+    FileNotFoundError
+        The file does not exist.
+    ValueError
+        A folder, a file over the size limit, not UTF-8 text, NUL bytes, an over-long line or
+        field, empty file, no data rows, a missing required column, a ragged row, a non-numeric
+        value, NaN, infinity or a value beyond `max_abs`. The message starts with the path and
+        names line and column.
+    """
+    p = _check_file(path, max_bytes=MAX_CSV_BYTES, what="CSV inputs")
+    with p.open(newline="", encoding="utf-8-sig") as fh:
+        reader = csv.reader(_csv_lines(p, fh))
+        rows = _csv_rows(p, reader)
+        first = next(rows, None)
+        if first is None:
+            raise ValueError(f"{p}: file is empty")
+        header = [h.strip() for h in first]
+        missing = [c for c in required if c not in header]
+        if missing:
+            raise ValueError(f"{p}: missing required column(s) {', '.join(missing)}")
+        wanted = list(required) + [c for c in optional if c in header and c not in required]
+        index = [header.index(c) for c in wanted]
+        need = max(index) + 1
+        cells: list[list[str]] = [[] for _ in wanted]  # per column, the cells of this chunk
+        lines: list[int] = []  # line number of each row of this chunk
+        parsed: list[list[Any]] = [[] for _ in wanted]  # per column, float64 chunks or strings
+        n_rows = 0
+
+        def flush() -> None:
+            for k, name in enumerate(wanted):
+                if name in text:
+                    parsed[k] += [c.strip() for c in cells[k]]
+                else:
+                    parsed[k].append(_numbers(
+                        cells[k], lines, f"{p}: line {{line}}, column {name!r}",
+                        whole=name in integer, max_abs=max_abs))
+                cells[k] = []
+            lines.clear()
+
+        for row in rows:
+            if len(row) < need:
+                raise ValueError(f"{p}: line {reader.line_num} has {len(row)} fields, header has "
+                                 f"{len(header)}")
+            lines.append(reader.line_num)
+            for k, j in enumerate(index):
+                cells[k].append(row[j])
+            n_rows += 1
+            if len(lines) == _ROWS_PER_CHUNK:
+                flush()
+        flush()
+    if n_rows == 0:
+        raise ValueError(f"{p}: no data rows")
+    columns: dict[str, NDArray[Any]] = {}
+    for k, name in enumerate(wanted):
+        if name in text:
+            columns[name] = np.array(parsed[k], dtype=str)
+        else:
+            values = np.concatenate(parsed[k])
+            columns[name] = values.astype(np.int64) if name in integer else values
+    return Table(columns, str(p))
+
+
+_FIXED_LIMIT = 1e15  # floats this large are written as repr (e.g. 1e+20), not fixed-point
+
+
+def _format_cell(v: Any, float_format: str) -> str:
+    if isinstance(v, str | np.str_):
+        return str(v)
+    if isinstance(v, bool | np.bool_):
+        return "true" if v else "false"
+    if isinstance(v, int | np.integer):
+        return str(int(v))
+    x = float(v)
+    if abs(x) >= _FIXED_LIMIT:  # no 300-digit fixed-point numbers: shortest exact form instead
+        return repr(x)
+    return float_format % x
+
+
+def write_table(
+    path: PathLike, columns: Mapping[str, ArrayLike], *, float_format: str = "%.6f"
+) -> Path:
+    """Write columns as a CSV file with a header line, atomically.
+
+    Parameters
+    ----------
+    path : path-like
+        Destination (``"-"``: standard output; see :func:`atomic_output`).
+    columns : mapping of str to array_like
+        Column name to 1-D values, all the same length; integer, float, bool or str values.
+    float_format : str, optional
+        printf-style format of float values below 1e15 in magnitude; larger ones are written in
+        their shortest exact form (``1e+20``), never as hundreds of fixed-point digits.
+
+    Returns
+    -------
+    pathlib.Path
+        The written path.
+    """
+    cols = {k: np.asarray(v) for k, v in columns.items()}
+    lengths = {len(v) for v in cols.values()}
+    if len(lengths) > 1:
+        raise ValueError(f"{path}: columns have different lengths {sorted(lengths)}")
+    n = lengths.pop() if lengths else 0
+    with atomic_output(path) as tmp, tmp.open("w", newline="") as fh:
+        w = csv.writer(fh, lineterminator="\n")
+        w.writerow(list(cols))
+        values = list(cols.values())
+        for i in range(n):
+            w.writerow([_format_cell(v[i], float_format) for v in values])
+    return Path(path)
