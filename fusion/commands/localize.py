@@ -9,6 +9,25 @@ mono file per sensor in array order; files of different lengths are trimmed to t
 warning), a sample-rate mismatch is an error. A progress bar shows on a terminal (``--quiet``
 turns it off).
 
+Long recordings (:mod:`fusion.pipelines.click_chunks`, :mod:`fusion.scale`): the windows are
+processed in chunks of ``--chunk`` seconds of consecutive windows (default 60); each chunk's task
+reads its own audio (its windows, one neighbour window on each side and the detector's guards)
+from the file(s) with soundfile and localizes its windows, and the chunks are stitched in order.
+Memory does not grow with the length of the recording. By default the chunks run one after the
+other in this process (no Dask); ``--workers N`` runs them on a local Dask cluster of N worker
+processes, ``--scheduler ADDRESS`` on an existing Dask scheduler (its workers must read the same
+paths). The output is byte for byte the same in every case, and the same as one pass over the
+whole recording.
+
+Resume: each finished chunk is written atomically to ``R.json.parts/<key>/chunk-NNNNNN.json``
+beside the output, where ``<key>`` is a fingerprint of the inputs (absolute paths, sizes and
+modification times of the audio files; the array, validator and replica contents) and of every
+option that changes the result (not ``--workers``, ``--scheduler`` or ``--quiet``). Run the same
+command again after an interruption and only the missing chunks are computed; the output is
+byte-identical to an uninterrupted run. Parts under another key (a changed command) are removed
+and never reused. The folder is removed once the output is written. With ``--out -`` the parts
+go to a temporary folder (no resume).
+
 With ``--events E.csv`` (``t_start,t_end[,f_low,f_high]``, events found by any other detector)
 each event is localized instead from band-passed waveform cross-correlation TDOAs of every pair,
 screened by triangle closure, solved on the factor graph with its covariance and 95 % interval,
@@ -19,13 +38,10 @@ kilometre scales (the search box follows the array's aperture).
 from __future__ import annotations
 
 import argparse
+import contextlib
 import dataclasses
-import logging
-import sys
-from collections.abc import Iterator
+import tempfile
 from pathlib import Path
-
-import numpy as np
 
 from fusion.cli import emit, number
 
@@ -68,6 +84,16 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="CSV t_start,t_end[,f_low,f_high] of events found by another detector: "
                         "localize each event from band-passed waveform cross-correlation "
                         "instead of detecting clicks")
+    p.add_argument("--chunk", type=number(float, gt=0), default=60.0,
+                   help="audio per task, s: consecutive windows processed (and recorded for "
+                        "resuming) together (default 60)")
+    where = p.add_mutually_exclusive_group()
+    where.add_argument("--workers", type=number(int, ge=1), default=None,
+                       help="run the chunks on a local Dask cluster of this many worker "
+                            "processes (default: serially in this process, no Dask)")
+    where.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                       help="run the chunks on the Dask scheduler at ADDRESS (tcp://host:8786); "
+                            "its workers must read the same audio paths")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     from fusion.commands.localize_events import add_event_options
 
@@ -75,53 +101,23 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(handler=run, inputs=("audio", "array", "events"))
 
 
-def _blocks(paths: list[Path], n_channels: int, hop_s: float) -> tuple[Iterator, float, float]:
-    """Consecutive audio blocks of `hop_s` from one multichannel file or one mono file each."""
-    import soundfile as sf
+def _run_key(args: argparse.Namespace) -> str:
+    """Fingerprint of the inputs and of every option that changes the result (resume key)."""
+    from fusion import __version__
+    from fusion.clicks.replica import GENERIC_PATH
+    from fusion.scale import file_identity, fingerprint
 
-    infos = []
-    for p in paths:
-        try:
-            infos.append(sf.info(str(p)))
-        except (RuntimeError, sf.LibsndfileError) as e:
-            raise ValueError(f"{p}: not a readable WAV/FLAC audio file ({e})") from None
-    if len(paths) == 1:
-        if infos[0].channels != n_channels:
-            raise ValueError(f"{paths[0]}: audio has {infos[0].channels} channel(s) but the "
-                             f"array has {n_channels} sensors")
-    else:
-        if len(paths) != n_channels:
-            raise ValueError(f"{len(paths)} audio files for {n_channels} sensors (give one "
-                             "multichannel file or one mono file per sensor)")
-        for p, info in zip(paths, infos, strict=True):
-            if info.channels != 1:
-                raise ValueError(f"{p}: expected a mono file, got {info.channels} channels")
-    rates = {float(i.samplerate) for i in infos}
-    if len(rates) != 1:
-        listing = ", ".join(f"{p} {i.samplerate} Hz" for p, i in zip(paths, infos, strict=True))
-        raise ValueError(f"audio files have different sample rates: {listing}")
-    fs = rates.pop()
-    frames = min(i.frames for i in infos)
-    if frames == 0:
-        raise ValueError(f"{paths[0]}: audio file has no samples")
-    if len({i.frames for i in infos}) > 1:
-        logging.getLogger(__name__).warning(
-            "audio files differ in length; trimmed to the shortest (%d samples)", frames)
-    block = max(int(round(hop_s * fs)), 1)
-
-    def gen() -> Iterator:
-        readers = [sf.blocks(str(p), blocksize=block, dtype="float32", always_2d=True,
-                             frames=frames) for p in paths]
-        start = 0
-        try:
-            for parts in zip(*readers, strict=True):
-                x = parts[0] if len(parts) == 1 else np.concatenate(parts, axis=1)
-                yield start / fs, x
-                start += x.shape[0]
-        except (RuntimeError, sf.LibsndfileError) as e:
-            raise ValueError(f"{paths[0]}: audio could not be decoded ({e})") from None
-
-    return gen(), fs, frames / fs
+    shipped_validator = Path(__file__).resolve().parents[1] / "clicks" / "data" / "validator_v1.npz"
+    return fingerprint({
+        "version": __version__,
+        "audio": [file_identity(p) for p in args.audio],
+        "array": file_identity(args.array, content=True),
+        "validator": file_identity(args.validator or shipped_validator, content=True),
+        "replica": file_identity(args.replica or GENERIC_PATH, content=True),
+        "options": {k: getattr(args, k) for k in (
+            "window", "hop", "band", "min_centre_freq", "detect_threshold", "llr_threshold",
+            "no_refine", "method", "chunk")},
+    })
 
 
 def run(args: argparse.Namespace) -> int:
@@ -130,14 +126,22 @@ def run(args: argparse.Namespace) -> int:
         from fusion.commands.localize_events import run_events
 
         return run_events(args)
+    from fusion._output import STDOUT
     from fusion.clicks.detect import ClickDetector
     from fusion.clicks.localize import MultiSourceLocalizer
     from fusion.clicks.replica import load_replica
     from fusion.clicks.scm import ClickMapCorrelator, ScmConfig
     from fusion.clicks.validate import TdoaValidator
-    from fusion.io import read_array, write_json
+    from fusion.io import read_array
+    from fusion.pipelines.click_chunks import (
+        localize_chunk,
+        open_audio,
+        plan_chunks,
+        write_document,
+    )
     from fusion.pipelines.clicks import ClickFrontEnd, default_validator
-    from fusion.pipelines.localization import ClickLocalization, result_document
+    from fusion.pipelines.localization import ClickLocalization
+    from fusion.scale import PartStore, dask_client, progress, run_tasks
 
     if args.hop > args.window:
         raise ValueError(f"--hop {args.hop} is longer than --window {args.window}")
@@ -145,7 +149,8 @@ def run(args: argparse.Namespace) -> int:
     if not lo < hi:
         raise ValueError(f"--band: low edge {lo} must be below the high edge {hi}")
     array = read_array(args.array)
-    blocks, fs, duration = _blocks(list(args.audio), array.n_sensors, args.hop)
+    source = open_audio(list(args.audio), array.n_sensors)
+    fs = source.fs
     if hi >= fs / 2:
         raise ValueError(f"{args.audio[0]}: sample rate {fs:g} Hz is too low for the click band "
                          f"up to {hi:g} Hz (needs > {2 * hi:g} Hz; see --band)")
@@ -164,17 +169,23 @@ def run(args: argparse.Namespace) -> int:
         validator=validator, refiner=not args.no_refine, hop_s=args.hop)
     localizer = None if args.method == "none" else MultiSourceLocalizer(method=args.method)
     pipe = ClickLocalization(front_end=front, localizer=localizer)
-    from fusion.pipelines.clicks import window_starts
-
-    n_windows = int(window_starts(duration, args.window, args.hop).size)
-    windows = pipe.iter_windows(blocks, fs=fs, sensors=array, duration_s=duration)
-    if not args.quiet and sys.stderr.isatty():
-        from tqdm import tqdm
-
-        windows = tqdm(windows, total=n_windows, unit="window", desc="localize")
-    done = list(windows)
-    write_json(args.out, result_document(done))
-    n_valid = sum(len(w.window.valid_tdoas) for w in done)
-    n_src = sum(len(w.output.sources) for w in done if w.output is not None)
-    emit(f"{len(done)} windows, {n_valid} valid TDOAs, {n_src} sources -> {args.out}", err=True)
+    tasks = plan_chunks(source, pipe, chunk_s=args.chunk)
+    n_windows = tasks[-1].stop_window
+    with contextlib.ExitStack() as stack:
+        if str(args.out) == STDOUT:  # no resume: parts in a private temporary folder
+            tmp = stack.enter_context(tempfile.TemporaryDirectory(prefix="fusion-localize-"))
+            root = Path(tmp) / "parts"
+        else:
+            root = Path(f"{args.out}.parts")
+        store = PartStore(root, key=_run_key(args)[:32])
+        bar = progress(n_windows, quiet=args.quiet, desc="localize", unit="window")
+        stack.callback(bar.close)
+        client = stack.enter_context(dask_client(workers=args.workers, scheduler=args.scheduler))
+        run_tasks(localize_chunk, (pipe, source, array), tasks, names=lambda t: t.name,
+                  store=store, client=client,
+                  on_done=lambda t: bar.update(t.stop_window - t.first_window))
+        summary = write_document(args.out, (store.read(t.name) for t in tasks))
+        store.remove()
+    emit(f"{summary.n_windows} windows, {summary.n_valid_tdoas} valid TDOAs, "
+         f"{summary.n_sources} sources -> {args.out}", err=True)
     return 0

@@ -154,8 +154,8 @@ def measure_stream(
         Index of the first sample of the first block.
     final_from : int, optional
         Clicks before this sample are not detected (a stream that does not start at 0: see
-        :func:`stream_start`); at least two detector guards after `start_sample` unless both
-        are 0.
+        :func:`stream_start`); at least two detector guards after `start_sample` unless that
+        is 0 (the start of the recording).
     first_window, stop_window : int, optional
         Measure windows ``first_window <= k < stop_window`` only (default: all); reading stops
         once the last is measured.
@@ -169,7 +169,7 @@ def measure_stream(
     g = int(math.ceil(front.detector.guard_s(fs) * fs))
     if start_sample < 0 or final_from < 0 or first_window < 0:
         raise ValueError("start_sample, final_from and first_window must be >= 0")
-    if (start_sample or final_from) and final_from - 2 * g < start_sample:
+    if start_sample and final_from - 2 * g < start_sample:
         raise ValueError(f"final_from {final_from} leaves less than two detector guards "
                          f"({2 * g} samples) after start_sample {start_sample}")
     if int(round(first_window * front.hop_s * fs)) < final_from:
