@@ -29,20 +29,16 @@ import time
 from pathlib import Path
 
 import numpy as np
-from scipy.stats import chi2
 
+from fusion.metrics.localization import nees, nees_interval
 from fusion.passive.tma import BearingsOnlyTMA, OwnshipTrack
 from fusion.simulate.tma import simulate_tma
 
 
-def _nees(err: np.ndarray, cov: np.ndarray) -> float:
-    return float(err @ np.linalg.solve(cov, err))
-
-
 def run_simulated(runs: int, seed0: int, motion: str, manoeuvre: bool) -> dict:
     """Run `runs` seeded scenarios; return the summary numbers."""
-    lo4, hi4 = chi2.ppf([0.025, 0.975], 4)
-    lo2, hi2 = chi2.ppf([0.025, 0.975], 2)
+    lo4, hi4 = nees_interval(4, level=0.95)
+    lo2, hi2 = nees_interval(2, level=0.95)
     rel_err, in4, in2, warned, secs = [], [], [], [], []
     for seed in range(seed0, seed0 + runs):
         sc = simulate_tma(seed=seed, manoeuvre=manoeuvre)
@@ -52,8 +48,8 @@ def run_simulated(runs: int, seed0: int, motion: str, manoeuvre: bool) -> dict:
         secs.append(time.perf_counter() - t0)
         rel_err.append(abs(res.range[-1] - sc.true_range[-1]) / sc.true_range[-1])
         e = res.states[-1] - sc.truth[-1]
-        n4 = _nees(e, res.covariances[-1])
-        n2 = _nees(e[:2], res.covariances[-1, :2, :2])
+        n4 = nees(e, res.covariances[-1])
+        n2 = nees(e[:2], res.covariances[-1, :2, :2])
         in4.append(lo4 <= n4 <= hi4)
         in2.append(lo2 <= n2 <= hi2)
         warned.append(not res.observable)

@@ -33,6 +33,7 @@ import time
 
 import numpy as np
 
+from fusion.metrics.tqi import declaration_lag
 from fusion.passive.quality import TrackQuality, TrackQualityIndicator
 from fusion.simulate.amplitudes import condition_snr_db, draw_amplitudes, draw_residuals
 
@@ -61,15 +62,8 @@ def loss_lag(*, n_tracks: int, n_updates: int, rng: np.random.Generator) -> dict
     res = draw_residuals(snr, rng=rng)
     s_h = TrackQualityIndicator().run(amp, res).state
     s_1 = TrackQualityIndicator(hysteresis=False).run(amp, res).state
-    after = k >= onset[None, :]
-    big = n_updates + 1
-
-    def first_lost(s: np.ndarray) -> np.ndarray:
-        hit = (s == TrackQuality.LOST) & after
-        return np.where(hit.any(axis=0), hit.argmax(axis=0), big) - onset
-
-    lag_h, lag_1 = first_lost(s_h), first_lost(s_1)
-    declared = lag_1 < big - onset
+    lag_h, lag_1 = declaration_lag(s_h, onset), declaration_lag(s_1, onset)  # inf: never
+    declared = np.isfinite(lag_1)
     cols = np.arange(n_tracks)
     # a new loss event: neither variant is lost at the update before the onset
     fresh = declared & (s_h[onset - 1, cols] != TrackQuality.LOST) & (

@@ -2,6 +2,13 @@
 
 One module per kind of result, used by tests, benchmarks, examples and the demo:
 
-- :mod:`~fusion.metrics.crossings` -- track identities through crossings (kept, swapped, lost)
-  and crossing-alert scores.
+- :mod:`~fusion.metrics.crossings` -- track identities through crossings (kept, swapped, lost;
+  :func:`~fusion.metrics.crossings.crossing_outcomes`) and crossing-alert scores.
+- :mod:`~fusion.metrics.tracks` -- passive bearing tracks against a scenario's truth (RMSE,
+  identities, end delays; :func:`~fusion.metrics.tracks.score_tracks`).
+- :mod:`~fusion.metrics.tqi` -- track quality indicator outputs (declaration lag, state changes).
+- :mod:`~fusion.metrics.localization` -- estimates with covariances (NEES and its interval).
+- :mod:`~fusion.metrics.detections` -- click detections against true click times.
+
+Importing this package imports none of them; import the module you need.
 """
