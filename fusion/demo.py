@@ -22,13 +22,13 @@ logger = logging.getLogger(__name__)
 
 #: (part name, "module:function") in the order the demo runs them.
 PARTS: list[tuple[str, str]] = [
-    ("acquisition", "fusion.simulate.cube:run_demo"),
+    ("acquisition", "fusion.demos.acquisition:run_demo"),
     ("clicks-scenario", "fusion.demos.clicks:run_demo"),
-    ("tma", "fusion.simulate.tma:run_demo"),
-    ("tqi", "fusion.commands.tqi:run_demo"),
+    ("tma", "fusion.demos.tma:run_demo"),
+    ("tqi", "fusion.demos.tqi:run_demo"),
     ("crossings", "fusion.commands.crossings:run_demo"),
     ("active", "fusion.simulate.multistatic:run_demo"),
-    ("smoothing", "fusion.commands.smooth:run_demo"),
+    ("smoothing", "fusion.demos.smoothing:run_demo"),
     ("passive", "fusion.demos.passive:run_demo"),
 ]
 

@@ -44,11 +44,11 @@ def run_demo(out_dir: Path, *, seed: int) -> dict:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from fusion.metrics.tracks import ScoredTrack, score_tracks
     from fusion.passive.acquisition import Acquisition
     from fusion.passive.crossing import CrossingDetector
     from fusion.passive.quality import TrackQualityIndicator
     from fusion.pipelines.passive import PassivePipeline
-    from fusion.pipelines.passive_scoring import ScoredTrack, score_tracks
     from fusion.pipelines.passive_types import Click
     from fusion.simulate.passive import simulate_passive
 
