@@ -83,9 +83,9 @@ def stream_start(window_start: int, *, block: int, guard: int) -> tuple[int, int
     if block < 1 or guard < 0:
         raise ValueError(f"block must be >= 1 and guard >= 0, got {block} and {guard}")
     k = (window_start + guard) // block - 1  # one block to spare before the window
-    if k < 1:
-        return 0, 0
     final_from = k * block - guard
+    if k < 1 or final_from <= 0:  # the stream from 0 makes nothing final before k block - guard > 0
+        return 0, 0
     start = max((final_from - 2 * guard) // block, 0) * block
     return start, final_from
 

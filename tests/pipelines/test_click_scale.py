@@ -1,0 +1,246 @@
+"""Click localization at scale: chunks equal one pass, serial equals Dask, kill + rerun resumes."""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import soundfile as sf
+from hypothesis import given
+from hypothesis import strategies as st
+from threadpoolctl import threadpool_limits
+
+from fusion.io import read_array, write_json
+from fusion.pipelines.click_chunks import AudioSource, open_audio, plan_chunks
+from fusion.pipelines.click_stream import stream_start
+from fusion.pipelines.localization import ClickLocalization, result_document
+from fusion.scale import PartStore, dask_client, file_identity, fingerprint, run_tasks
+from fusion.simulate.clicks import simulate_clicks, write_click_scenario
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+@pytest.fixture(scope="module")
+def recording(tmp_path_factory) -> Path:
+    """One whale on four hydrophones, 20 s at 96 kHz, written as FLAC with its array."""
+    out = tmp_path_factory.mktemp("rec")
+    sc = simulate_clicks(seed=3, n_sensors=4, n_sources=1, duration_s=20.0, snr_db=30.0,
+                         n_transients=2)
+    write_click_scenario(out, sc)
+    return out
+
+
+def _args(rec: Path, out: Path, *extra: str, chunk: float = 4.0) -> list[str]:
+    """5 windows of 12 s every 2 s; by default chunks of 2 windows (3 tasks, the last short)."""
+    return ["localize", "--audio", str(rec / "audio.flac"), "--array", str(rec / "array.json"),
+            "--out", str(out), "--chunk", str(chunk), "--quiet", *extra]
+
+
+@pytest.fixture(scope="module")
+def serial_bytes(recording, tmp_path_factory) -> bytes:
+    """``fusion localize`` run serially (the default), the bytes of its result."""
+    from fusion.cli import main
+
+    out = tmp_path_factory.mktemp("serial") / "r.json"
+    assert main(_args(recording, out)) == 0
+    assert not Path(f"{out}.parts").exists()
+    return out.read_bytes()
+
+
+def test_stream_start_known_answers():
+    """Starts sit on the block grid, two guards before a point where clicks become final."""
+    assert stream_start(0, block=100, guard=10) == (0, 0)
+    assert stream_start(150, block=100, guard=10) == (0, 0)  # only the recording's start fits
+    assert stream_start(1000, block=100, guard=10) == (800, 890)
+    assert stream_start(1000, block=100, guard=60) == (700, 840)
+    assert stream_start(100, block=10, guard=95) == (0, 85)  # margin cut by the recording start
+    assert stream_start(5, block=10, guard=200) == (0, 0)  # no finality point before it
+    with pytest.raises(ValueError, match="block must be"):
+        stream_start(10, block=0, guard=1)
+
+
+@given(st.integers(0, 10**7), st.integers(1, 10**5), st.integers(0, 10**5))
+def test_stream_start_invariants(window_start, block, guard):
+    """start on the grid; final_from a finality point at or before the window, 2 guards in."""
+    start, final_from = stream_start(window_start, block=block, guard=guard)
+    assert start % block == 0 and 0 <= final_from <= window_start and start <= final_from
+    if (start, final_from) != (0, 0):
+        assert (final_from + guard) % block == 0
+        assert final_from - 2 * guard >= start or start == 0
+
+
+def test_measure_refuses_a_start_without_guards(recording):
+    """A stream that starts less than two guards before final_from is refused."""
+    pipe = ClickLocalization(localizer=None)
+    src = open_audio([recording / "audio.flac"], 4)
+    with pytest.raises(ValueError, match="two detector guards"):
+        next(pipe.front_end.measure(src.blocks(block=192000, start=192000), fs=src.fs,
+                                    sensors=read_array(recording / "array.json"),
+                                    start_sample=192000, final_from=200000, first_window=2))
+
+
+def test_chunks_cover_each_window_once(recording):
+    """The plan reports every window once, in order; each chunk measures its two neighbours."""
+    pipe = ClickLocalization(localizer=None)
+    src = open_audio([recording / "audio.flac"], 4)
+    tasks = plan_chunks(src, pipe, chunk_s=4.0)
+    assert [(t.first_window, t.stop_window) for t in tasks] == [(0, 2), (2, 4), (4, 5)]
+    assert [(t.measure_first, t.measure_stop) for t in tasks] == [(0, 3), (1, 5), (3, 5)]
+    assert all(t.start_sample % t.block == 0 for t in tasks)
+    assert len({t.name for t in tasks}) == len(tasks)
+
+
+def test_serial_run_equals_one_pass(recording, serial_bytes, tmp_path):
+    """Chunked output is byte for byte write_json of one streaming pass over the recording."""
+    sensors = read_array(recording / "array.json")
+    info = sf.info(str(recording / "audio.flac"))
+    fs, block = float(info.samplerate), int(round(2.0 * info.samplerate))
+
+    def blocks():
+        start = 0
+        for x in sf.blocks(str(recording / "audio.flac"), blocksize=block, dtype="float32",
+                           always_2d=True):
+            yield start / fs, x
+            start += x.shape[0]
+
+    with threadpool_limits(1):  # as the chunk tasks (one BLAS thread, as on a Dask worker)
+        windows = list(ClickLocalization().iter_windows(blocks(), fs=fs, sensors=sensors,
+                                                        duration_s=info.frames / fs))
+    ref = write_json(tmp_path / "one_pass.json", result_document(windows))
+    assert ref.read_bytes() == serial_bytes
+    doc = json.loads(serial_bytes)
+    assert [w["t_start"] for w in doc["windows"]] == [0.0, 2.0, 4.0, 6.0, 8.0]
+    assert sum(d["valid"] for w in doc["windows"] for d in w["tdoas"]) > 0
+
+
+@pytest.fixture(scope="module")
+def cluster():
+    """A local Dask cluster of two worker processes (the one ``--workers 2`` starts)."""
+    with dask_client(workers=2) as client:
+        yield client
+
+
+def test_dask_run_is_identical_to_serial(recording, serial_bytes, cluster, tmp_path):
+    """On a 2-worker cluster (--scheduler ADDRESS), the result is byte-identical to serial."""
+    from fusion.cli import main
+
+    assert len(cluster.scheduler_info()["workers"]) == 2
+    out = tmp_path / "r.json"
+    assert main(_args(recording, out, "--scheduler", cluster.scheduler.address)) == 0
+    assert out.read_bytes() == serial_bytes
+    assert not Path(f"{out}.parts").exists()
+
+
+def test_kill_then_rerun_resumes_byte_identical(recording, serial_bytes, tmp_path, caplog):
+    """A run killed after some chunks resumes from its parts; the result is byte-identical."""
+    from fusion.cli import main
+
+    out = tmp_path / "r.json"
+    argv = _args(recording, out, chunk=2.0)  # 5 chunks of one window each
+    parts = Path(f"{out}.parts")
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    proc = subprocess.Popen([sys.executable, "-m", "fusion", *argv], env=env,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.monotonic() + 120.0
+    try:
+        while not list(parts.glob("*/chunk-*.json")):
+            assert proc.poll() is None and time.monotonic() < deadline, "no part before the end"
+            time.sleep(0.02)
+        proc.send_signal(signal.SIGKILL)
+    finally:
+        proc.wait()
+    done = sorted(p.name for p in parts.glob("*/chunk-*.json"))
+    assert 1 <= len(done) < 5 and not out.exists()
+    caplog.set_level(logging.INFO, logger="fusion.scale")
+    assert main(argv) == 0
+    assert f"{len(done)} of 5 parts already done" in caplog.text
+    assert out.read_bytes() == serial_bytes
+    assert not parts.exists()
+
+
+def test_parts_of_another_command_are_not_reused(recording, serial_bytes, tmp_path):
+    """A part stored under another key (a changed command) is removed, never read."""
+    from fusion.cli import main
+
+    out = tmp_path / "r.json"
+    stale = Path(f"{out}.parts") / "0123456789abcdef"
+    stale.mkdir(parents=True)
+    (stale / "chunk-000000.json").write_text("[]", encoding="utf-8")
+    assert main(_args(recording, out)) == 0
+    assert out.read_bytes() == serial_bytes
+    assert not stale.exists()
+
+
+def test_a_stored_part_is_used_as_written(tmp_path):
+    """run_tasks computes only the tasks without a part and keeps the stored ones verbatim."""
+    store = PartStore(tmp_path / "parts", key="k1")
+    store.write("b", "stored")
+    calls = []
+
+    def square(shared, t):
+        calls.append(t)
+        return str(shared * t * t)
+
+    finished = []
+    run_tasks(square, 1, [2, 3, 4], names=lambda t: "abc"[t - 2],
+              store=store, on_done=finished.append)
+    assert calls == [2, 4] and sorted(finished) == [2, 3, 4]
+    assert [store.read(n) for n in "abc"] == ["4", "stored", "16"]
+    assert store.names() == {"a", "b", "c"}
+
+
+def test_part_store_refuses_bad_names_and_removes_stale_keys(tmp_path):
+    """Part names are plain file names; opening under a new key removes the other keys."""
+    a = PartStore(tmp_path / "p", key="old")
+    a.write("x", "1")
+    with pytest.raises(ValueError, match="plain file name"):
+        a.write("../x", "1")
+    with pytest.raises(ValueError, match="key must be"):
+        PartStore(tmp_path / "p", key="../up")
+    b = PartStore(tmp_path / "p", key="new")
+    assert b.names() == set() and not (tmp_path / "p" / "old").exists()
+    b.write("y", "2")
+    b.remove()
+    assert not (tmp_path / "p").exists()
+
+
+def test_fingerprint_follows_file_versions(tmp_path):
+    """A rewritten audio file (other mtime or size) or another option changes the key."""
+    f = tmp_path / "a.bin"
+    f.write_bytes(b"123")
+    k1 = fingerprint({"audio": [file_identity(f)], "hop": 2.0})
+    assert k1 == fingerprint({"hop": 2.0, "audio": [file_identity(f)]})  # key order free
+    assert k1 != fingerprint({"audio": [file_identity(f)], "hop": 1.0})
+    st_ = f.stat()
+    os.utime(f, ns=(st_.st_atime_ns, st_.st_mtime_ns + 10**9))
+    assert k1 != fingerprint({"audio": [file_identity(f)], "hop": 2.0})
+    assert file_identity(f, content=True)["sha256"].startswith("a665a459")
+
+
+def test_dask_client_options():
+    """Serial by default; a local cluster and a scheduler address together are refused."""
+    with dask_client() as client:
+        assert client is None
+    with pytest.raises(ValueError, match="not both"), dask_client(workers=2, scheduler="tcp://x:1"):
+        pass
+    with pytest.raises(ValueError, match="positive integer"), dask_client(workers=0):
+        pass
+
+
+def test_audio_blocks_on_a_grid_from_any_start(recording):
+    """Blocks from a start sample are the same samples as a read from the beginning."""
+    src = open_audio([recording / "audio.flac"], 4)
+    assert isinstance(src, AudioSource) and src.frames == 20 * 96000
+    whole, _ = sf.read(str(recording / "audio.flac"), dtype="float32", always_2d=True)
+    start = 7 * 1000
+    got = list(src.blocks(block=96000, start=start))
+    assert [t for t, _ in got][:2] == [start / src.fs, (start + 96000) / src.fs]
+    np.testing.assert_array_equal(np.concatenate([x for _, x in got]), whole[start:])
