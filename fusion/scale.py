@@ -153,7 +153,7 @@ def dask_client(*, workers: int | None = None, scheduler: str | None = None) -> 
         raise ValueError(f"Dask is not available ({e}); install dask[distributed]") from None
     quiet_dask = logging.getLogger("distributed")
     level = quiet_dask.level
-    quiet_dask.setLevel(logging.WARNING)  # its start-up and shut-down chatter
+    quiet_dask.setLevel(logging.ERROR)  # its start-up and shut-down chatter
     try:
         with _client(Client, LocalCluster, workers, scheduler) as client:
             yield client
@@ -178,7 +178,7 @@ def _client(Client: Any, LocalCluster: Any, workers: int | None,
     # workers are processes (one BLAS thread each, set by Dask's nanny); no fixed ports
     cluster = LocalCluster(n_workers=int(workers), threads_per_worker=1, processes=True,
                            host="127.0.0.1", dashboard_address="127.0.0.1:0",
-                           silence_logs=logging.WARNING)
+                           silence_logs=logging.ERROR)
     try:
         with Client(cluster) as client:
             yield client
