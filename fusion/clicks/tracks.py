@@ -293,9 +293,11 @@ class SourceTracker:
         h = np.hstack([np.eye(3), np.zeros((3, 3))])  # position measurement z = H x
         for k in range(t.size):
             point.insert(keys[k], x0[k])
-            # measurement: e = H (x0 + dx) - z, noise = the fix covariance
-            linear.push_back(gtsam.JacobianFactor(keys[k], h, z[k] - h @ x0[k],
-                                                  gtsam.noiseModel.Gaussian.Covariance(cov[k])))
+            # measurement: e = H (x0 + dx) - z with the fix covariance C, whitened by hand
+            # (a JacobianFactor takes only a diagonal model): W = L^-1 with C = L L^T
+            w = np.linalg.inv(np.linalg.cholesky(cov[k]))
+            linear.push_back(gtsam.JacobianFactor(keys[k], w @ h, w @ (z[k] - h @ x0[k]),
+                                                  gtsam.noiseModel.Unit.Create(3)))
         dt = np.diff(t)
         r = wna_sqrt_information(dt, self.q, 3)  # (n-1, 6, 6), R^T R = Q^-1
         unit = gtsam.noiseModel.Unit.Create(6)

@@ -13,17 +13,19 @@ leaves unbounded is written as :data:`UNBOUNDED_M2`.
 
 from __future__ import annotations
 
+import dataclasses
 import logging
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from fusion.clicks.localize import LocalizationOutput, MultiSourceLocalizer
+from fusion.clicks.tracks import SourceTracker, Track, WindowSources
 from fusion.geometry import SensorArray
 from fusion.pipelines.clicks import ClickFrontEnd, ClickWindow
 
-__all__ = ["ClickLocalization", "LocalizedWindow", "result_document"]
+__all__ = ["ClickLocalization", "LocalizedWindow", "result_document", "track_windows"]
 
 logger = logging.getLogger(__name__)
 
@@ -141,8 +143,37 @@ def _f(v: float) -> float | None:
     return float(v) if np.isfinite(v) else None
 
 
-def result_document(windows: Iterable[LocalizedWindow], *, tracks=()) -> dict:
-    """The ``fusion localize`` JSON document of localized windows (formats section 2)."""
+def track_windows(
+    windows: Sequence[LocalizedWindow], tracker: SourceTracker | None = None
+) -> tuple[Track, ...]:
+    """Link the windows' sources into tracks and smooth each (:class:`SourceTracker`).
+
+    Sources of consecutive windows are linked first through the TDOAs they own that the front
+    end's time association linked (eq. 12), then by position; the window centre is each point's
+    time. Fixes flagged unobservable are not tracked.
+    """
+    tracker = tracker if tracker is not None else SourceTracker()
+    items = []
+    prev_pos: dict[int, int] = {}
+    for lw in windows:
+        w = lw.window
+        pos_of = {int(k): m for m, k in enumerate(lw.valid_index)}  # all-TDOA index -> valid
+        prev_of = dict((cur, prev) for prev, cur in w.links_previous)
+        links = np.array([prev_pos.get(prev_of.get(int(k), -1), -1) for k in lw.valid_index],
+                         dtype=np.intp)
+        # a fix flagged unobservable is reported but not tracked (the tracker skips fixes
+        # without a finite covariance; indices stay those of the window's sources)
+        sources = () if lw.output is None else tuple(
+            f if f.observable else dataclasses.replace(f, covariance=np.full((3, 3), np.nan))
+            for f in lw.output.sources)
+        items.append(WindowSources(0.5 * (w.t_start + w.t_end), sources,
+                                   links if sources else None))
+        prev_pos = pos_of
+    return tracker.track(items)
+
+
+def result_document(windows: Iterable[LocalizedWindow], *, tracks: Iterable[Track] = ()) -> dict:
+    """The ``fusion localize`` JSON document of localized windows and tracks (formats, 2)."""
     doc_windows = []
     for lw in windows:
         w = lw.window
@@ -168,7 +199,4 @@ def result_document(windows: Iterable[LocalizedWindow], *, tracks=()) -> dict:
         doc_windows.append({"t_start": float(w.t_start), "t_end": float(w.t_end),
                             "clicks": [int(c.n_clicks) for c in w.clicks],
                             "tdoas": tdoas, "sources": sources})
-    return {"windows": doc_windows,
-            "tracks": [{"id": int(tid), "points": [{"t": t, "x": x, "y": y, "z": z}
-                                                   for t, x, y, z in pts]}
-                       for tid, pts in tracks]}
+    return {"windows": doc_windows, "tracks": [t.to_dict() for t in tracks]}
