@@ -52,6 +52,11 @@ def register(sub: argparse._SubParsersAction) -> None:
         "localize",
         help="localize clicking sources (whales) from multichannel audio",
         description="Detect clicks, measure, validate and associate TDOAs, localize sources.",
+        epilog="Long recordings are read in blocks and processed in chunks of --chunk seconds: "
+               "serially in this process by default, on Dask with --workers or --scheduler (the "
+               "output is the same byte for byte). Finished chunks are kept in OUT.parts/ "
+               "beside the output; after an interruption, run the same command again to resume. "
+               "The folder is removed when the output is written.",
     )
     p.add_argument("--audio", type=Path, nargs="+", required=True,
                    help="one multichannel WAV/FLAC, or one mono file per sensor in array order")
@@ -181,7 +186,7 @@ def run(args: argparse.Namespace) -> int:
         bar = progress(n_windows, quiet=args.quiet, desc="localize", unit="window")
         stack.callback(bar.close)
         client = stack.enter_context(dask_client(workers=args.workers, scheduler=args.scheduler))
-        run_tasks(localize_chunk, (pipe, source, array), tasks, names=lambda t: t.name,
+        run_tasks(localize_chunk, (pipe, array), tasks, names=lambda t: t.name,
                   store=store, client=client,
                   on_done=lambda t: bar.update(t.stop_window - t.first_window))
         summary = write_document(args.out, (store.read(t.name) for t in tasks))

@@ -135,10 +135,14 @@ def open_audio(paths: Sequence[str | Path], n_channels: int) -> AudioSource:
 
 @dataclass(frozen=True)
 class ChunkTask:
-    """One chunk: the windows it reports, the windows and audio it reads.
+    """One chunk: the recording, the windows it reports, the windows and audio it reads.
+
+    A description only (paths and sample ranges): the task reads its audio itself.
 
     Attributes
     ----------
+    source : AudioSource
+        The recording.
     index : int
         Chunk number (0 first).
     first_window, stop_window : int
@@ -154,6 +158,7 @@ class ChunkTask:
         Read block, samples (the hop).
     """
 
+    source: AudioSource
     index: int
     first_window: int
     stop_window: int
@@ -201,17 +206,17 @@ def plan_chunks(
         a, b = max(k0 - 1, 0), min(k1 + 1, n)
         start, final_from = stream_start(int(round(a * front.hop_s * fs)), block=block,
                                          guard=guard)
-        tasks.append(ChunkTask(c, k0, k1, a, b, start, final_from, block))
+        tasks.append(ChunkTask(source, c, k0, k1, a, b, start, final_from, block))
     return tuple(tasks)
 
 
 def chunk_windows(
-    pipe: ClickLocalization, source: AudioSource, sensors: SensorArray, task: ChunkTask
+    pipe: ClickLocalization, sensors: SensorArray, task: ChunkTask
 ) -> list[LocalizedWindow]:
     """The localized windows of one chunk (read, detect, measure, associate, localize)."""
     from threadpoolctl import threadpool_limits
 
-    front = pipe.front_end
+    front, source = pipe.front_end, task.source
     with threadpool_limits(1):
         measured = front.measure(source.blocks(block=task.block, start=task.start_sample),
                                  fs=source.fs, sensors=sensors, duration_s=source.duration_s,
@@ -226,15 +231,13 @@ def chunk_windows(
         return [pipe.localize(w, sensors) for w in own]
 
 
-def localize_chunk(
-    shared: tuple[ClickLocalization, AudioSource, SensorArray], task: ChunkTask
-) -> str:
+def localize_chunk(shared: tuple[ClickLocalization, SensorArray], task: ChunkTask) -> str:
     """One chunk's part: its windows in the ``fusion localize`` JSON, as one JSON list (text).
 
     Parameters
     ----------
-    shared : (ClickLocalization, AudioSource, SensorArray)
-        The pipeline, the recording and the array (the same for every chunk).
+    shared : (ClickLocalization, SensorArray)
+        The pipeline and the array (the same for every chunk, of every recording).
     task : ChunkTask
         The chunk.
 
@@ -243,8 +246,8 @@ def localize_chunk(
     str
         ``json.dumps`` of the chunk's ``windows`` entries (:func:`result_document`).
     """
-    pipe, source, sensors = shared
-    doc = result_document(chunk_windows(pipe, source, sensors, task))
+    pipe, sensors = shared
+    doc = result_document(chunk_windows(pipe, sensors, task))
     return json.dumps(doc["windows"], allow_nan=False)
 
 
