@@ -58,7 +58,10 @@ def test_smoother_equals_rts_on_linear_gaussian_data():
     rng = np.random.default_rng(7)
     n, q = 12, 0.02
     t = np.cumsum(rng.uniform(1.5, 2.5, n))
-    covs = [np.diag(rng.uniform(4.0, 30.0, 3)) for _ in range(n)]
+    covs = []
+    for _ in range(n):  # full (correlated) fix covariances, as localization gives
+        a = rng.normal(0.0, 3.0, (3, 3))
+        covs.append(a @ a.T + np.diag(rng.uniform(2.0, 10.0, 3)))
     z = np.array([[1.0 * k, 0.5 * k, -800.0] for k in t]) + rng.normal(0, 4.0, (n, 3))
     windows = [WindowSources(t[k], (fix(z[k], covs[k]),)) for k in range(n)]
     (tr,) = SourceTracker(q=q, max_speed=50.0).track(windows)
