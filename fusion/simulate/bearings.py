@@ -32,19 +32,16 @@ Files (``write_scenario``): ``bearings.csv`` (``track_id,time,bearing_deg``, bea
 from __future__ import annotations
 
 import logging
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from collections.abc import Sequence
 from pathlib import Path
-from typing import NamedTuple
 
 import numpy as np
-from numpy.typing import NDArray
-from scipy.optimize import brentq
 
 from fusion._validation import check_positive
-from fusion.geometry import wrap_angle
 from fusion.io import write_json, write_table
 from fusion.simulate._bearing_motion import Builder, Motion, unit
+from fusion.simulate._bearing_truth import BearingScenario, TrueCrossing, find_true_crossings
+from fusion.simulate._bearing_varied import VARIED_RANGES, varied_settings
 
 __all__ = [
     "VARIED_RANGES",
@@ -58,182 +55,11 @@ __all__ = [
 
 logger = logging.getLogger(__name__)
 
-#: Ranges of the physical assumptions of a varied scenario (:func:`varied_settings`). Scales
-#: marked log-uniform in the comments are drawn uniformly in their logarithm; counts are integers
-#: drawn uniformly, bounds included.
-VARIED_RANGES: dict[str, tuple[float, float]] = {
-    "sample_period_s": (1.0, 20.0),  # log-uniform, s
-    "duration_s": (1800.0, 3600.0),  # s
-    "n_crossing_pairs": (2, 4),
-    "n_near_miss_pairs": (1, 2),
-    "n_parallel_pairs": (0, 1),
-    "n_free_tracks": (0, 3),
-    "noise_deg": (0.2, 2.0),  # per track, log-uniform, deg
-    "crossing_rate_deg_per_min": (0.3, 20.0),  # per planned crossing, log-uniform
-    "miss_deg": (2.0, 8.0),  # closest approach of near misses, deg
-    "gaps_per_hour": (0.0, 3.0),  # per track
-    "gap_s": (10.0, 120.0),  # length of one gap, s
-    "p_detect": (0.8, 1.0),
-    "clutter_rate": (0.0, 0.5),  # detections of unknown origin per sample time
-    "ownship_speed_mps": (0.0, 6.0),
-    "target_speed_mps": (1.0, 10.0),
-    "range_m": (1000.0, 15000.0),
-}
-
-class TrueCrossing(NamedTuple):
-    """A true bearing crossing of two tracks.
-
-    Attributes
-    ----------
-    track_a, track_b : int
-        Track ids, ``track_a < track_b``.
-    t_cross : float
-        Time at which the two true bearings are equal, s.
-    """
-
-    track_a: int
-    track_b: int
-    t_cross: float
-
-
-@dataclass(frozen=True)
-class BearingScenario:
-    """Bearing measurements of several tracks and their ground truth.
-
-    Attributes
-    ----------
-    track_id : ndarray of int64, shape (m,)
-        Track of each measurement; -1 marks a detection of unknown origin (clutter).
-    time : ndarray, shape (m,)
-        Measurement times, s (rows sorted by time, then track id).
-    bearing_deg : ndarray, shape (m,)
-        Measured bearings, deg clockwise from north, in [0, 360).
-    true_bearing_deg : ndarray, shape (m,)
-        True bearing of each row's target, deg in [0, 360); NaN for clutter rows.
-    track_ids : ndarray of int64, shape (n_tracks,)
-        Ids of the tracks (0 .. n_tracks - 1).
-    truth_time : ndarray, shape (n_t,)
-        Sample times, s (``k * sample_period_s``).
-    truth_bearing_deg : ndarray, shape (n_tracks, n_t)
-        True bearing of each track at each sample time, deg in [0, 360).
-    truth_bearing_rate_deg_per_s : ndarray, shape (n_tracks, n_t)
-        True bearing rate, deg/s.
-    ownship_xy : ndarray, shape (n_t, 2)
-        Platform positions, m (x east, y north).
-    target_xy : ndarray, shape (n_tracks, n_t, 2)
-        Target positions, m.
-    crossings : tuple of TrueCrossing
-        Every true crossing of any two tracks within ``[0, duration_s]``, sorted by time.
-    non_crossing_pairs : tuple of (int, int)
-        Pairs ``(a, b)``, ``a < b``, whose bearings never cross within ``[0, duration_s]``.
-    near_miss_pairs : tuple of (int, int)
-        Planned pairs that come close (``min_miss_deg`` .. ``max_miss_deg``) but never cross.
-    parallel_pairs : tuple of (int, int)
-        Planned pairs with exactly equal bearing rates at all times.
-    planned_crossing_pairs : tuple of (int, int)
-        Pairs built to cross (their crossings are in `crossings`).
-    planned_crossings : tuple of TrueCrossing
-        The crossing each planned pair was built for (a pair may cross again elsewhere).
-    sample_period_s : float
-        Sample period K, s.
-    noise_deg : float
-        Standard deviation of the bearing noise, deg (the median over tracks when it differs
-        between tracks).
-    duration_s : float
-        Scenario length, s.
-    seed : int
-        Seed that produced the scenario.
-    track_noise_deg : ndarray, shape (n_tracks,)
-        Standard deviation of each track's bearing noise, deg.
-    crossing_rate_diff_deg_per_min : tuple of float
-        Bearing rate of ``track_b`` minus that of ``track_a`` at each of `crossings`, deg/min.
-    gaps : tuple of (int, float, float)
-        Spans ``(track, start_s, end_s)`` in which a track was not measured.
-    """
-
-    track_id: NDArray[np.int64]
-    time: NDArray[np.float64]
-    bearing_deg: NDArray[np.float64]
-    true_bearing_deg: NDArray[np.float64]
-    track_ids: NDArray[np.int64]
-    truth_time: NDArray[np.float64]
-    truth_bearing_deg: NDArray[np.float64]
-    truth_bearing_rate_deg_per_s: NDArray[np.float64]
-    ownship_xy: NDArray[np.float64]
-    target_xy: NDArray[np.float64]
-    crossings: tuple[TrueCrossing, ...]
-    non_crossing_pairs: tuple[tuple[int, int], ...]
-    near_miss_pairs: tuple[tuple[int, int], ...]
-    parallel_pairs: tuple[tuple[int, int], ...]
-    planned_crossing_pairs: tuple[tuple[int, int], ...]
-    planned_crossings: tuple[TrueCrossing, ...]
-    sample_period_s: float
-    noise_deg: float
-    duration_s: float
-    seed: int
-    track_noise_deg: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
-    crossing_rate_diff_deg_per_min: tuple[float, ...] = ()
-    gaps: tuple[tuple[int, float, float], ...] = ()
-
-    @property
-    def n_tracks(self) -> int:
-        """Number of tracks."""
-        return int(self.track_ids.size)
-
 
 def _check_interval(name: str, lo_hi: tuple[float, float], *, positive: bool = True) -> None:
     lo, hi = lo_hi
     if not (np.isfinite(lo) and np.isfinite(hi)) or lo > hi or (positive and lo <= 0):
         raise ValueError(f"{name} must be an interval (lo, hi) with 0 < lo <= hi, got {lo_hi!r}")
-
-
-def find_true_crossings(
-    motions_bearing: Sequence[Callable[[NDArray[np.float64]], NDArray[np.float64]]],
-    *,
-    duration_s: float,
-    step_s: float,
-) -> list[TrueCrossing]:
-    """Every time two bearing functions become equal (mod 360 deg) within ``[0, duration_s]``.
-
-    Parameters
-    ----------
-    motions_bearing : list of callable
-        ``f_k(t) -> bearing`` (rad) for each track ``k``, vectorised over a 1-D time array.
-    duration_s : float
-        End of the search interval, s.
-    step_s : float
-        Grid step of the search, s; each sign change of the wrapped bearing difference on the
-        grid is refined with Brent's method. Sign changes where the difference jumps across
-        +-180 deg (tracks on opposite bearings) are not crossings and are skipped.
-
-    Returns
-    -------
-    list of TrueCrossing
-        Sorted by time.
-    """
-    grid = np.linspace(0.0, duration_s, int(np.ceil(duration_s / step_s)) + 1)
-    theta = np.array([f(grid) for f in motions_bearing])  # (n, n_grid) rad
-    out: list[TrueCrossing] = []
-    n = len(motions_bearing)
-    for a in range(n):
-        for b in range(a + 1, n):
-            d = np.asarray(wrap_angle(theta[b] - theta[a]))
-            pos = d >= 0.0
-            k = np.flatnonzero((pos[:-1] != pos[1:]) & (np.abs(d[:-1]) < np.pi / 2)
-                               & (np.abs(d[1:]) < np.pi / 2))
-            fa, fb = motions_bearing[a], motions_bearing[b]
-
-            def diff(t: float, fa=fa, fb=fb) -> float:
-                return float(wrap_angle(fb(np.array([t]))[0] - fa(np.array([t]))[0]))
-
-            for j in k:
-                if d[j] == 0.0:
-                    tc = float(grid[j])
-                else:
-                    tc = float(brentq(diff, grid[j], grid[j + 1], xtol=1e-9))
-                out.append(TrueCrossing(a, b, tc))
-    out.sort(key=lambda c: (c.t_cross, c.track_a, c.track_b))
-    return out
 
 
 def _draw_gaps(
@@ -513,58 +339,6 @@ def simulate_bearings(
             for c in crossings),
         gaps=tuple(gaps),
     )
-
-
-def varied_settings(seed: int) -> dict:
-    """Keyword arguments of :func:`simulate_bearings` drawn from :data:`VARIED_RANGES`.
-
-    Parameters
-    ----------
-    seed : int
-        Scenario seed; the settings come from their own generator seeded by ``(seed, 2)``, so the
-        scenario drawn with them from ``seed`` does not share random numbers with them.
-
-    Returns
-    -------
-    dict
-        ``seed`` plus every option drawn: sample period, duration, track and pair counts
-        (one wrap crossing in two scenarios), per-track noise, the interval of crossing rate
-        differences, near-miss distance, gaps, detection probability, clutter, speeds and ranges.
-    """
-    rng = np.random.default_rng([int(seed), 2])
-    r = VARIED_RANGES
-
-    def log_uniform(lo_hi: tuple[float, float], size: int | None = None):
-        return np.exp(rng.uniform(np.log(lo_hi[0]), np.log(lo_hi[1]), size))
-
-    def count(name: str) -> int:
-        lo, hi = r[name]
-        return int(rng.integers(int(lo), int(hi) + 1))
-
-    n_cross, n_near, n_par = count("n_crossing_pairs"), count("n_near_miss_pairs"), \
-        count("n_parallel_pairs")
-    n_tracks = 2 * (n_cross + n_near + n_par) + count("n_free_tracks")
-    return {
-        "seed": int(seed),
-        "n_tracks": n_tracks,
-        "n_crossing_pairs": n_cross,
-        "n_wrap_crossings": int(rng.random() < 0.5),
-        "n_near_miss_pairs": n_near,
-        "n_parallel_pairs": n_par,
-        "sample_period_s": float(log_uniform(r["sample_period_s"])),
-        "duration_s": float(rng.uniform(*r["duration_s"])),
-        "noise_deg": log_uniform(r["noise_deg"], n_tracks).tolist(),
-        "crossing_rate_deg_per_min": r["crossing_rate_deg_per_min"],
-        "miss_deg": r["miss_deg"],
-        "gaps_per_hour": float(rng.uniform(*r["gaps_per_hour"])),
-        "gap_s": r["gap_s"],
-        "p_detect": float(rng.uniform(*r["p_detect"])),
-        "clutter_rate": float(rng.uniform(*r["clutter_rate"])),
-        "ownship_speed_mps": float(rng.uniform(*r["ownship_speed_mps"])),
-        "target_speed_mps": r["target_speed_mps"],
-        "range_m": r["range_m"],
-        "min_range_m": 500.0,
-    }
 
 
 def write_scenario(out_dir: Path, *, seed: int, vary: bool = False) -> list[Path]:
