@@ -42,7 +42,6 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fusion.geometry import beam_from_bearing, beam_tolerance, beamwidth_cos, beamwidth_deg
-from fusion.io import Cube
 from fusion.passive.acquisition import Acquisition, AcquisitionResult
 from fusion.passive.crossing import AlertKind, CrossingAlert, CrossingDetector
 from fusion.passive.quality import LABELS, TQIMemory, TrackQuality, TrackQualityIndicator
@@ -65,6 +64,7 @@ from fusion.pipelines.passive_types import (
     TrackUpdate,
     scans_of,
 )
+from fusion.types import Cube
 
 __all__ = ["PassivePipeline", "SmootherSettings"]
 

@@ -12,10 +12,10 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from fusion.io import Cube
 from fusion.passive.crossing import CrossingAlert
 from fusion.passive.quality import LABELS
 from fusion.pipelines.passive_crossing import CrossingResolution
+from fusion.types import Cube
 
 __all__ = [
     "Click",

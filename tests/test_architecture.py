@@ -1,0 +1,193 @@
+"""Tests of the package layout: declared dependencies, layers, module sizes."""
+
+from __future__ import annotations
+
+import ast
+import importlib.metadata as metadata
+import re
+import sys
+import tomllib
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+FIRST_PARTY = {"fusion", "factors", "tests", "benchmarks", "examples", "conftest"}
+
+
+def _guarded(node: ast.AST, parents: dict[ast.AST, ast.AST]) -> bool:
+    """Whether `node` sits in a ``try`` body whose handlers catch ImportError (an optional import)."""
+    while node in parents:
+        child, node = node, parents[node]
+        if isinstance(node, ast.Try) and child in node.body:
+            for h in node.handlers:
+                caught = h.type.elts if isinstance(h.type, ast.Tuple) else [h.type]
+                if any(isinstance(c, ast.Name) and c.id in ("ImportError", "ModuleNotFoundError")
+                       for c in caught):
+                    return True
+    return False
+
+
+def _imports(files: list[Path], *, optional: bool = False) -> dict[str, set[Path]]:
+    """Top-level module names imported in `files` (also inside functions) -> files.
+
+    Imports guarded by ``except ImportError`` are optional: returned only with `optional`.
+    """
+    found: dict[str, set[Path]] = {}
+    for path in files:
+        tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
+        parents = {c: n for n in ast.walk(tree) for c in ast.iter_child_nodes(n)}
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Import):
+                names = [a.name for a in node.names]
+            elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+                names = [node.module]
+            else:
+                continue
+            if _guarded(node, parents) != optional:
+                continue
+            for name in names:
+                found.setdefault(name.split(".")[0], set()).add(path)
+    return found
+
+
+def _third_party(files: list[Path], *, optional: bool = False) -> dict[str, set[Path]]:
+    """Distributions (normalised names) of the non-stdlib, non-project imports of `files`
+    (the optional ones, guarded by ``except ImportError``, with `optional`)."""
+    local = {p.stem for p in files}  # benchmarks import their sibling scripts by name
+    to_dist = metadata.packages_distributions()
+    out: dict[str, set[Path]] = {}
+    for module, where in _imports(files, optional=optional).items():
+        if module in sys.stdlib_module_names or module in FIRST_PARTY or module in local:
+            continue
+        for dist in to_dist.get(module, [module]):
+            out.setdefault(_norm(dist), set()).update(where)
+    return out
+
+
+def _norm(name: str) -> str:
+    return re.sub(r"[-_.]+", "-", name).lower()
+
+
+_REQUIREMENT = re.compile(r"\s*([A-Za-z0-9][A-Za-z0-9._-]*)\s*(?:\[([^\]]*)\])?")
+
+
+def _provides(requirement: str) -> set[str]:
+    """Distributions a requirement installs: its own, plus those its extras pull in (one level).
+
+    ``dask[distributed]`` provides ``dask`` and ``distributed``.
+    """
+    name, extras = _REQUIREMENT.match(requirement).groups()
+    out = {_norm(name)}
+    for extra in (extras or "").split(","):
+        if not extra.strip():
+            continue
+        for req in metadata.requires(name) or []:
+            marker = re.search(r"extra\s*==\s*[\"']([^\"']+)[\"']", req)
+            if marker and _norm(marker.group(1)) == _norm(extra):
+                out.add(_norm(_REQUIREMENT.match(req).group(1)))
+    return out
+
+
+def _declared() -> tuple[dict[str, set[str]], dict[str, set[str]]]:
+    """Runtime dependencies and each optional extra of pyproject.toml: requirement name ->
+    distributions it provides (normalised names)."""
+    project = tomllib.loads((ROOT / "pyproject.toml").read_text(encoding="utf-8"))["project"]
+
+    def names(reqs: list[str]) -> dict[str, set[str]]:
+        return {_norm(_REQUIREMENT.match(r).group(1)): _provides(r) for r in reqs}
+
+    extras = {k: set().union(*names(v).values()) for k, v in
+              project.get("optional-dependencies", {}).items()}
+    return names(project["dependencies"]), extras
+
+
+def _py(*folders: str) -> list[Path]:
+    return sorted(p for f in folders for p in (ROOT / f).rglob("*.py"))
+
+
+def test_runtime_dependencies_are_the_imported_ones():
+    """pyproject's dependencies are exactly the third-party packages fusion/ and factors/ import."""
+    runtime, _ = _declared()
+    provided = set().union(*runtime.values())
+    used = _third_party(_py("fusion", "factors"))
+    assert set(used) - provided == set(), {d: sorted(map(str, used[d])) for d in set(used) - provided}
+    unused = [name for name, dists in runtime.items() if not dists & set(used)]
+    assert unused == []
+
+
+def test_optional_imports_are_declared_extras():
+    """Imports guarded by ``except ImportError`` in fusion/ and factors/ are declared (an extra)."""
+    runtime, extras = _declared()
+    declared = set().union(*runtime.values(), *extras.values())
+    used = _third_party(_py("fusion", "factors"), optional=True)
+    assert set(used) - declared == set(), {d: sorted(map(str, used[d])) for d in set(used) - declared}
+
+
+def test_test_extra_covers_tests_and_examples():
+    """Every third-party import of tests and examples is declared (runtime or the test extra)."""
+    runtime, extras = _declared()
+    files = _py("tests", "examples")
+    used = _third_party(files) | _third_party(files, optional=True)
+    undeclared = set(used) - set().union(*runtime.values()) - extras["test"]
+    assert undeclared == set(), {d: sorted(map(str, used[d])) for d in undeclared}
+    assert extras["test"] - {"ruff"} <= set(used)  # ruff is a tool, run rather than imported
+
+
+def test_bench_extra_covers_the_benchmarks():
+    """Every third-party import of benchmarks/ is declared (runtime, test or bench extra)."""
+    runtime, extras = _declared()
+    files = _py("benchmarks")
+    used = _third_party(files) | _third_party(files, optional=True)
+    undeclared = set(used) - set().union(*runtime.values()) - extras["test"] - extras["bench"]
+    assert undeclared == set(), {d: sorted(map(str, used[d])) for d in undeclared}
+    assert extras["bench"] <= set(used)
+
+
+@pytest.mark.parametrize(
+    "folder", ["fusion/passive", "fusion/active", "fusion/clicks", "fusion/pipelines", "factors"]
+)
+def test_algorithms_do_not_import_the_io_layer(folder):
+    """Algorithm packages take their own types (fusion.types), never fusion.io's."""
+    files = _py(folder)
+    offenders = []
+    for path in files:
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        for node in ast.walk(tree):
+            if isinstance(node, ast.ImportFrom) and node.module and (
+                node.module == "fusion.io" or node.module.startswith("fusion.io.")
+            ):
+                offenders.append(str(path.relative_to(ROOT)))
+            elif isinstance(node, ast.ImportFrom) and node.module == "fusion" and any(
+                a.name == "io" for a in node.names
+            ):
+                offenders.append(str(path.relative_to(ROOT)))
+    assert offenders == []
+
+
+def test_factors_do_not_import_fusion():
+    """factors/ is the bottom layer: it imports nothing from fusion/."""
+    assert "fusion" not in _imports(_py("factors"))
+
+
+def test_old_import_paths_still_work():
+    """Names of the modules split into packages are importable from their old places."""
+    from fusion.io import Cube, Table, read_bearings, write_table  # noqa: F401
+    from fusion.passive.smoothing import (  # noqa: F401
+        BearingSmoother,
+        MultiTrackSmoother,
+        crossing_outcomes,
+        crossing_time,
+    )
+    from fusion.passive.tma import BearingsOnlyTMA, OwnshipTrack  # noqa: F401
+    from fusion.types import Cube as Cube2
+
+    assert Cube is Cube2
+
+
+def test_docstring_examples_run_with_the_suite():
+    """pytest collects the docstring examples of fusion/ and factors/ (doctests run in CI)."""
+    options = tomllib.loads((ROOT / "pyproject.toml").read_text(encoding="utf-8"))["tool"]["pytest"][
+        "ini_options"]
+    assert "--doctest-modules" in options["addopts"].split()
+    assert {"tests", "fusion", "factors"} <= set(options["testpaths"])
