@@ -28,6 +28,11 @@ byte-identical to an uninterrupted run. Parts under another key (a changed comma
 and never reused. The folder is removed once the output is written. With ``--out -`` the parts
 go to a temporary folder (no resume).
 
+A folder of recordings: ``--audio DIR --out OUTDIR`` localizes every multichannel ``.wav`` /
+``.flac`` file of DIR (not its sub-folders; all on the one array) into ``OUTDIR/<name>.json``;
+the chunks of all the files form one run (on Dask, the files are processed side by side), with
+its parts in ``OUTDIR/localize.parts/`` (keyed by every file of the folder).
+
 With ``--events E.csv`` (``t_start,t_end[,f_low,f_high]``, events found by any other detector)
 each event is localized instead from band-passed waveform cross-correlation TDOAs of every pair,
 screened by triangle closure, solved on the factor graph with its covariance and 95 % interval,
@@ -58,10 +63,12 @@ def register(sub: argparse._SubParsersAction) -> None:
                "beside the output; after an interruption, run the same command again to resume. "
                "The folder is removed when the output is written.",
     )
-    p.add_argument("--audio", type=Path, nargs="+", required=True,
-                   help="one multichannel WAV/FLAC, or one mono file per sensor in array order")
+    p.add_argument("--audio", type=Path, nargs="+", required=True, action=_AudioPaths,
+                   help="one multichannel WAV/FLAC, or one mono file per sensor in array order, "
+                        "or one folder of multichannel recordings (then --out is a folder)")
     p.add_argument("--array", type=Path, required=True, help="array JSON (sensors, sound speed)")
-    p.add_argument("--out", type=Path, required=True, help="result JSON")
+    p.add_argument("--out", type=Path, required=True,
+                   help="result JSON (a folder of them for a folder of recordings)")
     p.add_argument("--window", type=number(float, gt=0), default=12.0,
                    help="processing window, s (default 12)")
     p.add_argument("--hop", type=number(float, gt=0), default=2.0,
@@ -106,7 +113,36 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(handler=run, inputs=("audio", "array", "events"))
 
 
-def _run_key(args: argparse.Namespace) -> str:
+class _AudioPaths(argparse.Action):
+    """``--audio``: the paths; one folder makes ``--out`` a folder too."""
+
+    def __call__(self, parser: argparse.ArgumentParser, namespace: argparse.Namespace,
+                 values: list[Path], option_string: str | None = None) -> None:
+        setattr(namespace, self.dest, values)
+        namespace.out_is_dir = len(values) == 1 and Path(values[0]).is_dir()
+
+
+_SUFFIXES = (".wav", ".flac")
+
+
+def _recordings(args: argparse.Namespace, n_sensors: int) -> list:
+    """(AudioSource, output path) of each recording to localize."""
+    from fusion.pipelines.click_chunks import open_audio
+
+    if not getattr(args, "out_is_dir", False):
+        return [(open_audio(list(args.audio), n_sensors), args.out)]
+    folder = Path(args.audio[0])
+    files = sorted(p for p in folder.iterdir() if p.is_file() and p.suffix.lower() in _SUFFIXES)
+    if not files:
+        raise ValueError(f"--audio {folder}: no .wav or .flac recordings in the folder")
+    stems = [p.stem for p in files]
+    twice = sorted({s for s in stems if stems.count(s) > 1})
+    if twice:
+        raise ValueError(f"--audio {folder}: recordings {twice} would share an output name")
+    return [(open_audio([p], n_sensors), Path(args.out) / f"{p.stem}.json") for p in files]
+
+
+def _run_key(args: argparse.Namespace, audio: list) -> str:
     """Fingerprint of the inputs and of every option that changes the result (resume key)."""
     from fusion import __version__
     from fusion.clicks.replica import GENERIC_PATH
@@ -115,7 +151,7 @@ def _run_key(args: argparse.Namespace) -> str:
     shipped_validator = Path(__file__).resolve().parents[1] / "clicks" / "data" / "validator_v1.npz"
     return fingerprint({
         "version": __version__,
-        "audio": [file_identity(p) for p in args.audio],
+        "audio": [file_identity(p) for p in audio],
         "array": file_identity(args.array, content=True),
         "validator": file_identity(args.validator or shipped_validator, content=True),
         "replica": file_identity(args.replica or GENERIC_PATH, content=True),
@@ -130,6 +166,9 @@ def run(args: argparse.Namespace) -> int:
     if args.events is not None:
         from fusion.commands.localize_events import run_events
 
+        if getattr(args, "out_is_dir", False):
+            raise ValueError("--events localizes one recording: give its file(s), not a folder")
+
         return run_events(args)
     from fusion._output import STDOUT
     from fusion.clicks.detect import ClickDetector
@@ -139,8 +178,8 @@ def run(args: argparse.Namespace) -> int:
     from fusion.clicks.validate import TdoaValidator
     from fusion.io import read_array
     from fusion.pipelines.click_chunks import (
+        ChunkTask,
         localize_chunk,
-        open_audio,
         plan_chunks,
         write_document,
     )
@@ -154,11 +193,11 @@ def run(args: argparse.Namespace) -> int:
     if not lo < hi:
         raise ValueError(f"--band: low edge {lo} must be below the high edge {hi}")
     array = read_array(args.array)
-    source = open_audio(list(args.audio), array.n_sensors)
-    fs = source.fs
-    if hi >= fs / 2:
-        raise ValueError(f"{args.audio[0]}: sample rate {fs:g} Hz is too low for the click band "
-                         f"up to {hi:g} Hz (needs > {2 * hi:g} Hz; see --band)")
+    recordings = _recordings(args, array.n_sensors)
+    for source, _ in recordings:
+        if hi >= source.fs / 2:
+            raise ValueError(f"{source.paths[0]}: sample rate {source.fs:g} Hz is too low for the "
+                             f"click band up to {hi:g} Hz (needs > {2 * hi:g} Hz; see --band)")
     det_opts = {"band_hz": (lo, hi), "min_centre_freq_hz": args.min_centre_freq}
     if args.detect_threshold is not None:
         det_opts["threshold"] = args.detect_threshold
@@ -174,23 +213,38 @@ def run(args: argparse.Namespace) -> int:
         validator=validator, refiner=not args.no_refine, hop_s=args.hop)
     localizer = None if args.method == "none" else MultiSourceLocalizer(method=args.method)
     pipe = ClickLocalization(front_end=front, localizer=localizer)
-    tasks = plan_chunks(source, pipe, chunk_s=args.chunk)
-    n_windows = tasks[-1].stop_window
+    plans = [plan_chunks(source, pipe, chunk_s=args.chunk) for source, _ in recordings]
+    tasks = [t for plan in plans for t in plan]
+    if len(recordings) == 1:
+        def name(t: ChunkTask) -> str:
+            return t.name
+    else:
+        number_of = {source: i for i, (source, _) in enumerate(recordings)}
+
+        def name(t: ChunkTask) -> str:
+            return f"{number_of[t.source]:05d}-{t.name}"
     with contextlib.ExitStack() as stack:
         if str(args.out) == STDOUT:  # no resume: parts in a private temporary folder
             tmp = stack.enter_context(tempfile.TemporaryDirectory(prefix="fusion-localize-"))
             root = Path(tmp) / "parts"
+        elif len(recordings) > 1 or getattr(args, "out_is_dir", False):
+            root = Path(args.out) / "localize.parts"
         else:
             root = Path(f"{args.out}.parts")
-        store = PartStore(root, key=_run_key(args)[:32])
-        bar = progress(n_windows, quiet=args.quiet, desc="localize", unit="window")
+        audio = [p for source, _ in recordings for p in source.paths]
+        store = PartStore(root, key=_run_key(args, audio)[:32])
+        bar = progress(sum(plan[-1].stop_window for plan in plans), quiet=args.quiet,
+                       desc="localize", unit="window")
         stack.callback(bar.close)
-        client = stack.enter_context(dask_client(workers=args.workers, scheduler=args.scheduler))
-        run_tasks(localize_chunk, (pipe, array), tasks, names=lambda t: t.name,
-                  store=store, client=client,
+        missing = {name(t) for t in tasks} - store.names()
+        client = (stack.enter_context(dask_client(workers=args.workers, scheduler=args.scheduler))
+                  if missing else None)  # nothing left to compute: no cluster
+        run_tasks(localize_chunk, (pipe, array), tasks, names=name, store=store, client=client,
                   on_done=lambda t: bar.update(t.stop_window - t.first_window))
-        summary = write_document(args.out, (store.read(t.name) for t in tasks))
+        bar.close()
+        for (_, out), plan in zip(recordings, plans, strict=True):
+            summary = write_document(out, (store.read(name(t)) for t in plan))
+            emit(f"{summary.n_windows} windows, {summary.n_valid_tdoas} valid TDOAs, "
+                 f"{summary.n_sources} sources -> {out}", err=True)
         store.remove()
-    emit(f"{summary.n_windows} windows, {summary.n_valid_tdoas} valid TDOAs, "
-         f"{summary.n_sources} sources -> {args.out}", err=True)
     return 0

@@ -139,6 +139,24 @@ def test_dask_run_is_identical_to_serial(recording, serial_bytes, cluster, tmp_p
     assert not Path(f"{out}.parts").exists()
 
 
+def test_folder_of_recordings_on_dask(recording, serial_bytes, cluster, tmp_path):
+    """A folder of recordings on the cluster: each output equals that file's serial run."""
+    from fusion.cli import main
+
+    folder = tmp_path / "archive"
+    folder.mkdir()
+    for name in ("a.flac", "b.FLAC"):
+        (folder / name).symlink_to(recording / "audio.flac")
+    (folder / "notes.txt").write_text("not audio", encoding="utf-8")
+    out = tmp_path / "results"
+    argv = ["localize", "--audio", str(folder), "--array", str(recording / "array.json"),
+            "--out", str(out), "--chunk", "60", "--quiet", "--scheduler",
+            cluster.scheduler.address]
+    assert main(argv) == 0
+    assert sorted(p.name for p in out.iterdir()) == ["a.json", "b.json"]
+    assert (out / "a.json").read_bytes() == serial_bytes == (out / "b.json").read_bytes()
+
+
 def test_kill_then_rerun_resumes_byte_identical(recording, serial_bytes, tmp_path, caplog):
     """A killed run resumes from its own parts only; the result is byte-identical."""
     from fusion.cli import main
