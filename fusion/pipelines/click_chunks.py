@@ -19,6 +19,20 @@ serial and parallel runs share their arithmetic.
 
 Per chunk the two neighbour windows are measured twice (once by each chunk that needs them):
 2 of 32 windows at the default 60 s, about 6 % more work for chunks that are independent.
+
+Examples
+--------
+The chunks of a recording, run here one after the other (``fusion localize`` hands the same
+calls to :func:`fusion.scale.run_tasks`, on Dask with ``--workers``)::
+
+    from fusion.io import read_array
+    from fusion.pipelines.localization import ClickLocalization
+
+    array = read_array("array.json")
+    source = open_audio(["audio.flac"], array.n_sensors)
+    pipe = ClickLocalization()
+    parts = [localize_chunk((pipe, array), task) for task in plan_chunks(source, pipe)]
+    write_document("result.json", parts)
 """
 
 from __future__ import annotations
