@@ -147,10 +147,8 @@ def dask_client(*, workers: int | None = None, scheduler: str | None = None) -> 
         return
     if workers is not None and (isinstance(workers, bool) or int(workers) != workers or workers < 1):
         raise ValueError(f"workers must be a positive integer, got {workers!r}")
-    try:
-        from distributed import Client, LocalCluster
-    except ImportError as e:  # pragma: no cover - a dependency of the package
-        raise ValueError(f"Dask is not available ({e}); install dask[distributed]") from None
+    from distributed import Client, LocalCluster
+
     quiet_dask = logging.getLogger("distributed")
     level = quiet_dask.level
     quiet_dask.setLevel(logging.ERROR)  # its start-up and shut-down chatter
