@@ -8,7 +8,7 @@ step   stage                                         part (in :mod:`fusion.click
 =====  ============================================  ==========================================
 34-42  replica correlation, click detection          :class:`detect.ClickDetector`
 44-48  smoothed click maps, correlation, peaks       :class:`scm.ClickMapCorrelator`
-50     SCM2, ACF features, GMM likelihood ratio      :func:`scm.scm2`, :class:`validate.TdoaValidator`
+50     SCM2, ACF features, GMM likelihood ratio      :func:`scm.scm2_many`, :class:`validate.TdoaValidator`
 --     sub-sample TDOA, sigma and CRB (added)        :class:`tdoa.TdoaRefiner`
 52     association across time (eq. 12)              :class:`associate.TimeAssociator`
 54     association across pairs (eq. 13), closure    :func:`associate.cross_pair_alpha`,
@@ -62,7 +62,7 @@ from fusion.clicks.associate import (
 )
 from fusion.clicks.delaytrack import match_along_track
 from fusion.clicks.detect import ClickDetector
-from fusion.clicks.scm import ClickMapCorrelator, ScmConfig, scm2
+from fusion.clicks.scm import ClickMapCorrelator, ScmConfig, scm2_many
 from fusion.clicks.tdoa import TdoaRefiner
 from fusion.clicks.types import ChannelClicks, frozen_array
 from fusion.clicks.validate import TdoaValidator, scm2_features
@@ -307,11 +307,8 @@ class ClickFrontEnd:
             return []
         refiner = (self._make_refiner(fs) if (self._make_refiner is not None and audio is not None
                                               and fs is not None) else None)
-        maps = []
-        for peak in corr.peaks:
-            i, j = peak.pair
-            maps.append(scm2(inside[i].times_s, inside[j].times_s, peak.tau_s, t0_s=t0_s,
-                             config=self.config, level=self.scm_level, pair=peak.pair))
+        maps = scm2_many(inside, [p.pair for p in corr.peaks], [p.tau_s for p in corr.peaks],
+                         t0_s=t0_s, config=self.config, level=self.scm_level)
         z = scm2_features(np.stack([m.series for m in maps]), self.config.fs_hz, T=self.window_s,
                           decimate=self.feature_decimation)
         if self.validator is None:  # features only (training)

@@ -14,6 +14,7 @@ from fusion.clicks.scm import (
     scm1,
     scm1_spectrum,
     scm2,
+    scm2_many,
     window_weight,
 )
 from fusion.clicks.types import ChannelClicks
@@ -178,6 +179,41 @@ def test_scm2_is_the_product_of_shifted_scm1s():
     assert_allclose(res.times_s[:2], [0.0, 1.0 / FS])
 
 
+@pytest.mark.parametrize("tau", [0.9731, -1.2345, 2.5])
+def test_scm2_across_the_window_edges_equals_literal_maps(tau):
+    """Clicks the delay moves out of the window (and in from outside it) are dropped (added):
+    the SCM2 equals the literal eq. 3 product of the clicks inside the window after the delay."""
+    rng = np.random.default_rng(5)
+    t0 = 50.0
+    ti = np.sort(t0 + rng.uniform(0.0, T, 30))
+    tj = np.sort(t0 + rng.uniform(-3.0, T + 3.0, 45))  # some outside the window, both sides
+    res = scm2(ti, tj, tau, t0_s=t0)
+    shifted = tj + tau
+    inside = shifted[(shifted >= t0) & (shifted < t0 + T)]
+    a = np.fft.ifft(literal_spectrum(ti[(ti >= t0) & (ti < t0 + T)], t0, windowed=False)).real
+    b = np.fft.ifft(literal_spectrum(inside, t0, windowed=False)).real
+    assert_allclose(res.series, a * b / CFG.pulse_peak**2, atol=1e-9)
+
+
+def test_scm2_many_equals_one_scm2_per_candidate():
+    """The batch gives, candidate by candidate, the SCM2 of scm2() (series, peaks, matches)."""
+    rng = np.random.default_rng(8)
+    base = np.sort(rng.uniform(0.0, 12.0, 30))
+    times = [base + rng.normal(0, 2e-5, 30) - d for d in (0.0, 0.31, -0.52)]
+    times = [np.sort(np.r_[t, rng.uniform(0.0, 12.0, 10)]) for t in times]
+    pairs = [(0, 1), (0, 2), (1, 2), (2, 0), (0, 1)]
+    taus = [0.31, -0.52, -0.83, 0.52, 1.7]
+    many = scm2_many(times, pairs, taus, t0_s=0.0)
+    assert len(many) == 5
+    for res, (i, j), tau in zip(many, pairs, taus, strict=True):
+        one = scm2(times[i], times[j], tau, t0_s=0.0, pair=(i, j))
+        assert res.pair == (i, j) and res.tau_s == tau
+        assert_allclose(res.series, one.series, rtol=0, atol=1e-12)
+        assert_allclose(res.click_times_s, one.click_times_s, rtol=0, atol=1e-12)
+        assert np.array_equal(res.index_i, one.index_i) and np.array_equal(res.index_j, one.index_j)
+    assert many[0].index_i.size >= 25 and many[4].index_i.size <= 3  # true delay vs. none
+
+
 def test_bad_inputs_raise():
     """Invalid options and inputs raise ValueError naming the problem."""
     with pytest.raises(ValueError, match="shading_width"):
@@ -190,6 +226,10 @@ def test_bad_inputs_raise():
         scm1_spectrum([[np.nan]], t0_s=0.0)
     with pytest.raises(ValueError, match="level"):
         scm2([1.0], [1.0], 0.0, t0_s=0.0, level=0.0)
+    with pytest.raises(ValueError, match="pairs for"):
+        scm2_many([[1.0], [1.0]], [(0, 1)], [0.1, 0.2], t0_s=0.0)
+    with pytest.raises(ValueError, match="index"):
+        scm2_many([[1.0], [1.0]], [(0, 2)], [0.1], t0_s=0.0)
     sensors = SensorArray(np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0.0]]))
     with pytest.raises(ValueError, match="click channels"):
         ClickMapCorrelator().correlate([[1.0]], t0_s=0.0, sensors=sensors)
