@@ -137,8 +137,10 @@ def scm2_features(
     *Localization of Short Duration Periodic Signals*, eq. (7)-(10): with ``r(tau)`` the
     smoothed ACF normalised to ``r(0) = 1``, ``mu_p = int_0^{T/4} r(tau) tau^p dtau`` (trapezoid
     rule on the lag grid), and *specmax* = ``argmax_f int_0^{T/4} cos(2 pi f tau) r(tau) dtau``
-    over `freqs_hz`. The ACF is computed for all rows at once by one zero-padded real FFT of
-    length >= 2N - 1, so it is the linear (non-circular) autocorrelation.
+    over `freqs_hz`. The ACF is computed for all rows at once by one zero-padded real FFT,
+    long enough that the lags up to ``T/4`` and the smoothing's reach do not wrap around: the
+    linear (non-circular) autocorrelation. On a uniform frequency grid ``f = m f_s / L`` (the
+    default's), the cosine transform is the real part of a length-``L`` real FFT.
     """
     fs = check_positive("fs_syn", fs_syn)
     smooth = check_positive("smooth_s", smooth_s, allow_zero=True)
@@ -154,7 +156,8 @@ def scm2_features(
         raise ValueError(f"decimate must be a positive integer, got {decimate!r}")
     if d > 1:  # block sums: a box filter and a downsampling in one
         m = x2.shape[1] // d
-        x2 = x2[:, : m * d].reshape(x2.shape[0], m, d).sum(axis=2)
+        blocks = np.ascontiguousarray(x2[:, : m * d]).reshape(-1, d)
+        x2 = (blocks @ np.ones(d)).reshape(x2.shape[0], m)  # a product: faster than .sum(axis)
         fs = fs / d
     n = x2.shape[1]
     window = n / fs if T is None else check_positive("T", T)
@@ -165,13 +168,17 @@ def scm2_features(
     if freqs.size == 0 or not np.all(np.isfinite(freqs) & (freqs > 0)):
         raise ValueError("freqs_hz must be a non-empty array of positive frequencies")
 
-    nfft = scipy.fft.next_fast_len(2 * n - 1, real=True)
+    # zero padding: lags up to n_lag plus the smoothing's reach (10 standard deviations) must
+    # not wrap around, which is all the linear autocorrelation needs here
+    reach = int(np.ceil(10.0 * smooth * fs))
+    nfft = scipy.fft.next_fast_len(min(n + n_lag + reach + 1, 2 * n - 1), real=True)
     taper = np.exp(-2.0 * (np.pi * smooth * scipy.fft.rfftfreq(nfft, 1.0 / fs)) ** 2)
     tau = np.arange(n_lag + 1) / fs
     w = np.full(n_lag + 1, 1.0 / fs)  # trapezoid weights on the lag grid
     w[[0, -1]] /= 2.0
     moment_w = w[:, None] * np.stack([tau, tau**2, tau**3], axis=1)  # eq. (7), p = 1, 2, 3
-    cosine_w = _cosine_weights(fs, n_lag, freqs.tobytes())  # eq. (9)
+    grid = _uniform_grid(freqs, fs, n_lag)
+    cosine_w = None if grid is not None else _cosine_weights(fs, n_lag, freqs.tobytes())  # eq. (9)
 
     empty = ~np.any(x2 != 0.0, axis=1)
     mu = np.empty((x2.shape[0], 3))
@@ -180,7 +187,12 @@ def scm2_features(
         for i in range(0, x2.shape[0], _BLOCK):  # blocks keep the FFT work in cache
             r, r0 = _smoothed_acf(x2[i : i + _BLOCK], nfft, taper, n_lag)
             mu[i : i + _BLOCK] = r @ moment_w
-            specmax[i : i + _BLOCK] = freqs[np.argmax(r @ cosine_w, axis=1)]
+            if grid is None:
+                spec = r @ cosine_w
+            else:  # eq. (9) on a uniform grid f = m df: a real FFT of length fs / df
+                length, m_idx = grid
+                spec = scipy.fft.rfft(r * w, length, axis=1).real[:, m_idx]
+            specmax[i : i + _BLOCK] = freqs[np.argmax(spec, axis=1)]
             empty[i : i + _BLOCK] |= ~(r0 > 0.0)
 
     mu1 = mu[:, 0]
@@ -193,6 +205,26 @@ def scm2_features(
     if np.any(empty):
         logger.debug("%d SCM2 series without energy get NaN features", int(empty.sum()))
     return z[0] if single else z
+
+
+def _uniform_grid(freqs: NDArray, fs: float, n_lag: int) -> tuple[int, NDArray[np.int64]] | None:
+    """``(L, m)`` when ``freqs = m fs / L`` for integers ``m <= L / 2`` and a length ``L`` of at
+    least ``n_lag + 1`` (so that ``sum_tau x(tau) cos(2 pi f tau)`` is the real part of bins
+    `m` of a length-``L`` real FFT); None otherwise."""
+    if freqs.size < 2:
+        return None
+    df = freqs[1] - freqs[0]
+    if not df > 0:
+        return None
+    length = fs / df
+    m = freqs / df
+    if (abs(length - round(length)) > 1e-6 or np.any(np.abs(m - np.round(m)) > 1e-6)
+            or round(length) < n_lag + 1 or round(length) > 1 << 20):
+        return None
+    m_idx = np.round(m).astype(np.int64)
+    if np.any(m_idx < 0) or np.any(m_idx > round(length) // 2):
+        return None
+    return int(round(length)), m_idx
 
 
 @functools.lru_cache(maxsize=2)
@@ -210,7 +242,7 @@ def _cosine_weights(fs: float, n_lag: int, freqs_bytes: bytes) -> NDArray[np.flo
 def _smoothed_acf(x: NDArray[np.float64], nfft: int, taper: NDArray[np.float64],
                   n_lag: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """ACF of each row for lags ``0..n_lag``, smoothed, normalised to ``r(0) = 1``; and ``r(0)``."""
-    power = np.abs(scipy.fft.rfft(x, nfft, axis=1)) ** 2  # nfft >= 2N - 1: linear, not circular
+    power = np.abs(scipy.fft.rfft(x, nfft, axis=1)) ** 2  # padded: linear at the lags used
     acf = scipy.fft.irfft(power * taper, nfft, axis=1)[:, : n_lag + 1]
     r0 = acf[:, 0].copy()
     return acf / np.where(r0 > 0.0, r0, 1.0)[:, None], r0

@@ -102,6 +102,26 @@ class TestScm2Features:
         assert_allclose(got[1], mu1, rtol=1e-9)
         assert_allclose(got[2], np.sqrt(trapezoid(r * tau**2, tau)) / mu1, rtol=1e-9)
 
+    def test_smoothed_specmax_and_moments_equal_explicit_integrals(self):
+        """Block sums, smoothed linear ACF, its moments and the cosine integrals of eq. (9) on
+        the default grid, computed literally, give the features of the pipeline's settings."""
+        x = synthetic_scm2("valid", 3, seed=5)
+        got = scm2_features(x, FS, T=12.0, decimate=10)
+        fs, n_lag, sigma = FS / 10, 900, 0.02
+        freqs = default_freqs_hz()
+        tau = np.arange(n_lag + 1) / fs
+        k = np.arange(-120, 121) / fs
+        for row, z in zip(x, got, strict=True):
+            y = row.reshape(-1, 10).sum(axis=1)
+            acf = np.correlate(y, y, mode="full")
+            smooth = np.convolve(acf, np.exp(-0.5 * (k / sigma) ** 2), mode="same")
+            r = smooth[y.size - 1 :][: n_lag + 1]
+            r = r / r[0]
+            spec = [trapezoid(np.cos(2 * np.pi * f * tau) * r, tau) for f in freqs]
+            mu = [trapezoid(r * tau**p, tau) for p in (1, 2, 3)]
+            ref = [freqs[int(np.argmax(spec))], mu[0], np.sqrt(mu[1]) / mu[0], np.cbrt(mu[2]) / mu[0]]
+            assert_allclose(z, ref, rtol=1e-9)
+
     def test_vectorised_rows_equal_single_calls(self):
         """(m, N) input gives row by row the features of the 1-D calls."""
         x = synthetic_scm2("valid", 5, seed=2)
