@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 import scipy.fft
@@ -145,6 +146,18 @@ class RefinedTdoa:
         return x @ self.coef, sigma
 
 
+@lru_cache(maxsize=64)
+def _t_quantile_95(dof: int) -> float:
+    """95 % quantile of Student's t with `dof` degrees of freedom (cached)."""
+    return float(stats.t.ppf(0.95, dof))
+
+
+@lru_cache(maxsize=16)
+def _gamma_median(shape: float) -> float:
+    """Median of the unit-scale gamma law of `shape` (cached)."""
+    return float(stats.gamma.median(shape))
+
+
 def _cycle_contrast(d_minus: NDArray, d_plus: NDArray) -> tuple[float, bool]:
     """Paired one-sided t-test that the chosen carrier cycle beats both neighbours.
 
@@ -161,7 +174,7 @@ def _cycle_contrast(d_minus: NDArray, d_plus: NDArray) -> tuple[float, bool]:
         ts.append(np.inf if sd == 0 and dd.mean() > 0 else float(dd.mean() / sd * np.sqrt(n))
                   if sd > 0 else 0.0)
     t = min(ts)
-    return float(t), bool(t > stats.t.ppf(0.95, n - 1))
+    return float(t), bool(t > _t_quantile_95(n - 1))
 
 
 def rms_frequency_hz(power: ArrayLike, freqs_hz: ArrayLike) -> float:
@@ -364,6 +377,9 @@ class TdoaRefiner:
         if self._band.size < 2:
             raise ValueError(f"band_hz {band_hz!r} holds fewer than 2 frequency bins")
         self._f = f[self._band]
+        self._w = 2.0 * np.pi * self._f
+        n_up = self.upsample * self._nfft
+        self._roots = np.exp(2j * np.pi * np.arange(n_up) / n_up)  # exp(j w_k tau) on the grid
 
     # ------------------------------------------------------------------------------------------
     def refine(
@@ -450,7 +466,7 @@ class TdoaRefiner:
             ks = np.arange(-3, 4)  # the track and its neighbours one carrier cycle apart
             rows = np.tile(np.flatnonzero(near), ks.size)
             centre = (pred[near] - base[near])[None, :] + ks[:, None] / beta
-            lag, val = self._peak(g[rows], r_up[rows], centre.ravel(), 0.5 / beta)
+            lag, val = self._peak(g, r_up, centre.ravel(), 0.5 / beta, rows)
             lags, v = lag.reshape(ks.size, -1), val.reshape(ks.size, -1)  # (7, n_near)
             kb = 1 + int(np.argmax(v[1:-1].sum(axis=1)))  # best of k = -2 .. 2
             # relative contrast per click: the clicks' energies differ, their peak shape not
@@ -486,7 +502,7 @@ class TdoaRefiner:
         power = np.mean(np.abs(self._spectra(x, free)) ** 2, axis=1)  # E = n2 * sigma^2 per bin
         # median of a mean of n_eff independent exponential bins: gamma(n_eff) / n_eff
         n_eff = max((self.band_hz[1] - self.band_hz[0]) * n2 / fs, 1.0)
-        med = stats.gamma.median(n_eff) / n_eff
+        med = _gamma_median(n_eff) / n_eff
         return float(np.median(power) / med / n2)
 
     def _enr(self, spec: NDArray, var: float) -> NDArray[np.float64]:
@@ -518,26 +534,44 @@ class TdoaRefiner:
         full[:, self._band] = g
         return g, scipy.fft.irfft(full, self.upsample * self._nfft, axis=-1)
 
-    def _peak(self, g: NDArray, r_up: NDArray, centre_s: NDArray,
-              halfwidth_s: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    def _peak(self, g: NDArray, r_up: NDArray, centre_s: NDArray, halfwidth_s: float,
+              rows: NDArray | None = None) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Maximum of each correlation within ``centre +- halfwidth``: lag (s, Newton-refined)
-        and value ``Re sum_k g_k exp(j w_k tau)``."""
+        and value ``Re sum_k g_k exp(j w_k tau)``; of the rows `rows` of `g` and `r_up` (default
+        all, one centre each)."""
         fs, up = self.fs_hz, self.upsample
         n_up = r_up.shape[1]
+        rr = np.arange(g.shape[0]) if rows is None else rows
         q = int(np.floor(halfwidth_s * fs * up))
         c = np.round(centre_s * fs * up).astype(np.int64)
         lags = c[:, None] + np.arange(-q, q + 1)  # (n, 2q + 1) in upsampled samples
-        vals = np.take_along_axis(r_up, np.mod(lags, n_up), axis=1)
-        tau = lags[np.arange(lags.shape[0]), np.argmax(vals, axis=1)] / (up * fs)
-        w = 2.0 * np.pi * self._f
+        vals = r_up[rr[:, None], np.mod(lags, n_up)]
+        best = lags[np.arange(lags.shape[0]), np.argmax(vals, axis=1)]
+        tau = best / (up * fs)
+        gg = g[rr]
+        # exp(j w_k tau) on the upsampled grid: roots of unity of order n_up (w_k tau = 2 pi k b / n_up)
+        rot = self._roots[np.mod(np.multiply.outer(best, self._band), n_up)]
+        w, w2 = self._w, self._w * self._w
         step_max = 1.0 / (up * fs)
+        active = slice(None)  # rows still moving: all, then an index array
         for _ in range(4):  # Newton on r(tau) = Re sum_k g_k exp(j w_k tau)
-            z = g * np.exp(1j * w[None, :] * tau[:, None])
-            d1 = -np.sum(w * z.imag, axis=1)
-            d2 = -np.sum(w * w * z.real, axis=1)
-            step = np.where(d2 < 0, -d1 / np.where(d2 < 0, d2, -1.0), 0.0)
-            tau = tau + np.clip(step, -step_max, step_max)
-        val = np.sum(g * np.exp(1j * w[None, :] * tau[:, None]), axis=1).real
+            z = gg[active] * rot[active]
+            d1 = -(z.imag @ w)
+            d2 = -(z.real @ w2)
+            step = np.clip(np.where(d2 < 0, -d1 / np.where(d2 < 0, d2, -1.0), 0.0),
+                           -step_max, step_max)
+            tau[active] += step
+            # exp(j w_k step) = exp(j w_0 step) exp(j dw step)^k on the uniform frequency grid
+            powers = np.empty((step.size, w.size), dtype=complex)
+            powers[:, 0] = np.exp(1j * w[0] * step)
+            powers[:, 1:] = np.exp(1j * (w[1] - w[0]) * step)[:, None]
+            rot[active] *= np.cumprod(powers, axis=1)
+            moving = np.abs(step) > 1e-7 * step_max  # the others have converged
+            if not moving.any():
+                break
+            if not moving.all():
+                active = np.arange(tau.size)[active][moving]
+        val = np.sum(gg.real * rot.real - gg.imag * rot.imag, axis=1)
         return tau, val
 
     def _combine(self, pair: tuple[int, int], t: NDArray, d: NDArray, sig: NDArray,
