@@ -52,7 +52,15 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def write_long_recording(path: Path, array_path: Path, *, minutes: float, base_s: float,
                          seed: int, block_s: float = 10.0) -> float:
-    """Write `minutes` of 5-channel audio (one scenario repeated) block by block; its seconds."""
+    """Write `minutes` of 5-channel audio (one scenario repeated) block by block; its seconds.
+
+    A file already there with that length (and its array) is kept: its name carries the seed
+    and scenario length, which make the same audio.
+    """
+    total_s = minutes * 60.0
+    if path.exists() and array_path.exists() and sf.info(str(path)).frames == int(round(
+            total_s * 96000.0)):
+        return sf.info(str(path)).frames / 96000.0
     sc = simulate_clicks(seed=seed, n_sensors=5, n_sources=2, duration_s=base_s)
     write_array(array_path, sc.sensors)
     scale = np.float32(FILE_PEAK / float(np.max(np.abs(sc.audio))))
@@ -124,7 +132,8 @@ def main() -> None:
     ap.add_argument("--localize-args", default="",
                     help="extra options of fusion localize, one string (e.g. '--no-refine')")
     ap.add_argument("--folder", type=Path, default=None,
-                    help="work folder (default: a temporary one, removed at the end)")
+                    help="work folder, kept (default: a temporary one, removed at the end); "
+                         "recordings already in it are reused")
     args = ap.parse_args()
     work = args.folder or Path(tempfile.mkdtemp(prefix="bench-localize-scale-"))
     work.mkdir(parents=True, exist_ok=True)
@@ -133,7 +142,9 @@ def main() -> None:
     try:
         recordings = []
         for minutes in sorted(args.minutes):
-            audio, array = work / f"rec_{minutes:g}min.flac", work / "array.json"
+            tag = f"seed{args.seed}_base{args.base_s:g}s"
+            audio = work / f"rec_{minutes:g}min_{tag}.flac"
+            array = work / f"array_{tag}.json"
             t0 = time.perf_counter()
             dur = write_long_recording(audio, array, minutes=minutes, base_s=args.base_s,
                                        seed=args.seed)
