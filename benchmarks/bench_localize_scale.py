@@ -163,6 +163,7 @@ def main() -> None:
                     r.pop("stderr")
                     outs[mode] = out.read_bytes()
                 runs.append(r)
+                print(json.dumps(r), file=sys.stderr, flush=True)  # partial results survive
             if len(outs) == 2:
                 identical[f"{minutes:g}min"] = outs["serial"] == outs["workers"]
         result: dict = {"benchmark": "localize_scale", "seed": args.seed, "fs_hz": 96000,
