@@ -65,6 +65,7 @@ from numpy.typing import ArrayLike, NDArray
 from fusion._validation import check_positive
 from fusion.clicks._frames import (
     CHUNK,
+    channel_major,
     framed_filter,
     gather_frames,
     interp_nodes,
@@ -220,7 +221,10 @@ class ClickDetector:
         return float(samples / fs + self.suppress_s)
 
     # ----------------------------------------------------------------------------------------
-    def detect(self, samples: ArrayLike, fs: float, *, t0: float = 0.0) -> list[ChannelClicks]:
+    def detect(
+        self, samples: ArrayLike, fs: float, *, t0: float = 0.0,
+        span_s: tuple[float, float] | None = None,
+    ) -> list[ChannelClicks]:
         """Detect clicks on every channel.
 
         Parameters
@@ -231,6 +235,12 @@ class ClickDetector:
             Sample rate, Hz.
         t0 : float, optional
             Time of the first sample, s (a block's start within a recording).
+        span_s : (float, float), optional
+            Report only the clicks with ``span_s[0] <= time < span_s[1]`` (s, on the clock of
+            `t0`): the clicks of detection over all of `samples` in that span, with the
+            statistic evaluated only near it (the background still comes from all of
+            `samples`). A block detected this way gives the clicks of whole-signal detection
+            when it reaches :meth:`guard_s` beyond the span on both sides.
 
         Returns
         -------
@@ -243,7 +253,7 @@ class ClickDetector:
             Empty input, wrong dimensions, NaN/inf samples, or a sample rate too low for the
             band.
         """
-        return self._run(samples, fs, t0=t0, timings=None)
+        return self._run(samples, fs, t0=t0, timings=None, span_s=span_s)
 
     def detect_blocks(
         self, blocks: Iterable[tuple], fs: float
@@ -321,7 +331,8 @@ class ClickDetector:
 
     # ----------------------------------------------------------------------------------------
     def _run(
-        self, samples: ArrayLike, fs: float, *, t0: float, timings: dict[str, float] | None
+        self, samples: ArrayLike, fs: float, *, t0: float, timings: dict[str, float] | None,
+        span_s: tuple[float, float] | None = None,
     ) -> list[ChannelClicks]:
         """:meth:`detect`, optionally adding the time of each stage (s) to `timings`."""
         clock = time.process_time()
@@ -343,6 +354,10 @@ class ClickDetector:
             raise ValueError("samples contain NaN or infinite values")
         if not np.isfinite(t0):
             raise ValueError(f"t0 must be finite, got {t0!r}")
+        if span_s is not None:
+            span_s = (float(span_s[0]), float(span_s[1]))
+            if not (np.isfinite(span_s[0]) and np.isfinite(span_s[1]) and span_s[0] <= span_s[1]):
+                raise ValueError(f"span_s must be (start, end) with start <= end, got {span_s!r}")
         k = self._bank(float(fs))
         fs = float(fs)
         hop, n_ch, n = self.hop, x.shape[1], x.shape[0]
@@ -353,28 +368,44 @@ class ClickDetector:
         if n_frames < 3:
             return [ChannelClicks(c) for c in range(n_ch)]
         frames = np.arange(j_a, j_b + 1)
+        xt = channel_major(x)  # one float32 row per channel
+        sep = max(1, int(round(self.min_separation_s * fs / hop)))
+        # the frames whose statistic can decide a click in the span: its peak frame, the
+        # neighbours and minimum-separation rivals of the candidates near it, and every
+        # candidate within the ringing window
+        f_lo, f_hi = 0, n_frames
+        if span_s is not None and self.method == "stft":  # the envelope's background needs all
+            reach = int(np.ceil(self.suppress_s * fs / hop)) + 2 * sep + 8
+            lo = (span_s[0] - t0) * fs + s0 - k.centre  # sample offsets of the span's ends
+            hi = (span_s[1] - t0) * fs + s0 - k.centre
+            f_lo = max(0, int(np.floor(lo / hop)) - reach - j_a)
+            f_hi = min(n_frames, int(np.ceil(hi / hop)) + reach + 1 - j_a)
+            if f_hi - f_lo < 3:
+                return [ChannelClicks(c) for c in range(n_ch)]
         lap("prepare")
 
         # background: per-bin medians on every D-th frame of absolute segments
         sub = np.flatnonzero(frames % self.background_decimation == 0)
         if sub.size == 0:
             sub = np.arange(n_frames)
-        spec = gather_frames(x, s0, frames[sub], k.full)
+        spec = gather_frames(xt, s0, frames[sub], k.full)
         p_sub = spec[..., 0::2] ** 2 + spec[..., 1::2] ** 2  # (ch, k, n_bins)
         seg_len = self._seg_len(fs)
         # a segment cut to under a quarter by an end of the audio gets no node of its own
         min_count = max(1, -(-seg_len // self.background_decimation) // 4)
         nodes, med = segment_medians(p_sub, frames[sub], seg_len, min_count)
         bin_bg = np.maximum(med / np.log(2.0), _TINY)  # mean = median / ln 2 (exponential)
+        frames = frames[f_lo:f_hi]
+        j_a, n_frames = int(frames[0]), frames.size
         left, wgt = interp_nodes(frames.astype(float), nodes)
         lap("background")
 
         if self.method == "stft":
             # flat band weights over the per-bin background, on the re and im columns
             coef = np.repeat((1.0 / k.band.size) / bin_bg[:, :, k.band], 2, axis=2)
-            stat = self._chunked(x, s0, j_a, n_frames, k, coef.astype(np.float32), left, wgt)
+            stat = self._chunked(xt, s0, j_a, n_frames, k, coef.astype(np.float32), left, wgt)
         else:
-            env = self._chunked(x, s0, j_a, n_frames, k, None, left, wgt)
+            env = self._chunked(xt, s0, j_a, n_frames, k, None, left, wgt)
             _, env_bg = segment_medians(env[:, sub], frames[sub], seg_len, min_count)
             env_bg = np.maximum(env_bg / k.env_median_to_mean, _TINY)  # mean-equivalent
             right = np.minimum(left + 1, nodes.size - 1)
@@ -383,7 +414,6 @@ class ClickDetector:
         lap("statistic")
 
         out = []
-        sep = max(1, int(round(self.min_separation_s * fs / hop)))
         for c in range(n_ch):
             s = stat[c]
             peaks = _local_maxima(s, self.threshold, sep)
@@ -401,17 +431,18 @@ class ClickDetector:
             times = t0 + (pos - s0) / fs
             power = s[peaks].astype(float)
             near = np.clip(np.round(peaks + delta), 0, n_frames - 1).astype(np.int64)
-            fc = self._centre_freq(x[:, c:c + 1], s0, frames, near, k, bin_bg[c], left, wgt)
+            fc = self._centre_freq(xt[c:c + 1], s0, frames, near, k, bin_bg[c], left, wgt)
             ok = fc >= self.min_centre_freq_hz
             times, power, fc = times[ok], power[ok], fc[ok]
             keep = _not_ringing(times, power, self.suppress_s, self.suppress_ratio)
-            out.append(ChannelClicks(c, times[keep], power[keep], fc[keep]))
+            clicks = ChannelClicks(c, times[keep], power[keep], fc[keep])
+            out.append(clicks if span_s is None else clicks.between(*span_s))
         lap("peaks")
         return out
 
     def _chunked(
         self,
-        x: NDArray[np.floating],
+        x: NDArray[np.float32],
         s0: int,
         j_a: int,
         n_frames: int,
@@ -422,18 +453,13 @@ class ClickDetector:
     ) -> NDArray[np.float32]:
         """Statistic over chunks of frames that stay in cache: the STFT band sum with per-bin
         weights `coef` (ch, nodes, 2 n_band) interpolated between nodes, or (``coef=None``) the
-        smoothed squared envelope; (ch, n_frames) float32."""
-        hop, n_ch = self.hop, x.shape[1]
+        smoothed squared envelope; (ch, n_frames) float32. `x` is channel-major."""
+        n_ch = x.shape[0]
         out = np.empty((n_ch, n_frames), dtype=np.float32)
         for a in range(0, n_frames, CHUNK):
             b = min(a + CHUNK, n_frames)
             if coef is None:
-                # y_b at full rate over the chunk's frames and their nfft-sample windows
-                n_smp = hop * (b - a) + self.nfft
-                y = framed_filter(x, s0, hop * (j_a + a), n_smp, k.env)[:, :, 0]
-                y *= y
-                # sum_n v_n y_b^2(hop J + n), with y_b^2 as a signal starting at the chunk
-                out[:, a:b] = framed_filter(y.T, hop * (j_a + a), j_a + a, b - a, k.smooth)[:, :, 0]
+                out[:, a:b] = self._envelope(x, s0, j_a + a, b - a, k)
                 continue
             y = framed_filter(x, s0, j_a + a, b - a, k.stft)
             y *= y
@@ -450,6 +476,17 @@ class ClickDetector:
             zr = z[:, rng, np.minimum(left[a:b] + 1, last) - i0]
             out[:, a:b] = zl + w * (zr - zl)
         return out
+
+    def _envelope(self, x: NDArray[np.float32], s0: int, j0: int, count: int,
+                  k: DetectorKernels) -> NDArray[np.float32]:
+        """The smoothed squared envelope at `count` consecutive frames from `j0` (ch, count)."""
+        hop = self.hop
+        # y_b at full rate over the frames and their nfft-sample windows
+        n_smp = hop * count + self.nfft
+        y = framed_filter(x, s0, hop * j0, n_smp, k.env)[:, :, 0]
+        y *= y
+        # sum_n v_n y_b^2(hop J + n), with y_b^2 as a signal starting at the first frame
+        return framed_filter(y, hop * j0, j0, count, k.smooth)[:, :, 0]
 
     def _centre_freq(
         self,
@@ -477,7 +514,11 @@ class ClickDetector:
 
 
 def _all_finite(x: NDArray[np.number]) -> bool:
-    """Whether every sample is finite."""
+    """Whether every sample is finite (a finite sum decides it without a pass of its own over
+    an array of flags; an overflowing sum falls back to the test of every sample)."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        if np.isfinite(np.sum(x)):
+            return True
     return bool(np.isfinite(x).all())
 
 

@@ -167,6 +167,27 @@ def test_blockwise_equals_whole_signal(scenario, tmp_path):
         assert_allclose(b.centre_freq_hz, w.centre_freq_hz, rtol=1e-5)
 
 
+def test_span_gives_the_whole_signal_clicks_in_it(scenario):
+    """detect(span_s=...) on a block reaching a guard beyond the span gives exactly the
+    whole-signal clicks in the span (the statistic is evaluated only near it)."""
+    det = ClickDetector()
+    fs, x = scenario.fs, scenario.audio
+    whole = det.detect(x, fs)
+    g = det.guard_s(fs)
+    for a_s, b_s in ((1.0, 3.0), (2.2 + g, 2.9 + g), (0.0, 1.5), (6.0, 8.0)):
+        lo, hi = max(0, int((a_s - g) * fs) - 1), min(len(x), int((b_s + g) * fs) + 1)
+        part = det.detect(x[lo:hi], fs, t0=lo / fs, span_s=(a_s, b_s))
+        for w, p in zip(whole, part, strict=True):
+            ref = w.between(a_s, b_s)
+            assert p.n_clicks == ref.n_clicks
+            assert_allclose(p.times_s, ref.times_s, atol=1e-9, rtol=0)
+            assert_allclose(p.power, ref.power, rtol=1e-5)
+            assert_allclose(p.centre_freq_hz, ref.centre_freq_hz, rtol=1e-5)
+    assert sum(c.n_clicks for c in det.detect(x, fs, span_s=(1.0, 3.0))) > 10
+    with pytest.raises(ValueError, match="span_s"):
+        det.detect(x, fs, span_s=(3.0, 1.0))
+
+
 def test_blocks_must_overlap_by_two_guards(scenario):
     """Blocks overlapping by less than twice the guard, or out of order, are refused."""
     det = ClickDetector()
