@@ -183,7 +183,7 @@ def measure_stream(
 
     def detect(a: int, b: int, keep_to: int) -> None:
         first, x = ring.cut(a, b)
-        found = front.detector.detect(x, fs, t0=first / fs)
+        found = front.detector.detect(x, fs, t0=first / fs, span_s=(final_until / fs, keep_to / fs))
         for ch, c in enumerate(found):
             clicks[ch].append(c.between(final_until / fs, keep_to / fs))
 
