@@ -45,28 +45,6 @@ def shift_matrix(n: int, dt: float) -> NDArray[np.float64]:
     return s
 
 
-def _wls(u: NDArray, d: NDArray, w2: NDArray, degree: int) -> tuple[NDArray, NDArray, float]:
-    """Weighted least squares in powers of `u` (weights `w2`): coefficients, covariance, chi2.
-
-    The normal equations of at most 4 unknowns, solved directly; a near-singular system (click
-    times that do not determine the degree) falls back to the SVD solution and pseudo-inverse.
-    """
-    x = u[:, None] ** np.arange(degree + 1)
-    xw = x * w2[:, None]
-    g = xw.T @ x
-    scale = np.sqrt(np.diag(g))
-    gn = g / np.outer(scale, scale)  # unit diagonal: the determinant measures the conditioning
-    if degree == 0 or np.linalg.det(gn) > 1e-10:
-        cov = np.linalg.inv(gn) / np.outer(scale, scale)
-        coef = cov @ (xw.T @ d)
-    else:
-        sw = np.sqrt(w2)
-        coef, *_ = np.linalg.lstsq(x * sw[:, None], d * sw, rcond=None)
-        cov = np.linalg.pinv(g)
-    res = d - x @ coef
-    return coef, cov, float(w2 @ (res * res))
-
-
 def fit_delays(
     t: ArrayLike, d: ArrayLike, sig: ArrayLike, *, max_degree: int = 2
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], float, float]:
@@ -103,12 +81,40 @@ def fit_delays(
     t, d, sig = (np.asarray(a, dtype=float).ravel() for a in (t, d, sig))
     w = 1.0 / sig**2
     t_ref = float(np.sum(w * t) / np.sum(w))
-    u = t - t_ref
-    coef, cov, chi2 = _wls(u, d, w, 0)
-    for deg in range(1, max_degree + 1):
-        if t.size < deg + 2:
-            break
-        c2, v2, x2 = _wls(u, d, w, deg)
+    top = max(0, min(int(max_degree), t.size - 2))  # keep a degree of freedom
+    x = (t - t_ref)[:, None] ** np.arange(top + 1) / sig[:, None]  # whitened design
+    y = d / sig
+    fit = _qr_fit(x, y)
+    if fit is None:  # times that do not determine the degree: the old way, degree by degree
+        return _fit_delays_svd(t, d, sig, t_ref, top)
+    _, r, proj = fit
+    deg = 0  # nested fits: one more term lowers chi-square by proj[deg + 1]^2
+    while deg < top and proj[deg + 1] ** 2 > _LRT_CHI2:
+        deg += 1
+    rinv = np.linalg.inv(r[: deg + 1, : deg + 1])
+    coef = rinv @ proj[: deg + 1]
+    res = y - x[:, : deg + 1] @ coef
+    chi2 = float(res @ res)
+    dof = t.size - coef.size
+    birge = float(np.sqrt(chi2 / dof)) if dof >= 1 else float("nan")
+    return coef, rinv @ rinv.T, t_ref, birge
+
+
+def _fit_delays_svd(t: NDArray, d: NDArray, sig: NDArray, t_ref: float,
+                    top: int) -> tuple[NDArray, NDArray, float, float]:
+    """:func:`fit_delays` by SVD least squares, degree by degree (rank-deficient designs)."""
+    xw_all = (t - t_ref)[:, None] ** np.arange(top + 1) / sig[:, None]
+    dw = d / sig
+
+    def fit(deg: int) -> tuple[NDArray, NDArray, float]:
+        xw = xw_all[:, : deg + 1]
+        coef, *_ = np.linalg.lstsq(xw, dw, rcond=None)
+        res = dw - xw @ coef
+        return coef, np.linalg.pinv(xw.T @ xw), float(res @ res)
+
+    coef, cov, chi2 = fit(0)
+    for deg in range(1, top + 1):
+        c2, v2, x2 = fit(deg)
         if chi2 - x2 <= _LRT_CHI2:
             break
         coef, cov, chi2 = c2, v2, x2
@@ -183,14 +189,20 @@ def _deletion_certified(q: NDArray, e: NDArray, thr: float) -> bool:
         return False  # a click the fit through the others would call an outlier
     k_max = int(float(e2.sum()) // thr)  # larger sets cannot lower chi-square by thr |E|
     if k_max >= 2:
-        hik = q @ q.T
-        a = 1.0 - h
-        den = np.outer(a, a) - hik * hik
-        num = a[None, :] * e2[:, None] + 2.0 * hik * np.outer(e, e) + a[:, None] * e2[None, :]
-        np.fill_diagonal(den, 1.0)
-        np.fill_diagonal(num, 0.0)
-        if np.any(den <= 0.0) or np.any(num >= 2.0 * thr * den):
-            return False
+        # a pair lowers chi-square by at most (e_i^2 + e_k^2) / (1 - h_i - h_k), so only pairs
+        # with a click of e^2 >= thr (1 - the two largest leverages) need the exact test
+        cand = np.flatnonzero(e2 >= thr * (1.0 - np.sum(np.sort(h)[-2:])))
+        if cand.size:
+            hik = q[cand] @ q.T  # (c, n) off-diagonal hat matrix entries
+            a = 1.0 - h
+            den = a[cand, None] * a[None, :] - hik * hik
+            num = (a[None, :] * e2[cand, None] + 2.0 * hik * (e[cand, None] * e[None, :])
+                   + a[cand, None] * e2[None, :])
+            rows = np.arange(cand.size)
+            den[rows, cand] = 1.0
+            num[rows, cand] = 0.0
+            if np.any(den <= 0.0) or np.any(num >= 2.0 * thr * den):
+                return False
     if k_max >= 3:
         e_top = np.cumsum(np.sort(e2)[::-1])
         h_top = np.cumsum(np.sort(h)[::-1])
@@ -202,12 +214,24 @@ def _deletion_certified(q: NDArray, e: NDArray, thr: float) -> bool:
 
 
 def _qr_fit(x: NDArray, y: NDArray) -> tuple[NDArray, NDArray, NDArray] | None:
-    """Orthonormal factor, triangular factor and projections of a least-squares problem; None
-    when the design is (nearly) rank deficient."""
-    q, r = np.linalg.qr(x)
-    dr = np.abs(np.diag(r))
-    if dr.size and np.min(dr) <= 1e-12 * np.max(dr):
-        return None
+    """Thin QR factors of a small design (Gram-Schmidt with one re-orthogonalisation, as
+    accurate as Householder here and without LAPACK's call overhead) and the projections
+    ``q^T y``; None when the design is (nearly) rank deficient."""
+    n, p = x.shape
+    q = np.empty((n, p))
+    r = np.zeros((p, p))
+    for j in range(p):
+        v = x[:, j].copy()
+        if j:
+            for _ in range(2):
+                c = q[:, :j].T @ v
+                v -= q[:, :j] @ c
+                r[:j, j] += c
+        nrm = float(np.sqrt(v @ v))
+        if not nrm > 1e-12 * float(np.sqrt(x[:, j] @ x[:, j])):
+            return None
+        r[j, j] = nrm
+        q[:, j] = v / nrm
     return q, r, q.T @ y
 
 

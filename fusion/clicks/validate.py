@@ -183,17 +183,17 @@ def scm2_features(
     empty = ~np.any(x2 != 0.0, axis=1)
     mu = np.empty((x2.shape[0], 3))
     specmax = np.empty(x2.shape[0])
-    with threadpool_limits(1):  # small products: threaded BLAS only loses on a busy machine
-        for i in range(0, x2.shape[0], _BLOCK):  # blocks keep the FFT work in cache
-            r, r0 = _smoothed_acf(x2[i : i + _BLOCK], nfft, taper, n_lag)
-            mu[i : i + _BLOCK] = r @ moment_w
-            if grid is None:
-                spec = r @ cosine_w
-            else:  # eq. (9) on a uniform grid f = m df: a real FFT of length fs / df
-                length, m_idx = grid
-                spec = scipy.fft.rfft(r * w, length, axis=1).real[:, m_idx]
-            specmax[i : i + _BLOCK] = freqs[np.argmax(spec, axis=1)]
-            empty[i : i + _BLOCK] |= ~(r0 > 0.0)
+    # (no thread-pool limit here: finding the BLAS libraries costs more than these small products)
+    for i in range(0, x2.shape[0], _BLOCK):  # blocks keep the FFT work in cache
+        r, r0 = _smoothed_acf(x2[i : i + _BLOCK], nfft, taper, n_lag)
+        mu[i : i + _BLOCK] = r @ moment_w
+        if grid is None:
+            spec = r @ cosine_w
+        else:  # eq. (9) on a uniform grid f = m df: a real FFT of length fs / df
+            length, m_idx = grid
+            spec = scipy.fft.rfft(r * w, length, axis=1).real[:, m_idx]
+        specmax[i : i + _BLOCK] = freqs[np.argmax(spec, axis=1)]
+        empty[i : i + _BLOCK] |= ~(r0 > 0.0)
 
     mu1 = mu[:, 0]
     with np.errstate(divide="ignore", invalid="ignore"):
