@@ -277,8 +277,9 @@ class DocumentSummary:
 def write_document(path: str | Path, parts: Iterable[str]) -> DocumentSummary:
     """Write the ``fusion localize`` JSON from the chunks' parts in order, one at a time.
 
-    The file is byte for byte what :func:`fusion.io.write_json` writes for
-    :func:`result_document` of all the windows (indent 1, no tracks), without holding them all.
+    The ``windows`` are byte for byte what :func:`fusion.io.write_json` writes for
+    :func:`result_document` of all the windows (indent 1), without holding them all; the
+    ``tracks`` follow from the windows' sources (:func:`track_document_sources`).
 
     Parameters
     ----------
@@ -293,6 +294,7 @@ def write_document(path: str | Path, parts: Iterable[str]) -> DocumentSummary:
         Counts of what was written.
     """
     n = n_valid = n_src = 0
+    sources_of: list[tuple[float, list[dict]]] = []  # per window: centre, sources (small)
     with atomic_output(path) as tmp, open(tmp, "w", encoding="utf-8") as f:
         f.write('{\n "windows": [')
         for text in parts:
@@ -302,5 +304,37 @@ def write_document(path: str | Path, parts: Iterable[str]) -> DocumentSummary:
                 n += 1
                 n_valid += sum(1 for d in w["tdoas"] if d["valid"])
                 n_src += len(w["sources"])
-        f.write(("\n ]" if n else "]") + ',\n "tracks": []\n}\n')
+                sources_of.append((0.5 * (w["t_start"] + w["t_end"]), w["sources"]))
+        tracks = [t.to_dict() for t in track_document_sources(sources_of)]
+        body = json.dumps(tracks, indent=1, allow_nan=False).replace("\n", "\n ")
+        f.write(("\n ]" if n else "]") + ',\n "tracks": ' + body + "\n}\n")
     return DocumentSummary(n, n_valid, n_src)
+
+
+def track_document_sources(windows: Sequence[tuple[float, Sequence[dict]]]) -> tuple:
+    """Tracks of the sources of written windows (``fusion localize`` JSON entries).
+
+    Sources are linked by position (:class:`fusion.clicks.tracks.SourceTracker`'s gate with each
+    fix's covariance) -- the TDOA links do not survive the file -- and smoothed; fixes flagged
+    unobservable or mirror-ambiguous are not tracked.
+    """
+    from fusion.clicks.localize import SourceFix
+    from fusion.clicks.tracks import SourceTracker, WindowSources
+    from fusion.pipelines.localization import UNBOUNDED_M2
+
+    items = []
+    for t_mid, sources in windows:
+        fixes = []
+        for src in sources:
+            cov = np.asarray(src["cov"], dtype=float)
+            ok = (src.get("observable", True) and not src.get("mirror_ambiguous", False)
+                  and np.all(cov < UNBOUNDED_M2))
+            if not ok:
+                cov = np.full((3, 3), np.nan)
+            fixes.append(SourceFix(
+                position=np.array([src["x"], src["y"], src["z"]], dtype=float), covariance=cov,
+                information=np.zeros((3, 3)), weights=np.zeros(0),
+                tdoas_used=int(src["tdoas_used"]), residual_rms_s=0.0, condition_number=1.0,
+                observable=bool(ok), mirror_ambiguous=False, mirror_position=np.full(3, np.nan)))
+        items.append(WindowSources(float(t_mid), tuple(fixes)))
+    return SourceTracker().track(items)

@@ -46,3 +46,22 @@ def test_track_follows_the_whale(localized):
     doc = result_document(lws, tracks=tracks)
     assert doc["tracks"][longest.track_id]["points"][0]["t"] == longest.times[0]
     assert len(doc["windows"]) == len(lws)
+
+
+def test_cli_localize_writes_sources_and_tracks(tmp_path):
+    """`fusion localize` on a written scenario: windows every 2 s, sources near the whale,
+    and one track through them."""
+    from fusion.cli import main
+    from fusion.io import read_localization
+    from fusion.simulate.clicks import write_click_scenario
+
+    sc = simulate_clicks(seed=7001, n_sensors=5, n_sources=1, duration_s=20.0, snr_db=36.0)
+    write_click_scenario(tmp_path / "sc", sc)
+    out = tmp_path / "r.json"
+    assert main(["localize", "--audio", str(tmp_path / "sc" / "audio.flac"), "--array",
+                 str(tmp_path / "sc" / "array.json"), "--out", str(out), "--quiet"]) == 0
+    res = read_localization(out)
+    assert [w.t_start for w in res.windows] == [0.0, 2.0, 4.0, 6.0, 8.0]
+    fixes = [s for w in res.windows for s in w.sources]
+    assert fixes
+    assert len(res.tracks) >= 1 and len(res.tracks[0][1]) >= 2
