@@ -265,11 +265,18 @@ class ClickMapCorrelator:
 
     def _peaks(self, values: NDArray, lags: NDArray, limit: NDArray, pairs: NDArray) -> tuple:
         fs = self.config.fs_hz
-        is_max = local_maxima(values, self.min_peak)
-        is_max &= np.abs(lags)[None, :] <= limit[:, None] * fs
+        q = lags.size // 2  # lags[q] = 0
         out: list[TdoaPeak] = []
         for p in range(pairs.shape[0]):
-            idx = np.flatnonzero(is_max[p])
+            # interior local maxima >= min_peak within |lag| <= limit (tested there only)
+            half = int(np.floor(limit[p] * fs + 1e-9))
+            while half >= 0 and abs(lags[q + half]) > limit[p] * fs:
+                half -= 1
+            a, b = max(q - half, 1), min(q + half, lags.size - 2)
+            if b < a:
+                continue
+            seg = values[p, a - 1:b + 2]
+            idx = a + np.flatnonzero(local_maxima(seg, self.min_peak)[1:-1])
             idx = idx[np.argsort(values[p, idx])[::-1][: self.max_peaks]]
             d, v = parabolic(values[p, idx - 1], values[p, idx], values[p, idx + 1])
             pair = (int(pairs[p, 0]), int(pairs[p, 1]))
