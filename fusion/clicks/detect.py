@@ -63,6 +63,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from fusion._validation import check_positive
+from fusion.clicks._click_peaks import local_maxima, not_ringing
 from fusion.clicks._frames import (
     CHUNK,
     channel_major,
@@ -416,7 +417,7 @@ class ClickDetector:
         out = []
         for c in range(n_ch):
             s = stat[c]
-            peaks = _local_maxima(s, self.threshold, sep)
+            peaks = local_maxima(s, self.threshold, sep)
             if peaks.size == 0:
                 out.append(ChannelClicks(c))
                 continue
@@ -434,7 +435,7 @@ class ClickDetector:
             fc = self._centre_freq(xt[c:c + 1], s0, frames, near, k, bin_bg[c], left, wgt)
             ok = fc >= self.min_centre_freq_hz
             times, power, fc = times[ok], power[ok], fc[ok]
-            keep = _not_ringing(times, power, self.suppress_s, self.suppress_ratio)
+            keep = not_ringing(times, power, self.suppress_s, self.suppress_ratio)
             clicks = ChannelClicks(c, times[keep], power[keep], fc[keep])
             out.append(clicks if span_s is None else clicks.between(*span_s))
         lap("peaks")
@@ -520,33 +521,3 @@ def _all_finite(x: NDArray[np.number]) -> bool:
         if np.isfinite(np.sum(x)):
             return True
     return bool(np.isfinite(x).all())
-
-
-def _local_maxima(s: NDArray[np.float32], threshold: float, distance: int) -> NDArray[np.int64]:
-    """Indices of local maxima of `s` above `threshold`, the larger kept of any two closer than
-    `distance` samples (the few samples above the threshold are tested, not the whole series)."""
-    c = np.flatnonzero(s[1:-1] > threshold) + 1
-    c = c[(s[c] >= s[c - 1]) & (s[c] > s[c + 1])]
-    if c.size < 2 or distance <= 1 or np.min(np.diff(c)) >= distance:
-        return c
-    keep = np.ones(c.size, dtype=bool)
-    for i in np.argsort(-s[c], kind="stable"):  # strongest first
-        if keep[i]:
-            lo, hi = np.searchsorted(c, [c[i] - distance + 1, c[i] + distance])
-            keep[lo:hi] = False
-            keep[i] = True
-    return c[keep]
-
-
-def _not_ringing(
-    times: NDArray[np.float64], power: NDArray[np.float64], window_s: float, ratio: float
-) -> NDArray[np.bool_]:
-    """Mask of clicks with no other click within `window_s` at least `ratio` times stronger."""
-    keep = np.ones(times.size, dtype=bool)
-    if times.size < 2 or window_s <= 0:
-        return keep
-    lo = np.searchsorted(times, times - window_s, side="left")
-    hi = np.searchsorted(times, times + window_s, side="right")
-    for i in np.flatnonzero(hi - lo > 1):
-        keep[i] = power[lo[i]:hi[i]].max() < ratio * power[i]
-    return keep

@@ -27,14 +27,13 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass
-from functools import lru_cache
 
 import numpy as np
 import scipy.fft
 from numpy.typing import ArrayLike, NDArray
-from scipy import stats
 
 from fusion._validation import check_positive
+from fusion.clicks._tdoa_stats import cycle_contrast, gamma_median, rms_frequency_hz, tdoa_crb_s
 from fusion.clicks.delaytrack import consensus_inliers, fit_delays, shift_matrix
 from fusion.clicks.types import frozen_array
 
@@ -144,98 +143,6 @@ class RefinedTdoa:
         if not self.cycle_resolved:
             sigma = np.hypot(sigma, self.period_s)
         return x @ self.coef, sigma
-
-
-@lru_cache(maxsize=64)
-def _t_quantile_95(dof: int) -> float:
-    """95 % quantile of Student's t with `dof` degrees of freedom (cached)."""
-    return float(stats.t.ppf(0.95, dof))
-
-
-@lru_cache(maxsize=16)
-def _gamma_median(shape: float) -> float:
-    """Median of the unit-scale gamma law of `shape` (cached)."""
-    return float(stats.gamma.median(shape))
-
-
-def _cycle_contrast(d_minus: NDArray, d_plus: NDArray) -> tuple[float, bool]:
-    """Paired one-sided t-test that the chosen carrier cycle beats both neighbours.
-
-    `d_minus`, `d_plus`: per click, correlation at the chosen cycle minus that one cycle
-    earlier / later, relative to the former. Returns the smaller t statistic and whether it
-    passes at 1 %.
-    """
-    n = d_minus.size
-    if n < 2:
-        return float("nan"), False
-    ts = []
-    for dd in (d_minus, d_plus):
-        sd = float(np.std(dd, ddof=1))
-        ts.append(np.inf if sd == 0 and dd.mean() > 0 else float(dd.mean() / sd * np.sqrt(n))
-                  if sd > 0 else 0.0)
-    t = min(ts)
-    return float(t), bool(t > _t_quantile_95(n - 1))
-
-
-def rms_frequency_hz(power: ArrayLike, freqs_hz: ArrayLike) -> float:
-    """Root-mean-square frequency of a power spectrum, about 0 Hz.
-
-    Parameters
-    ----------
-    power : array_like, shape (n,)
-        Power (energy) spectral density at `freqs_hz`, any units, >= 0.
-    freqs_hz : array_like, shape (n,)
-        Frequencies, Hz (one side suffices: the measure is even in ``f``).
-
-    Returns
-    -------
-    float
-        ``beta = sqrt(sum f^2 P / sum P)``, Hz: the carrier and the bandwidth together
-        (``beta^2 = f_c^2 + B_rms^2``), which is what sets the precision of a delay measured on
-        the waveform itself (not on its envelope).
-    """
-    p = np.asarray(power, dtype=float)
-    f = np.asarray(freqs_hz, dtype=float)
-    if p.shape != f.shape or p.ndim != 1:
-        raise ValueError("power and freqs_hz must be 1-D arrays of one length")
-    if np.any(p < 0) or not np.sum(p) > 0:
-        raise ValueError("power must be >= 0 with a positive sum")
-    return float(np.sqrt(np.sum(f * f * p) / np.sum(p)))
-
-
-def tdoa_crb_s(rms_freq_hz: float, enr_i: ArrayLike, enr_j: ArrayLike) -> NDArray[np.float64]:
-    """Cramér-Rao bound on the standard deviation of the delay between two noisy click copies.
-
-    Parameters
-    ----------
-    rms_freq_hz : float
-        RMS frequency ``beta`` of the click (:func:`rms_frequency_hz`), Hz.
-    enr_i, enr_j : array_like
-        Energy-to-noise ratio ``2E/N0`` (linear) of the click on each channel, broadcast
-        together: ``E = sum_t s(t)^2`` over ``N0/2 = sigma^2`` the variance per sample of white
-        noise with the in-band spectral level.
-
-    Returns
-    -------
-    ndarray
-        ``sqrt((1/enr_i + 1/enr_j) / (2 pi beta)^2)``, s.
-
-    Notes
-    -----
-    For a pulse of known shape in white Gaussian noise, the arrival time has
-    ``var >= 1 / ((2E/N0) (2 pi beta)^2)`` (Kay, *Fundamentals of Statistical Signal Processing:
-    Estimation Theory*, 1993, example 3.13, range estimation). The difference of two arrival
-    times with independent noise on the two channels adds the two bounds; this is also the
-    high-SNR limit of the bound for a delay between two noisy copies of an unknown signal (Knapp
-    and Carter, *IEEE Trans. ASSP* 24(4), 1976, eq. 23 with ``|gamma|^2 / (1 - |gamma|^2)``
-    ``-> 1 / (N_i/S + N_j/S)``). ``n`` clicks with independent noise give
-    ``1 / sum_n (1 / var_n)``.
-    """
-    b = check_positive("rms_freq_hz", rms_freq_hz)
-    ei, ej = np.broadcast_arrays(np.asarray(enr_i, dtype=float), np.asarray(enr_j, dtype=float))
-    if np.any(~(ei > 0)) or np.any(~(ej > 0)):
-        raise ValueError("energy-to-noise ratios must be > 0")
-    return np.sqrt(1.0 / ei + 1.0 / ej) / (2.0 * np.pi * b)
 
 
 class TdoaRefiner:
@@ -502,7 +409,7 @@ class TdoaRefiner:
         power = np.mean(np.abs(self._spectra(x, free)) ** 2, axis=1)  # E = n2 * sigma^2 per bin
         # median of a mean of n_eff independent exponential bins: gamma(n_eff) / n_eff
         n_eff = max((self.band_hz[1] - self.band_hz[0]) * n2 / fs, 1.0)
-        med = _gamma_median(n_eff) / n_eff
+        med = gamma_median(n_eff) / n_eff
         return float(np.median(power) / med / n2)
 
     def _enr(self, spec: NDArray, var: float) -> NDArray[np.float64]:
@@ -590,7 +497,7 @@ class TdoaRefiner:
             shift = shift_matrix(coef.size, float(t_req) - t_ref)
             coef, cov, t_ref = shift @ coef, shift @ cov @ shift.T, float(t_req)
         crb = float(np.sqrt(cov[0, 0]))
-        cycle_t = _cycle_contrast(contrast[keep, 0], contrast[keep, 1])
+        cycle_t = cycle_contrast(contrast[keep, 0], contrast[keep, 1])
         # a track is trusted only if it explains most of the screened clicks
         cycle_t = (cycle_t[0], cycle_t[1] and int(keep.sum()) >= 0.6 * first_pass[0].size)
         sigma = crb * (max(1.0, birge) if np.isfinite(birge) else 1.0)

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from fusion.clicks import delaytrack
+from fusion.clicks import _consensus, delaytrack
 from fusion.clicks.delaytrack import consensus_inliers, fit_delays
 
 
@@ -18,7 +18,7 @@ def test_subsets_are_the_thinned_lexicographic_combinations(n, k):
     ref = np.array(list(combinations(range(n), k)), dtype=np.int64)
     if ref.shape[0] > 4000:
         ref = ref[np.linspace(0, ref.shape[0] - 1, 4000).astype(np.int64)]
-    assert np.array_equal(delaytrack._subsets(n, k, 4000), ref)
+    assert np.array_equal(_consensus.subsets(n, k, 4000), ref)
 
 
 def _track(rng, n, *, n_bad, sig=1e-6, curve=2e-7):
@@ -38,7 +38,7 @@ def test_shortcut_gives_the_search_result(seed, monkeypatch):
     t, d, s = _track(rng, n, n_bad=int(rng.integers(0, max(1, n // 5) + 1)))
     kw = {} if seed % 2 else {"max_rate": np.inf, "max_accel": np.inf}
     fast = consensus_inliers(t, d, s, **kw)
-    monkeypatch.setattr(delaytrack, "_trimmed", lambda *a, **k: None)
+    monkeypatch.setattr(delaytrack, "trimmed_consensus", lambda *a, **k: None)
     assert np.array_equal(fast, consensus_inliers(t, d, s, **kw))
 
 
@@ -53,7 +53,7 @@ def test_shortcut_declines_a_tight_track_with_one_stray_click(monkeypatch):
     assert np.array_equal(np.flatnonzero(~keep), [7])
     u = t - t.mean()
     ps = u[:, None] ** np.arange(3) / s[:, None]
-    assert delaytrack._trimmed(ps, d / s, 4.0, np.inf, np.inf, 1) is None
+    assert _consensus.trimmed_consensus(ps, d / s, 4.0, np.inf, np.inf, 1) is None
 
 
 def test_fit_delays_matches_numpy_polyfit():
