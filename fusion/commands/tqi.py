@@ -45,6 +45,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     t.add_argument("--ts", type=number(float), default=7.0, help="strong threshold TS (7.0)")
     t.add_argument("--lh", type=number(float, ge=0), default=1.5, help="low-SNR hysteresis LH (1.5)")
     t.add_argument("--sh", type=number(float, ge=0), default=2.0, help="strong-SNR hysteresis SH (2.0)")
+    t.add_argument("--sllr0-max", type=number(float), default=None, metavar="TM0",
+                   help="ceiling TM_0 of SLLR_0: how much evidence a loss must undo before "
+                        "'lost' (default TU + LH + 0.25; above TU + LH so a track can leave "
+                        "'uncertain'); lower: earlier 'lost', more state changes")
     t.add_argument("--no-hysteresis", action="store_true",
                    help="single thresholds (LH = SH = 0 in the decision flow)")
     r = p.add_argument_group("residual test")
@@ -64,11 +68,16 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(f"--snr1-db ({args.snr1_db:g}) must exceed --snr0-db ({args.snr0_db:g})")
     if not args.tl < args.tu:
         raise ValueError(f"--tl ({args.tl:g}) must be below --tu ({args.tu:g})")
+    if args.sllr0_max is not None and not args.sllr0_max > args.tl - args.lh:
+        raise ValueError(f"--sllr0-max ({args.sllr0_max:g}) must exceed the SLLR_0 floor "
+                         f"TL - LH ({args.tl - args.lh:g})")
     table = read_amplitudes(args.amplitudes)
+    limits = None if args.sllr0_max is None else (args.tl - args.lh, args.sllr0_max)
     tqi = TrackQualityIndicator(
         snr0_db=args.snr0_db, snr1_db=args.snr1_db, n_looks=args.n_looks, tl=args.tl,
         tu=args.tu, ts=args.ts, lh=args.lh, sh=args.sh, hysteresis=not args.no_hysteresis,
         omega=args.omega, t_err=args.t_err, residual_smoothing=args.residual_smoothing,
+        sllr0_limits=limits,
     )
     ids = table["track_id"]
     tracks, col = np.unique(ids, return_inverse=True)

@@ -25,9 +25,16 @@ Decisions where the method text is silent (all exposed as keyword parameters):
   ``Ahat = A - noise_mean``, and ``C_i``, ``O_i`` are the mean and standard deviation of ``Ahat``
   at the design SNRs (:func:`design_statistics`, from the tracker's cell statistics
   :func:`fusion.passive.tracker.cell_power_statistics`).
-* **Clamps** ``TL_i``, ``TM_i`` (not given in the text) default to one hysteresis width beyond the
-  outermost thresholds each SLLR is compared with: ``[TL - LH, TU + 2 LH]`` for ``SLLR_0`` and
-  ``[TS - 2 SH, TS + 2 SH]`` for ``SLLR_1``. The SLLRs start at 0 clipped into their clamps.
+* **Clamps** ``TL_i``, ``TM_i`` (not given in the text). ``SLLR_1``: one hysteresis width beyond
+  the thresholds it is compared with, ``[TS - 2 SH, TS + 2 SH]``. ``SLLR_0``: floor ``TL - LH``,
+  ceiling ``TU + LH + 0.25`` (:data:`SLLR0_CEILING_MARGIN`). The ceiling is the evidence a loss
+  must undo before ``lost``: noise alone takes ``p_0^2 / 2`` per update off ``SLLR_0``, so the
+  delay from a loss to ``lost`` is about ``(TM_0 - TL) / (p_0^2 / 2)`` updates (17 for single-look
+  cells at the default design SNR, against 21 with the former ceiling ``TU + 2 LH``), while a
+  lower ceiling leaves the track more easily near the thresholds. ``TU + LH`` is the least that
+  still lets a track leave ``uncertain``; the margin above it was chosen on the trade-off of loss
+  delay against state changes measured on varied scenarios (``benchmarks/bench_tqi.py
+  --tradeoff``). The SLLRs start at 0 clipped into their clamps.
 * **Smoothed residual.** ``ES`` is smoothed recursively (first-order, gain ``residual_smoothing``);
   ``SRESVAR`` is the standard deviation of that smoothed residual, ``sigma_r sqrt(b / (2 - b))``,
   with ``sigma_r^2`` the recursively smoothed squared deviation of the raw residual from ``ES``.
@@ -70,6 +77,7 @@ from numpy.typing import ArrayLike, NDArray
 from fusion.passive.tracker import cell_power_statistics
 
 __all__ = [
+    "SLLR0_CEILING_MARGIN",
     "START",
     "TQIHistory",
     "TQIMemory",
@@ -84,6 +92,9 @@ logger = logging.getLogger(__name__)
 
 #: Code of the "previous state" before a tracker's first update (no TQI yet).
 START: int = -1
+
+#: Default ceiling of ``SLLR_0`` above ``TU + LH`` (see the module notes on clamps).
+SLLR0_CEILING_MARGIN: float = 0.25
 
 
 class TrackQuality(IntEnum):
@@ -318,7 +329,9 @@ class TrackQualityIndicator:
         False gives the comparison variant with single thresholds (``LH = SH = 0`` in the flow);
         the SLLRs, clamps and residual test are unchanged.
     sllr0_limits, sllr1_limits : (float, float), optional
-        Clamps ``(TL_i, TM_i)``; default ``(TL - LH, TU + 2 LH)`` and ``(TS - 2 SH, TS + 2 SH)``.
+        Clamps ``(TL_i, TM_i)``; default ``(TL - LH, TU + LH + 0.25)`` and
+        ``(TS - 2 SH, TS + 2 SH)`` (the ``SLLR_0`` ceiling sets the delay from a loss to
+        ``lost``; module notes).
     omega : float, optional
         Effective angular centre frequency ``Omega`` of the error detector, 1/deg.
     n : float, optional
@@ -398,7 +411,8 @@ class TrackQualityIndicator:
         )
         self.tl, self.tu, self.ts, self.lh, self.sh = map(float, (tl, tu, ts, lh, sh))
         self.hysteresis = bool(hysteresis)
-        lim0 = (tl - lh, tu + 2 * lh) if sllr0_limits is None else tuple(map(float, sllr0_limits))
+        lim0 = ((tl - lh, tu + lh + SLLR0_CEILING_MARGIN) if sllr0_limits is None
+                else tuple(map(float, sllr0_limits)))
         lim1 = (ts - 2 * sh, ts + 2 * sh) if sllr1_limits is None else tuple(map(float, sllr1_limits))
         for name, (lo, hi) in (("sllr0_limits", lim0), ("sllr1_limits", lim1)):
             if not (np.isfinite(lo) and np.isfinite(hi) and lo < hi):

@@ -8,6 +8,7 @@ from numpy.testing import assert_allclose, assert_array_equal
 
 from fusion.io import read_table, write_table
 from fusion.passive.quality import (
+    SLLR0_CEILING_MARGIN,
     START,
     TrackQuality,
     TrackQualityIndicator,
@@ -112,7 +113,7 @@ def scalar_reference(amp, res, *, snr0_db=3.0, snr1_db=10.0, hysteresis=True):
         lh_d, sh_d = 0.0, 0.0
     else:
         lh_d, sh_d = lh, sh
-    lim0 = (tl - lh, tu + 2 * lh)
+    lim0 = (tl - lh, tu + lh + 0.25)  # default SLLR_0 ceiling: TU + LH + 0.25
     lim1 = (ts - 2 * sh, ts + 2 * sh)
     c0, c1 = 10 ** (snr0_db / 10), 10 ** (snr1_db / 10)
     o0, o1 = np.sqrt(1 + 2 * c0), np.sqrt(1 + 2 * c1)
@@ -356,6 +357,49 @@ def test_cli_round_trip(tmp_path, run_cli):
     assert code == 0, err
     q1 = read_table(tmp_path / "q1.csv", required=("sllr0", "sllr1", "tqi"), text=("tqi",))
     assert np.all(q1["sllr0"] >= -5.0) and np.all(q1["sllr1"] <= 11.0)
+
+
+@pytest.mark.parametrize("ceiling", [3.5, 4.75, 6.25])
+def test_loss_delay_follows_the_sllr0_ceiling(ceiling):
+    """After a loss, lost comes after about (TM_0 - TL) / (p_0^2 / 2) updates (noise drift)."""
+    rng = np.random.default_rng(11)
+    onset, n = 40, 400
+    snr = np.where(np.arange(onset + 80)[:, None] < onset, 15.0, -np.inf) * np.ones((1, n))
+    amp, res = draw_amplitudes(snr, rng=rng), draw_residuals(snr, rng=rng)
+    tqi = TrackQualityIndicator(sllr0_limits=(-5.0, ceiling))
+    s = tqi.run(amp, res).state[onset:]
+    delay = np.argmax(s == L, axis=0) + 1  # updates of noise until lost
+    drift = tqi.p[0] ** 2 / 2  # E[LLR_0] under noise alone is -p_0^2 / 2
+    # the walk drifts down by `drift` per update with the exponential's skew: a mean-drift
+    # estimate of the first passage from the ceiling below TL (independent of the flow code)
+    expected = (ceiling - tqi.tl) / drift
+    assert np.all((s == L).any(axis=0))
+    assert abs(np.median(delay) / expected - 1.0) < 0.12
+
+
+def test_default_sllr0_ceiling_is_just_above_leaving_uncertain():
+    """The default SLLR_0 ceiling lets a track leave uncertain (>= TU + LH) by the set margin."""
+    tqi = TrackQualityIndicator()
+    assert tqi.sllr0_limits == (tqi.tl - tqi.lh, tqi.tu + tqi.lh + SLLR0_CEILING_MARGIN)
+    # a strong track after an uncertain spell reaches low_snr/strong again
+    rng = np.random.default_rng(4)
+    snr = np.r_[np.full(30, -np.inf), np.full(60, 15.0)][:, None]
+    h = tqi.run(draw_amplitudes(snr, rng=rng), draw_residuals(snr, rng=rng))
+    assert h.state[-1, 0] == S
+
+
+def test_cli_sllr0_max_reaches_the_indicator(tmp_path, run_cli):
+    """--sllr0-max sets the ceiling: the diagnostics never exceed it, and bad values are refused."""
+    rng = np.random.default_rng(2)
+    _write_amplitudes(tmp_path / "a.csv", rng)
+    code, _, err = run_cli("tqi", "--amplitudes", tmp_path / "a.csv", "--out",
+                           tmp_path / "q.csv", "--sllr0-max", "6", "--diagnostics")
+    assert code == 0, err
+    q = read_table(tmp_path / "q.csv", required=("sllr0",))
+    assert q["sllr0"].max() == pytest.approx(6.0)
+    code, _, err = run_cli("tqi", "--amplitudes", tmp_path / "a.csv", "--out",
+                           tmp_path / "q2.csv", "--sllr0-max", "-9")
+    assert code == 2 and "--sllr0-max" in err
 
 
 @pytest.mark.parametrize(
