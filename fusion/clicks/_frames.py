@@ -22,8 +22,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["KernelBank", "channel_major", "gather_frames", "framed_filter", "interp_nodes",
-           "make_rows", "segment_medians"]
+__all__ = ["KernelBank", "gather_frames", "framed_filter", "interp_nodes", "make_rows",
+           "segment_medians"]
 
 #: Frames per chunk of the detector's main pass (keeps the working set in cache).
 CHUNK = 1024
@@ -77,38 +77,28 @@ class KernelBank:
         return self.blocks.shape[2] // self.phases
 
 
-def channel_major(x: NDArray[np.floating]) -> NDArray[np.float32]:
-    """Samples (n, n_channels) as one contiguous float32 row per channel (n_channels, n)."""
-    return np.ascontiguousarray(np.asarray(x).T, dtype=np.float32)
-
-
 def make_rows(
-    x: NDArray[np.float32], s0: int, first: int, n_rows: int, width: int
+    x: NDArray[np.floating], s0: int, first: int, n_rows: int, width: int
 ) -> NDArray[np.float32]:
-    """Rows (n_channels, n_rows, width) float32 of absolute samples ``first ..``, taken from
-    `x` (n_channels, n) whose sample 0 is absolute sample `s0`; zero outside `x`. A view of
-    `x` when the rows lie inside it (no copy)."""
-    n_ch, n = x.shape
-    a, b = first - s0, first - s0 + n_rows * width
-    if a >= 0 and b <= n and x.dtype == np.float32:
-        return x[:, a:b].reshape(n_ch, n_rows, width)
+    """Row buffer (n_channels, n_rows, width) float32 of absolute samples ``first ..``, taken
+    from `x` (n, n_channels) whose sample 0 is absolute sample `s0`; zero outside `x`."""
+    n, n_ch = x.shape
     buf = np.zeros((n_ch, n_rows * width), dtype=np.float32)
-    lo, hi = max(a, 0), min(b, n)
-    if hi > lo:
-        buf[:, lo - a:hi - a] = x[:, lo:hi]
+    a, b = max(first, s0), min(first + n_rows * width, s0 + n)
+    if b > a:
+        buf[:, a - first:b - first] = x[a - s0:b - s0].T
     return buf.reshape(n_ch, n_rows, width)
 
 
 def framed_filter(
-    x: NDArray[np.float32], s0: int, first_frame: int, n_frames: int, bank: KernelBank
+    x: NDArray[np.floating], s0: int, first_frame: int, n_frames: int, bank: KernelBank
 ) -> NDArray[np.float32]:
     """The bank's output at consecutive absolute frames ``first_frame ..``.
 
     Parameters
     ----------
-    x : ndarray, shape (n_channels, n)
-        Samples, one row per channel (:func:`channel_major`); sample 0 is absolute sample `s0`
-        (zero outside).
+    x : ndarray, shape (n, n_channels)
+        Samples; sample 0 is absolute sample `s0` (zero outside).
     first_frame, n_frames : int
         Absolute index of the first frame, and how many.
     bank : KernelBank
@@ -128,15 +118,14 @@ def framed_filter(
 
 
 def gather_frames(
-    x: NDArray[np.float32], s0: int, frames: NDArray[np.int64], bank: KernelBank
+    x: NDArray[np.floating], s0: int, frames: NDArray[np.int64], bank: KernelBank
 ) -> NDArray[np.float32]:
     """The output of a one-phase bank at selected absolute frames only.
 
     Parameters
     ----------
-    x : ndarray, shape (n_channels, n)
-        Samples, one row per channel (:func:`channel_major`); sample 0 is absolute sample `s0`
-        (zero outside).
+    x : ndarray, shape (n, n_channels)
+        Samples; sample 0 is absolute sample `s0` (zero outside).
     frames : ndarray of int, shape (k,)
         Absolute frame indices, increasing.
     bank : KernelBank
@@ -148,13 +137,14 @@ def gather_frames(
 
     Notes
     -----
-    Evenly spaced frames wholly inside `x` are read through a strided view of each channel (a
-    matrix product, no copy); the others gather their samples with zero padding.
+    Evenly spaced frames wholly inside `x` are read through a strided view (frames, taps,
+    channels) contracted with the kernel over the taps (one matrix product after a copy that
+    keeps each frame's samples together); the others gather their samples with zero padding.
     """
     if bank.phases != 1:
         raise ValueError("gather_frames needs a one-phase kernel bank")
     x = np.asarray(x, dtype=np.float32)
-    n_ch, n = x.shape
+    n, n_ch = x.shape
     taps, ncol = bank.taps, bank.ncol
     first = bank.hop * frames - bank.offset - s0  # index in x of each frame's first tap
     inner = (first >= 0) & (first + taps <= n)
@@ -163,19 +153,18 @@ def gather_frames(
     step = np.diff(first[inner])
     if inner.sum() > 1 and np.all(step == step[0]):
         i = np.flatnonzero(inner)
-        for c in range(n_ch):
-            view = np.lib.stride_tricks.as_strided(
-                x[c, first[i[0]]:], shape=(i.size, taps),
-                strides=(step[0] * x.strides[1], x.strides[1]), writeable=False)
-            out[c, i] = view @ kern
+        view = np.lib.stride_tricks.as_strided(
+            x[first[i[0]]:], shape=(i.size, taps, n_ch),
+            strides=(step[0] * x.strides[0], x.strides[0], x.strides[1]), writeable=False)
+        out[:, i] = np.tensordot(view, kern, axes=([1], [0])).transpose(1, 0, 2)  # (ch, k, ncol)
         rest = np.flatnonzero(~inner)
     else:
         rest = np.arange(frames.size)
     if rest.size:
         idx = first[rest, None] + np.arange(taps)[None, :]
-        sel = x[:, np.clip(idx, 0, n - 1)]  # (n_ch, k, taps)
-        sel *= ((idx >= 0) & (idx < n))[None]
-        out[:, rest] = sel @ kern
+        sel = x[np.clip(idx, 0, n - 1)]  # (k, taps, n_ch)
+        sel *= ((idx >= 0) & (idx < n))[:, :, None]
+        out[:, rest] = np.moveaxis(sel, 2, 0) @ kern
     return out
 
 

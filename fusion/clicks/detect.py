@@ -66,7 +66,6 @@ from fusion._validation import check_positive
 from fusion.clicks._click_peaks import local_maxima, not_ringing
 from fusion.clicks._frames import (
     CHUNK,
-    channel_major,
     framed_filter,
     gather_frames,
     interp_nodes,
@@ -369,7 +368,6 @@ class ClickDetector:
         if n_frames < 3:
             return [ChannelClicks(c) for c in range(n_ch)]
         frames = np.arange(j_a, j_b + 1)
-        xt = channel_major(x)  # one float32 row per channel
         sep = max(1, int(round(self.min_separation_s * fs / hop)))
         # the frames whose statistic can decide a click in the span: its peak frame, the
         # neighbours and minimum-separation rivals of the candidates near it, and every
@@ -389,7 +387,7 @@ class ClickDetector:
         sub = np.flatnonzero(frames % self.background_decimation == 0)
         if sub.size == 0:
             sub = np.arange(n_frames)
-        spec = gather_frames(xt, s0, frames[sub], k.full)
+        spec = gather_frames(x, s0, frames[sub], k.full)
         p_sub = spec[..., 0::2] ** 2 + spec[..., 1::2] ** 2  # (ch, k, n_bins)
         seg_len = self._seg_len(fs)
         # a segment cut to under a quarter by an end of the audio gets no node of its own
@@ -404,9 +402,9 @@ class ClickDetector:
         if self.method == "stft":
             # flat band weights over the per-bin background, on the re and im columns
             coef = np.repeat((1.0 / k.band.size) / bin_bg[:, :, k.band], 2, axis=2)
-            stat = self._chunked(xt, s0, j_a, n_frames, k, coef.astype(np.float32), left, wgt)
+            stat = self._chunked(x, s0, j_a, n_frames, k, coef.astype(np.float32), left, wgt)
         else:
-            env = self._chunked(xt, s0, j_a, n_frames, k, None, left, wgt)
+            env = self._chunked(x, s0, j_a, n_frames, k, None, left, wgt)
             _, env_bg = segment_medians(env[:, sub], frames[sub], seg_len, min_count)
             env_bg = np.maximum(env_bg / k.env_median_to_mean, _TINY)  # mean-equivalent
             right = np.minimum(left + 1, nodes.size - 1)
@@ -432,7 +430,7 @@ class ClickDetector:
             times = t0 + (pos - s0) / fs
             power = s[peaks].astype(float)
             near = np.clip(np.round(peaks + delta), 0, n_frames - 1).astype(np.int64)
-            fc = self._centre_freq(xt[c:c + 1], s0, frames, near, k, bin_bg[c], left, wgt)
+            fc = self._centre_freq(x[:, c:c + 1], s0, frames, near, k, bin_bg[c], left, wgt)
             ok = fc >= self.min_centre_freq_hz
             times, power, fc = times[ok], power[ok], fc[ok]
             keep = not_ringing(times, power, self.suppress_s, self.suppress_ratio)
@@ -443,7 +441,7 @@ class ClickDetector:
 
     def _chunked(
         self,
-        x: NDArray[np.float32],
+        x: NDArray[np.floating],
         s0: int,
         j_a: int,
         n_frames: int,
@@ -454,8 +452,8 @@ class ClickDetector:
     ) -> NDArray[np.float32]:
         """Statistic over chunks of frames that stay in cache: the STFT band sum with per-bin
         weights `coef` (ch, nodes, 2 n_band) interpolated between nodes, or (``coef=None``) the
-        smoothed squared envelope; (ch, n_frames) float32. `x` is channel-major."""
-        n_ch = x.shape[0]
+        smoothed squared envelope; (ch, n_frames) float32."""
+        n_ch = x.shape[1]
         out = np.empty((n_ch, n_frames), dtype=np.float32)
         for a in range(0, n_frames, CHUNK):
             b = min(a + CHUNK, n_frames)
@@ -478,7 +476,7 @@ class ClickDetector:
             out[:, a:b] = zl + w * (zr - zl)
         return out
 
-    def _envelope(self, x: NDArray[np.float32], s0: int, j0: int, count: int,
+    def _envelope(self, x: NDArray[np.floating], s0: int, j0: int, count: int,
                   k: DetectorKernels) -> NDArray[np.float32]:
         """The smoothed squared envelope at `count` consecutive frames from `j0` (ch, count)."""
         hop = self.hop
@@ -487,7 +485,7 @@ class ClickDetector:
         y = framed_filter(x, s0, hop * j0, n_smp, k.env)[:, :, 0]
         y *= y
         # sum_n v_n y_b^2(hop J + n), with y_b^2 as a signal starting at the first frame
-        return framed_filter(y, hop * j0, j0, count, k.smooth)[:, :, 0]
+        return framed_filter(y.T, hop * j0, j0, count, k.smooth)[:, :, 0]
 
     def _centre_freq(
         self,
