@@ -11,7 +11,18 @@ import numpy as np
 from fusion.cli import emit, number
 from fusion.geometry import wrap_deg
 from fusion.io import read_bearings, write_table
-from fusion.passive.crossing import detect_crossings, estimate_period
+from fusion.passive.crossing import CrossingAlert, detect_crossings
+from fusion.passive.crossing_settings import (
+    DEFAULT_CONFIRM,
+    DEFAULT_HORIZON_S,
+    DEFAULT_LEAD_WINDOWS,
+    DEFAULT_LEVEL,
+    DEFAULT_N_WINDOWS,
+    DEFAULT_WINDOW_S,
+    MAX_SAMPLES_PER_WINDOW,
+    MIN_SAMPLES_PER_WINDOW,
+    crossing_settings,
+)
 
 logger = logging.getLogger(__name__)
 
@@ -23,24 +34,49 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="predict and detect crossings of bearing tracks",
         description=(
             "Predict and detect crossings of bearing tracks (Target Track Crossing "
-            "Prediction/Detection): least-squares bearing and rate over the last J samples of "
-            "each track, crossing time of every pair, prediction/detection inequalities. "
-            "Irregular input is resampled onto a K-second grid by linear interpolation of the "
-            "unwrapped bearings within each track's time span; gaps longer than --max-gap "
-            "split a track. Rows with track_id -1 are ignored."
+            "Prediction/Detection): least-squares bearing and rate over a window of each "
+            "track, crossing time of every pair with an interval from the fits' covariance "
+            "(Fieller), prediction/detection inequalities. A pair whose rate difference the "
+            "window cannot resolve is tried on windows 2, 4, ... times longer; no alert carries "
+            "an interval wider than the horizon. Windows and horizon are in seconds; the "
+            "sample period K comes from the data (dense data are averaged onto a coarser "
+            "grid, irregular data interpolated; gaps longer than --max-gap split a track). "
+            "One line says what was chosen. Rows with track_id -1 are ignored. Defaults "
+            "chosen on varied simulated scenarios (benchmarks/RESULTS.md)."
         ),
     )
     p.add_argument("--bearings", required=True, help="input CSV: track_id,time,bearing_deg")
-    p.add_argument("--out", required=True, help="output CSV: time,track_a,track_b,t_cross,kind")
-    p.add_argument("--period", "-K", type=number(float, gt=0), default=None, metavar="K",
-                   help="sample period K, s (default: median time step within tracks)")
-    p.add_argument("--window", "-J", type=number(int, ge=3), default=10, metavar="J",
-                   help="samples in the least-squares window, > 2 (default 10)")
+    p.add_argument("--out", required=True,
+                   help="output CSV: time,track_a,track_b,t_cross,kind,t_cross_low,t_cross_high")
+    p.add_argument("--window-s", type=number(float, gt=0), default=None, metavar="S",
+                   help=f"shortest least-squares window, s (default {DEFAULT_WINDOW_S:g} s or "
+                        "an eighth of the median track span if shorter, at least "
+                        f"{MIN_SAMPLES_PER_WINDOW} samples)")
     p.add_argument("--horizon", type=number(float, gt=0), default=None, metavar="S",
-                   help="in-range check: |t_cross - t| <= S seconds (default J*K)")
+                   help="prediction horizon and widest interval of an alert, s "
+                        f"(default {DEFAULT_HORIZON_S:g} s)")
+    p.add_argument("--windows", type=number(int, ge=1), default=DEFAULT_N_WINDOWS, metavar="N",
+                   help="windows in the ladder, each twice the previous "
+                        f"(default {DEFAULT_N_WINDOWS}; 1: the method's single window)")
+    p.add_argument("--lead", type=number(float, gt=0), default=DEFAULT_LEAD_WINDOWS, metavar="F",
+                   help="predictions reach F spans of the window used ahead "
+                        f"(default {DEFAULT_LEAD_WINDOWS:g}; the method: 1)")
+    p.add_argument("--confirm", type=number(int, ge=1), default=DEFAULT_CONFIRM, metavar="N",
+                   help="samples in a row a pair must satisfy an inequality before it alerts "
+                        f"(default {DEFAULT_CONFIRM}; the method: 1)")
+    p.add_argument("--level", type=number(float, gt=0, le=0.99999), default=DEFAULT_LEVEL,
+                   metavar="P", help="nominal level of the fits' t_cross intervals (default "
+                   f"{DEFAULT_LEVEL:g}: on varied scenarios about 95 %% of such intervals hold "
+                   "the crossing, the fits' own 95 %% too few because tracks curve)")
+    p.add_argument("--period", "-K", type=number(float, gt=0), default=None, metavar="K",
+                   help="grid period K, s (default: the median time step within tracks, "
+                        "coarser if the window would hold more than "
+                        f"{MAX_SAMPLES_PER_WINDOW} samples)")
+    p.add_argument("--window", "-J", type=number(int, ge=3), default=None, metavar="J",
+                   help="samples in the shortest window, > 2 (replaces --window-s)")
     p.add_argument("--merge-window", type=number(float, gt=0), default=None, metavar="S",
-                   help="alerts of a pair whose t_cross differ by <= S s are one event "
-                        "(default J*K)")
+                   help="alerts of a pair whose t_cross differ by <= S s, or whose intervals "
+                        "overlap, are one event (default: the window)")
     p.add_argument("--max-gap", type=number(float, gt=0), default=None, metavar="S",
                    help="a gap longer than S s splits a track (default 3*K)")
     p.set_defaults(handler=run, inputs=("bearings",))
@@ -53,47 +89,48 @@ def run(args: argparse.Namespace) -> int:
     known = tid >= 0
     if np.unique(tid[known]).size < 2:
         raise ValueError(f"{args.bearings}: needs at least two tracks (track_id >= 0)")
-    period = args.period
-    if period is None:
-        try:
-            period = estimate_period(tid[known], table["time"][known])
-        except ValueError as e:
-            raise ValueError(f"{args.bearings}: {e}") from None
-        logger.info("sample period K = %.6g s (median time step)", period)
+    try:
+        st = crossing_settings(tid, table["time"], window_s=args.window_s,
+                               horizon_s=args.horizon, period_s=args.period, J=args.window,
+                               n_windows=args.windows, lead_windows=args.lead,
+                               confirm=args.confirm, level=args.level)
+    except ValueError as e:
+        raise ValueError(f"{args.bearings}: {e}") from None
     spans = [np.ptp(table["time"][tid == k]) for k in np.unique(tid[known])]
-    n_samples = np.floor(np.asarray(spans) / period + 1e-9).astype(int) + 1
-    if np.sum(n_samples >= args.window) < 2:
+    n_samples = np.floor(np.asarray(spans) / st.period_s + 1e-9).astype(int) + 1
+    if np.sum(n_samples >= st.J) < 2:
         raise ValueError(
-            f"{args.bearings}: fewer than two tracks span --window J={args.window} samples at "
-            f"K={period:g} s (longest: {int(n_samples.max())}); no crossing can be tested"
+            f"{args.bearings}: fewer than two tracks span --window J={st.J} samples at "
+            f"K={st.period_s:g} s (longest: {int(n_samples.max())}); no crossing can be tested"
         )
-    alerts = detect_crossings(
-        table, J=args.window, K=period, horizon_s=args.horizon,
-        merge_window_s=args.merge_window, max_gap_s=args.max_gap,
-    )
-    write_table(
-        args.out,
-        {
-            "time": np.array([a.time for a in alerts], dtype=float),
-            "track_a": np.array([a.track_a for a in alerts], dtype=np.int64),
-            "track_b": np.array([a.track_b for a in alerts], dtype=np.int64),
-            "t_cross": np.array([a.t_cross for a in alerts], dtype=float),
-            "kind": np.array([a.kind.value for a in alerts], dtype=str),
-        },
-    )
+    alerts = detect_crossings(table, merge_window_s=args.merge_window, max_gap_s=args.max_gap,
+                              **st.detector_options())
+    write_table(args.out, alert_columns(alerts))
     n_pred = sum(a.kind == "predicted" for a in alerts)
-    emit(
-        f"{len(alerts)} alert(s) ({n_pred} predicted, {len(alerts) - n_pred} detected), "
-        f"K={period:g} s, J={args.window} -> {args.out}"
-    )
+    emit(f"{st.describe()}: {len(alerts)} alert(s) ({n_pred} predicted, "
+         f"{len(alerts) - n_pred} detected) -> {args.out}")
     return 0
+
+
+def alert_columns(alerts: list[CrossingAlert]) -> dict[str, np.ndarray]:
+    """Columns of the alerts file (formats.md section 4, with the optional interval columns)."""
+    return {
+        "time": np.array([a.time for a in alerts], dtype=float),
+        "track_a": np.array([a.track_a for a in alerts], dtype=np.int64),
+        "track_b": np.array([a.track_b for a in alerts], dtype=np.int64),
+        "t_cross": np.array([a.t_cross for a in alerts], dtype=float),
+        "kind": np.array([a.kind.value for a in alerts], dtype=str),
+        "t_cross_low": np.array([a.t_cross_low for a in alerts], dtype=float),
+        "t_cross_high": np.array([a.t_cross_high for a in alerts], dtype=float),
+    }
 
 
 def run_demo(out_dir: Path, *, seed: int) -> dict:
     """Demo part ``crossings``: alerts on a simulated bearing-time picture, with a figure.
 
     Simulates 8 tracks over 30 min (two crossing pairs, one through north, a near-miss pair,
-    a parallel pair, two free tracks; K = 10 s, 0.5 deg noise), runs the detector (J = 10),
+    a parallel pair, two free tracks; K = 10 s, 0.5 deg noise), runs the detector with the
+    settings `fusion crossings` chooses (:func:`~fusion.passive.crossing.crossing_settings`),
     writes ``bearings.csv``, ``alerts.csv`` and ``crossings.png`` into `out_dir` and returns
     the scores against the true crossings.
 
@@ -113,23 +150,19 @@ def run_demo(out_dir: Path, *, seed: int) -> dict:
     from fusion.passive.quality import TrackQuality
     from fusion.simulate.bearings import simulate_bearings
 
-    J, K = 10, 10.0
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     sc = simulate_bearings(seed=seed, n_tracks=8, n_crossing_pairs=2, n_wrap_crossings=1,
-                           n_near_miss_pairs=1, n_parallel_pairs=1, sample_period_s=K)
+                           n_near_miss_pairs=1, n_parallel_pairs=1, sample_period_s=10.0)
     cols = {"track_id": sc.track_id, "time": sc.time, "bearing_deg": sc.bearing_deg}
     write_table(out_dir / "bearings.csv", cols)
-    alerts = detect_crossings(cols, J=J, K=K)
-    write_table(out_dir / "alerts.csv", {
-        "time": np.array([a.time for a in alerts], float),
-        "track_a": np.array([a.track_a for a in alerts], np.int64),
-        "track_b": np.array([a.track_b for a in alerts], np.int64),
-        "t_cross": np.array([a.t_cross for a in alerts], float),
-        "kind": np.array([a.kind.value for a in alerts], str),
-    })
+    st = crossing_settings(sc.track_id, sc.time)  # what `fusion crossings` would choose
+    J, K = st.J, st.period_s
+    alerts = detect_crossings(cols, **st.detector_options())
+    write_table(out_dir / "alerts.csv", alert_columns(alerts))
     score = score_alerts(alerts, list(sc.crossings), list(sc.non_crossing_pairs), J=J, K=K,
-                         t_start=float(sc.truth_time[0]), t_end=float(sc.truth_time[-1]))
+                         t_start=float(sc.truth_time[0]), t_end=float(sc.truth_time[-1]),
+                         match_tol_s=st.horizon_s)
 
     tqi = _demo_track_quality(sc, seed=seed)
     write_table(out_dir / "tqi.csv", {"track_id": sc.track_id, "time": sc.time,
@@ -169,7 +202,8 @@ def run_demo(out_dir: Path, *, seed: int) -> dict:
     ax.set_xlabel("bearing, deg (clockwise from north, north in the middle)")
     ax.set_ylabel("time, min")
     ax.invert_yaxis()
-    ax.set_title(f"Crossing prediction/detection, J={J}, K={K:g} s (seed {seed})")
+    ax.set_title(f"Crossing prediction/detection, windows from {st.window_s:g} s, K={K:g} s "
+                 f"(seed {seed})")
     ax.legend(fontsize=7, loc="lower left", ncol=2)
     fig.tight_layout()
     with atomic_output(out_dir / "crossings.png") as tmp:

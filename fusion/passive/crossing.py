@@ -37,10 +37,30 @@ from numpy.typing import ArrayLike, NDArray
 from fusion.passive.bearing_grid import ResampledBearings, estimate_period, resample_bearings
 from fusion.passive.crossing_pairs import evaluate_pairs, pair_intervals, pairs_in_reach
 from fusion.passive.crossing_score import CrossingScore, IntervalScore, score_alerts, score_intervals
+from fusion.passive.crossing_settings import (
+    DEFAULT_CONFIRM,
+    DEFAULT_HORIZON_S,
+    DEFAULT_LEAD_WINDOWS,
+    DEFAULT_LEVEL,
+    DEFAULT_N_WINDOWS,
+    DEFAULT_WINDOW_S,
+    MAX_SAMPLES_PER_WINDOW,
+    MIN_SAMPLES_PER_WINDOW,
+    CrossingSettings,
+    crossing_settings,
+)
 from fusion.passive.crossing_types import AlertKind, CrossingAlert, PairCheck
 from fusion.passive.line_fit import LineStats, SlidingLineFit
 
 __all__ = [
+    "DEFAULT_CONFIRM",
+    "DEFAULT_HORIZON_S",
+    "DEFAULT_LEAD_WINDOWS",
+    "DEFAULT_LEVEL",
+    "DEFAULT_N_WINDOWS",
+    "DEFAULT_WINDOW_S",
+    "MAX_SAMPLES_PER_WINDOW",
+    "MIN_SAMPLES_PER_WINDOW",
     "Alert",
     "AlertKind",
     "CrossingAlert",
@@ -137,6 +157,12 @@ class CrossingDetector:
         ladder is then not used).
     max_interval_s : float, optional
         An alert needs an interval no wider than this, s (default `horizon_s`).
+    lead_windows : float, optional
+        Predictions from a window reach at most this many window spans ahead (default 1, the
+        method's ``t_c <= t_i + J K`` for each window; never beyond `horizon_s`).
+    confirm : int, optional
+        An alert needs its pair to satisfy an inequality (resolved) at this many samples in a
+        row (default 1, the method's rule).
 
     Notes
     -----
@@ -183,6 +209,8 @@ class CrossingDetector:
         n_windows: int = 1,
         level: float | None = 0.95,
         max_interval_s: float | None = None,
+        lead_windows: float = 1.0,
+        confirm: int = 1,
     ) -> None:
         if int(J) != J or J < 3:
             raise ValueError(f"J (samples per window) must be an integer > 2, got {J!r}")
@@ -196,6 +224,8 @@ class CrossingDetector:
             raise ValueError(f"min_rate_diff_deg_per_s must be >= 0, got {min_rate_diff_deg_per_s!r}")
         if int(n_windows) != n_windows or n_windows < 1:
             raise ValueError(f"n_windows must be a positive integer, got {n_windows!r}")
+        if not (np.isfinite(lead_windows) and lead_windows > 0):
+            raise ValueError(f"lead_windows must be > 0, got {lead_windows!r}")
         if level is not None and not 0.0 < level < 1.0:
             raise ValueError(f"level must lie in (0, 1), got {level!r}")
         self.J = int(J)
@@ -207,6 +237,10 @@ class CrossingDetector:
         self.level = None if level is None else float(level)
         self.n_windows = int(n_windows) if self.level is not None else 1
         self.max_interval_s = self.horizon_s if max_interval_s is None else float(max_interval_s)
+        self.lead_windows = float(lead_windows)
+        if int(confirm) != confirm or confirm < 1:
+            raise ValueError(f"confirm must be a positive integer, got {confirm!r}")
+        self.confirm = int(confirm)
         self.reset()
 
     @property
@@ -220,6 +254,8 @@ class CrossingDetector:
                            for w in self.windows)
         self._events = _Events()
         self._last_time = -np.inf
+        self._streak_key = np.zeros(0, np.int64)  # pairs hit at the previous sample ...
+        self._streak_count = np.zeros(0, np.int64)  # ... and for how many samples in a row
 
     @property
     def fit(self) -> SlidingLineFit:
@@ -276,10 +312,35 @@ class CrossingDetector:
         for fit in self._fits:
             fit.update(ids, t, np.radians(bdeg))
         self._prune(t)
-        hits = self._hits(t, ids)
+        hits = self._confirmed(self._hits(t, ids))
         return self._alerts(t, hits)
 
+    def _confirmed(self, h: _Hits) -> _Hits:
+        """Hits of pairs that satisfied an inequality at `confirm` samples in a row."""
+        fit = self._fits[0]
+        key = fit.slots(h.a) * (1 << 32) + fit.slots(h.b)
+        pos = np.searchsorted(self._streak_key, key)
+        pos_ok = np.minimum(pos, max(self._streak_key.size - 1, 0))
+        seen = (pos < self._streak_key.size) & (self._streak_key[pos_ok] == key) \
+            if self._streak_key.size else np.zeros(key.size, bool)
+        count = np.where(seen, self._streak_count[pos_ok] + 1 if self._streak_key.size else 1, 1)
+        order = np.argsort(key, kind="stable")
+        self._streak_key, self._streak_count = key[order], count[order]
+        if self.confirm <= 1:
+            return h
+        keep = count >= self.confirm
+        return _Hits(*(getattr(h, f)[keep] for f in (
+            "a", "b", "t_cross", "low", "high", "predicted", "window_s")))
+
     # -- pairs -------------------------------------------------------------------------------
+    def _judge(
+        self, st: LineStats, ia: NDArray[np.int64], ib: NDArray[np.int64]
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
+        """Crossing time, interval and resolved flag of pairs on one window of the ladder."""
+        tau, low, high, ok = pair_intervals(ia, ib, st.value, st, level=self.level)
+        ok &= (high - low) <= self.max_interval_s
+        return tau, low, high, ok
+
     def _hits(self, t: float, ids: NDArray[np.int64]) -> _Hits:
         """Pairs satisfying an inequality on the shortest window that resolves them."""
         parts: list[tuple] = []
@@ -291,6 +352,7 @@ class CrossingDetector:
             if sel.size < 2:
                 break
             span = J * self.K
+            lead = min(self.horizon_s, self.lead_windows * span)
             ia, ib, tau = pairs_in_reach(
                 st.value[sel], st.slope[sel], reach_s=max(self.horizon_s, span),
                 min_rate_diff_rad_per_s=self.min_rate_diff_rad_per_s)
@@ -299,14 +361,12 @@ class CrossingDetector:
                 low = high = np.full(tau.size, np.nan)
                 ok = np.ones(tau.size, bool)
             else:
-                tau, low, high, ok = pair_intervals(ia, ib, st.value, st, level=self.level)
-                ok &= (high - low) <= self.max_interval_s
+                tau, low, high, ok = self._judge(st, ia, ib)
                 for lower in range(level):  # judged on the shortest window that resolves it
-                    _, lo_m, hi_m, ok_m = pair_intervals(ia, ib, stats[lower].value,
-                                                         stats[lower], level=self.level)
-                    ok &= ~(ok_m & ((hi_m - lo_m) <= self.max_interval_s))
-            pred = ok & (tau > 0.0) & (tau <= self.horizon_s)  # inequality (3)
-            det = ok & (tau >= -span) & (tau <= 0.0)  # inequality (4)
+                    ok &= ~self._judge(stats[lower], ia, ib)[3]
+            with np.errstate(invalid="ignore"):
+                pred = ok & (tau > 0.0) & (tau <= lead)  # inequality (3)
+                det = ok & (tau >= -min(span, lead)) & (tau <= 0.0)  # inequality (4)
             k = np.flatnonzero(pred | det)
             parts.append((ids[ia[k]], ids[ib[k]], t + tau[k], t + low[k], t + high[k], pred[k],
                           np.full(k.size, span)))
@@ -378,108 +438,6 @@ class CrossingDetector:
 # --------------------------------------------------------------------------------------------
 # settings in seconds, batch entry point
 # --------------------------------------------------------------------------------------------
-@dataclass(frozen=True)
-class CrossingSettings:
-    """Detector settings for one bearing table, in seconds and in samples.
-
-    Attributes
-    ----------
-    period_s : float
-        Grid period K, s.
-    data_step_s : float
-        Median time step of the data within tracks, s.
-    window_s : float
-        Span of the shortest least-squares window, s (``J K``).
-    J : int
-        Samples in the shortest window.
-    n_windows : int
-        Windows in the ladder (``J, 2 J, ...``).
-    horizon_s : float
-        Prediction horizon and widest interval an alert may carry, s.
-    """
-
-    period_s: float
-    data_step_s: float
-    window_s: float
-    J: int
-    n_windows: int
-    horizon_s: float
-
-    def describe(self) -> str:
-        """One line saying what was chosen."""
-        longest = self.J * 2 ** (self.n_windows - 1) * self.period_s
-        return (f"K={self.period_s:.4g} s (data step {self.data_step_s:.4g} s), window "
-                f"{self.window_s:.4g} s (J={self.J}) up to {longest:.4g} s in "
-                f"{self.n_windows} step(s), horizon {self.horizon_s:.4g} s")
-
-
-#: Default shortest window, s (chosen on varied scenarios, see benchmarks/RESULTS.md).
-DEFAULT_WINDOW_S = 120.0
-#: Default prediction horizon and widest interval, s.
-DEFAULT_HORIZON_S = 600.0
-#: Default number of windows in the ladder (120, 240, 480, 960 s).
-DEFAULT_N_WINDOWS = 4
-#: Largest number of samples in the shortest window; denser data is averaged onto a coarser grid.
-MAX_SAMPLES_PER_WINDOW = 30
-
-
-def crossing_settings(
-    track_id: ArrayLike,
-    time: ArrayLike,
-    *,
-    window_s: float | None = None,
-    horizon_s: float | None = None,
-    period_s: float | None = None,
-    J: int | None = None,
-    n_windows: int = DEFAULT_N_WINDOWS,
-) -> CrossingSettings:
-    """Window, horizon and grid period of a bearing table, in seconds, from the data.
-
-    Parameters
-    ----------
-    track_id, time : array_like, shape (m,)
-        Track of each sample (negative ids are ignored) and sample times, s.
-    window_s : float, optional
-        Span of the shortest window, s (default :data:`DEFAULT_WINDOW_S`, or ``J K`` when `J`
-        is given).
-    horizon_s : float, optional
-        Prediction horizon, s (default :data:`DEFAULT_HORIZON_S`, at least the window).
-    period_s : float, optional
-        Grid period K, s (default: the median time step within tracks, made coarser when the
-        window would hold more than :data:`MAX_SAMPLES_PER_WINDOW` samples).
-    J : int, optional
-        Samples in the shortest window (default ``round(window_s / K)``, at least 3).
-    n_windows : int, optional
-        Windows in the ladder.
-
-    Returns
-    -------
-    CrossingSettings
-    """
-    tid = np.asarray(track_id)
-    step = estimate_period(tid[tid >= 0], np.asarray(time)[tid >= 0])
-    if window_s is not None and not (np.isfinite(window_s) and window_s > 0):
-        raise ValueError(f"window_s must be > 0, got {window_s!r}")
-    if horizon_s is not None and not (np.isfinite(horizon_s) and horizon_s > 0):
-        raise ValueError(f"horizon_s must be > 0, got {horizon_s!r}")
-    if J is not None and (int(J) != J or J < 3):
-        raise ValueError(f"J must be an integer > 2, got {J!r}")
-    if period_s is not None:
-        K = float(period_s)
-    elif J is not None and window_s is None:
-        K = step
-    else:
-        span = DEFAULT_WINDOW_S if window_s is None else float(window_s)
-        K = max(step, span / MAX_SAMPLES_PER_WINDOW)
-    if J is None:
-        span = DEFAULT_WINDOW_S if window_s is None else float(window_s)
-        J = max(3, int(round(span / K)))
-    window = J * K
-    horizon = max(DEFAULT_HORIZON_S, window) if horizon_s is None else float(horizon_s)
-    return CrossingSettings(period_s=K, data_step_s=step, window_s=window, J=int(J),
-                            n_windows=int(n_windows), horizon_s=horizon)
-
-
 def detect_crossings(
     table: Any,
     *,
@@ -492,6 +450,8 @@ def detect_crossings(
     n_windows: int = 1,
     level: float | None = 0.95,
     max_interval_s: float | None = None,
+    lead_windows: float = 1.0,
+    confirm: int = 1,
 ) -> list[CrossingAlert]:
     """Crossing alerts of a whole bearing table (batch entry point).
 
@@ -504,7 +464,8 @@ def detect_crossings(
         Samples per least-squares window.
     K : float, optional
         Sample period, s (default: the median time step within tracks).
-    horizon_s, min_rate_diff_deg_per_s, merge_window_s, max_gap_s, n_windows, level, max_interval_s
+    horizon_s, min_rate_diff_deg_per_s, merge_window_s, max_gap_s, n_windows, level, \
+max_interval_s, lead_windows, confirm
         As in :class:`CrossingDetector` (`max_gap_s` also bounds interpolation gaps).
 
     Returns
@@ -531,7 +492,7 @@ def detect_crossings(
     det = CrossingDetector(
         J=J, K=period, horizon_s=horizon_s, min_rate_diff_deg_per_s=min_rate_diff_deg_per_s,
         merge_window_s=merge_window_s, max_gap_s=max_gap_s, n_windows=n_windows, level=level,
-        max_interval_s=max_interval_s,
+        max_interval_s=max_interval_s, lead_windows=lead_windows, confirm=confirm,
     )
     rs = resample_bearings(
         tid, cols["time"], cols["bearing_deg"], period_s=det.K, max_gap_s=det.max_gap_s

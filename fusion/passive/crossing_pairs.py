@@ -242,11 +242,9 @@ def pair_intervals(
     d0 = d0 - _TWO_PI * (d0 >= np.pi) + _TWO_PI * (d0 < -np.pi)  # wrapped to [-pi, pi)
     d1 = r[index_b] - r[index_a]
     va, vb = stats.var_slope[index_a], stats.var_slope[index_b]
-    dof_a, dof_b = stats.n[index_a] - 2.0, stats.n[index_b] - 2.0
     v11 = va + vb
+    dof = _welch_dof(va, vb, stats.n[index_a] - 2.0, stats.n[index_b] - 2.0)
     with np.errstate(invalid="ignore", divide="ignore"):
-        dof = np.where(v11 > 0, v11 * v11 / (va * va / dof_a + vb * vb / dof_b),
-                       np.minimum(dof_a, dof_b))
         tau = np.where(d1 != 0, -d0 / np.where(d1 != 0, d1, 1.0), np.inf)
     q = t_quantile(level, dof)
     low, high, bounded = crossing_time_interval(
@@ -254,6 +252,14 @@ def pair_intervals(
         stats.cov[index_a] + stats.cov[index_b], v11, q)
     bounded &= np.isfinite(low) & np.isfinite(high)
     return tau, low, high, bounded
+
+
+def _welch_dof(var_a, var_b, dof_a, dof_b):
+    """Welch-Satterthwaite degrees of freedom of a sum of two variance estimates."""
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(var_a + var_b > 0,
+                        (var_a + var_b) ** 2 / (var_a * var_a / dof_a + var_b * var_b / dof_b),
+                        np.minimum(dof_a, dof_b))
 
 
 def evaluate_pairs(

@@ -15,6 +15,7 @@ from fusion.passive.crossing import (
     AlertKind,
     CrossingDetector,
     SlidingLineFit,
+    crossing_settings,
     detect_crossings,
     evaluate_pairs,
     resample_bearings,
@@ -422,20 +423,28 @@ def test_autoferry_recorded_crossings(scenario, n_cross):
 # command line
 # --------------------------------------------------------------------------------------------
 def test_cli_round_trip(tmp_path, capsys):
-    """fusion crossings writes the batch alerts in the formats.md section 4 layout."""
+    """fusion crossings writes the batch alerts with their intervals (formats.md section 4)."""
     sc = simulate_bearings(seed=5, n_tracks=6, clutter_rate=0.3)
     src = write_table(tmp_path / "b.csv", {"track_id": sc.track_id, "time": sc.time,
                                            "bearing_deg": sc.bearing_deg})
     out = tmp_path / "c.csv"
-    assert main(["crossings", "--bearings", str(src), "--out", str(out), "-J", "10"]) == 0
-    assert "alert(s)" in capsys.readouterr().out
-    got = read_table(out, required=("time", "track_a", "track_b", "t_cross", "kind"),
+    assert main(["crossings", "--bearings", str(src), "--out", str(out)]) == 0
+    printed = capsys.readouterr().out.strip().splitlines()
+    assert len(printed) == 1 and "alert(s)" in printed[0]
+    st = crossing_settings(sc.track_id, sc.time)
+    assert printed[0].startswith(st.describe())
+    got = read_table(out, required=("time", "track_a", "track_b", "t_cross", "kind",
+                                    "t_cross_low", "t_cross_high"),
                      integer=("track_a", "track_b"), text=("kind",))
-    ref = detect_crossings(_table(sc.track_id, sc.time, sc.bearing_deg), J=10, K=10.0)
+    ref = detect_crossings(_table(sc.track_id, sc.time, sc.bearing_deg), **st.detector_options())
     assert len(got) == len(ref) > 0
     assert got["kind"].tolist() == [a.kind.value for a in ref]
     assert got["track_a"].tolist() == [a.track_a for a in ref]
     assert_allclose(got["t_cross"], [a.t_cross for a in ref], atol=1e-6)
+    assert_allclose(got["t_cross_low"], [a.t_cross_low for a in ref], atol=1e-6)
+    assert np.all(got["t_cross_low"] <= got["t_cross"])
+    assert np.all(got["t_cross"] <= got["t_cross_high"])
+    assert np.all(got["t_cross_high"] - got["t_cross_low"] <= st.horizon_s)
 
 
 def test_cli_no_alerts_writes_header_only(tmp_path):
@@ -444,7 +453,7 @@ def test_cli_no_alerts_writes_header_only(tmp_path):
     src = write_table(tmp_path / "b.csv", t)
     out = tmp_path / "c.csv"
     assert main(["crossings", "--bearings", str(src), "--out", str(out)]) == 0
-    assert out.read_text().strip() == "time,track_a,track_b,t_cross,kind"
+    assert out.read_text().strip() == "time,track_a,track_b,t_cross,kind,t_cross_low,t_cross_high"
 
 
 @pytest.mark.parametrize(

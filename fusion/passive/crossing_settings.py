@@ -1,0 +1,178 @@
+"""Crossing-detector settings in seconds, read from a bearing table.
+
+The method (*Target Track Crossing Prediction/Detection*) counts its window in samples J of
+period K. Recorded tables come at any rate: :func:`crossing_settings` takes the window and the
+horizon in seconds, reads the period from the data and turns them into the detector's J and K
+(:class:`CrossingSettings`, one line of which says what was chosen).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from fusion.passive.bearing_grid import estimate_period
+
+__all__ = [
+    "DEFAULT_CONFIRM",
+    "DEFAULT_HORIZON_S",
+    "DEFAULT_LEAD_WINDOWS",
+    "DEFAULT_LEVEL",
+    "DEFAULT_N_WINDOWS",
+    "DEFAULT_WINDOW_S",
+    "MAX_SAMPLES_PER_WINDOW",
+    "MIN_SAMPLES_PER_WINDOW",
+    "CrossingSettings",
+    "crossing_settings",
+]
+
+
+@dataclass(frozen=True)
+class CrossingSettings:
+    """Detector settings for one bearing table, in seconds and in samples.
+
+    Attributes
+    ----------
+    period_s : float
+        Grid period K, s.
+    data_step_s : float
+        Median time step of the data within tracks, s.
+    window_s : float
+        Span of the shortest least-squares window, s (``J K``).
+    J : int
+        Samples in the shortest window.
+    n_windows : int
+        Windows in the ladder (``J, 2 J, ...``).
+    horizon_s : float
+        Prediction horizon and widest interval an alert may carry, s.
+    lead_windows : float
+        Predictions reach this many spans of the window used ahead (never beyond the horizon).
+    confirm : int
+        Samples in a row a pair must satisfy an inequality before it alerts.
+    level : float
+        Nominal level of the Fieller intervals.
+    """
+
+    period_s: float
+    data_step_s: float
+    window_s: float
+    J: int
+    n_windows: int
+    horizon_s: float
+    lead_windows: float
+    confirm: int
+    level: float
+
+    def detector_options(self) -> dict[str, Any]:
+        """Keyword arguments of the detector and of :func:`~fusion.passive.crossing.detect_crossings`."""
+        return {"J": self.J, "K": self.period_s, "horizon_s": self.horizon_s,
+                "n_windows": self.n_windows, "lead_windows": self.lead_windows,
+                "confirm": self.confirm, "level": self.level}
+
+    def describe(self) -> str:
+        """One line saying what was chosen."""
+        longest = self.J * 2 ** (self.n_windows - 1) * self.period_s
+        return (f"K={self.period_s:.4g} s (data step {self.data_step_s:.4g} s), windows "
+                f"{self.window_s:.4g}-{longest:.4g} s (J={self.J}, {self.n_windows} windows), "
+                f"predictions up to {self.lead_windows:g} window ahead, horizon "
+                f"{self.horizon_s:.4g} s, {self.confirm} sample(s) to confirm, "
+                f"level {self.level:g}")
+
+
+#: Default shortest window, s (chosen on varied scenarios, see benchmarks/RESULTS.md).
+DEFAULT_WINDOW_S = 40.0
+#: Default prediction horizon and widest interval, s.
+DEFAULT_HORIZON_S = 600.0
+#: Default number of windows in the ladder (40 s to 1280 s).
+DEFAULT_N_WINDOWS = 6
+#: Default reach of predictions, in spans of the window used.
+DEFAULT_LEAD_WINDOWS = 0.5
+#: Default number of samples in a row that confirm an alert.
+DEFAULT_CONFIRM = 2
+#: Default nominal level of the Fieller intervals (see :func:`crossing_settings`).
+DEFAULT_LEVEL = 0.999
+#: Fewest samples in the shortest window when the window is given in seconds.
+MIN_SAMPLES_PER_WINDOW = 10
+#: Largest number of samples in the shortest window; denser data is averaged onto a coarser grid.
+MAX_SAMPLES_PER_WINDOW = 30
+
+
+def crossing_settings(
+    track_id: ArrayLike,
+    time: ArrayLike,
+    *,
+    window_s: float | None = None,
+    horizon_s: float | None = None,
+    period_s: float | None = None,
+    J: int | None = None,
+    n_windows: int = DEFAULT_N_WINDOWS,
+    lead_windows: float = DEFAULT_LEAD_WINDOWS,
+    confirm: int = DEFAULT_CONFIRM,
+    level: float = DEFAULT_LEVEL,
+) -> CrossingSettings:
+    """Window, horizon and grid period of a bearing table, in seconds, from the data.
+
+    Parameters
+    ----------
+    track_id, time : array_like, shape (m,)
+        Track of each sample (negative ids are ignored) and sample times, s.
+    window_s : float, optional
+        Span of the shortest window, s (default :data:`DEFAULT_WINDOW_S`, or ``J K`` when `J`
+        is given).
+    horizon_s : float, optional
+        Prediction horizon, s (default :data:`DEFAULT_HORIZON_S`, at least the window).
+    period_s : float, optional
+        Grid period K, s (default: the median time step within tracks, made coarser when the
+        window would hold more than :data:`MAX_SAMPLES_PER_WINDOW` samples).
+    J : int, optional
+        Samples in the shortest window (default ``round(window_s / K)``, at least
+        :data:`MIN_SAMPLES_PER_WINDOW`).
+    n_windows, lead_windows, confirm, level
+        As in :class:`fusion.passive.crossing.CrossingDetector`.
+
+    Returns
+    -------
+    CrossingSettings
+
+    Notes
+    -----
+    The defaults were chosen on varied scenarios (``benchmarks/bench_crossings.py --tune``):
+    a short first window (40 s, at least ten samples) keeps the lines close to curving tracks,
+    the ladder doubles it up to 32 times for pairs it cannot resolve, predictions reach half a
+    window ahead and need two samples in a row. The tracks' curvature and the selection of the
+    first resolved sample make the fits' nominal 95 % interval too narrow; the nominal level
+    0.999 gives intervals that hold the crossing about as often as a 95 % interval should
+    (measured coverage in benchmarks/RESULTS.md). Short records get a window of an eighth of
+    their median track span if that is shorter. Dense data get a grid period of
+    window / :data:`MAX_SAMPLES_PER_WINDOW` (their samples are averaged onto it), so the
+    window, not the sampling rate, sets the warning time.
+    """
+    tid = np.asarray(track_id)
+    tt = np.asarray(time, dtype=float)
+    step = estimate_period(tid[tid >= 0], tt[tid >= 0])
+    for name, v in (("window_s", window_s), ("horizon_s", horizon_s), ("period_s", period_s)):
+        if v is not None and not (np.isfinite(v) and v > 0):
+            raise ValueError(f"{name} must be > 0, got {v!r}")
+    if J is not None and (int(J) != J or J < 3):
+        raise ValueError(f"J must be an integer > 2, got {J!r}")
+    ids = np.unique(tid[tid >= 0])
+    track_span = float(np.median([np.ptp(tt[tid == k]) for k in ids]))
+    span = min(DEFAULT_WINDOW_S, max(3.0 * step, track_span / 8.0)) if window_s is None \
+        else float(window_s)
+    if period_s is not None:
+        K = float(period_s)
+    elif J is not None and window_s is None:
+        K = step
+    else:
+        K = max(step, span / MAX_SAMPLES_PER_WINDOW)
+    if J is None:
+        J = max(MIN_SAMPLES_PER_WINDOW, int(round(span / K)))
+    window = J * K
+    horizon = max(DEFAULT_HORIZON_S, window) if horizon_s is None else float(horizon_s)
+    return CrossingSettings(period_s=K, data_step_s=step, window_s=window, J=int(J),
+                            n_windows=int(n_windows), horizon_s=horizon,
+                            lead_windows=float(lead_windows), confirm=int(confirm),
+                            level=float(level))
