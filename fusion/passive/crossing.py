@@ -354,7 +354,7 @@ class CrossingDetector:
             span = J * self.K
             lead = min(self.horizon_s, self.lead_windows * span)
             ia, ib, tau = pairs_in_reach(
-                st.value[sel], st.slope[sel], reach_s=max(self.horizon_s, span),
+                st.value[sel], st.slope[sel], reach_s=lead,
                 min_rate_diff_rad_per_s=self.min_rate_diff_rad_per_s)
             ia, ib = sel[ia], sel[ib]  # positions among `ids`
             if self.level is None:
