@@ -19,7 +19,12 @@ from hypothesis import strategies as st
 from threadpoolctl import threadpool_limits
 
 from fusion.io import read_array, write_json
-from fusion.pipelines.click_chunks import AudioSource, open_audio, plan_chunks
+from fusion.pipelines.click_chunks import (
+    AudioSource,
+    open_audio,
+    plan_chunks,
+    track_document_sources,
+)
 from fusion.pipelines.click_stream import stream_start
 from fusion.pipelines.localization import ClickLocalization, result_document
 from fusion.scale import PartStore, dask_client, file_identity, fingerprint, run_tasks
@@ -99,7 +104,7 @@ def test_chunks_cover_each_window_once(recording):
 
 
 def test_serial_run_equals_one_pass(recording, serial_bytes, tmp_path):
-    """Chunked output is byte for byte write_json of one streaming pass over the recording."""
+    """Chunked output is byte for byte write_json of one streaming pass (windows and tracks)."""
     sensors = read_array(recording / "array.json")
     info = sf.info(str(recording / "audio.flac"))
     fs, block = float(info.samplerate), int(round(2.0 * info.samplerate))
@@ -114,7 +119,10 @@ def test_serial_run_equals_one_pass(recording, serial_bytes, tmp_path):
     with threadpool_limits(1):  # as the chunk tasks (one BLAS thread, as on a Dask worker)
         windows = list(ClickLocalization().iter_windows(blocks(), fs=fs, sensors=sensors,
                                                         duration_s=info.frames / fs))
-    ref = write_json(tmp_path / "one_pass.json", result_document(windows))
+    doc = result_document(windows)
+    doc["tracks"] = [t.to_dict() for t in track_document_sources(
+        [(0.5 * (w["t_start"] + w["t_end"]), w["sources"]) for w in doc["windows"]])]
+    ref = write_json(tmp_path / "one_pass.json", doc)
     assert ref.read_bytes() == serial_bytes
     doc = json.loads(serial_bytes)
     assert [w["t_start"] for w in doc["windows"]] == [0.0, 2.0, 4.0, 6.0, 8.0]
