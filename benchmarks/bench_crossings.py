@@ -50,7 +50,7 @@ from _realdata import AUTOFERRY
 
 from fusion.cli import main as fusion_main
 from fusion.geometry import wrap_deg
-from fusion.io import read_json, read_table
+from fusion.io import read_json, read_table, write_table
 from fusion.passive.crossing import (
     CrossingAlert,
     CrossingDetector,
@@ -94,6 +94,8 @@ def run_fusion(*argv: str) -> str:
 
 def read_alerts(path: Path) -> list[CrossingAlert]:
     """Alerts of a ``fusion crossings`` output file (interval columns optional)."""
+    if len(path.read_text().strip().splitlines()) < 2:  # header only: no alert
+        return []
     t = read_table(path, required=("time", "track_a", "track_b", "t_cross", "kind"),
                    optional=("t_cross_low", "t_cross_high"), integer=("track_a", "track_b"),
                    text=("kind",))
@@ -258,6 +260,22 @@ def _true_crossings(table, step: float = 0.01) -> list[float]:
     return [float(grid[i] - d[i] * step / (d[i + 1] - d[i])) for i in s]
 
 
+def _merge_repeats(table) -> dict:
+    """Rows of one track at one time averaged into one (bearings unwrapped per track)."""
+    tid, t, b = table["track_id"], table["time"], table["bearing_deg"]
+    cols: dict[str, list] = {"track_id": [], "time": [], "bearing_deg": []}
+    for k in np.unique(tid):
+        m = tid == k
+        order = np.argsort(t[m], kind="stable")
+        tt = t[m][order]
+        bb = np.degrees(np.unwrap(np.radians(b[m][order])))
+        times, inv = np.unique(tt, return_inverse=True)
+        cols["track_id"] += [int(k)] * times.size
+        cols["time"] += times.tolist()
+        cols["bearing_deg"] += np.mod(np.bincount(inv, weights=bb) / np.bincount(inv), 360).tolist()
+    return {k: np.asarray(v) for k, v in cols.items()}
+
+
 def real(options: list[str]) -> dict:
     """``fusion crossings`` on the Autoferry true-bearing records."""
     out: dict = {}
@@ -272,8 +290,12 @@ def real(options: list[str]) -> dict:
             path = full if full.exists() else root / f"scenario{s}_true_bearings.csv"
             table = read_table(path, required=("track_id", "time", "bearing_deg"),
                                integer=("track_id",))
+            # the full records repeat some (track, time) rows, which the command refuses:
+            # merge them as its message asks (mean of the unwrapped bearings)
+            merged = Path(tmp) / f"s{s}_bearings.csv"
+            write_table(merged, _merge_repeats(table))
             res = Path(tmp) / f"s{s}.csv"
-            line = run_fusion("crossings", "--bearings", str(path), "--out", str(res), *options)
+            line = run_fusion("crossings", "--bearings", str(merged), "--out", str(res), *options)
             alerts = read_alerts(res)
             t_end = float(table["time"].max())
             fmt = [[round(a.time, 2), round(a.t_cross, 2), round(a.t_cross_low, 2),
