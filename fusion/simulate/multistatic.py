@@ -35,17 +35,20 @@ Truth: the target state at every ping and the origin of each detection
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from fusion.io import Table, write_json, write_table
+from fusion.simulate.multistatic_scoring import TrackScore, score_tracks
 
 __all__ = [
     "MultistaticScenario",
+    "TrackScore",
     "bistatic_position",
+    "score_tracks",
     "simulate_multistatic",
     "write_scenario",
 ]
@@ -111,6 +114,10 @@ class MultistaticScenario:
     ping_interval_s : float
         s.
     seed : int
+    parameters : dict
+        Scenario parameters drawn from the seed (varied scenarios,
+        :mod:`fusion.simulate.multistatic_varied`; empty for the fixed scenario). Truth, for
+        diagnosis only.
     """
 
     detections: Table
@@ -120,6 +127,7 @@ class MultistaticScenario:
     hotspots: NDArray[np.float64]
     ping_interval_s: float
     seed: int
+    parameters: dict = field(default_factory=dict)
 
 
 def _target_track(
@@ -159,6 +167,7 @@ def _target_track(
 def simulate_multistatic(
     *,
     seed: int,
+    vary: bool = False,
     n_pings: int = 22,
     n_receivers: int | None = None,
     ping_interval_s: float | None = None,
@@ -184,6 +193,12 @@ def simulate_multistatic(
     ----------
     seed : int
         Random seed; same seed, same scenario.
+    vary : bool, optional
+        Draw the scenario's assumptions (receivers, detection probabilities, contact errors,
+        hotspots, clutter density, target motion, classifier scores) from the seed instead of
+        using the fixed ones below (:func:`fusion.simulate.multistatic_varied.simulate_varied`);
+        only `n_pings`, `area_half_width_m`, `detection_threshold_db` and `blanking_m` apply
+        then. Default False.
     n_pings : int, optional
         Number of pings (default 22, as in the paper's exercise).
     n_receivers : int, optional
@@ -223,6 +238,12 @@ def simulate_multistatic(
     """
     if n_pings < 2:
         raise ValueError(f"n_pings must be >= 2, got {n_pings}")
+    if vary:
+        from fusion.simulate.multistatic_varied import simulate_varied
+
+        return simulate_varied(seed, n_pings=n_pings, area_half_width_m=area_half_width_m,
+                               detection_threshold_db=detection_threshold_db,
+                               blanking_m=blanking_m)
     rng = np.random.default_rng(seed)
     n_rx = int(rng.integers(2, 5)) if n_receivers is None else int(n_receivers)
     if not 1 <= n_rx <= 8:
@@ -306,9 +327,19 @@ def simulate_multistatic(
     )
 
 
-def write_scenario(out_dir: Path, *, seed: int) -> list[Path]:
+def write_scenario(out_dir: Path, *, seed: int, vary: bool = False) -> list[Path]:
     """Write ``detections.csv`` (formats section 3, clue columns included), ``truth.csv``
     (target per ping), ``origins.csv`` (origin of each detection row) and ``truth.json``.
+
+    Parameters
+    ----------
+    out_dir : pathlib.Path
+        Output folder.
+    seed : int
+        Scenario seed.
+    vary : bool, optional
+        A varied scenario (:func:`simulate_multistatic` with ``vary=True``); its drawn
+        parameters go to ``truth.json`` under ``parameters``.
 
     Returns
     -------
@@ -316,7 +347,7 @@ def write_scenario(out_dir: Path, *, seed: int) -> list[Path]:
         The written files.
     """
     out = Path(out_dir)
-    sc = simulate_multistatic(seed=seed)
+    sc = simulate_multistatic(seed=seed, vary=vary)
     d = sc.detections.columns
     det_cols = ("event", "time", "x", "y", "snr_db", "score", "aspect_deg", "src_x", "src_y",
                 "rcv_x", "rcv_y")
@@ -328,63 +359,10 @@ def write_scenario(out_dir: Path, *, seed: int) -> list[Path]:
         write_json(out / "truth.json", {
             "kind": "multistatic", "seed": seed, "ping_interval_s": sc.ping_interval_s,
             "source": sc.source, "receivers": sc.receivers, "hotspots": sc.hotspots,
+            **({"vary": True, "parameters": sc.parameters} if vary else {}),
         }),
     ]
     return paths
-
-
-@dataclass(frozen=True)
-class TrackScore:
-    """How well confirmed tracks follow a known target.
-
-    Attributes
-    ----------
-    coverage : float
-        Fraction of the pings after the third (index >= 3) on which a confirmed track lies
-        within ``match_m`` of the target.
-    false_tracks : int
-        Confirmed tracks that are within ``match_m`` of the target on fewer than half of their
-        confirmed pings.
-    confirmed_tracks : int
-        All tracks confirmed at some ping.
-    """
-
-    coverage: float
-    false_tracks: int
-    confirmed_tracks: int
-
-
-def score_tracks(columns: dict, truth: Table, *, match_m: float = 500.0) -> TrackScore:
-    """Score tracker output (``TrackingResult.columns()``) against the target truth.
-
-    Parameters
-    ----------
-    columns : dict of str to ndarray
-        ``track_id, event, x, y, status`` rows.
-    truth : Table
-        ``event, x, y`` of the target at every ping (events consecutive).
-    match_m : float, optional
-        Distance within which a track is on the target, m (default 500: about the 99 % gate
-        radius of a track with 100-m position errors after a ping of prediction).
-
-    Returns
-    -------
-    TrackScore
-    """
-    ev0 = int(truth["event"][0])
-    conf = columns["status"] == "confirmed"
-    k = np.asarray(columns["event"]) - ev0
-    inside = (k >= 0) & (k < len(truth))
-    kk = np.clip(k, 0, len(truth) - 1)
-    d = np.where(inside, np.hypot(columns["x"] - truth["x"][kk], columns["y"] - truth["y"][kk]),
-                 np.inf)
-    on = conf & (d <= match_m)
-    covered = np.zeros(len(truth), dtype=bool)
-    covered[k[on]] = True
-    ids = np.unique(columns["track_id"][conf])
-    false = sum(np.mean(d[conf & (columns["track_id"] == t)] <= match_m) < 0.5 for t in ids)
-    return TrackScore(float(covered[3:].mean()) if len(truth) > 3 else float("nan"),
-                      int(false), int(ids.size))
 
 
 def run_demo(out_dir: Path, *, seed: int) -> dict:
