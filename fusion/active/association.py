@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Iterable
+from typing import Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -226,14 +227,21 @@ class PairRanker:
     edge_likelihood : float, optional
         Likelihood ratio at the edge of the acceptance region of the derived threshold, in
         (0, 1] (default :data:`EDGE_LIKELIHOOD`).
+    aspect : {"geometry", "measured"}, optional
+        Where the equivalent aspect angle comes from. ``geometry`` (default): computed from the
+        track's heading and the detection's source/receiver positions; an ``aspect_deg`` column
+        is ignored. ``measured``: the ``aspect_deg`` column is a measurement and is used as it
+        stands (geometry still serves pings without the column).
 
     Notes
     -----
-    Without an ``aspect_deg`` column but with source/receiver positions, the equivalent aspect is
-    computed from the track heading (:func:`fusion.active.bistatic.equivalent_aspect_deg`); it is
+    The aspect computed from geometry (:func:`fusion.active.bistatic.equivalent_aspect_deg`) is
     left out for tracks whose speed is not larger than its own standard deviation (heading
     unknown, e.g. a track born on the previous ping). The engine takes no missing values, so pairs
-    with and without an aspect angle are ranked by two calls, each with its own threshold.
+    with and without an aspect angle are ranked by two calls, each with its own threshold. An
+    ``aspect_deg`` column is not used by default because nothing in a detection file says how it
+    was obtained: a simulator may write the target's true aspect plus noise, which would hand the
+    rank the very answer it is asked to find.
     """
 
     def __init__(
@@ -243,7 +251,10 @@ class PairRanker:
         clues: Iterable[str] | None = None,
         min_rank: float | None = None,
         edge_likelihood: float = EDGE_LIKELIHOOD,
+        aspect: Literal["geometry", "measured"] = "geometry",
     ) -> None:
+        if aspect not in ("geometry", "measured"):
+            raise ValueError(f"aspect must be 'geometry' or 'measured', got {aspect!r}")
         chosen = set(CLUE_NAMES if clues is None else clues)
         unknown = chosen - set(CLUE_NAMES)
         if unknown:
@@ -257,6 +268,7 @@ class PairRanker:
         self.clues = frozenset(chosen)
         self.min_rank = None if min_rank is None else float(min_rank)
         self.edge_likelihood = float(edge_likelihood)
+        self.aspect = aspect
         #: Derived thresholds by clue set (filled as clue sets are met).
         self.thresholds: dict[frozenset[str], float] = {}
 
@@ -317,7 +329,7 @@ class PairRanker:
             inputs["hotspot_distance_m"] = hot_d[di]
         aspect = None
         if "aspect_deg" in self.clues:
-            if "aspect_deg" in ping.clues:
+            if self.aspect == "measured" and "aspect_deg" in ping.clues:
                 aspect = ping.clues["aspect_deg"][di]
             elif all(k in ping.clues for k in POSITION_CLUES):
                 v = x[ti, 2:]

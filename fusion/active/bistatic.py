@@ -23,6 +23,7 @@ from typing import Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from fusion.active.noise import NoiseEstimator
 from fusion.active.types import POSITION_CLUES, Ping
 
 __all__ = ["MeasurementModel", "bistatic_covariance", "equivalent_aspect_deg"]
@@ -32,8 +33,8 @@ def bistatic_covariance(
     xy: ArrayLike,
     source: ArrayLike,
     receiver: ArrayLike,
-    range_sum_sigma_m: float,
-    bearing_sigma_deg: float,
+    range_sum_sigma_m: float | ArrayLike,
+    bearing_sigma_deg: float | ArrayLike,
 ) -> NDArray[np.float64]:
     """Position covariance of bistatic echoes, by first-order propagation of the sensor errors.
 
@@ -57,10 +58,10 @@ def bistatic_covariance(
         Echo positions (x east, y north), m: the Jacobian is evaluated there.
     source, receiver : array_like, shape (n, 2) or (2,)
         Source and receiver positions, m.
-    range_sum_sigma_m : float
-        Standard deviation of the bistatic range sum, m (>= 0).
-    bearing_sigma_deg : float
-        Standard deviation of the bearing at the receiver, degrees (>= 0).
+    range_sum_sigma_m : float or array_like, shape (n,)
+        Standard deviation of the bistatic range sum, m (>= 0), one for all echoes or one each.
+    bearing_sigma_deg : float or array_like, shape (n,)
+        Standard deviation of the bearing at the receiver, degrees (>= 0), one or one each.
 
     Returns
     -------
@@ -80,8 +81,8 @@ def bistatic_covariance(
     p = np.asarray(xy, dtype=float).reshape(-1, 2)
     s = np.broadcast_to(np.asarray(source, dtype=float), p.shape)
     r = np.broadcast_to(np.asarray(receiver, dtype=float), p.shape)
-    sig_rho = float(range_sum_sigma_m)
-    sig_th = float(np.radians(bearing_sigma_deg))
+    sig_rho = np.broadcast_to(np.asarray(range_sum_sigma_m, dtype=float), p.shape[:1])
+    sig_th = np.radians(np.broadcast_to(np.asarray(bearing_sigma_deg, dtype=float), p.shape[:1]))
     with np.errstate(invalid="ignore", divide="ignore"):
         rx, ry = p[:, 0] - r[:, 0], p[:, 1] - r[:, 1]
         sx, sy = p[:, 0] - s[:, 0], p[:, 1] - s[:, 1]
@@ -162,9 +163,14 @@ class MeasurementModel:
         Standard deviation of each position coordinate of a detection without a geometric
         covariance, m (> 0, default 100).
     range_sum_sigma_m : float, optional
-        Accuracy (standard deviation) of the bistatic range sum, m (>= 0, default 30).
+        Accuracy (standard deviation) of the bistatic range sum, m (>= 0, default 100); the
+        prior of `noise` when one is given.
     bearing_sigma_deg : float, optional
-        Accuracy of the bearing at the receiver, deg (>= 0, default 1); not both 0.
+        Accuracy of the bearing at the receiver, deg (>= 0, default 1.5); not both 0.
+    noise : NoiseEstimator, optional
+        Per-receiver accuracies learnt from the data
+        (:class:`fusion.active.noise.NoiseEstimator`), used instead of the two fixed values;
+        the caller feeds it the pings (:meth:`NoiseEstimator.update`).
 
     Examples
     --------
@@ -179,8 +185,9 @@ class MeasurementModel:
         *,
         position_errors: Literal["geometry", "isotropic"] = "geometry",
         position_sigma_m: float = 100.0,
-        range_sum_sigma_m: float = 30.0,
-        bearing_sigma_deg: float = 1.0,
+        range_sum_sigma_m: float = 100.0,
+        bearing_sigma_deg: float = 1.5,
+        noise: NoiseEstimator | None = None,
     ) -> None:
         if not np.isfinite(position_sigma_m) or position_sigma_m <= 0:
             raise ValueError(f"position_sigma_m must be positive, got {position_sigma_m!r}")
@@ -197,6 +204,7 @@ class MeasurementModel:
         self.R = np.eye(2) * position_sigma_m**2
         self.range_sum_sigma_m = float(range_sum_sigma_m)
         self.bearing_sigma_deg = float(bearing_sigma_deg)
+        self.noise = noise
 
     def covariances(self, ping: Ping) -> tuple[NDArray[np.float64], bool]:
         """Position covariance of each detection of a ping.
@@ -208,11 +216,11 @@ class MeasurementModel:
         Returns
         -------
         R : ndarray, shape (n, 2, 2)
-            m^2: :func:`bistatic_covariance` from ``range_sum_sigma_m`` and
-            ``bearing_sigma_deg`` for detections with finite source and receiver positions
-            (``position_errors="geometry"``); ``position_sigma_m^2 I`` for the others (no
-            positions, e.g. radar, an echo on the source-receiver baseline, or
-            ``position_errors="isotropic"``).
+            m^2: :func:`bistatic_covariance` from the range-sum and bearing accuracies (the
+            estimator's for the detection's receiver, else the fixed values) for detections with
+            finite source and receiver positions (``position_errors="geometry"``);
+            ``position_sigma_m^2 I`` for the others (no positions, e.g. radar, an echo on the
+            source-receiver baseline, or ``position_errors="isotropic"``).
         geometric : bool
             Whether any detection got a geometry-derived covariance.
         """
@@ -221,7 +229,9 @@ class MeasurementModel:
             return np.broadcast_to(self.R, (ping.n, 2, 2)).copy(), False
         src = np.column_stack([ping.clues["src_x"], ping.clues["src_y"]])
         rcv = np.column_stack([ping.clues["rcv_x"], ping.clues["rcv_y"]])
-        R = bistatic_covariance(ping.xy, src, rcv, self.range_sum_sigma_m, self.bearing_sigma_deg)
+        sig = self.noise.sigmas(ping) if self.noise is not None else None
+        s_rho, s_th = sig if sig is not None else (self.range_sum_sigma_m, self.bearing_sigma_deg)
+        R = bistatic_covariance(ping.xy, src, rcv, s_rho, s_th)
         with np.errstate(invalid="ignore"):
             bad = ~(R[:, 0, 0] * R[:, 1, 1] - R[:, 0, 1] ** 2 > 0)   # NaN or singular
         if bad.all():

@@ -25,6 +25,7 @@ from factors.motion import transition_matrix, wna_covariance
 __all__ = [
     "PairStatistics",
     "cv_model",
+    "fuse_positions",
     "gate_threshold",
     "kf_predict",
     "kf_update",
@@ -185,6 +186,31 @@ def pair_statistics(
     dy = z[None, :, 1] - x[:, None, 1]
     d2 = (c * dx * dx - 2.0 * b * dx * dy + a * dy * dy) / det
     return PairStatistics(d2, det)
+
+
+def fuse_positions(
+    z: NDArray[np.float64], R: NDArray[np.float64]
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """One equivalent measurement for simultaneous position measurements of one object.
+
+    Parameters
+    ----------
+    z : ndarray, shape (k, 2)
+        Positions, m.
+    R : ndarray, shape (k, 2, 2)
+        Their covariances, m^2.
+
+    Returns
+    -------
+    z_f : ndarray, shape (2,)
+        ``C sum R_i^-1 z_i``, m.
+    C : ndarray, shape (2, 2)
+        ``(sum R_i^-1)^-1``, m^2; a Kalman update with ``(z_f, C)`` equals the sequential updates
+        with every ``(z_i, R_i)``.
+    """
+    info = np.linalg.inv(R)
+    C = np.linalg.inv(info.sum(axis=0))
+    return C @ np.einsum("nij,nj->i", info, z), C
 
 
 def gate_threshold(probability: float, *, dof: int = 2) -> float:

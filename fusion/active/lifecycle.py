@@ -44,7 +44,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import ArrayLike
+from numpy.typing import ArrayLike, NDArray
 from scipy.stats import chi2
 
 __all__ = [
@@ -133,7 +133,8 @@ def track_status(history: Sequence[bool], *, m: int, n: int, max_misses: int) ->
 
 
 def next_lifecycle(
-    state: Lifecycle, hit: bool, *, dropped: bool, held: bool, m: int, n: int, max_misses: int
+    state: Lifecycle, hit: bool | int, *, dropped: bool, held: bool, m: int, n: int,
+    max_misses: int, window: bool = True,
 ) -> Lifecycle:
     """One ping of track management, hotspot drop and stationary hold included.
 
@@ -150,27 +151,34 @@ def next_lifecycle(
         (a hit).
     m, n, max_misses : int
         As in :func:`advance_status`.
+    window : bool, optional
+        True (default): a tentative track is deleted once ``m`` hits within its first ``n``
+        pings can no longer happen (:func:`advance_status`). False: no window; a tentative
+        track is deleted after ``max_misses`` consecutive misses instead (for a tracker that
+        ends weak tentative tracks by their track score).
 
     Returns
     -------
     Lifecycle
         A track held earlier (tentative with ``hits >= m``) that misses is deleted after
         ``max_misses`` consecutive misses, like a confirmed track; otherwise
-        :func:`advance_status`.
+        :func:`advance_status`. `hit` may be a count of detections (each counts towards ``m``).
     """
     if dropped:
         return Lifecycle("deleted", state.age + 1, state.hits + int(hit), 0)
     if held:
-        return Lifecycle("tentative", state.age + 1, state.hits + 1, 0)
-    if state.status == "tentative" and state.hits >= m and not hit:
+        return Lifecycle("tentative", state.age + 1, state.hits + max(int(hit), 1), 0)
+    if state.status == "tentative" and (state.hits >= m or not window) and not hit:
         misses = state.misses + 1
         return Lifecycle("deleted" if misses >= max_misses else "tentative",
                          state.age + 1, state.hits, misses)
-    return advance_status(state, hit, m=m, n=n, max_misses=max_misses)
+    return advance_status(state, hit, m=m, n=n if window else max(n, state.age + 2),
+                          max_misses=max_misses)
 
 
 def motion_statistic(
-    times: ArrayLike, xy: ArrayLike, sigma_m: float | None = None, *, cov: ArrayLike | None = None
+    times: ArrayLike, xy: ArrayLike, sigma_m: float | None = None, *, cov: ArrayLike | None = None,
+    min_speed_mps: float = 0.0,
 ) -> float:
     """Chi-square statistic of "the detections move": least-squares velocity against zero.
 
@@ -185,6 +193,11 @@ def motion_statistic(
     cov : array_like, shape (k, 2, 2), optional
         Position covariance of each detection, m^2 (instead of ``sigma_m``), e.g. from
         :func:`bistatic_covariance`.
+    min_speed_mps : float, optional
+        Speeds up to this count as standing still, m/s (>= 0, default 0): the estimated
+        velocity is first shrunk towards zero by this much,
+        ``v <- v max(0, 1 - min_speed_mps / |v|)``, so the statistic measures how far it lies
+        beyond the disc of such speeds.
 
     Returns
     -------
@@ -208,8 +221,13 @@ def motion_statistic(
     stt = float(tt @ tt)
     if stt <= 0.0:
         return 0.0
+
+    def shrink(v: NDArray[np.float64]) -> NDArray[np.float64]:
+        speed = float(np.hypot(*v))
+        return v * max(0.0, 1.0 - min_speed_mps / speed) if speed > 0 else v
+
     if cov is None:
-        v = tt @ (p - p.mean(axis=0)) / stt
+        v = shrink(tt @ (p - p.mean(axis=0)) / stt)
         return float(v @ v) * stt / float(sigma_m) ** 2
     # Generalised least squares for theta = (p_0, v) with weights W_i = C_i^-1 (times centred).
     W = np.linalg.inv(np.asarray(cov, dtype=float).reshape(-1, 2, 2))
@@ -222,7 +240,8 @@ def motion_statistic(
     try:
         theta = np.linalg.solve(A, b)
         cov_v = np.linalg.inv(A)[2:, 2:]
-        return float(theta[2:] @ np.linalg.solve(cov_v, theta[2:]))
+        v = shrink(theta[2:])
+        return float(v @ np.linalg.solve(cov_v, v))
     except np.linalg.LinAlgError:
         return 0.0
 
@@ -237,6 +256,9 @@ class MotionTest:
         chi-square quantile with 2 degrees of freedom.
     min_detections : int, optional
         Fewest detections for a decision (default :data:`MOTION_MIN_DETECTIONS`).
+    min_speed_mps : float, optional
+        Speeds up to this count as standing still (default 0), m/s; see
+        :func:`motion_statistic`.
 
     Examples
     --------
@@ -247,13 +269,17 @@ class MotionTest:
     """
 
     def __init__(self, *, probability: float = 0.999,
-                 min_detections: int = MOTION_MIN_DETECTIONS) -> None:
+                 min_detections: int = MOTION_MIN_DETECTIONS,
+                 min_speed_mps: float = 0.0) -> None:
         if not 0.0 < probability < 1.0:
             raise ValueError(f"motion_probability must lie in (0, 1), got {probability!r}")
         if min_detections < 2:
             raise ValueError(f"min_detections must be >= 2, got {min_detections!r}")
         self.probability = float(probability)
+        if not np.isfinite(min_speed_mps) or min_speed_mps < 0:
+            raise ValueError(f"min_speed_mps must be >= 0, got {min_speed_mps!r}")
         self.min_detections = int(min_detections)
+        self.min_speed_mps = float(min_speed_mps)
         self.gate = float(chi2.ppf(self.probability, 2))
 
     def moves(self, rows: Sequence[Sequence[float]]) -> bool | None:
@@ -274,4 +300,5 @@ class MotionTest:
             return None
         seen = np.asarray(rows)
         cov = seen[:, [3, 4, 4, 5]].reshape(-1, 2, 2)
-        return bool(motion_statistic(seen[:, 0], seen[:, 1:3], cov=cov) > self.gate)
+        return bool(motion_statistic(seen[:, 0], seen[:, 1:3], cov=cov,
+                                     min_speed_mps=self.min_speed_mps) > self.gate)

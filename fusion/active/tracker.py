@@ -1,4 +1,4 @@
-"""Multistatic active tracker: Kalman prediction, fuzzy association, M-of-N track management.
+"""Multistatic active tracker: Kalman prediction, fuzzy association, track score, M-of-N.
 
 Implements the tracker of "Target tracking using fuzzy logic association" (Section 3, "Tracker
 overview"; Section 2.5, "Tracker"; Section 7, "Results") by composing its stages, one module
@@ -6,100 +6,97 @@ each:
 
 1. *Kalman stage* (:mod:`fusion.active.kalman`): constant-velocity prediction of every track,
    innovation statistics of every (track, detection) pair, the chi-square gate; each detection
-   with its own position covariance (:mod:`fusion.active.bistatic`).
+   with its own position covariance (:mod:`fusion.active.bistatic`), from range-sum and bearing
+   accuracies learnt per receiver (:mod:`fusion.active.noise`).
 2. *Fuzzy stage* (:mod:`fusion.active.association`): the rule base ranks the gated pairs from the
    likelihood ratio and the clues present; the rank threshold is read off the rule base for each
    pair's clue set; conflicts are settled by an assignment maximising the summed rank, confirmed
    tracks first.
-3. *Track management* (:mod:`fusion.active.lifecycle`): a detection that no track takes, that
-   lies in no track's gate and is not near a hotspot starts a tentative track; M-of-N
-   confirmation, deletion after consecutive misses, the hotspot drop and the stationary hold
-   (motion test of the track's own detections). The clutter map is
-   :class:`fusion.active.clutter.ClutterMap`.
+3. *Track management* (:mod:`fusion.active.lifecycle`, :mod:`fusion.active.track_score`): a
+   detection that no track takes and that lies in no track's gate starts a tentative track;
+   M-of-N confirmation together with a track score (log-likelihood ratio of target against
+   clutter, with per-receiver detection probabilities and clutter intensities estimated from the
+   data), deletion after consecutive misses, the stationary hold (motion test of the track's own
+   detections). The clutter map (:mod:`fusion.active.clutter`) learns where returns recur; it
+   feeds the rank's hotspot rule and the track score's clutter intensity.
 
 ``mode="kalman"`` is the paper's comparison tracker: nearest neighbour on the likelihood alone
-(pairs inside the gate, highest ``L`` wins, same assignment and track management), no clutter map.
+(pairs inside the gate, highest ``L`` wins, same assignment and M-of-N track management), no
+clutter map and no track score.
 
 Choices where the paper is silent, besides those documented in the stage modules:
 
 - The detections of one event are treated as simultaneous, at the time of the event's first row.
+- Each receiver's detections of a ping (one source-receiver geometry,
+  :func:`fusion.active.types.receiver_groups`) are a scan of their own: a track takes at most one
+  detection per receiver and ping, updated receiver after receiver at the ping time, and a track
+  born from one receiver's echo may take the echoes of the same place from the receivers after
+  it. The M-of-N count and the miss count are per ping (a hit: at least one detection).
 - Missing event numbers (pings without any detection) are stepped through as empty pings at
   interpolated times, so that they count as misses (:func:`fusion.active.types.pings_from_columns`).
-- Every ping is one vectorised pass: the Kalman statistics of all (track, detection) pairs at
-  once (closed-form 2 x 2 inverses), then ONE call of the fuzzy system on the gated pairs only
+- Each receiver scan is one vectorised pass: the Kalman statistics of all (track, detection) pairs
+  at once (closed-form 2 x 2 inverses), then one call of the fuzzy system on the gated pairs only
   (two when the aspect angle is computed from geometry and unknown for some tracks, as the
   engine takes no missing values).
-
-The names of the stage modules are also importable from here, as before the split.
+- Nothing a simulator knows reaches the tracker: the aspect angle comes from the track's heading
+  unless the user declares a column a measurement (``aspect="measured"``), the sonar accuracies,
+  clutter intensities and detection probabilities are estimated from the detections or set by
+  the user.
 """
 
 from __future__ import annotations
 
 import logging
 from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, field
 from typing import Literal
 
 import numpy as np
 from numpy.typing import NDArray
 
-from fusion.active.association import (
-    CLUE_NAMES,
-    EDGE_LIKELIHOOD,
-    PairRanker,
-    assign,
-    assign_by_priority,
-    derived_min_rank,
-    neutral_value,
-)
-from fusion.active.bistatic import MeasurementModel, bistatic_covariance, equivalent_aspect_deg
-from fusion.active.clutter import ClutterMap
+from fusion.active.association import EDGE_LIKELIHOOD, PairRanker, assign_by_priority
+from fusion.active.bistatic import MeasurementModel
+from fusion.active.clutter import ClutterMapBase, DensityClutterMap
 from fusion.active.kalman import (
-    PairStatistics,
     cv_model,
+    fuse_positions,
     gate_threshold,
     kf_predict,
     kf_update,
     pair_statistics,
 )
-from fusion.active.lifecycle import (
-    Lifecycle,
-    MotionTest,
-    advance_status,
-    motion_statistic,
-    next_lifecycle,
-    track_status,
+from fusion.active.lifecycle import Lifecycle, MotionTest, next_lifecycle
+from fusion.active.noise import NoiseEstimator
+from fusion.active.track_score import TrackScorer
+from fusion.active.types import (
+    Columns,
+    Ping,
+    PingResult,
+    TrackingResult,
+    pings_from_columns,
+    receiver_groups,
 )
-from fusion.active.types import Columns, Ping, PingResult, TrackingResult, pings_from_columns
 
-__all__ = [
-    "CLUE_NAMES",
-    "EDGE_LIKELIHOOD",
-    "Lifecycle",
-    "PairStatistics",
-    "Ping",
-    "PingResult",
-    "Tracker",
-    "TrackingResult",
-    "advance_status",
-    "assign",
-    "bistatic_covariance",
-    "cv_model",
-    "derived_min_rank",
-    "equivalent_aspect_deg",
-    "gate_threshold",
-    "kf_predict",
-    "kf_update",
-    "motion_statistic",
-    "neutral_value",
-    "pair_statistics",
-    "pings_from_table",
-    "track_status",
-]
+__all__ = ["Ping", "PingResult", "Tracker", "TrackingResult", "pings_from_table"]
 
 logger = logging.getLogger(__name__)
 
 #: Former name of :func:`fusion.active.types.pings_from_columns` (any named columns will do).
 pings_from_table = pings_from_columns
+
+
+@dataclass
+class _PingScan:
+    """Work state of one ping while its receivers are scanned (per track: the detections taken,
+    the rank of the first; per detection: its motion-test row)."""
+
+    ping: Ping
+    Rz: NDArray[np.float64]
+    hot_d: NDArray[np.float64]
+    confirmed: NDArray[np.bool_]
+    dets: list[list[int]]
+    rank: list[float]
+    rows: list[list[float]] = field(default_factory=list)
 
 
 class Tracker:
@@ -112,9 +109,9 @@ class Tracker:
     system : FuzzySystem, optional
         Rule base (default :func:`fusion.active.rulebase.default_association_system`).
     clues : iterable of str, optional
-        Which of :data:`CLUE_NAMES` may be used (default all); those absent from the data are
-        left out anyway. ``aspect_deg`` covers both a given column and the angle computed from
-        source/receiver positions.
+        Which of :data:`fusion.active.association.CLUE_NAMES` may be used (default all); those
+        absent from the data are left out anyway. ``aspect_deg`` covers both a given column and
+        the angle computed from source/receiver positions.
     position_sigma_m : float, optional
         Standard deviation of each position coordinate of a detection without source/receiver
         positions (or with ``position_errors="isotropic"``), m (default 100).
@@ -129,39 +126,82 @@ class Tracker:
     min_rank : float, optional
         Lowest rank (fuzzy mode) that may be associated, the same for every pair. Default None:
         derived from the rule base for the clues each pair actually has
-        (:func:`derived_min_rank` at ``edge_likelihood``), so that data with fewer clues (e.g.
-        positions only) are not held to a threshold calibrated with all of them.
+        (:func:`fusion.active.association.derived_min_rank` at ``edge_likelihood``), so that
+        data with fewer clues (e.g. positions only) are not held to a threshold calibrated with
+        all of them.
     edge_likelihood : float, optional
         Likelihood ratio at the edge of the acceptance region used by the derived threshold
-        (default :data:`EDGE_LIKELIHOOD` = 0.25, the crossover of "unlikely").
+        (default :data:`fusion.active.association.EDGE_LIKELIHOOD` = 0.25, the crossover of "unlikely").
     confirm_hits, confirm_window : int, optional
         M-of-N confirmation (default 3 of 4).
     max_misses : int, optional
         Consecutive misses that delete a confirmed track (default 3).
     init_exclusion_m : float, optional
-        Detections closer than this to a hotspot region start no track (fuzzy mode; default
-        300 m, where the default "near" membership is 1/2).
+        Detections closer than this to a hotspot region start no track (fuzzy mode; default 0:
+        only those inside a region; a track score that counts hotspot echoes as clutter keeps
+        hotspot tracks from confirming without a larger exclusion).
+    hotspot_drop : bool, optional
+        Fuzzy mode: delete a tentative track within ``init_exclusion_m`` of a hotspot region
+        unless its own detections move significantly (default False; True was the behaviour
+        before the track score).
     motion_probability : float, optional
-        Confidence of the motion test that keeps a tentative track near a hotspot alive
-        (default 0.999), in (0, 1); see :func:`motion_statistic`. Fuzzy mode only.
+        Confidence of the motion test (stationary hold and hotspot drop), default 0.999, in
+        (0, 1); see :func:`fusion.active.lifecycle.motion_statistic`. Fuzzy mode only.
+    min_speed_mps : float, optional
+        Speeds up to this count as standing still in the motion test, m/s (default 0.5, a
+        quarter of the slowest submarine speed of interest): a bottom feature whose echoes
+        scatter more than their stated errors does not pass for a slow target.
     hold_stationary : bool, optional
         Fuzzy mode: a track that reaches ``confirm_hits`` hits while its own detections do not
-        move significantly (:func:`motion_statistic` at ``motion_probability``, from
+        move significantly (:func:`fusion.active.lifecycle.motion_statistic` at ``motion_probability``, from
         ``confirm_hits`` detections) stays tentative until they do (default True); such a
         held track is deleted after ``max_misses`` consecutive misses.
-    clutter_map : ClutterMap, optional
-        Clutter map (default ``ClutterMap(position_sigma_m=position_sigma_m)``); fuzzy mode
-        only.
+    clutter_map : ClutterMapBase, optional
+        Clutter map (default ``DensityClutterMap(position_sigma_m=position_sigma_m)``, see
+        :mod:`fusion.active.clutter`); fuzzy mode only.
     position_errors : {"geometry", "isotropic"}, optional
         ``geometry`` (default): detections with ``src_x, src_y, rcv_x, rcv_y`` get the bistatic
-        error ellipse of :func:`bistatic_covariance`; ``isotropic``: every detection gets
-        ``position_sigma_m`` per axis.
+        error ellipse of :func:`fusion.active.bistatic.bistatic_covariance`; ``isotropic``:
+        every detection gets ``position_sigma_m`` per axis.
     range_sum_sigma_m : float, optional
-        Accuracy (standard deviation) of the bistatic range sum, m (default 30, the
-        simulator's sonar value), >= 0.
+        Accuracy (standard deviation) of the bistatic range sum, m (default 100), >= 0: the
+        prior of the per-receiver estimate (``noise="estimate"``) or the value used for every
+        receiver (``noise="fixed"``).
     bearing_sigma_deg : float, optional
-        Accuracy of the bearing at the receiver, deg (default 1, the simulator's sonar value),
-        >= 0.
+        Accuracy of the bearing at the receiver, deg (default 1.5), >= 0; as
+        `range_sum_sigma_m`.
+    noise : {"estimate", "fixed"}, optional
+        ``estimate`` (default): each receiver's range-sum and bearing accuracy is learnt from
+        the echoes that recur between its pings (:class:`fusion.active.noise.NoiseEstimator`,
+        starting from the two values above); ``fixed``: the two values for every receiver.
+    aspect : {"geometry", "measured"}, optional
+        Source of the equivalent aspect angle: ``geometry`` (default) computes it from the
+        track's heading and the source/receiver positions and ignores an ``aspect_deg``
+        column; ``measured`` uses that column as a measurement
+        (:class:`fusion.active.association.PairRanker`).
+    score_threshold : float, optional
+        Classifier-score gate (Section 2.2 of the paper: only detections whose score passes a
+        threshold go on): detections with ``score`` below it start no track and join none; the
+        clutter map still sees every detection. None (default, chosen on varied scenarios, see
+        RESULTS) or data without a ``score`` column: no gate.
+    confirm_llr : float, optional
+        Fuzzy mode: besides its M-of-N hits, a tentative track needs a track score (log-
+        likelihood ratio of target against clutter, :mod:`fusion.active.track_score`) of at least
+        this to be confirmed (default 3); until then it is held like a stationary track, and
+        the M-of-N window no longer deletes it (its score and ``max_misses`` do). None: M-of-N
+        alone (the paper).
+    delete_llr : float, optional
+        A tentative track whose score falls below this is deleted (default -4).
+    detection_probability : float, optional
+        Probability that a receiver detects a track on a ping, for the track score; None
+        (default): estimated per receiver from the confirmed tracks' hits.
+    clutter_intensity : float, optional
+        Clutter detections per m^2 per ping and receiver, for the track score; None (default):
+        estimated per receiver over the field from its detections
+        (:class:`fusion.active.clutter.ClutterIntensity`), hotspots included.
+    score_evidence : bool, optional
+        The track score weighs each hit's classifier score (default True;
+        :meth:`fusion.active.track_score.TrackScorer.score_delta`).
 
     Notes
     -----
@@ -183,13 +223,23 @@ class Tracker:
         confirm_hits: int = 3,
         confirm_window: int = 4,
         max_misses: int = 5,
-        init_exclusion_m: float = 300.0,
-        clutter_map: ClutterMap | None = None,
+        init_exclusion_m: float = 0.0,
+        clutter_map: ClutterMapBase | None = None,
         motion_probability: float = 0.999,
         hold_stationary: bool = True,
         position_errors: Literal["geometry", "isotropic"] = "geometry",
-        range_sum_sigma_m: float = 30.0,
-        bearing_sigma_deg: float = 1.0,
+        range_sum_sigma_m: float = 100.0,
+        bearing_sigma_deg: float = 1.5,
+        noise: Literal["estimate", "fixed"] = "estimate",
+        aspect: Literal["geometry", "measured"] = "geometry",
+        score_threshold: float | None = None,
+        confirm_llr: float | None = 3.0,
+        delete_llr: float = -4.0,
+        detection_probability: float | None = None,
+        clutter_intensity: float | None = None,
+        score_evidence: bool = True,
+        min_speed_mps: float = 0.5,
+        hotspot_drop: bool = False,
     ) -> None:
         if mode not in ("fuzzy", "kalman"):
             raise ValueError(f"mode must be 'fuzzy' or 'kalman', got {mode!r}")
@@ -202,6 +252,10 @@ class Tracker:
                              f"{confirm_hits} and {confirm_window}")
         if max_misses < 1:
             raise ValueError(f"max_misses must be >= 1, got {max_misses!r}")
+        if noise not in ("estimate", "fixed"):
+            raise ValueError(f"noise must be 'estimate' or 'fixed', got {noise!r}")
+        if score_threshold is not None and not 0.0 <= score_threshold <= 1.0:
+            raise ValueError(f"score_threshold must lie in [0, 1], got {score_threshold!r}")
         if mode == "fuzzy" and system is None:
             from fusion.active.rulebase import default_association_system
 
@@ -209,11 +263,22 @@ class Tracker:
         self.mode = mode
         self.system = system
         self.ranker = PairRanker(system, clues=clues, min_rank=min_rank,
-                                 edge_likelihood=edge_likelihood)
+                                 edge_likelihood=edge_likelihood, aspect=aspect)
         self.measurement_model = MeasurementModel(
             position_errors=position_errors, position_sigma_m=position_sigma_m,
-            range_sum_sigma_m=range_sum_sigma_m, bearing_sigma_deg=bearing_sigma_deg)
-        self.motion_test = MotionTest(probability=motion_probability)
+            range_sum_sigma_m=range_sum_sigma_m, bearing_sigma_deg=bearing_sigma_deg,
+            noise=(NoiseEstimator(range_sum_sigma_m=max(range_sum_sigma_m, 1e-3),
+                                  bearing_sigma_deg=max(bearing_sigma_deg, 1e-3))
+                   if noise == "estimate" else None))
+        self.score_threshold = None if score_threshold is None else float(score_threshold)
+        self.hotspot_drop = bool(hotspot_drop)
+        self.scorer = (TrackScorer(confirm_llr=confirm_llr, delete_llr=delete_llr,
+                                   detection_probability=detection_probability,
+                                   clutter_intensity=clutter_intensity,
+                                   score_evidence=score_evidence)
+                       if mode == "fuzzy" and confirm_llr is not None else None)
+        self.motion_test = MotionTest(probability=motion_probability,
+                                      min_speed_mps=min_speed_mps)
         self.accel_psd = float(accel_psd)
         self.speed_sigma_mps = float(speed_sigma_mps)
         self.gate = gate_threshold(gate_probability)
@@ -223,19 +288,20 @@ class Tracker:
         self.hold_stationary = bool(hold_stationary)
         if mode == "fuzzy":
             self.clutter_map = (clutter_map if clutter_map is not None
-                                else ClutterMap(position_sigma_m=position_sigma_m))
+                                else DensityClutterMap(position_sigma_m=position_sigma_m))
         else:
             self.clutter_map = None
         self.reset()
 
     @property
     def clues(self) -> frozenset[str]:
-        """Clues the rank may use (a subset of :data:`CLUE_NAMES`)."""
+        """Clues the rank may use (a subset of :data:`fusion.active.association.CLUE_NAMES`)."""
         return self.ranker.clues
 
     def reset(self) -> None:
         """Forget all tracks (and the clutter map's content)."""
         self._ids = np.zeros(0, np.int64)
+        self._llr = np.zeros(0)
         self._x = np.zeros((0, 4))
         self._P = np.zeros((0, 4, 4))
         self._life: list[Lifecycle] = []
@@ -245,6 +311,10 @@ class Tracker:
         self._time: float | None = None
         if self.clutter_map is not None:
             self.clutter_map = self.clutter_map.empty_copy()
+        if self.measurement_model.noise is not None:
+            self.measurement_model.noise.reset()
+        if self.scorer is not None:
+            self.scorer.reset()
 
     def threshold(self, present: Iterable[str]) -> float:
         """Lowest associable rank for pairs whose rank used the inputs ``present``
@@ -275,19 +345,42 @@ class Tracker:
         if self._model is None or self._model[0] != dt:
             self._model = (dt, *cv_model(dt, self.accel_psd))
         self._x, self._P = kf_predict(self._x, self._P, self._model[1], self._model[2])
-        nt, nd = self._ids.size, ping.n
+        if self.measurement_model.noise is not None:
+            self.measurement_model.noise.update(ping)
         Rz, geometric = self.measurement_model.covariances(ping)
 
         # The clutter map counts this ping too, so a feature echoing on every ping is a hotspot
-        # from its min_pings-th ping on, before a track on it can be confirmed.
+        # from its min_pings-th ping on, before a track on it can be confirmed. It sees every
+        # detection; the score gate applies to tracking only.
         if self.clutter_map is not None:
             self.clutter_map.update(ping.xy, ping.time, cov=Rz if geometric else None)
-            hot_d = self.clutter_map.distance(ping.xy)
-        else:
-            hot_d = np.full(nd, np.inf)
+        full_index, ping = self._score_gate(ping)
+        Rz = Rz[full_index]
+        hot_d = (self.clutter_map.distance(ping.xy) if self.clutter_map is not None
+                 else np.full(ping.n, np.inf))
+        n0 = self._ids.size
+        confirmed0 = np.fromiter((lc.status == "confirmed" for lc in self._life), bool, n0)
+        scan = _PingScan(ping=ping, Rz=Rz, hot_d=hot_d, confirmed=confirmed0,
+                         dets=[[] for _ in range(n0)], rank=[np.nan] * n0,
+                         rows=np.column_stack([np.full(ping.n, ping.time), ping.xy, Rz[:, 0, 0],
+                                               Rz[:, 0, 1], Rz[:, 1, 1]]).tolist())
+        # Each receiver's detections are a scan of their own at the ping time: a track takes at
+        # most one detection per receiver, and a track born from one receiver's echo may take
+        # the echoes of the same place from the receivers after it.
+        for key, idx in receiver_groups(ping):
+            self._scan(scan, key, idx)
+        return self._manage(scan, full_index, n0)
 
+    def _scan(self, scan: _PingScan, key: tuple[float, ...] | None,
+              idx: NDArray[np.int64]) -> None:
+        """Associate one receiver's detections of the ping; update, score, start tracks."""
+        ping = scan.ping
+        xy, R, hot = ping.xy[idx], scan.Rz[idx], scan.hot_d[idx]
+        nt, nd = self._ids.size, idx.size
+        confirmed = np.zeros(nt, dtype=bool)
+        confirmed[:scan.confirmed.size] = scan.confirmed
         # Kalman stage: gate all pairs; fuzzy stage: rank only the gated ones, in one call.
-        stats = pair_statistics(self._x, self._P, ping.xy, Rz)
+        stats = pair_statistics(self._x, self._P, xy, R)
         gated = stats.d2 <= self.gate
         ti, di = np.nonzero(gated)
         score = np.zeros(gated.shape)
@@ -298,78 +391,114 @@ class Tracker:
                 score[ti, di] = L
                 valid[ti, di] = True
             else:
-                rank, limit = self.ranker.rank(ping, ti, di, L, hot_d, self._x, self._P)
+                rank, limit = self.ranker.rank(ping.subset(idx), ti, di, L, hot, self._x, self._P)
                 score[ti, di] = rank
                 valid[ti, di] = rank >= limit
-        confirmed = np.fromiter((lc.status == "confirmed" for lc in self._life), bool, nt)
         det_of = assign_by_priority(score, valid, confirmed)
         hit = det_of >= 0
         taken = np.zeros(nd, dtype=bool)
         taken[det_of[hit]] = True
         if hit.any():
-            self._x[hit], self._P[hit] = kf_update(self._x[hit], self._P[hit], ping.xy[det_of[hit]],
-                                                   Rz[det_of[hit]])
-        rank = np.full(nt, np.nan)
-        rank[hit] = score[np.flatnonzero(hit), det_of[hit]]
+            self._x[hit], self._P[hit] = kf_update(self._x[hit], self._P[hit], xy[det_of[hit]],
+                                                   R[det_of[hit]])
+        for i in np.flatnonzero(hit).tolist():
+            j = int(det_of[i])
+            if not scan.dets[i]:
+                scan.rank[i] = float(score[i, j])
+            scan.dets[i].append(int(idx[j]))
+            if not confirmed[i]:
+                self._seen[i].append(scan.rows[idx[j]])
+        if self.scorer is not None:
+            i = np.flatnonzero(hit)
+            j = det_of[i]
+            self._llr = self._llr + self.scorer.scan_delta(
+                key, xy=xy, cov=R, track_xy=self._x[:, :2], hits=i, dets=j,
+                scores=ping.clues["score"][idx] if "score" in ping.clues else None,
+                hotspots=self.clutter_map.hotspots() if self.clutter_map is not None else None,
+                log_pdf=(-0.5 * stats.d2[i, j] - np.log(2.0 * np.pi)
+                         - 0.5 * np.log(stats.det[i, j])),
+                confirmed=confirmed)
 
-        # Track management. Motion-test rows of the detections: time, x, y, R_xx, R_xy, R_yy.
-        rows = np.column_stack([np.full(nd, ping.time), ping.xy, Rz[:, 0, 0], Rz[:, 0, 1],
-                                Rz[:, 1, 1]]).tolist()
-        for i in np.flatnonzero(hit & ~confirmed):
-            self._seen[i].append(rows[det_of[i]])
-        dropped = self._on_hotspot(confirmed)
-        held = self._held(hit & ~confirmed & ~dropped)
-        self._life = [next_lifecycle(lc, h, dropped=d, held=s, m=self.m, n=self.n,
-                                     max_misses=self.max_misses)
-                      for lc, h, d, s in zip(self._life, hit.tolist(), dropped.tolist(),
-                                             held.tolist(), strict=True)]
-
-        # New tentative tracks: free detections outside every gate and away from hotspots.
+        # New tentative tracks: free detections (taken by no track, inside no track's gate)
+        # away from hotspots.
         free = ~taken & ~gated.any(axis=0)
         if self.mode == "fuzzy":
-            free &= hot_d > self.init_exclusion_m
+            free &= hot > self.init_exclusion_m
         new = np.flatnonzero(free)
-        ids = np.arange(self._next_id, self._next_id + new.size, dtype=np.int64)
-        self._next_id += new.size
+        if new.size == 0:
+            return
         x_new = np.zeros((new.size, 4))
-        x_new[:, :2] = ping.xy[new]
+        x_new[:, :2] = xy[new]
         P_new = np.zeros((new.size, 4, 4))
-        P_new[:, :2, :2] = Rz[new]
+        P_new[:, :2, :2] = R[new]
         P_new[:, 2:, 2:] = np.eye(2) * self.speed_sigma_mps**2
+        self._ids = np.concatenate([self._ids, np.arange(self._next_id, self._next_id + new.size)])
+        self._next_id += new.size
+        self._x = np.concatenate([self._x, x_new])
+        self._P = np.concatenate([self._P, P_new])
+        self._llr = np.concatenate([self._llr, np.zeros(new.size)])
+        self._life += [Lifecycle()] * new.size
+        self._seen += [[scan.rows[j]] for j in idx[new].tolist()]
+        scan.dets += [[int(j)] for j in idx[new].tolist()]
+        scan.rank += [np.nan] * new.size
 
-        det_all = np.concatenate([det_of, new])
-        used = det_all >= 0
-        z = np.full((det_all.size, 2), np.nan)
-        z[used] = ping.xy[det_all[used]]
-        Rz_all = np.full((det_all.size, 2, 2), np.nan)
-        Rz_all[used] = Rz[det_all[used]]
-        status = np.array([lc.status for lc in self._life] + ["tentative"] * new.size, dtype=str)
+    def _manage(self, scan: _PingScan, full_index: NDArray[np.int64], n0: int) -> PingResult:
+        """Track management after all receivers of a ping; the ping's result."""
+        ping, Rz = scan.ping, scan.Rz
+        nt = self._ids.size
+        hit = np.fromiter((bool(d) for d in scan.dets), bool, nt)
+        confirmed = np.zeros(nt, dtype=bool)
+        confirmed[:n0] = scan.confirmed
+        old = np.arange(nt) < n0
+        dropped = self._on_hotspot(confirmed | ~old)
+        if self.scorer is not None:
+            dropped |= old & ~confirmed & (self._llr < self.scorer.delete_llr)
+        held = self._held(old & hit & ~confirmed & ~dropped, self._llr)
+        life = [next_lifecycle(lc, h, dropped=d, held=s, m=self.m, n=self.n,
+                               max_misses=self.max_misses, window=self.scorer is None)
+                for lc, h, d, s in zip(self._life[:n0], hit[:n0].tolist(), dropped[:n0].tolist(),
+                                       held[:n0].tolist(), strict=True)]
+        self._life = life + self._life[n0:]
+
+        # One equivalent measurement per track: the information-weighted fusion of its hits.
+        z = np.full((nt, 2), np.nan)
+        Rz_all = np.full((nt, 2, 2), np.nan)
+        for i in np.flatnonzero(hit).tolist():
+            z[i], Rz_all[i] = fuse_positions(ping.xy[scan.dets[i]], Rz[scan.dets[i]])
+        first = np.array([full_index[d[0]] if d else -1 for d in scan.dets], dtype=np.int64)
+        status = np.array([lc.status for lc in self._life], dtype=str)
         result = PingResult(
             event=ping.event,
             time=ping.time,
-            track_id=np.concatenate([self._ids, ids]),
-            state=np.concatenate([self._x, x_new]),
+            track_id=self._ids.copy(),
+            state=self._x.copy(),
             status=status,
-            detection=det_all,
-            rank=np.concatenate([rank, np.full(new.size, np.nan)]),
+            detection=first,
+            rank=np.asarray(scan.rank, dtype=float),
             hotspots=(self.clutter_map.hotspots().positions if self.clutter_map is not None
                       else np.zeros((0, 2))),
-            covariance=np.concatenate([self._P, P_new]),
+            covariance=self._P.copy(),
             measurement=z,
             measurement_cov=Rz_all,
+            detections=tuple(full_index[np.asarray(d, dtype=np.int64)] for d in scan.dets),
         )
         alive = status != "deleted"
-        alive_l, status_l = alive.tolist(), status.tolist()
-        self._ids = result.track_id[alive]
-        self._x = result.state[alive]
-        self._P = result.covariance[alive]
-        self._life = [lc for lc, a in zip(self._life + [Lifecycle()] * new.size, alive_l,
-                                          strict=True) if a]
-        seen = self._seen + [[rows[j]] for j in new.tolist()]
+        alive_l = alive.tolist()
+        self._ids, self._x, self._P = self._ids[alive], self._x[alive], self._P[alive]
+        self._llr = self._llr[alive]
+        self._life = [lc for lc, a in zip(self._life, alive_l, strict=True) if a]
         self._seen = [[] if st == "confirmed" else h
-                      for h, a, st in zip(seen, alive_l, status_l, strict=True) if a]
-        logger.debug("event %d: %d detections, %d tracks, %d new", ping.event, nd, nt, new.size)
+                      for h, a, st in zip(self._seen, alive_l, status.tolist(), strict=True) if a]
+        logger.debug("event %d: %d detections, %d tracks, %d new", ping.event, ping.n, n0,
+                     nt - n0)
         return result
+
+    def _score_gate(self, ping: Ping) -> tuple[NDArray[np.int64], Ping]:
+        """The detections that pass the classifier-score gate, and their indices in `ping`."""
+        if self.score_threshold is None or "score" not in ping.clues or ping.n == 0:
+            return np.arange(ping.n), ping
+        keep = np.flatnonzero(ping.clues["score"] >= self.score_threshold)
+        return keep, (ping if keep.size == ping.n else ping.subset(keep))
 
     def _on_hotspot(self, confirmed: NDArray[np.bool_]) -> NDArray[np.bool_]:
         """Tentative tracks to drop: within ``init_exclusion_m`` of a hotspot and not moving.
@@ -380,26 +509,31 @@ class Tracker:
         """
         nt = confirmed.size
         on_hot = np.zeros(nt, dtype=bool)
-        if self.clutter_map is not None and nt and not confirmed.all():
+        if self.clutter_map is not None and self.hotspot_drop and nt and not confirmed.all():
             on_hot[~confirmed] = (self.clutter_map.distance(self._x[~confirmed, :2])
                                   <= self.init_exclusion_m)
             for i in np.flatnonzero(on_hot):
                 on_hot[i] = self.motion_test.moves(self._seen[i]) is not True
         return on_hot
 
-    def _held(self, candidates: NDArray[np.bool_]) -> NDArray[np.bool_]:
-        """Tentative tracks with a hit that would be confirmed but whose detections stand still.
+    def _held(self, candidates: NDArray[np.bool_], llr: NDArray[np.float64]) -> NDArray[np.bool_]:
+        """Tentative tracks with a hit that would be confirmed but whose detections stand still
+        or whose track score is still below ``confirm_llr``.
 
         A feature echoes from one place, a submarine moves. The clutter map may not have flagged
         the feature yet (its echoes scatter over several cells, or it skipped a ping), so this is
         the track-level form of the map's test; once the map flags it, the hotspot drop ends the
-        track.
+        track. A track whose hits are no better explained by a target than by clutter waits for
+        more evidence the same way.
         """
         hold = np.zeros(candidates.size, dtype=bool)
-        if self.clutter_map is not None and self.hold_stationary:
-            for i in np.flatnonzero(candidates).tolist():
-                if self._life[i].hits + 1 >= self.m:
-                    hold[i] = self.motion_test.moves(self._seen[i]) is False
+        for i in np.flatnonzero(candidates).tolist():
+            if self._life[i].hits + 1 < self.m:
+                continue
+            if self.scorer is not None and llr[i] < self.scorer.confirm_llr:
+                hold[i] = True
+            elif self.clutter_map is not None and self.hold_stationary:
+                hold[i] = self.motion_test.moves(self._seen[i]) is False
         return hold
 
     def run(self, detections: Iterable[Ping] | Columns) -> TrackingResult:

@@ -23,6 +23,7 @@ __all__ = [
     "PingResult",
     "TrackingResult",
     "pings_from_columns",
+    "receiver_groups",
 ]
 
 #: Source and receiver position columns of a bistatic detection, m.
@@ -82,6 +83,11 @@ class Ping:
         """Number of detections."""
         return int(self.xy.shape[0])
 
+    def subset(self, index: ArrayLike) -> Ping:
+        """The ping with only the detections `index` (ints or a boolean mask), clues included."""
+        idx = np.asarray(index)
+        return Ping(self.event, self.time, self.xy[idx], {k: v[idx] for k, v in self.clues.items()})
+
 
 
 def pings_from_columns(columns: Columns | Mapping[str, ArrayLike]) -> list[Ping]:
@@ -129,6 +135,40 @@ def pings_from_columns(columns: Columns | Mapping[str, ArrayLike]) -> list[Ping]
     return pings
 
 
+def receiver_groups(ping: Ping) -> list[tuple[tuple[float, ...] | None, NDArray[np.int64]]]:
+    """Split a ping's detections by receiver (source-receiver geometry).
+
+    Parameters
+    ----------
+    ping : Ping
+
+    Returns
+    -------
+    list of (key, ndarray of int)
+        One entry per geometry, in the order of first appearance: the key (``src_x, src_y,
+        rcv_x, rcv_y`` rounded to 1 m) and the indices of its detections. A ping without (or
+        with non-finite) source/receiver positions is one group with key None.
+
+    Examples
+    --------
+    >>> ping = Ping(0, 0.0, [[0, 0], [1, 1], [2, 2]],
+    ...             {"src_x": [0, 0, 0], "src_y": [0, 0, 0], "rcv_x": [5, 9, 5], "rcv_y": [0, 0, 0]})
+    >>> [(k, i.tolist()) for k, i in receiver_groups(ping)]
+    [((0.0, 0.0, 5.0, 0.0), [0, 2]), ((0.0, 0.0, 9.0, 0.0), [1])]
+    """
+    if ping.n == 0:
+        return []
+    if not all(k in ping.clues for k in POSITION_CLUES):
+        return [(None, np.arange(ping.n))]
+    geo = np.column_stack([ping.clues[k] for k in POSITION_CLUES])
+    if not np.all(np.isfinite(geo)):
+        return [(None, np.arange(ping.n))]
+    uniq, first, inv = np.unique(np.round(geo), axis=0, return_index=True, return_inverse=True)
+    inv = inv.reshape(-1)
+    return [(tuple(float(v) for v in uniq[g]), np.flatnonzero(inv == g))
+            for g in np.argsort(first, kind="stable")]
+
+
 @dataclass(frozen=True)
 class PingResult:
     """Tracks after one ping.
@@ -158,6 +198,11 @@ class PingResult:
         Position of the associated (or birth) detection, m; NaN when none.
     measurement_cov : ndarray, shape (k, 2, 2)
         Position covariance of that detection as the tracker used it, m^2; NaN when none.
+    detections : tuple of ndarray of int
+        Per track, every detection of the ping it took (one per receiver at most; the first is
+        `detection`); empty when none. When a track took several, `measurement` and
+        `measurement_cov` are their information-weighted fusion
+        ``C = (sum R_i^-1)^-1``, ``z = C sum R_i^-1 z_i`` (one equivalent measurement).
     """
 
     event: int
@@ -171,6 +216,7 @@ class PingResult:
     covariance: NDArray[np.float64]
     measurement: NDArray[np.float64]
     measurement_cov: NDArray[np.float64]
+    detections: tuple[NDArray[np.int64], ...] = ()
 
 
 @dataclass(frozen=True)

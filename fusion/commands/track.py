@@ -5,10 +5,13 @@ aspect_deg, src_x, src_y, rcv_x, rcv_y``) and writes one row per track per event
 ``track_id,event,time,x,y,vx,vy,status``. Clue columns absent from the file leave the rules that
 read them out of the rank; the command says so once on stderr. With ``src_x, src_y, rcv_x, rcv_y``
 each detection's position error is the bistatic error ellipse propagated from the range-sum and
-bearing accuracies (``--range-sum-sigma``, ``--bearing-sigma``); without them (e.g. radar), or with
-``--position-errors isotropic``, it is ``--position-sigma`` per axis. With ``--smooth`` each
-confirmed track is refined with all of its detections on a factor graph
-(:mod:`fusion.active.smoothing`) and every row gets ``sigma_x, sigma_y`` (m).
+bearing accuracies, learnt per receiver from the data starting from ``--range-sum-sigma`` and
+``--bearing-sigma`` (``--noise fixed``: those values for every receiver); without them (e.g.
+radar), or with ``--position-errors isotropic``, it is ``--position-sigma`` per axis. The
+equivalent aspect angle comes from each track's heading and the source/receiver positions; an
+``aspect_deg`` column is used only with ``--aspect-column measured`` (nothing in a file says how
+it was obtained). With ``--smooth`` each confirmed track is refined with all of its detections on
+a factor graph (:mod:`fusion.active.smoothing`) and every row gets ``sigma_x, sigma_y`` (m).
 """
 
 from __future__ import annotations
@@ -44,10 +47,37 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="position error of detections with src_x,src_y,rcv_x,rcv_y: bistatic "
                         "error ellipse from range-sum and bearing accuracies (default) or "
                         "--position-sigma per axis")
-    p.add_argument("--range-sum-sigma", type=number(float, gt=0), default=30.0,
-                   help="bistatic range-sum accuracy (standard deviation), m (default 30)")
-    p.add_argument("--bearing-sigma", type=number(float, gt=0), default=1.0,
-                   help="receiver bearing accuracy (standard deviation), deg (default 1)")
+    p.add_argument("--range-sum-sigma", type=number(float, gt=0), default=100.0,
+                   help="bistatic range-sum accuracy (standard deviation), m: the start of the "
+                        "per-receiver estimate, or the value itself with --noise fixed "
+                        "(default 100)")
+    p.add_argument("--bearing-sigma", type=number(float, gt=0), default=1.5,
+                   help="receiver bearing accuracy (standard deviation), deg; as "
+                        "--range-sum-sigma (default 1.5)")
+    p.add_argument("--noise", choices=("estimate", "fixed"), default="estimate",
+                   help="range-sum and bearing accuracies: learnt per receiver from echoes that "
+                        "recur (default) or --range-sum-sigma/--bearing-sigma for all")
+    p.add_argument("--aspect-column", choices=("ignored", "measured"), default="ignored",
+                   help="an aspect_deg column is ignored (default: the aspect comes from the "
+                        "track heading and the source/receiver positions) or used as a "
+                        "measurement")
+    p.add_argument("--score-threshold", type=number(float, ge=0, le=1), default=None,
+                   help="classifier-score gate: detections with a lower score join no track "
+                        "(default: no gate)")
+    p.add_argument("--confirm-llr", type=number(float), default=3.0,
+                   help="track score (log-likelihood ratio, target against clutter) a tentative "
+                        "track needs besides its M-of-N hits (default 3)")
+    p.add_argument("--no-track-score", action="store_true",
+                   help="confirm on M-of-N hits alone (the paper), no track score")
+    p.add_argument("--detection-probability", type=number(float, gt=0, le=0.999), default=None,
+                   help="probability that a receiver detects a track on a ping, for the track "
+                        "score (default: estimated from confirmed tracks)")
+    p.add_argument("--clutter-density", type=number(float, gt=0), default=None,
+                   help="clutter detections per m^2 per ping and receiver, for the track score "
+                        "(default: estimated over the field from the detections)")
+    p.add_argument("--min-speed", type=number(float, ge=0), default=0.5,
+                   help="speeds up to this count as standing still in the motion test, m/s "
+                        "(default 0.5)")
     p.add_argument("--accel-psd", type=number(float, ge=0), default=0.04,
                    help="white-acceleration spectral density, m^2/s^3 (default 0.04)")
     p.add_argument("--min-rank", type=number(float, ge=0, le=1), default=None,
@@ -61,8 +91,11 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="fuzzy mode: confirm a track on its hits alone, even when its own "
                         "detections do not move (default: such a track is held tentative until "
                         "it moves or the clutter map flags it)")
+    p.add_argument("--clutter-map", choices=("density", "grid"), default="density",
+                   help="clutter map: recurrence judged with each detection's own error "
+                        "ellipse (default) or counted in fixed grid cells")
     p.add_argument("--hotspot-cell", type=number(float, gt=0), default=150.0,
-                   help="clutter-map cell size, m (default 150)")
+                   help="--clutter-map grid: cell size, m (default 150)")
     p.add_argument("--confirmed-only", action="store_true",
                    help="write only rows of tracks that were confirmed at some point")
     p.add_argument("--smooth", action="store_true",
@@ -73,7 +106,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Track the detections and write the tracks."""
-    from fusion.active.clutter import ClutterMap
+    from fusion.active.clutter import ClutterMap, DensityClutterMap
     from fusion.active.tracker import Tracker
 
     if args.confirm[0] > args.confirm[1]:
@@ -94,21 +127,32 @@ def run(args: argparse.Namespace) -> int:
             position_errors=args.position_errors,
             range_sum_sigma_m=args.range_sum_sigma,
             bearing_sigma_deg=args.bearing_sigma,
+            noise=args.noise,
+            aspect="measured" if args.aspect_column == "measured" else "geometry",
+            score_threshold=args.score_threshold,
+            confirm_llr=None if args.no_track_score else args.confirm_llr,
+            detection_probability=args.detection_probability,
+            clutter_intensity=args.clutter_density,
+            min_speed_mps=args.min_speed,
             accel_psd=args.accel_psd,
             min_rank=args.min_rank,
             confirm_hits=args.confirm[0],
             confirm_window=args.confirm[1],
             max_misses=args.max_misses,
             hold_stationary=not args.confirm_stationary,
-            clutter_map=ClutterMap(cell_m=args.hotspot_cell,
-                                   position_sigma_m=args.position_sigma),
+            clutter_map=(ClutterMap(cell_m=args.hotspot_cell, position_sigma_m=args.position_sigma)
+                         if args.clutter_map == "grid"
+                         else DensityClutterMap(position_sigma_m=args.position_sigma)),
         )
     except ValueError as e:
         raise ValueError(f"bad option: {e}") from None
     if args.mode == "fuzzy":
         absent = [c for c in ("score", "snr_db") if c not in table]
-        if "aspect_deg" not in table and not all(c in table for c in _POSITIONS):
-            absent.append("aspect_deg (or src_x, src_y, rcv_x, rcv_y)")
+        measured = args.aspect_column == "measured" and "aspect_deg" in table
+        if not measured and not all(c in table for c in _POSITIONS):
+            absent.append("src_x, src_y, rcv_x, rcv_y (aspect_deg from the track heading)"
+                          if args.aspect_column == "ignored" else
+                          "aspect_deg (or src_x, src_y, rcv_x, rcv_y)")
         if absent:
             emit(f"fusion track: note: {args.detections} has no {', '.join(absent)}; "
                  "the rules reading them are left out of the rank", err=True)

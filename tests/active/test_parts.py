@@ -85,7 +85,8 @@ def test_measurement_model_per_detection():
     xy = np.array([[3000.0, 6000.0], [1000.0, 1000.0]])
     geo = {"src_x": np.zeros(2), "src_y": np.zeros(2), "rcv_x": np.array([5000.0, np.nan]),
            "rcv_y": np.zeros(2)}
-    R, geometric = MeasurementModel(position_sigma_m=50.0).covariances(Ping(0, 0.0, xy, geo))
+    R, geometric = MeasurementModel(position_sigma_m=50.0, range_sum_sigma_m=30.0,
+                                    bearing_sigma_deg=1.0).covariances(Ping(0, 0.0, xy, geo))
     assert geometric
     assert_allclose(R[0], bistatic_covariance(xy[:1], [0, 0], [5000, 0], 30.0, 1.0)[0])
     assert_allclose(R[1], np.eye(2) * 2500.0)

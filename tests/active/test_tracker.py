@@ -10,27 +10,26 @@ from filterpy.kalman import KalmanFilter
 from numpy.testing import assert_allclose
 from scipy.stats import chi2, multivariate_normal
 
+from fusion.active.association import EDGE_LIKELIHOOD, assign, derived_min_rank, neutral_value
+from fusion.active.bistatic import bistatic_covariance, equivalent_aspect_deg
+from fusion.active.kalman import cv_model, gate_threshold, kf_predict, kf_update, pair_statistics
+from fusion.active.lifecycle import motion_statistic, track_status
 from fusion.active.rulebase import default_association_system, default_variables
-from fusion.active.tracker import (
-    EDGE_LIKELIHOOD,
-    Ping,
-    Tracker,
-    assign,
-    bistatic_covariance,
-    cv_model,
-    derived_min_rank,
-    equivalent_aspect_deg,
-    gate_threshold,
-    kf_predict,
-    kf_update,
-    motion_statistic,
-    neutral_value,
-    pair_statistics,
-    pings_from_table,
-    track_status,
-)
+from fusion.active.tracker import Ping, Tracker, pings_from_table
 from fusion.io import Table, read_table, write_table
 from fusion.simulate.multistatic import bistatic_position, simulate_multistatic
+
+
+def _paper(**kw):
+    """The tracker with the defaults it had before the track score: M-of-N alone, the grid map
+    with its hotspot drop and 300-m exclusion, no minimum speed, fixed sonar accuracies."""
+    from fusion.active.clutter import ClutterMap
+
+    opts = dict(confirm_llr=None, min_speed_mps=0.0, clutter_map=ClutterMap(), hotspot_drop=True,
+                init_exclusion_m=300.0, noise="fixed", range_sum_sigma_m=30.0,
+                bearing_sigma_deg=1.0)
+    opts.update(kw)
+    return Tracker(**opts)
 
 
 def _random_track(rng):
@@ -341,10 +340,15 @@ def test_tracker_threshold_follows_the_clues():
     tr = Tracker()
     tr.run(Table({k: table[k] for k in ("event", "time", "x", "y")}))
     assert set(tr.ranker.thresholds) == {frozenset({"hotspot_distance_m"})}
-    tr = Tracker()
+    tr = Tracker(aspect="measured")
     tr.run(table)
     assert set(tr.ranker.thresholds) == {frozenset(("score", "snr_db", "aspect_deg",
                                               "hotspot_distance_m"))}
+    # Without source/receiver positions the aspect cannot come from geometry: the column is
+    # ignored unless declared a measurement.
+    tr = Tracker()
+    tr.run(table)
+    assert set(tr.ranker.thresholds) == {frozenset(("score", "snr_db", "hotspot_distance_m"))}
     assert Tracker(min_rank=0.6).threshold(["score"]) == 0.6
 
 
@@ -354,7 +358,7 @@ def test_tentative_track_on_a_hotspot_is_dropped():
     rng = np.random.default_rng(0)
     pings = [Ping(k, 90.0 * k, np.array([[5000.0, 5000.0]]) + rng.normal(0, 30, (1, 2)))
              for k in range(6)]
-    fuzzy = Tracker().run(pings)
+    fuzzy = _paper().run(pings)
     assert fuzzy.confirmed_ids().size == 0
     assert fuzzy.pings[2].status[0] == "deleted"
     assert Tracker(mode="kalman").run(pings).confirmed_ids().size == 1
@@ -391,14 +395,14 @@ def test_moving_tentative_track_survives_a_hotspot():
     confirmed when its detections move significantly (4 m/s: statistic 25.9 > 13.8); without
     the motion test (probability -> 1) it is dropped like the feature's own track."""
     pings = _crossing_pings()
-    res = Tracker().run(pings)
+    res = _paper().run(pings)
     assert len(res.pings[4].hotspots) == 1
     conf = res.confirmed_ids()
     assert conf.size == 1
     cols = res.columns()
     m = (cols["track_id"] == conf[0]) & (cols["status"] == "confirmed")
     assert np.all(np.abs(cols["y"][m]) < 200) and cols["x"][m].min() < -200
-    assert Tracker(motion_probability=1 - 1e-12).run(pings).confirmed_ids().size == 0
+    assert _paper(motion_probability=1 - 1e-12).run(pings).confirmed_ids().size == 0
     with pytest.raises(ValueError, match="motion_probability"):
         Tracker(motion_probability=1.0)
 
@@ -446,7 +450,8 @@ def test_measurement_covariances_geometry_and_fallback():
     xy = np.array([[3000.0, 6000.0], [2500.0, 0.0], [-4000.0, 2000.0]])
     geo = {"src_x": np.zeros(3), "src_y": np.zeros(3), "rcv_x": np.array([5000.0, 5000.0, np.nan]),
            "rcv_y": np.zeros(3)}
-    tr = Tracker(position_sigma_m=80.0, range_sum_sigma_m=20.0, bearing_sigma_deg=2.0)
+    tr = Tracker(position_sigma_m=80.0, range_sum_sigma_m=20.0, bearing_sigma_deg=2.0,
+                 noise="fixed")
     R, geometric = tr.measurement_covariances(Ping(0, 0.0, xy, geo))
     assert geometric
     assert_allclose(R[0], bistatic_covariance(xy[:1], [0, 0], [5000, 0], 20.0, 2.0)[0])
@@ -465,7 +470,7 @@ def test_new_track_and_update_use_the_detection_covariance():
     src, rcv = np.zeros(2), np.array([5000.0, 1000.0])
     geo = {"src_x": [0.0], "src_y": [0.0], "rcv_x": [rcv[0]], "rcv_y": [rcv[1]]}
     z0, z1 = np.array([[-6000.0, -5000.0]]), np.array([[-5800.0, -5150.0]])
-    tr = Tracker(mode="kalman")
+    tr = Tracker(mode="kalman", noise="fixed", range_sum_sigma_m=30.0, bearing_sigma_deg=1.0)
     tr.step(Ping(0, 0.0, z0, geo))
     R0 = bistatic_covariance(z0, src, rcv, 30.0, 1.0)[0]
     assert_allclose(tr._P[0, :2, :2], R0)
@@ -605,10 +610,10 @@ def test_stationary_track_is_held_until_misses_end_it():
     echo stops (pings 6-10 empty: deleted on ping 10)."""
     pings = _line_pings(0.0, n=6, noise_m=30.0)
     pings += [Ping(k, 90.0 * k, np.zeros((0, 2))) for k in range(6, 12)]
-    plain = Tracker(clutter_map=_no_flag_map(), hold_stationary=False).run(pings)
+    plain = _paper(clutter_map=_no_flag_map(), hold_stationary=False).run(pings)
     assert plain.confirmed_ids().tolist() == [0]
     assert plain.pings[2].status[0] == "confirmed"
-    held = Tracker(clutter_map=_no_flag_map()).run(pings)
+    held = _paper(clutter_map=_no_flag_map()).run(pings)
     assert held.confirmed_ids().size == 0
     status = [str(p.status[p.track_id == 0][0]) for p in held.pings if (p.track_id == 0).any()]
     assert status == ["tentative"] * 10 + ["deleted"]
@@ -620,7 +625,7 @@ def test_moving_track_is_confirmed_on_its_third_hit():
     pings = _line_pings(4.0, n=4)
     q = motion_statistic([0.0, 90.0, 180.0], [p.xy[0] for p in pings[:3]], 100.0)
     assert q == pytest.approx(25.92)
-    res = Tracker(clutter_map=_no_flag_map()).run(pings)
+    res = _paper(clutter_map=_no_flag_map()).run(pings)
     assert res.pings[2].status[0] == "confirmed"
 
 
@@ -634,10 +639,10 @@ def test_slow_track_is_confirmed_once_it_moves_significantly():
           for k in range(3, 8)]
     assert_allclose(qs, [8100 * k * (k * k - 1) / 12 / 1e4 for k in range(3, 8)])
     assert [q > gate for q in qs] == [False, False, False, True, True]
-    res = Tracker(clutter_map=_no_flag_map()).run(pings)
+    res = _paper(clutter_map=_no_flag_map()).run(pings)
     status = [str(p.status[0]) for p in res.pings]
     assert status == ["tentative"] * 5 + ["confirmed"] * 3
-    assert Tracker(clutter_map=_no_flag_map(), hold_stationary=False).run(
+    assert _paper(clutter_map=_no_flag_map(), hold_stationary=False).run(
         pings).pings[2].status[0] == "confirmed"
 
 

@@ -1,4 +1,4 @@
-"""Clutter map: where detections come back ping after ping.
+"""Grid clutter map: where detections come back ping after ping, counted in fixed cells.
 
 Implements Section 2.4 ("Clutter map") of "Target tracking using fuzzy logic association": every
 detection position is stored per event (ping); a location from which detections arrive on more
@@ -52,7 +52,6 @@ stored), unbounded in extent, and updated online, one ping at a time.
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -60,7 +59,9 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.stats import chi2
 
-__all__ = ["ClutterMap", "Hotspots"]
+from fusion.active.clutter.base import ClutterMapBase, Hotspots, floor_covariance
+
+__all__ = ["ClutterMap"]
 
 logger = logging.getLogger(__name__)
 
@@ -73,68 +74,7 @@ _NSUM = 12
 _NEIGHBOURS = np.array([(dx, dy) for dx in (-1, 0, 1) for dy in (-1, 0, 1)], dtype=np.int64)
 
 
-@dataclass(frozen=True)
-class Hotspots:
-    """Hotspots of a clutter map at one moment.
-
-    Attributes
-    ----------
-    positions : ndarray, shape (n, 2)
-        Hotspot centres (x east, y north), m: mean position of the detections in the hotspot's
-        cells.
-    covariances : ndarray, shape (n, 2, 2)
-        Spread of each hotspot's detections, m^2 (sample covariance, raised to at least the mean
-        position-error covariance of its detections).
-    gate : float
-        Mahalanobis radius ``g`` of the hotspot regions (dimensionless).
-    visits : ndarray of int, shape (n,)
-        Largest number of pings on which a cell of each hotspot was visited.
-    cells : ndarray of int, shape (n,)
-        Number of hot cells in each hotspot.
-    n_pings : int
-        Pings seen by the map.
-    """
-
-    positions: NDArray[np.float64]
-    covariances: NDArray[np.float64]
-    gate: float
-    visits: NDArray[np.int64]
-    cells: NDArray[np.int64]
-    n_pings: int
-
-    def __len__(self) -> int:
-        return int(self.positions.shape[0])
-
-    def distance(self, xy: ArrayLike) -> NDArray[np.float64]:
-        """Distance from each point to the nearest hotspot region.
-
-        Parameters
-        ----------
-        xy : array_like, shape (k, 2)
-            Points (x east, y north), m.
-
-        Returns
-        -------
-        ndarray, shape (k,)
-            ``min over hotspots of |p - c| (1 - g / m)`` clipped at 0 (``m``: Mahalanobis
-            distance of ``p`` from the hotspot), m; ``inf`` everywhere when there is no hotspot.
-        """
-        pts = np.asarray(xy, dtype=float).reshape(-1, 2) if np.size(xy) else np.zeros((0, 2))
-        if len(self) == 0:
-            return np.full(pts.shape[0], np.inf)
-        delta = pts[:, None, :] - self.positions[None]                  # (k, n, 2)
-        c = self.covariances
-        det = c[:, 0, 0] * c[:, 1, 1] - c[:, 0, 1] ** 2
-        # Squared Mahalanobis distance with the closed-form inverse of each 2 x 2 covariance.
-        m2 = (delta[..., 0] ** 2 * c[:, 1, 1] - 2.0 * delta[..., 0] * delta[..., 1] * c[:, 0, 1]
-              + delta[..., 1] ** 2 * c[:, 0, 0]) / det
-        r = np.hypot(delta[..., 0], delta[..., 1])
-        with np.errstate(divide="ignore", invalid="ignore"):
-            beyond = np.where(m2 > self.gate**2, r * (1.0 - self.gate / np.sqrt(m2)), 0.0)
-        return beyond.min(axis=1)
-
-
-class ClutterMap:
+class ClutterMap(ClutterMapBase):
     """Online grid clutter map with clustered hotspots (Section 2.4 of the paper).
 
     Parameters
@@ -341,7 +281,7 @@ class ClutterMap:
         err = np.empty((n_spots, 2, 2))
         err[:, 0, 0], err[:, 1, 1] = m[:, 9], m[:, 11]
         err[:, 0, 1] = err[:, 1, 0] = m[:, 10]
-        cov = self._floor(cov, err)
+        cov = floor_covariance(cov, err)
         visits = np.zeros(n_spots, np.int64)
         np.maximum.at(visits, label, self._visits[hot])
         cells = np.bincount(label, minlength=n_spots).astype(np.int64)
@@ -351,20 +291,6 @@ class ClutterMap:
         self._cache = Hotspots(mean[keep], cov[keep], self._gate, visits[keep], cells[keep],
                                self.n_pings)
         return self._cache
-
-    @staticmethod
-    def _floor(cov: NDArray[np.float64], err: NDArray[np.float64]) -> NDArray[np.float64]:
-        """Raise each 2 x 2 covariance to at least the error covariance ``E`` (Loewner order).
-
-        With ``E = L L^T`` (Cholesky), the eigenvalues of ``L^-1 C L^-T`` are raised to at least
-        1 and the result mapped back; for ``E = sigma^2 I`` this raises every eigenvalue of
-        ``C`` to at least ``sigma^2``.
-        """
-        L = np.linalg.cholesky(err)
-        Li = np.linalg.inv(L)
-        w, v = np.linalg.eigh(Li @ cov @ np.swapaxes(Li, 1, 2))
-        inner = np.einsum("nij,nj,nkj->nik", v, np.maximum(w, 1.0), v)
-        return L @ inner @ np.swapaxes(L, 1, 2)
 
     def _drifting(
         self, count: NDArray[np.float64], m: NDArray[np.float64], err: NDArray[np.float64]
@@ -388,26 +314,10 @@ class ClutterMap:
         raw[:, 0, 0] = m[ok, 2] - mean[:, 0] ** 2
         raw[:, 0, 1] = raw[:, 1, 0] = m[ok, 3] - mean[:, 0] * mean[:, 1]
         raw[:, 1, 1] = m[ok, 4] - mean[:, 1] ** 2
-        res = self._floor(raw - np.einsum("ni,nj->nij", v, v) * var_t[ok, None, None], err[ok])
+        res = floor_covariance(raw - np.einsum("ni,nj->nij", v, v) * var_t[ok, None, None], err[ok])
         cv = res / (count[ok] * var_t[ok])[:, None, None]
         det = cv[:, 0, 0] * cv[:, 1, 1] - cv[:, 0, 1] ** 2
         q = (v[:, 0] ** 2 * cv[:, 1, 1] - 2 * v[:, 0] * v[:, 1] * cv[:, 0, 1]
              + v[:, 1] ** 2 * cv[:, 0, 0]) / det
         moving[ok] = q > self._drift_gate
         return moving
-
-    def distance(self, xy: ArrayLike) -> NDArray[np.float64]:
-        """Distance from each point to the nearest hotspot region.
-
-        Parameters
-        ----------
-        xy : array_like, shape (n, 2)
-            Points (x east, y north), m.
-
-        Returns
-        -------
-        ndarray, shape (n,)
-            Distance, m (0 inside a hotspot region); ``inf`` everywhere when the map has no
-            hotspot. See :meth:`Hotspots.distance`.
-        """
-        return self.hotspots().distance(xy)

@@ -1,0 +1,359 @@
+"""Density clutter map: where returns recur, judged with each detection's own error ellipse.
+
+Section 2.4 of "Target tracking using fuzzy logic association" ("Clutter map"): detections are
+stored event by event, new ones are associated with earlier ones, and a location from which
+detections come back on more than a set fraction of the events becomes a hotspot. A grid of fixed
+cells (:class:`fusion.active.clutter.grid.ClutterMap`) assumes that a feature's echoes land in one
+place; bistatic echoes do not: their errors are ellipses of 50-200 m along the bistatic ellipse
+and of a degree or so of bearing across it, different for every receiver and geometry. Here the
+association of echoes is the statistical one:
+
+- *Recurrence.* Two detections ``i``, ``j`` of different pings are echoes of one place when
+  ``(p_i - p_j)^T (R_i + R_j + 2 F)^-1 (p_i - p_j) <= g^2``, with ``R`` each detection's own
+  position-error covariance, ``F = feature_sigma_m^2 I`` the spread of a feature's echo points and
+  ``g^2`` the chi-square quantile (2 degrees of freedom) of ``probability``. The *recurrence* of a
+  detection is the number of distinct pings, its own included, with an echo of its place, across
+  all receivers: a kernel density over positions counted in pings, each kernel the detection's own
+  error ellipse. A detection is *hot* when its recurrence is at least ``min_pings`` and more than
+  ``fraction`` of the pings seen.
+- *Hotspots.* Hot detections (that pass the drift test below) linked by the relation above form
+  clusters (connected components);
+  a cluster's centre is the mean of its detections and its covariance their sample covariance,
+  raised to at least their mean error covariance plus ``F``
+  (:func:`fusion.active.clutter.base.floor_covariance`). Its region is the ellipse holding
+  ``extent_probability`` of its echoes, as in the grid map.
+- *Hotspots stand still.* A slow target seen by several receivers recurs too, for a while. For
+  each candidate hot detection, the echoes of its place (itself and every detection linked to
+  it) are fitted with a constant velocity by generalised least squares, each weighted by
+  ``(R_j + F)^-1``; when the chi-square statistic of that velocity (2 degrees of freedom)
+  exceeds the quantile of ``drift_probability`` the detection sits among moving echoes and is
+  not hot. (The test trusts the stated errors: they are learnt from the data,
+  :mod:`fusion.active.noise`; scaling by the residual scatter let clutter in a neighbourhood hide
+  a target's drift.)
+
+Compared with the grid, nothing depends on where cell borders fall or on a cell size tied to one
+error level, and a feature seen by a far receiver (long ellipses) and a near one (short ellipses)
+is one hotspot. The cost is a search of earlier detections near each new one (a k-d tree over
+the stored positions).
+"""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial import cKDTree
+from scipy.stats import chi2
+
+from fusion.active.clutter.base import ClutterMapBase, Hotspots, floor_covariance
+
+__all__ = ["DensityClutterMap"]
+
+logger = logging.getLogger(__name__)
+
+
+def _mahalanobis2(d: NDArray[np.float64], S: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``d^T S^-1 d`` for stacks of 2-vectors and 2 x 2 covariances (closed-form inverse)."""
+    det = S[:, 0, 0] * S[:, 1, 1] - S[:, 0, 1] ** 2
+    return (d[:, 0] ** 2 * S[:, 1, 1] - 2.0 * d[:, 0] * d[:, 1] * S[:, 0, 1]
+            + d[:, 1] ** 2 * S[:, 0, 0]) / det
+
+
+class DensityClutterMap(ClutterMapBase):
+    """Online clutter map that learns where returns recur, whatever their spread.
+
+    Parameters
+    ----------
+    probability : float, optional
+        Confidence of the "same place" test between two echoes (default 0.99), in (0, 1).
+    fraction : float, optional
+        A detection is hot when its place recurs on more than this fraction of the pings seen
+        (default 0.4), in (0, 1).
+    min_pings : int, optional
+        ... and on at least this many pings (default 6), >= 1: a slow target seen by several
+        receivers recurs too for a few pings, before its drift is significant.
+    position_sigma_m : float, optional
+        Position error per axis of detections given to :meth:`update` without a covariance, m
+        (default 100), > 0.
+    feature_sigma_m : float, optional
+        Spread of a feature's echo points per axis, m (default 30), >= 0.
+    extent_probability : float, optional
+        Fraction of a hotspot's echoes inside its region (default 0.99), in (0, 1).
+    drift_probability : float, optional
+        Confidence of the drift test (default 0.99), in (0, 1).
+    max_sigma_m : float, optional
+        Detections whose error ellipse has a standard deviation above this along its major
+        axis are not stored (default 500 m): an ellipse kilometres long (an echo near the
+        source-receiver baseline, where the range sum hardly fixes the position) is "the same
+        place" as everything around it and would make a hotspot of the whole area.
+    memory_pings : int, optional
+        Pings remembered (default None: all); older detections are forgotten and the fraction
+        test counts only the remembered pings.
+
+    Notes
+    -----
+    See the module docstring for the model. :meth:`update` adds one ping; :meth:`hotspots`
+    lists the current hotspots (cached until the next update).
+
+    Examples
+    --------
+    >>> cmap = DensityClutterMap(min_pings=3, position_sigma_m=20.0)
+    >>> for _ in range(3):
+    ...     cmap.update([[1000.0, 2000.0]])
+    >>> d = cmap.distance([[1000.0, 2300.0], [1000.0, 2030.0]])
+    >>> bool(d[0] > 100.0), float(d[1])
+    (True, 0.0)
+    """
+
+    def __init__(
+        self,
+        *,
+        probability: float = 0.99,
+        fraction: float = 0.4,
+        min_pings: int = 6,
+        position_sigma_m: float = 100.0,
+        feature_sigma_m: float = 30.0,
+        extent_probability: float = 0.99,
+        drift_probability: float = 0.99,
+        max_sigma_m: float = 500.0,
+        memory_pings: int | None = None,
+    ) -> None:
+        for name, v in (("probability", probability), ("fraction", fraction),
+                        ("extent_probability", extent_probability),
+                        ("drift_probability", drift_probability)):
+            if not 0.0 < v < 1.0:
+                raise ValueError(f"{name} must lie in (0, 1), got {v!r}")
+        if isinstance(min_pings, bool) or int(min_pings) != min_pings or min_pings < 1:
+            raise ValueError(f"min_pings must be an integer >= 1, got {min_pings!r}")
+        if not np.isfinite(position_sigma_m) or position_sigma_m <= 0:
+            raise ValueError(f"position_sigma_m must be a positive number, got {position_sigma_m!r}")
+        if not np.isfinite(feature_sigma_m) or feature_sigma_m < 0:
+            raise ValueError(f"feature_sigma_m must be >= 0, got {feature_sigma_m!r}")
+        if not np.isfinite(max_sigma_m) or max_sigma_m <= 0:
+            raise ValueError(f"max_sigma_m must be a positive number, got {max_sigma_m!r}")
+        if memory_pings is not None and (int(memory_pings) != memory_pings or memory_pings < 2):
+            raise ValueError(f"memory_pings must be an integer >= 2, got {memory_pings!r}")
+        self.probability = float(probability)
+        self.fraction = float(fraction)
+        self.min_pings = int(min_pings)
+        self.position_sigma_m = float(position_sigma_m)
+        self.feature_sigma_m = float(feature_sigma_m)
+        self.extent_probability = float(extent_probability)
+        self.drift_probability = float(drift_probability)
+        self.max_sigma_m = float(max_sigma_m)
+        self.memory_pings = None if memory_pings is None else int(memory_pings)
+        self._g2 = float(chi2.ppf(self.probability, 2))
+        self._gate = float(np.sqrt(chi2.ppf(self.extent_probability, 2)))
+        self._drift_gate = float(chi2.ppf(self.drift_probability, 2))
+        self._F = np.eye(2) * self.feature_sigma_m**2
+        self.n_pings = 0
+        self._t0: float | None = None
+        self._xy = np.zeros((0, 2))
+        self._cov = np.zeros((0, 2, 2))
+        self._ping = np.zeros(0, np.int64)     # ping number of each stored detection
+        self._t = np.zeros(0)                   # ping time relative to the first ping, s
+        self._seen = np.zeros((0, 0), dtype=bool)  # (detections, remembered pings)
+        self._first = 0                         # ping number of column 0 of _seen
+        self._edges = np.zeros((0, 2), np.int64)
+        self._cache: Hotspots | None = None
+
+    def empty_copy(self) -> DensityClutterMap:
+        """A map with the same options and no content."""
+        return DensityClutterMap(
+            probability=self.probability, fraction=self.fraction, min_pings=self.min_pings,
+            position_sigma_m=self.position_sigma_m, feature_sigma_m=self.feature_sigma_m,
+            extent_probability=self.extent_probability,
+            drift_probability=self.drift_probability, max_sigma_m=self.max_sigma_m,
+            memory_pings=self.memory_pings)
+
+    def _checked(self, xy: ArrayLike, cov: ArrayLike | None) -> tuple[NDArray, NDArray]:
+        pts = np.asarray(xy, dtype=float).reshape(-1, 2) if np.size(xy) else np.zeros((0, 2))
+        if not np.all(np.isfinite(pts)):
+            raise ValueError("clutter map: detection positions must be finite")
+        if cov is None:
+            c = np.broadcast_to(np.eye(2) * self.position_sigma_m**2, (pts.shape[0], 2, 2)).copy()
+        else:
+            c = np.array(cov, dtype=float)
+            if c.shape != (pts.shape[0], 2, 2) or not np.all(np.isfinite(c)):
+                raise ValueError(f"clutter map: cov must be finite, shape ({pts.shape[0]}, 2, 2), "
+                                 f"got shape {c.shape}")
+            if np.any(c[:, 0, 0] <= 0) or np.any(c[:, 0, 0] * c[:, 1, 1] - c[:, 0, 1] ** 2 <= 0):
+                raise ValueError("clutter map: cov must be positive definite")
+        return pts, c
+
+    def update(
+        self, xy: ArrayLike, time: float | None = None, *, cov: ArrayLike | None = None
+    ) -> None:
+        """Add the detections of one ping.
+
+        Parameters
+        ----------
+        xy : array_like, shape (n, 2)
+            Detection positions (x east, y north), m; n may be 0 (the ping still counts).
+        time : float, optional
+            Ping time, s (for the drift test); default: the ping's index.
+        cov : array_like, shape (n, 2, 2), optional
+            Position-error covariance of each detection, m^2, positive definite (default
+            ``position_sigma_m**2 I``).
+
+        Raises
+        ------
+        ValueError
+            Wrong shape or non-finite values.
+        """
+        pts, c = self._checked(xy, cov)
+        small = np.linalg.eigvalsh(c)[:, -1] <= self.max_sigma_m**2
+        pts, c = pts[small], c[small]
+        t = float(self.n_pings if time is None else time)
+        if not np.isfinite(t):
+            raise ValueError("clutter map: ping time must be finite")
+        if self._t0 is None:
+            self._t0 = t
+        k = self.n_pings
+        self.n_pings += 1
+        self._cache = None
+        self._seen = np.concatenate([self._seen, np.zeros((self._seen.shape[0], 1), bool)], axis=1)
+        n_old, n_new = self._xy.shape[0], pts.shape[0]
+        seen_new = np.zeros((n_new, self._seen.shape[1]), dtype=bool)
+        seen_new[:, k - self._first] = True
+        edges = np.zeros((0, 2), np.int64)
+        if n_old and n_new:
+            i, j = self._candidates(pts, c)
+            if i.size:
+                S = c[i] + self._cov[j] + 2.0 * self._F
+                ok = _mahalanobis2(pts[i] - self._xy[j], S) <= self._g2
+                i, j = i[ok], j[ok]
+                self._seen[j, k - self._first] = True
+                seen_new[i, self._ping[j] - self._first] = True
+                edges = np.column_stack([i + n_old, j])
+        self._xy = np.concatenate([self._xy, pts])
+        self._cov = np.concatenate([self._cov, c])
+        self._ping = np.concatenate([self._ping, np.full(n_new, k, np.int64)])
+        self._t = np.concatenate([self._t, np.full(n_new, t - self._t0)])
+        self._seen = np.concatenate([self._seen, seen_new])
+        self._edges = np.concatenate([self._edges, edges])
+        if self.memory_pings is not None and self.n_pings - self._first > self.memory_pings:
+            self._forget(self.n_pings - self.memory_pings)
+
+    def _candidates(self, pts: NDArray, c: NDArray) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+        """Pairs (new, stored) within the Euclidean reach of the Mahalanobis test."""
+        lam_new = np.linalg.eigvalsh(c)[:, -1]
+        reach = np.sqrt(self._g2 * (lam_new + self.max_sigma_m**2
+                                    + 2.0 * self.feature_sigma_m**2))
+        found = cKDTree(self._xy).query_ball_point(pts, reach)
+        sizes = np.fromiter((len(f) for f in found), np.int64, len(found))
+        if not sizes.sum():
+            return np.zeros(0, np.int64), np.zeros(0, np.int64)
+        i = np.repeat(np.arange(len(found)), sizes)
+        j = np.fromiter((x for f in found for x in f), np.int64, int(sizes.sum()))
+        return i, j
+
+    def _forget(self, first: int) -> None:
+        """Drop detections of pings before `first` and the columns of those pings."""
+        keep = self._ping >= first
+        new_index = np.cumsum(keep) - 1
+        e = self._edges
+        e_keep = keep[e[:, 0]] & keep[e[:, 1]] if e.size else np.zeros(0, bool)
+        self._edges = new_index[e[e_keep]] if e.size else e
+        self._seen = self._seen[keep][:, first - self._first:]
+        self._xy, self._cov = self._xy[keep], self._cov[keep]
+        self._ping, self._t = self._ping[keep], self._t[keep]
+        self._first = first
+
+    def recurrence(self) -> NDArray[np.int64]:
+        """Pings (remembered) on which each stored detection's place had an echo, its own
+        included, shape (n_stored,)."""
+        return self._seen.sum(axis=1)
+
+    def hotspots(self) -> Hotspots:
+        """The current hotspots.
+
+        Returns
+        -------
+        Hotspots
+            One per cluster of hot, non-drifting detections; ``visits`` is the largest
+            recurrence in the cluster and ``cells`` its number of detections.
+        """
+        if self._cache is not None:
+            return self._cache
+        n_seen = self.n_pings - self._first
+        rec = self.recurrence()
+        hot = (rec >= self.min_pings) & (rec > self.fraction * n_seen)
+        if hot.any():
+            hot[hot] = ~self._drifting(np.flatnonzero(hot))
+        hot = np.flatnonzero(hot)
+        if hot.size == 0:
+            self._cache = Hotspots(np.zeros((0, 2)), np.zeros((0, 2, 2)), self._gate,
+                                   np.zeros(0, np.int64), np.zeros(0, np.int64), self.n_pings)
+            return self._cache
+        pos = np.full(self._xy.shape[0], -1, np.int64)
+        pos[hot] = np.arange(hot.size)
+        e = self._edges
+        e = e[(pos[e[:, 0]] >= 0) & (pos[e[:, 1]] >= 0)] if e.size else e
+        graph = coo_matrix((np.ones(e.shape[0]), (pos[e[:, 0]], pos[e[:, 1]])),
+                           shape=(hot.size, hot.size))
+        n_spots, label = connected_components(graph, directed=False)
+        xy = self._xy[hot]
+        count = np.bincount(label, minlength=n_spots).astype(float)
+        mean = np.stack([np.bincount(label, weights=xy[:, a], minlength=n_spots)
+                         for a in (0, 1)], axis=1) / count[:, None]
+        d = xy - mean[label]
+        cov = np.zeros((n_spots, 2, 2))
+        np.add.at(cov, label, np.einsum("ni,nj->nij", d, d))
+        cov /= count[:, None, None]
+        err = np.zeros((n_spots, 2, 2))
+        np.add.at(err, label, self._cov[hot])
+        err = err / count[:, None, None] + self._F
+        visits = np.zeros(n_spots, np.int64)
+        np.maximum.at(visits, label, rec[hot])
+        self._cache = Hotspots(mean, floor_covariance(cov, err), self._gate, visits,
+                               count.astype(np.int64), self.n_pings)
+        return self._cache
+
+    def _drifting(self, cand: NDArray[np.int64]) -> NDArray[np.bool_]:
+        """Which candidate detections sit among echoes that move (see the module docstring).
+
+        For each candidate ``j``, the echoes of its place (``j`` and every stored detection
+        linked to it) are fitted with ``p_i = p_0 + v (t_i - t_j) + e_i``,
+        ``e_i ~ N(0, R_i + F)``, by generalised least squares; ``j`` drifts when
+        ``v^T Cov(v)^-1 v`` is above the chi-square quantile of ``drift_probability``.
+        """
+        n = self._xy.shape[0]
+        slot = np.full(n, -1, np.int64)
+        slot[cand] = np.arange(cand.size)
+        e = self._edges
+        # Members of each candidate's neighbourhood: itself and both ends of its edges.
+        owner = np.concatenate([cand, slot[e[:, 0]], slot[e[:, 1]]]) if e.size else cand.copy()
+        member = np.concatenate([cand, e[:, 1], e[:, 0]]) if e.size else cand.copy()
+        if e.size:
+            owner[:cand.size] = np.arange(cand.size)
+            ok = owner >= 0
+            owner, member = owner[ok], member[ok]
+        else:
+            owner = np.arange(cand.size)
+        W = np.linalg.inv(self._cov[member] + self._F)
+        tc = self._t[member] - self._t[cand][owner]
+        p = self._xy[member]
+        A = np.zeros((cand.size, 4, 4))
+        b = np.zeros((cand.size, 4))
+        Wp = np.einsum("nij,nj->ni", W, p)
+        np.add.at(A[:, :2, :2], owner, W)
+        np.add.at(A[:, :2, 2:], owner, W * tc[:, None, None])
+        np.add.at(A[:, 2:, 2:], owner, W * (tc * tc)[:, None, None])
+        A[:, 2:, :2] = A[:, :2, 2:]
+        np.add.at(b[:, :2], owner, Wp)
+        np.add.at(b[:, 2:], owner, Wp * tc[:, None])
+        size = np.bincount(owner, minlength=cand.size)
+        moving = np.zeros(cand.size, dtype=bool)
+        fit = (size >= 3) & (np.abs(np.linalg.det(A)) > 0)
+        if not fit.any():
+            return moving
+        Af = A[fit]
+        theta = np.linalg.solve(Af, b[fit][..., None])[..., 0]
+        cov_v = np.linalg.inv(Af)[:, 2:, 2:]
+        q = np.einsum("ni,ni->n", theta[:, 2:], np.linalg.solve(cov_v, theta[:, 2:][..., None])[..., 0])
+        moving[fit] = q > self._drift_gate
+        return moving
