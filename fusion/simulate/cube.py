@@ -25,7 +25,7 @@ Model
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -74,6 +74,9 @@ class CubeScenario:
         Centre frequency of the bin an operator would click: the bin nearest the line, Hz.
     lag_s : float
         Spectral integration lag, s.
+    parameters : dict
+        Draws of a varied cube (:mod:`fusion.simulate.cube_varied`); empty otherwise. Truth,
+        for diagnosis only.
     """
 
     cube: Cube
@@ -86,6 +89,7 @@ class CubeScenario:
     click_beam: int
     click_freq: float
     lag_s: float
+    parameters: dict = field(default_factory=dict)
 
     @property
     def latest_bearing_deg(self) -> float:
@@ -328,7 +332,7 @@ def simulate_cube(
     )
 
 
-def write_scenario(out_dir: Path, *, seed: int) -> list[Path]:
+def write_scenario(out_dir: Path, *, seed: int, vary: bool = False) -> list[Path]:
     """Write a high bearing-rate cube scenario: ``cube.npz`` and ``truth.json``.
 
     The scenario (a 35 deg/min line at 6 dB per-bin SNR, start bearing drawn from the seed) is the
@@ -340,6 +344,10 @@ def write_scenario(out_dir: Path, *, seed: int) -> list[Path]:
         Output folder (created if missing).
     seed : int
         Scenario seed.
+    vary : bool, optional
+        A varied cube instead (:func:`fusion.simulate.cube_varied.simulate_varied_cube`: line
+        frequency, rate, SNR, noise statistics and level, lag drawn from the seed); its draws go
+        to ``truth.json`` under ``parameters``.
 
     Returns
     -------
@@ -347,11 +355,18 @@ def write_scenario(out_dir: Path, *, seed: int) -> list[Path]:
         The written files.
     """
     out_dir = Path(out_dir)
-    rng = np.random.default_rng(seed)
-    rate = 35.0 * (1.0 if rng.uniform() < 0.5 else -1.0)
-    span = abs(rate) * 59.0 / 60.0  # degrees covered by 60 one-second scans
-    start = rng.uniform(20.0 + (span if rate < 0 else 0.0), 160.0 - (span if rate > 0 else 0.0))
-    sc = simulate_cube(seed=seed, bearing0_deg=start, bearing_rate_deg_per_min=rate, snr_db=6.0)
+    if vary:
+        from fusion.simulate.cube_varied import simulate_varied_cube
+
+        sc = simulate_varied_cube(seed)
+    else:
+        rng = np.random.default_rng(seed)
+        rate = 35.0 * (1.0 if rng.uniform() < 0.5 else -1.0)
+        span = abs(rate) * 59.0 / 60.0  # degrees covered by 60 one-second scans
+        start = rng.uniform(20.0 + (span if rate < 0 else 0.0),
+                            160.0 - (span if rate > 0 else 0.0))
+        sc = simulate_cube(seed=seed, bearing0_deg=start, bearing_rate_deg_per_min=rate,
+                           snr_db=6.0)
     cube_path = write_cube(out_dir / "cube.npz", sc.cube)
     truth = {
         "bearing_deg": sc.latest_bearing_deg,
@@ -362,6 +377,7 @@ def write_scenario(out_dir: Path, *, seed: int) -> list[Path]:
         "click_freq": sc.click_freq,
         "lag_s": sc.lag_s,
         "bearing_per_scan_deg": sc.bearing_deg.tolist(),
+        **({"vary": True, "parameters": sc.parameters} if vary else {}),
     }
     truth_path = write_json(out_dir / "truth.json", truth)
     return [cube_path, truth_path]

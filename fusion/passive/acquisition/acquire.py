@@ -26,7 +26,7 @@ from fusion.passive.acquisition.fans import (
     FanStrategy,
     StraightLineFans,
 )
-from fusion.passive.acquisition.normalise import normalize_spectra
+from fusion.passive.acquisition.normalise import estimate_noise_dof, normalize_spectra
 from fusion.passive.acquisition.snr import band_noise_level, snr_1hz_db
 from fusion.types import Cube
 
@@ -98,6 +98,17 @@ class AcquisitionResult:
         }
 
 
+class _BandView:
+    """Normalised power of some bins, indexed by a band of cube bin indices."""
+
+    def __init__(self, power: NDArray[np.float64], bins: NDArray[np.intp]) -> None:
+        self.power = power
+        self.column = {int(b): i for i, b in enumerate(bins)}
+
+    def __getitem__(self, band: NDArray[np.intp]) -> NDArray[np.float64]:
+        return self.power[:, :, [self.column[int(b)] for b in band]]
+
+
 class Acquisition:
     """Estimate a clicked target's bearing, bearing rate and SNR from the best line on its IBW BTR.
 
@@ -116,8 +127,10 @@ class Acquisition:
         Split window of the normaliser (bins each side, bins left out each side).
     pool_scans : int, optional
         Scans pooled into each noise estimate of the normaliser (None: the whole history).
-    noise_dof : float
-        Degrees of freedom of the noise in one cell, for the normaliser.
+    noise_dof : float, optional
+        Degrees of freedom of the noise in one cell, for the normaliser (2 for one periodogram
+        look); None (default): estimated from the cube's cells away from the click
+        (:func:`~fusion.passive.acquisition.normalise.estimate_noise_dof`).
     trace : {"bearing", "beam"}
         Lines of the fans: constant-bearing-rate traces in the cosine beam spacing (default, see
         :func:`constant_rate_traces`) or the method's literal straight lines in beam number.
@@ -162,10 +175,19 @@ StraightLineFans`, :class:`~fusion.passive.acquisition.fans.ConstantRateFans` or
         ``sampling``, ``refine``, ``refine_span_beams``, ``max_rate_deg_per_min``,
         ``rate_step_deg_per_min``, ``max_slope``, ``slope_step`` and ``rate_at``, which must then
         be left at their defaults. Default None: built from those options.
+    freq_tolerance_bins : int
+        The operator's click may be this many bins off the line (default 1): the IBW is also
+        tried shifted by 1 .. `freq_tolerance_bins` bins either way, and the one whose best line
+        has the largest IBW SNR is kept (0: the clicked IBW alone, as in the method).
 
     Notes
     -----
     Choices where the method text is silent or its equations were lost:
+
+    - click tolerance: the method lets the operator's beam be off by up to half a beamwidth
+      (segment 44's anchor beams) but takes the clicked frequency as exact; an operator reading a
+      gram is as likely to be a bin off as a beam off, so the IBW gets the same tolerance
+      (``freq_tolerance_bins``), and the IBW with the largest SNR wins, as the best fan does;
 
     - normaliser: split-window median (see :func:`normalize_spectra`);
     - fans: the method's lines are straight in beam number, but the method also assumes beams
@@ -205,7 +227,7 @@ StraightLineFans`, :class:`~fusion.passive.acquisition.fans.ConstantRateFans` or
         normalize: bool = True,
         window_bins: int = 8,
         gap_bins: int = 1,
-        noise_dof: float = 2.0,
+        noise_dof: float | None = None,
         pool_scans: int | None = None,
         trace: Literal["bearing", "beam"] = "bearing",
         sampling: Literal["nearest", "linear"] = "nearest",
@@ -221,6 +243,7 @@ StraightLineFans`, :class:`~fusion.passive.acquisition.fans.ConstantRateFans` or
         default_snr_ibw: float = 1.0,
         exclude_beams: float | None = None,
         fans: FanStrategy | None = None,
+        freq_tolerance_bins: int = 1,
     ) -> None:
         if ibw_hz is not None and (not np.isfinite(ibw_hz) or ibw_hz <= 0):
             raise ValueError(f"ibw_hz must be positive, got {ibw_hz!r}")
@@ -257,8 +280,12 @@ StraightLineFans`, :class:`~fusion.passive.acquisition.fans.ConstantRateFans` or
         for name, v in (("min_snr_ibw", min_snr_ibw), ("default_snr_ibw", default_snr_ibw)):
             if not np.isfinite(v) or v <= 0:
                 raise ValueError(f"{name} must be positive, got {v!r}")
-        if not np.isfinite(noise_dof) or noise_dof <= 0:
+        if noise_dof is not None and (not np.isfinite(noise_dof) or noise_dof <= 0):
             raise ValueError(f"noise_dof must be positive, got {noise_dof!r}")
+        if (isinstance(freq_tolerance_bins, bool) or int(freq_tolerance_bins) != freq_tolerance_bins
+                or freq_tolerance_bins < 0):
+            raise ValueError(f"freq_tolerance_bins must be an integer >= 0, got "
+                             f"{freq_tolerance_bins!r}")
         if pool_scans is not None and (int(pool_scans) != pool_scans or pool_scans < 1):
             raise ValueError(f"pool_scans must be a positive integer, got {pool_scans!r}")
         self.ibw_hz = ibw_hz
@@ -266,7 +293,8 @@ StraightLineFans`, :class:`~fusion.passive.acquisition.fans.ConstantRateFans` or
         self.normalize = bool(normalize)
         self.window_bins = int(window_bins)
         self.gap_bins = int(gap_bins)
-        self.noise_dof = float(noise_dof)
+        self.noise_dof = None if noise_dof is None else float(noise_dof)
+        self.freq_tolerance_bins = int(freq_tolerance_bins)
         self.pool_scans = pool_scans
         self.trace = trace
         self.sampling = sampling
@@ -325,6 +353,58 @@ StraightLineFans`, :class:`~fusion.passive.acquisition.fans.ConstantRateFans` or
             )
         return df
 
+    def _candidate_bands(self, freqs: NDArray[np.float64], freq_hz: float) -> list[NDArray[np.intp]]:
+        """The IBW around the click and its copies shifted by 1 .. freq_tolerance_bins bins
+        either way (those that fit in the cube), the clicked one first."""
+        band = ibw_bins(freqs, freq_hz, self.ibw_hz)
+        out = [band]
+        for k in range(1, self.freq_tolerance_bins + 1):
+            for shift in (-k, k):
+                moved = band + shift
+                if moved.min() >= 0 and moved.max() < freqs.size:
+                    out.append(moved)
+        return out
+
+    def _spectra(self, cube: Cube, bins: NDArray[np.intp], clicked_bin: int) -> _BandView:
+        """Normalised power of `bins` (segment 22), indexable by a band of bin indices."""
+        n_scans = cube.power.shape[0]
+        if self.normalize:
+            dof = self.noise_dof
+            if dof is None:
+                near = np.arange(clicked_bin - self.freq_tolerance_bins - self.gap_bins - 1,
+                                 clicked_bin + self.freq_tolerance_bins + self.gap_bins + 2)
+                dof = estimate_noise_dof(cube.power, exclude_bins=near)
+            out = normalize_spectra(cube.power, window_bins=self.window_bins,
+                                    gap_bins=self.gap_bins, noise_dof=dof,
+                                    pool_scans=(None if self.pool_scans is None
+                                                else min(self.pool_scans, n_scans)),
+                                    bins=bins)
+        else:
+            out = cube.power[:, :, bins]
+            if not np.all(np.isfinite(out)):
+                raise ValueError("cube power contains NaN or infinite values")
+        return _BandView(out, bins)
+
+    def _search(self, btr: NDArray[np.float64], anchors: NDArray[np.int64], tol: int,
+                lobe_beams: float, min_scans: int,
+                scan_period: float) -> tuple[float, float, BestLine | None]:
+        """Segments 46-52 on one IBW BTR: IBW SNR, band noise level and the best line."""
+        n_scans, n_beams = btr.shape
+        btr_rev = btr[::-1]
+        best_line = self.fans.search(btr_rev, anchors, min_scans=min_scans,
+                                     scan_period=scan_period)
+        if best_line is None:
+            return float("nan"), float("nan"), None
+        excl = (float(max(tol, int(math.ceil(lobe_beams)))) if self.exclude_beams is None
+                else self.exclude_beams)
+        # the trace over every scan, also beyond where it leaves the BTR
+        track = self.fans.extend(best_line, n_scans=n_scans, n_beams=n_beams,
+                                 scan_period=scan_period)
+        noise = band_noise_level(btr_rev, best_line.anchor_beam, exclude_beams=excl, track=track)
+        if noise <= 0:
+            raise ValueError("band noise level is zero: the IBW holds no noise power")
+        return (best_line.signal_plus_noise - noise) / noise, noise, best_line
+
     def acquire(self, cube: Cube, *, beam: int, freq_hz: float) -> AcquisitionResult:
         """Acquire the target clicked at (`beam`, `freq_hz`) on the latest scan of `cube`.
 
@@ -353,49 +433,31 @@ StraightLineFans`, :class:`~fusion.passive.acquisition.fans.ConstantRateFans` or
         n_scans, n_beams, _ = cube.power.shape
         scan_period = float(cube.scan_period)
 
-        # segments 26-28: IBW, normalisation of its bins, BTR
-        band = ibw_bins(cube.freqs, freq_hz, self.ibw_hz)
-        if self.normalize:
-            spectra = normalize_spectra(cube.power, window_bins=self.window_bins,
-                                        gap_bins=self.gap_bins, noise_dof=self.noise_dof,
-                                        pool_scans=(None if self.pool_scans is None
-                                                    else min(self.pool_scans, n_scans)),
-                                        bins=band)
-        else:
-            spectra = cube.power[:, :, band]
-            if not np.all(np.isfinite(spectra)):
-                raise ValueError("cube power contains NaN or infinite values")
-        btr = ibw_btr(spectra)  # (scans, beams), chronological
-        btr_rev = btr[::-1]  # row 0 = latest update, as in the method's btr[iscan][ibeam]
-
         # segments 40-44: beamwidth, beam tolerance, anchors
-        wavelength = cube.sound_speed / float(cube.freqs[int(np.argmin(np.abs(cube.freqs - freq_hz)))])
+        clicked_bin = int(np.argmin(np.abs(cube.freqs - freq_hz)))
+        wavelength = cube.sound_speed / float(cube.freqs[clicked_bin])
         brg_click = float(bearing_from_beam(beam, n_beams))
         bw_deg = float(beamwidth_deg(math.degrees(brg_click), wavelength=wavelength,
                                      aperture=cube.aperture))
         tol = beam_tolerance(wavelength, cube.aperture, n_beams)
         anchors = np.arange(max(0, beam - tol), min(n_beams - 1, beam + tol) + 1)
-
-        # segments 46-50: best line in every fan, overall best line
         min_scans = n_scans if self.min_scans is None else min(int(self.min_scans), n_scans)
-        best_line = self.fans.search(btr_rev, anchors, min_scans=min_scans,
-                                     scan_period=scan_period)
-
-        # segment 52: band noise level off the trace, linear SNR in the IBW
-        snr_ibw = float("nan")
-        noise = float("nan")
         lobe_beams = wavelength / cube.aperture * (n_beams - 1) / 2.0  # first null, beams
-        if best_line is not None:
-            excl = (float(max(tol, int(math.ceil(lobe_beams)))) if self.exclude_beams is None
-                    else self.exclude_beams)
-            # the trace over every scan, also beyond where it leaves the BTR
-            track = self.fans.extend(best_line, n_scans=n_scans, n_beams=n_beams,
-                                     scan_period=scan_period)
-            noise = band_noise_level(btr_rev, best_line.anchor_beam, exclude_beams=excl,
-                                     track=track)
-            if noise <= 0:
-                raise ValueError("band noise level is zero: the IBW holds no noise power")
-            snr_ibw = (best_line.signal_plus_noise - noise) / noise
+
+        # segments 26-28 for every candidate IBW around the click (the clicked one and those
+        # shifted by up to freq_tolerance_bins), then segments 46-52 on each; the candidate
+        # whose best line has the largest IBW SNR is kept.
+        bands = self._candidate_bands(cube.freqs, freq_hz)
+        spectra = self._spectra(cube, np.unique(np.concatenate(bands)), clicked_bin)
+        tried = []
+        for band in bands:
+            btr = ibw_btr(spectra[band])  # (scans, beams), chronological
+            tried.append((band, btr, *self._search(btr, anchors, tol, lobe_beams, min_scans,
+                                                   scan_period)))
+        snrs = np.array([t[2] for t in tried])
+        pick = int(np.nanargmax(snrs)) if np.isfinite(snrs).any() else 0
+        band, btr, snr_ibw, noise, best_line = tried[pick]
+        btr_rev = btr[::-1]  # row 0 = latest update, as in the method's btr[iscan][ibeam]
 
         common = {"snr_ibw": snr_ibw, "btr": btr, "band_noise_level": noise,
                   "beamwidth_deg": bw_deg, "beam_tolerance": tol,
