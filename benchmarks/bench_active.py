@@ -1,19 +1,32 @@
 """Benchmark of multistatic active tracking (fuzzy association vs Kalman nearest neighbour).
 
 Prints ONE JSON line:
-- ``sim``: over ``--seeds`` seeds (default 0..19) of the 22-ping scenario, per mode, mean
-  confirmed false tracks per run and mean target coverage (pings after the third with a
-  confirmed track within 500 m of the target); targets: false <= 0.5, coverage >= 0.9 (fuzzy);
-- ``ablation``: the fuzzy tracker with one clue removed at a time (and with the aspect angle
-  computed from source/receiver positions and the track heading instead of the given column;
-  and with the isotropic ``position_sigma_m`` error for every detection instead of the bistatic
-  error ellipses from source/receiver geometry: ``isotropic_errors``);
-- ``speed``: median wall time of one ping with 200 detections against 20 confirmed tracks
-  (target <= 5 ms), detections with source/receiver positions (bistatic error ellipses);
-- ``real``: Autoferry radar (Trondheim harbour), positions only, scored against GNSS truth;
-  the fuzzy rank threshold is derived for the clue set present (likelihood + hotspot).
 
-    python benchmarks/bench_active.py [--seeds 20] [--first-seed 0] [--no-real]
+- ``sim``: over ``--seeds`` runs of the 22-ping scenario, varied by default
+  (:mod:`fusion.simulate.multistatic_varied`: 2-5 receivers, per-receiver target Pd 0.4-0.9,
+  contact errors of 50-200 m along the bistatic ellipse and 1 deg x range across it, hotspots
+  seen by each receiver with its own Pd and SNR, 2-15 clutter echoes per receiver and ping,
+  straight and turning targets), the fixed scenario with ``--fixed``. Per variant: confirmed false
+  tracks per run, target coverage (pings after the third with a confirmed track within 500 m of
+  the target), identity switches on the target per run, each as the mean and the worst decile
+  (the mean over the worst 10 % of runs), and the origin of the false tracks (by the majority of
+  their detections: hotspot, clutter, target). Targets (fuzzy, varied): false <= 1 per run,
+  coverage >= 0.95, identity switches <= 1 per run.
+- Variants: ``fuzzy`` (the defaults), ``kalman`` (the paper's comparison), ablations of the
+  track score, of the classifier-score evidence, of the learnt accuracies (the user's 100 m /
+  1.5 deg for every receiver), of the density clutter map (the grid map), the paper's
+  classifier-score gate at ``--score-gates``, and the ``aspect_column`` variant that trusts the
+  simulator's ``aspect_deg`` column (truth plus noise: shown only to measure what it was worth).
+  No variant is given the simulator's noise, clutter or detection-probability settings.
+- ``speed``: median wall time of one ping with 200 detections against 20 confirmed tracks
+  (target <= 5 ms), detections with source/receiver positions.
+- ``real``: Autoferry radar (Trondheim harbour), positions only, scored against GNSS truth, with
+  the radar settings of :func:`radar_tracker`.
+
+Seeds: the design was chosen on :data:`TUNING_SEEDS`; the figures in RESULTS.md come from one run
+on the report seeds named there, drawn after the last design change. Usage::
+
+    python benchmarks/bench_active.py [--seeds 100] [--first-seed S] [--fixed] [--no-real]
 """
 
 from __future__ import annotations
@@ -34,76 +47,131 @@ from fusion.active.tracker import Ping, Tracker
 from fusion.io import Table
 from fusion.simulate.multistatic import score_tracks, simulate_multistatic
 
+#: Seeds the design was chosen on: varied scenarios 1000-1099; the fixed scenario 100-119 and
+#: 200-299 (earlier versions). Report seeds are others.
+TUNING_SEEDS = {"varied": (1000, 1099), "fixed": ((100, 119), (200, 299))}
 
-def _drop(table: Table, names) -> Table:
-    return Table({k: v for k, v in table.columns.items() if k not in names}, table.source)
 
-
-def bench_sim(seeds) -> tuple[dict, dict]:
-    variants = {
-        "fuzzy": (dict(mode="fuzzy"), ()),
-        "kalman": (dict(mode="kalman"), ()),
-        "no_score": (dict(clues=("snr_db", "aspect_deg", "hotspot_distance_m")), ()),
-        "no_snr": (dict(clues=("score", "aspect_deg", "hotspot_distance_m")), ()),
-        "no_aspect": (dict(clues=("score", "snr_db", "hotspot_distance_m")), ()),
-        "no_hotspot": (dict(clues=("score", "snr_db", "aspect_deg")), ()),
-        "aspect_from_geometry": (dict(), ("aspect_deg",)),
-        "isotropic_errors": (dict(position_errors="isotropic"), ()),
+def _variants(score_gates) -> dict:
+    out = {
+        "fuzzy": {},
+        "kalman": {"mode": "kalman"},
+        "no_track_score": {"confirm_llr": None},
+        "no_score_evidence": {"score_evidence": False},
+        "fixed_accuracies": {"noise": "fixed"},
+        "grid_clutter_map": {"clutter_map": "grid"},
+        "aspect_column": {"aspect": "measured"},
     }
-    acc = {k: ([], []) for k in variants}
+    for g in score_gates:
+        out[f"score_gate_{g:g}"] = {"score_threshold": g}
+    return out
+
+
+def _origins(result, det: Table) -> list[str]:
+    """Origins of the detections each track took, by track id."""
+    ev = np.asarray(det["event"])
+    order = np.argsort(ev, kind="stable")
+    origin, evs = np.asarray(det["origin"])[order], ev[order]
+    seen: dict[int, list[str]] = {}
+    for p in result.pings:
+        start = int(np.searchsorted(evs, p.event))
+        for tid, dets in zip(p.track_id.tolist(), p.detections, strict=True):
+            seen.setdefault(tid, []).extend(origin[start + dets].tolist())
+    return seen
+
+
+def _worst(values, worst_high: bool) -> float:
+    """Mean over the worst 10 % of runs (at least one)."""
+    v = np.sort(np.asarray(values, dtype=float))
+    k = max(1, len(v) // 10)
+    return float(np.mean(v[-k:] if worst_high else v[:k]))
+
+
+def bench_sim(seeds, *, vary: bool, score_gates=(0.3, 0.5)) -> dict:
+    variants = _variants(score_gates)
+    acc = {k: {"false": [], "coverage": [], "switches": [],
+               "origins": {"hotspot": 0, "clutter": 0, "target": 0}} for k in variants}
     for s in seeds:
-        sc = simulate_multistatic(seed=s)
-        for name, (kw, drop) in variants.items():
-            res = Tracker(**kw).run(_drop(sc.detections, drop))
-            score = score_tracks(res.columns(), sc.truth)
-            acc[name][0].append(score.false_tracks)
-            acc[name][1].append(score.coverage)
-    out = {k: {"false_tracks_per_run": round(float(np.mean(f)), 3),
-               "coverage": round(float(np.mean(c)), 3),
-               "min_coverage": round(float(np.min(c)), 3)} for k, (f, c) in acc.items()}
-    sim = {k: out[k] for k in ("fuzzy", "kalman")}
-    return sim, {k: v for k, v in out.items() if k not in sim}
+        sc = simulate_multistatic(seed=s, vary=vary)
+        truth = sc.truth
+        for name, kw in variants.items():
+            kw = dict(kw)
+            if kw.get("clutter_map") == "grid":
+                kw["clutter_map"] = ClutterMap()
+            res = Tracker(**kw).run(sc.detections)
+            cols = res.columns()
+            score = score_tracks(cols, truth)
+            a = acc[name]
+            a["false"].append(score.false_tracks)
+            a["coverage"].append(score.coverage)
+            a["switches"].append(score.identity_switches)
+            conf = cols["status"] == "confirmed"
+            k = cols["event"]
+            d = np.hypot(cols["x"] - truth["x"][k], cols["y"] - truth["y"][k])
+            seen = _origins(res, sc.detections)
+            for tid in np.unique(cols["track_id"][conf]).tolist():
+                m = conf & (cols["track_id"] == tid)
+                if np.mean(d[m] <= 500.0) < 0.5 and seen.get(tid):
+                    vals, cnt = np.unique(seen[tid], return_counts=True)
+                    a["origins"][str(vals[np.argmax(cnt)])] += 1
+    out = {}
+    for name, a in acc.items():
+        out[name] = {
+            "false_tracks_per_run": round(float(np.mean(a["false"])), 3),
+            "false_tracks_worst_decile": round(_worst(a["false"], True), 3),
+            "coverage": round(float(np.mean(a["coverage"])), 3),
+            "coverage_worst_decile": round(_worst(a["coverage"], False), 3),
+            "identity_switches_per_run": round(float(np.mean(a["switches"])), 3),
+            "identity_switches_worst_decile": round(_worst(a["switches"], True), 3),
+            "false_track_origins": a["origins"],
+        }
+    return out
 
 
 def bench_speed(repeats: int = 50, n_tracks: int = 20, n_det: int = 200) -> dict:
-    """Median wall time of one ping with ``n_det`` detections against ``n_tracks`` confirmed
-    tracks (checked: all ``n_tracks`` are confirmed before timing)."""
+    """Median wall time of one ping with ``n_det`` detections against about ``n_tracks``
+    confirmed tracks (checked: all but at most two targets, which may cross another, have a
+    confirmed track within 300 m before timing)."""
     import copy
 
     rng = np.random.default_rng(12345)
     tracker = Tracker()
-    # Tracks spread 840 m apart in x, 4 m/s (8 kn) in random directions: no gates overlap and
-    # no track stays in one clutter-map neighbourhood long enough to look like a hotspot.
+    # Targets spread 840 m apart in x, 4 m/s (8 kn) in random directions: no gates overlap and
+    # no target stays in one place long enough to look like a hotspot.
     starts = np.column_stack([np.linspace(-8000, 8000, n_tracks), rng.uniform(-8000, 8000, n_tracks)])
     ang = rng.uniform(0, 2 * np.pi, n_tracks)
     vel = 4.0 * np.column_stack([np.sin(ang), np.cos(ang)])
     # Source at the origin, receiver 5 km east (bistatic error ellipses for every detection).
     geo = {"src_x": 0.0, "src_y": 0.0, "rcv_x": 5000.0, "rcv_y": 0.0}
-    good = {"snr_db": np.full(n_tracks, 12.0), "score": np.full(n_tracks, 0.9),
-            "aspect_deg": np.full(n_tracks, 90.0),
-            **{k: np.full(n_tracks, v) for k, v in geo.items()}}
-    for k in range(4):        # build the confirmed tracks
-        xy = starts + vel * 90 * k + rng.normal(0, 20, (n_tracks, 2))
-        tracker.step(Ping(k, 90.0 * k, xy, good))
-    confirmed = int(sum(lc.status == "confirmed" for lc in tracker._life))
-    if confirmed != n_tracks or tracker._ids.size != n_tracks:
-        raise RuntimeError(f"speed setup: {confirmed} confirmed of {tracker._ids.size} tracks, "
-                           f"expected {n_tracks}")
+
+    def ping(k: int, n: int) -> Ping:
+        xy = np.vstack([starts + vel * 90 * k + rng.normal(0, 50, (n_tracks, 2)),
+                        rng.uniform(-10000, 10000, (n - n_tracks, 2))])
+        score = np.concatenate([rng.uniform(0.5, 1.0, n_tracks), rng.uniform(0, 0.8, n - n_tracks)])
+        return Ping(k, 90.0 * k, xy, {"snr_db": rng.uniform(10, 25, n), "score": score,
+                                      **{c: np.full(n, v) for c, v in geo.items()}})
+
+    n_setup = 10
+    for k in range(n_setup):        # build the confirmed tracks (the targets' echoes only)
+        tracker.step(ping(k, n_tracks))
+    conf = np.array([lc.status == "confirmed" for lc in tracker._life])
+    here = starts + vel * 90 * (n_setup - 1)
+    d = np.hypot(*(tracker._x[conf, None, :2] - here[None]).transpose(2, 0, 1))
+    covered = int(np.sum(d.min(axis=0) < 300.0)) if conf.any() else 0
+    if covered < n_tracks - 2:
+        raise RuntimeError(f"speed setup: {covered} of {n_tracks} targets have a confirmed track")
     times = []
     for _ in range(repeats):
-        xy = np.vstack([starts + vel * 90 * 4 + rng.normal(0, 50, (n_tracks, 2)),
-                        rng.uniform(-10000, 10000, (n_det - n_tracks, 2))])
-        ping = Ping(4, 360.0, xy, {"snr_db": rng.uniform(10, 25, n_det),
-                                   "score": rng.uniform(0, 1, n_det),
-                                   "aspect_deg": rng.uniform(0, 180, n_det),
-                                   **{k: np.full(n_det, v) for k, v in geo.items()}})
+        p = ping(n_setup, n_det)
         tr = copy.deepcopy(tracker)
         t0 = time.perf_counter()
-        tr.step(ping)
+        tr.step(p)
         times.append(time.perf_counter() - t0)
     return {"ms_per_ping_200det_20trk_median": round(1000 * float(np.median(times)), 3),
             "ms_p90": round(1000 * float(np.percentile(times, 90)), 3),
-            "tracks": int(tracker._ids.size), "confirmed": confirmed, "detections": n_det}
+            "tracks": int(tracker._ids.size), "confirmed": int(conf.sum()),
+            "targets_with_confirmed_track": covered,
+            "detections": n_det, "setup_pings": n_setup}
 
 
 def _radar_system() -> FuzzySystem:
@@ -115,6 +183,18 @@ def _radar_system() -> FuzzySystem:
             v["terms"] = {"near": {"type": "left_shoulder", "a": 10.0, "b": 50.0},
                           "far": {"type": "right_shoulder", "a": 10.0, "b": 50.0}}
     return FuzzySystem.from_dict(d)
+
+
+def radar_tracker(mode: str) -> Tracker:
+    """The tracker with radar settings: 10-m isotropic errors, harbour boats' dynamics, the
+    grid clutter map at 15 m with a 30-m exclusion and drop, the radar hotspot rule; boats may
+    idle, so no minimum speed in the motion test."""
+    kw = dict(position_sigma_m=10.0, accel_psd=0.5, speed_sigma_mps=5.0, init_exclusion_m=30.0,
+              hotspot_drop=True, min_speed_mps=0.0,
+              clutter_map=ClutterMap(cell_m=15.0, position_sigma_m=10.0))
+    if mode == "fuzzy":
+        kw["system"] = _radar_system()
+    return Tracker(mode=mode, **kw)
 
 
 def bench_real(match_m: float = 50.0) -> dict:
@@ -130,12 +210,7 @@ def bench_real(match_m: float = 50.0) -> dict:
         ev_t = {int(e): float(t) for e, t in zip(det["event"], det["time"], strict=True)}
         res = {}
         for mode in ("fuzzy", "kalman"):
-            kw = dict(position_sigma_m=10.0, accel_psd=0.5, speed_sigma_mps=5.0,
-                      init_exclusion_m=30.0,
-                      clutter_map=ClutterMap(cell_m=15.0, position_sigma_m=10.0))
-            if mode == "fuzzy":
-                kw["system"] = _radar_system()
-            cols = Tracker(mode=mode, **kw).run(table).columns()
+            cols = radar_tracker(mode).run(table).columns()
             conf = cols["status"] == "confirmed"
             d_tgt = []
             for tid in np.unique(truth["track_id"]):
@@ -166,22 +241,32 @@ def bench_real(match_m: float = 50.0) -> dict:
 
 def main(argv=None) -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--seeds", type=int, default=20)
-    p.add_argument("--first-seed", type=int, default=0)
+    p.add_argument("--seeds", type=int, default=100, help="runs")
+    p.add_argument("--first-seed", type=int, default=TUNING_SEEDS["varied"][0])
+    p.add_argument("--fixed", action="store_true", help="the fixed scenario instead of varied ones")
+    p.add_argument("--score-gates", default="0.3,0.5",
+                   help="classifier-score gate variants, comma separated ('' for none)")
     p.add_argument("--no-real", action="store_true")
+    p.add_argument("--no-speed", action="store_true")
     args = p.parse_args(argv)
     logging.getLogger("fusion.active.fuzzy").setLevel(logging.ERROR)
+    gates = [float(g) for g in args.score_gates.split(",") if g.strip()]
     t0 = time.perf_counter()
-    sim, ablation = bench_sim(range(args.first_seed, args.first_seed + args.seeds))
+    sim = bench_sim(range(args.first_seed, args.first_seed + args.seeds), vary=not args.fixed,
+                    score_gates=gates)
     print(f"sim done in {time.perf_counter() - t0:.1f} s", file=sys.stderr)
-    result = {"seeds": [args.first_seed, args.first_seed + args.seeds - 1], "sim": sim,
-              "ablation": ablation, "speed": bench_speed()}
+    fz = sim["fuzzy"]
+    result = {"scenarios": "fixed" if args.fixed else "varied",
+              "seeds": [args.first_seed, args.first_seed + args.seeds - 1],
+              "tuning_seeds": TUNING_SEEDS, "sim": sim,
+              "targets": {"false_tracks_per_run<=1": fz["false_tracks_per_run"] <= 1,
+                          "coverage>=0.95": fz["coverage"] >= 0.95,
+                          "identity_switches_per_run<=1": fz["identity_switches_per_run"] <= 1}}
+    if not args.no_speed:
+        result["speed"] = bench_speed()
+        result["targets"]["ping_ms<=5"] = result["speed"]["ms_per_ping_200det_20trk_median"] <= 5
     if not args.no_real and REAL.exists():
         result["real_autoferry_radar"] = bench_real()
-    result["targets"] = {"fuzzy_false_tracks_per_run<=0.5":
-                         sim["fuzzy"]["false_tracks_per_run"] <= 0.5,
-                         "fuzzy_coverage>=0.9": sim["fuzzy"]["coverage"] >= 0.9,
-                         "ping_ms<=5": result["speed"]["ms_per_ping_200det_20trk_median"] <= 5}
     print(json.dumps(result))
 
 

@@ -39,14 +39,11 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from fusion.active.types import POSITION_CLUES, Ping
+from fusion.active.types import POSITION_CLUES, Ping, receiver_groups
 
 __all__ = ["NoiseEstimator", "ReceiverNoise", "range_sum_and_bearing"]
 
 logger = logging.getLogger(__name__)
-
-#: Geometries closer than this (m) in all four coordinates are one receiver.
-_KEY_RESOLUTION_M = 1.0
 
 
 @dataclass(frozen=True)
@@ -92,7 +89,7 @@ def range_sum_and_bearing(
 
 
 def _wrap(a: NDArray[np.float64]) -> NDArray[np.float64]:
-    return (a + np.pi) % (2.0 * np.pi) - np.pi
+    return np.remainder(a + np.pi, 2.0 * np.pi) - np.pi
 
 
 class NoiseEstimator:
@@ -183,10 +180,12 @@ class NoiseEstimator:
         self._history: dict[tuple[float, ...], deque] = {}
         self._pairs: dict[tuple[float, ...], NDArray[np.float64]] = {}
         self._estimate: dict[tuple[float, ...], ReceiverNoise] = {}
+        # Per geometry: the last fit's variances and mixing weight (EM starts from them).
+        self._state: dict[tuple[float, ...], tuple[float, float, float]] = {}
 
     def estimate(self, key: tuple[float, ...]) -> ReceiverNoise:
-        """Current estimate for a geometry (rounded ``src_x, src_y, rcv_x, rcv_y``); the prior
-        for one not seen yet."""
+        """Current estimate for a geometry (``src_x, src_y, rcv_x, rcv_y`` rounded to 1 m, the
+        keys of :func:`fusion.active.types.receiver_groups`); the prior for one not seen yet."""
         return self._estimate.get(tuple(key), ReceiverNoise(self.range_sum_sigma_m,
                                                             self.bearing_sigma_deg, 0.0))
 
@@ -212,37 +211,39 @@ class NoiseEstimator:
         geo = self._geometry(ping)
         if geo is None or ping.n == 0:
             return
-        keys_arr = np.round(geo / _KEY_RESOLUTION_M) * _KEY_RESOLUTION_M
-        uniq, inv = np.unique(keys_arr, axis=0, return_inverse=True)
-        inv = inv.reshape(-1)
         rho, theta = range_sum_and_bearing(ping.xy, geo[:, :2], geo[:, 2:])
-        for g, key_row in enumerate(uniq):
-            key = tuple(float(v) for v in key_row)
-            sel = inv == g
+        for key, sel in receiver_groups(ping):
             new = np.column_stack([rho[sel], theta[sel]])
             hist = self._history.setdefault(key, deque(maxlen=self.lag_pings))
             if hist:
                 old = np.concatenate(list(hist))
                 d_rho = new[:, None, 0] - old[None, :, 0]
-                d_th = _wrap(new[:, None, 1] - old[None, :, 1])
-                inside = ((np.abs(d_rho) <= self.window_range_sum_m)
-                          & (np.abs(d_th) <= self.window_bearing_rad))
+                i, j = np.nonzero(np.abs(d_rho) <= self.window_range_sum_m)
+                d_th = _wrap(new[i, 1] - old[j, 1])
+                inside = np.abs(d_th) <= self.window_bearing_rad
                 if inside.any():
-                    fresh = np.column_stack([d_rho[inside], d_th[inside]])
+                    fresh = np.column_stack([d_rho[i[inside], j[inside]], d_th[inside]])
                     kept = self._pairs.get(key)
                     both = fresh if kept is None else np.concatenate([kept, fresh])
                     self._pairs[key] = both[-self.max_pairs:]
-                    self._estimate[key] = self._fit(self._pairs[key])
+                    self._estimate[key] = self._fit(self._pairs[key], self._state.get(key))
+                    e = self._estimate[key]
+                    self._state[key] = (e.range_sum_sigma_m**2,
+                                        math.radians(e.bearing_sigma_deg) ** 2,
+                                        e.pairs / self._pairs[key].shape[0])
             hist.append(new)
 
-    def _fit(self, d: NDArray[np.float64]) -> ReceiverNoise:
+    def _fit(self, d: NDArray[np.float64],
+             start: tuple[float, float, float] | None = None) -> ReceiverNoise:
         """EM fit of the zero-mean Gaussian + uniform mixture to pair differences ``d``
-        (columns ``d_rho`` m, ``d_theta`` rad), with the prior on the variances."""
+        (columns ``d_rho`` m, ``d_theta`` rad), with the prior on the variances, started from
+        `start` (variances and mixing weight of the previous fit) when given."""
         n0 = self.prior_pairs
         v_rho0, v_th0 = self.range_sum_sigma_m**2, math.radians(self.bearing_sigma_deg) ** 2
-        v_rho, v_th = v_rho0, v_th0                      # per-echo variances
+        # per-echo variances and the mixing weight of the Gaussian part
+        v_rho, v_th, share = (v_rho0, v_th0, 0.5) if start is None else start
+        share = min(max(share, 1e-3), 1.0 - 1e-3)
         background = 1.0 / (4.0 * self.window_range_sum_m * self.window_bearing_rad)
-        share = 0.5                                      # mixing weight of the Gaussian part
         d2 = d * d
         w = np.zeros(d.shape[0])
         for _ in range(50):
@@ -258,7 +259,7 @@ class NoiseEstimator:
             new_rho = max(new_rho, self.min_sigma_m**2)
             new_th = max(new_th, self.min_sigma_rad**2)
             share = min(max(sw / d.shape[0], 1e-3), 1.0 - 1e-3)
-            done = abs(new_rho - v_rho) <= 1e-4 * v_rho and abs(new_th - v_th) <= 1e-4 * v_th
+            done = abs(new_rho - v_rho) <= 1e-3 * v_rho and abs(new_th - v_th) <= 1e-3 * v_th
             v_rho, v_th = new_rho, new_th
             if done:
                 break
@@ -275,9 +276,9 @@ class NoiseEstimator:
         geo = self._geometry(ping)
         if geo is None:
             return None
-        keys_arr = np.round(geo / _KEY_RESOLUTION_M) * _KEY_RESOLUTION_M
-        uniq, inv = np.unique(keys_arr, axis=0, return_inverse=True)
-        est = [self.estimate(tuple(float(v) for v in row)) for row in uniq]
-        inv = inv.reshape(-1)
-        return (np.array([e.range_sum_sigma_m for e in est])[inv],
-                np.array([e.bearing_sigma_deg for e in est])[inv])
+        s_rho = np.empty(ping.n)
+        s_th = np.empty(ping.n)
+        for key, sel in receiver_groups(ping):
+            e = self.estimate(key)
+            s_rho[sel], s_th[sel] = e.range_sum_sigma_m, e.bearing_sigma_deg
+        return s_rho, s_th

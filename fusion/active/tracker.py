@@ -464,7 +464,11 @@ class Tracker:
         z = np.full((nt, 2), np.nan)
         Rz_all = np.full((nt, 2, 2), np.nan)
         for i in np.flatnonzero(hit).tolist():
-            z[i], Rz_all[i] = fuse_positions(ping.xy[scan.dets[i]], Rz[scan.dets[i]])
+            d = scan.dets[i]
+            if len(d) == 1:
+                z[i], Rz_all[i] = ping.xy[d[0]], Rz[d[0]]
+            else:
+                z[i], Rz_all[i] = fuse_positions(ping.xy[d], Rz[d])
         first = np.array([full_index[d[0]] if d else -1 for d in scan.dets], dtype=np.int64)
         status = np.array([lc.status for lc in self._life], dtype=str)
         result = PingResult(

@@ -156,17 +156,24 @@ def receiver_groups(ping: Ping) -> list[tuple[tuple[float, ...] | None, NDArray[
     >>> [(k, i.tolist()) for k, i in receiver_groups(ping)]
     [((0.0, 0.0, 5.0, 0.0), [0, 2]), ((0.0, 0.0, 9.0, 0.0), [1])]
     """
+    cached = ping.__dict__.get("_receiver_groups")
+    if cached is not None:
+        return cached
     if ping.n == 0:
-        return []
-    if not all(k in ping.clues for k in POSITION_CLUES):
-        return [(None, np.arange(ping.n))]
-    geo = np.column_stack([ping.clues[k] for k in POSITION_CLUES])
-    if not np.all(np.isfinite(geo)):
-        return [(None, np.arange(ping.n))]
-    uniq, first, inv = np.unique(np.round(geo), axis=0, return_index=True, return_inverse=True)
-    inv = inv.reshape(-1)
-    return [(tuple(float(v) for v in uniq[g]), np.flatnonzero(inv == g))
-            for g in np.argsort(first, kind="stable")]
+        out = []
+    elif not all(k in ping.clues for k in POSITION_CLUES):
+        out = [(None, np.arange(ping.n))]
+    else:
+        geo = np.column_stack([ping.clues[k] for k in POSITION_CLUES])
+        if not np.all(np.isfinite(geo)):
+            out = [(None, np.arange(ping.n))]
+        else:
+            groups: dict[tuple[float, ...], list[int]] = {}
+            for i, row in enumerate(map(tuple, np.round(geo).tolist())):
+                groups.setdefault(row, []).append(i)
+            out = [(key, np.asarray(rows, dtype=np.int64)) for key, rows in groups.items()]
+    object.__setattr__(ping, "_receiver_groups", out)   # a ping's grouping never changes
+    return out
 
 
 @dataclass(frozen=True)

@@ -158,6 +158,7 @@ class DensityClutterMap(ClutterMapBase):
         self._seen = np.zeros((0, 0), dtype=bool)  # (detections, remembered pings)
         self._first = 0                         # ping number of column 0 of _seen
         self._edges = np.zeros((0, 2), np.int64)
+        self._lam_stored = 0.0                  # largest error variance of a stored detection
         self._cache: Hotspots | None = None
 
     def empty_copy(self) -> DensityClutterMap:
@@ -231,6 +232,8 @@ class DensityClutterMap(ClutterMapBase):
                 edges = np.column_stack([i + n_old, j])
         self._xy = np.concatenate([self._xy, pts])
         self._cov = np.concatenate([self._cov, c])
+        if n_new:
+            self._lam_stored = max(self._lam_stored, float(np.max(np.linalg.eigvalsh(c)[:, -1])))
         self._ping = np.concatenate([self._ping, np.full(n_new, k, np.int64)])
         self._t = np.concatenate([self._t, np.full(n_new, t - self._t0)])
         self._seen = np.concatenate([self._seen, seen_new])
@@ -240,16 +243,11 @@ class DensityClutterMap(ClutterMapBase):
 
     def _candidates(self, pts: NDArray, c: NDArray) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
         """Pairs (new, stored) within the Euclidean reach of the Mahalanobis test."""
-        lam_new = np.linalg.eigvalsh(c)[:, -1]
-        reach = np.sqrt(self._g2 * (lam_new + self.max_sigma_m**2
-                                    + 2.0 * self.feature_sigma_m**2))
-        found = cKDTree(self._xy).query_ball_point(pts, reach)
-        sizes = np.fromiter((len(f) for f in found), np.int64, len(found))
-        if not sizes.sum():
-            return np.zeros(0, np.int64), np.zeros(0, np.int64)
-        i = np.repeat(np.arange(len(found)), sizes)
-        j = np.fromiter((x for f in found for x in f), np.int64, int(sizes.sum()))
-        return i, j
+        lam = float(np.max(np.linalg.eigvalsh(c)[:, -1]))
+        reach = np.sqrt(self._g2 * (lam + self._lam_stored + 2.0 * self.feature_sigma_m**2))
+        pairs = cKDTree(pts).sparse_distance_matrix(cKDTree(self._xy), reach,
+                                                    output_type="ndarray")
+        return pairs["i"].astype(np.int64), pairs["j"].astype(np.int64)
 
     def _forget(self, first: int) -> None:
         """Drop detections of pings before `first` and the columns of those pings."""

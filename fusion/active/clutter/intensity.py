@@ -1,25 +1,38 @@
 """Spatial clutter intensity: false returns per ping and square metre, estimated from the data.
 
 The likelihood ratio of a detection against clutter, ``N(nu; 0, S) / lambda(z)``, needs the
-clutter intensity ``lambda`` where the detection lies. Random clutter and bottom hotspots make it
-vary over the field (and with the sea state, the sonar's threshold and the receiver), so it is
-estimated from the detections themselves rather than set: ``lambda(x)`` is a kernel density of
-the remembered detections, each spread by its own position-error covariance ``R_j`` plus a
-smoothing bandwidth ``B = bandwidth_m^2 I``, divided by the number of pings remembered:
+clutter intensity ``lambda`` where the detection lies. Random clutter varies over the field (and
+with the sea state, the sonar's threshold and the receiver), so it is estimated from the
+detections themselves rather than set: ``lambda(x)`` is a kernel density of the remembered
+detections with a Gaussian kernel of standard deviation ``bandwidth_m`` per axis, divided by the
+number of pings remembered,
 
-``lambda(x) = (1 / n_pings) sum_j N(x; p_j, R_j + B)``, floored at ``min_intensity``.
+``lambda(x) = (1 / n_pings) sum_j N(x; p_j, B)``, ``B = bandwidth_m^2 I``, floored at
+``min_intensity``.
 
-Target echoes are a small part of the sum where clutter is dense; where it is sparse they raise
-``lambda`` near the target's recent path, which only makes the tracker more cautious there.
+It is evaluated on a grid: the detections are binned into square cells of ``bandwidth_m / 4``,
+the histogram is smoothed with the Gaussian kernel (:func:`scipy.ndimage.gaussian_filter`) and
+read at the query points by bilinear interpolation, so its cost does not grow with the number of
+detections near a query. A detection's own position error (typically a few hundred metres) is
+small beside the bandwidth and is left out of the kernel. Target echoes are a small part of the
+sum where clutter is dense; where it is sparse they raise ``lambda`` near the target's recent
+path, which only makes the tracker more cautious there. Bottom hotspots, far narrower than the
+kernel, are added by the track score from the clutter map
+(:meth:`fusion.active.track_score.TrackScorer.observe`).
 """
 
 from __future__ import annotations
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.spatial import cKDTree
+from scipy.ndimage import gaussian_filter, map_coordinates
 
 __all__ = ["ClutterIntensity"]
+
+#: Grid cells per bandwidth.
+_CELLS_PER_BANDWIDTH = 4
+#: Largest grid side, cells (a wider field gets coarser cells).
+_MAX_CELLS = 512
 
 
 class ClutterIntensity:
@@ -36,7 +49,7 @@ class ClutterIntensity:
         > 0.
     max_sigma_m : float, optional
         Detections whose error ellipse exceeds this standard deviation along its major axis are
-        left out (default 1000 m).
+        left out (default 1000 m): their position says little about where clutter arises.
 
     Examples
     --------
@@ -70,10 +83,8 @@ class ClutterIntensity:
 
     def reset(self) -> None:
         """Forget all detections."""
-        self._pings: list[tuple[NDArray[np.float64], NDArray[np.float64]]] = []
-        self._tree: cKDTree | None = None
-        self._xy = np.zeros((0, 2))
-        self._cov = np.zeros((0, 2, 2))
+        self._pings: list[NDArray[np.float64]] = []
+        self._grid: tuple[NDArray[np.float64], NDArray[np.float64], float] | None = None
 
     def empty_copy(self) -> ClutterIntensity:
         """An estimator with the same options and no content."""
@@ -93,21 +104,40 @@ class ClutterIntensity:
         xy : array_like, shape (n, 2)
             Positions, m.
         cov : array_like, shape (n, 2, 2), optional
-            Position-error covariances, m^2 (default 0).
+            Position-error covariances, m^2 (only to leave out very uncertain detections).
         """
         pts = np.asarray(xy, dtype=float).reshape(-1, 2) if np.size(xy) else np.zeros((0, 2))
-        c = (np.zeros((pts.shape[0], 2, 2)) if cov is None
-             else np.asarray(cov, dtype=float).reshape(-1, 2, 2))
-        if c.shape[0] != pts.shape[0] or not (np.all(np.isfinite(pts)) and np.all(np.isfinite(c))):
-            raise ValueError("clutter intensity: positions and covariances must be finite, "
-                             "one covariance per position")
-        small = np.linalg.eigvalsh(c)[:, -1] <= self.max_sigma_m**2 if len(c) else np.zeros(0, bool)
-        self._pings.append((pts[small], c[small]))
+        if not np.all(np.isfinite(pts)):
+            raise ValueError("clutter intensity: positions must be finite")
+        if cov is not None and pts.shape[0]:
+            c = np.asarray(cov, dtype=float).reshape(-1, 2, 2)
+            if c.shape[0] != pts.shape[0]:
+                raise ValueError("clutter intensity: one covariance per position")
+            tr, det = c[:, 0, 0] + c[:, 1, 1], c[:, 0, 0] * c[:, 1, 1] - c[:, 0, 1] ** 2
+            big = 0.5 * (tr + np.sqrt(np.maximum(tr * tr - 4 * det, 0.0)))  # largest eigenvalue
+            pts = pts[~(big > self.max_sigma_m**2)]
+        self._pings.append(pts)
         if len(self._pings) > self.memory_pings:
             self._pings.pop(0)
-        self._xy = np.concatenate([p for p, _ in self._pings])
-        self._cov = np.concatenate([k for _, k in self._pings])
-        self._tree = cKDTree(self._xy) if self._xy.shape[0] else None
+        self._grid = None
+
+    def _smoothed(self) -> tuple[NDArray[np.float64], NDArray[np.float64], float] | None:
+        """Smoothed histogram (detections per m^2 per ping), its origin and cell size."""
+        if self._grid is not None:
+            return self._grid
+        pts = np.concatenate(self._pings) if self._pings else np.zeros((0, 2))
+        if pts.shape[0] == 0:
+            return None
+        pad = 4.0 * self.bandwidth_m
+        lo, hi = pts.min(axis=0) - pad, pts.max(axis=0) + pad
+        cell = max(self.bandwidth_m / _CELLS_PER_BANDWIDTH, float(np.max(hi - lo)) / _MAX_CELLS)
+        shape = np.ceil((hi - lo) / cell).astype(int) + 1
+        ij = np.floor((pts - lo) / cell).astype(int)
+        hist = np.zeros(shape)
+        np.add.at(hist, (ij[:, 0], ij[:, 1]), 1.0)
+        dens = gaussian_filter(hist, self.bandwidth_m / cell, mode="constant", truncate=4.0)
+        self._grid = (dens / (cell * cell * self.n_pings), lo, cell)
+        return self._grid
 
     def intensity(self, xy: ArrayLike) -> NDArray[np.float64]:
         """Clutter intensity at points, detections per m^2 per ping.
@@ -120,25 +150,15 @@ class ClutterIntensity:
         Returns
         -------
         ndarray, shape (k,)
-            ``(1 / n_pings) sum_j N(x; p_j, R_j + B)`` over the remembered detections within
-            three of the widest kernel's widths, at least ``min_intensity`` (the floor alone before any ping).
+            ``(1 / n_pings) sum_j N(x; p_j, B)`` over the remembered detections (on the
+            grid), at least ``min_intensity`` (the floor alone before any detection).
         """
         pts = np.asarray(xy, dtype=float).reshape(-1, 2) if np.size(xy) else np.zeros((0, 2))
-        out = np.full(pts.shape[0], self.min_intensity)
-        if self._tree is None or pts.shape[0] == 0:
-            return out
-        reach = 3.0 * np.sqrt(self.bandwidth_m**2 + self.max_sigma_m**2)
-        found = self._tree.query_ball_point(pts, reach)
-        sizes = np.fromiter((len(f) for f in found), np.int64, len(found))
-        if not sizes.sum():
-            return out
-        i = np.repeat(np.arange(len(found)), sizes)
-        j = np.fromiter((x for f in found for x in f), np.int64, int(sizes.sum()))
-        S = self._cov[j] + np.eye(2) * self.bandwidth_m**2
-        det = S[:, 0, 0] * S[:, 1, 1] - S[:, 0, 1] ** 2
-        d = pts[i] - self._xy[j]
-        m2 = (d[:, 0] ** 2 * S[:, 1, 1] - 2.0 * d[:, 0] * d[:, 1] * S[:, 0, 1]
-              + d[:, 1] ** 2 * S[:, 0, 0]) / det
-        dens = np.exp(-0.5 * m2) / (2.0 * np.pi * np.sqrt(det))
-        total = np.bincount(i, weights=dens, minlength=pts.shape[0]) / self.n_pings
-        return np.maximum(total, self.min_intensity)
+        grid = self._smoothed()
+        if grid is None or pts.shape[0] == 0:
+            return np.full(pts.shape[0], self.min_intensity)
+        dens, lo, cell = grid
+        # Cell centres sit at lo + (i + 1/2) cell.
+        coords = ((pts - lo) / cell - 0.5).T
+        val = map_coordinates(dens, coords, order=1, mode="constant", cval=0.0)
+        return np.maximum(val, self.min_intensity)
