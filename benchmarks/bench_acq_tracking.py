@@ -17,7 +17,13 @@ never ``lost`` over those scans (the pipeline would have ended the track). Also 
 fraction whose final bearing is within one beamwidth of the truth.
 
 Bearing rates are drawn uniformly in ``[--min-rate, --max-rate]`` deg/min with a random sign,
-start bearings so that the target stays within 15-165 deg, per-bin SNR from ``--snr-db``.
+start bearings so that the target stays within 15-165 deg, per-bin SNR from ``--snr-db``. With
+``--perturb half`` (default) every other click is one beam and one bin off (random signs); ``all``
+perturbs every click, ``none`` none. The acquisition is told nothing about the simulator (its
+noise degrees of freedom are estimated from the cube).
+
+Seeds: design choices were made on ``--seed 0`` (:data:`TUNING_SEEDS`); the figures in RESULTS.md
+come from one run on a report seed drawn after the last design change.
 
 Prints one JSON line; human-readable lines go to stderr. The figures are comparable with the
 earlier hand-wired chain (acquisition, Kalman bearing tracker, TQI), which reported the same keys.
@@ -48,6 +54,9 @@ from fusion.pipelines.passive_tracks import AcquisitionPrior
 from fusion.pipelines.passive_types import Click
 from fusion.simulate.cube import simulate_cube
 
+#: Seeds the design was looked at with; the report uses another.
+TUNING_SEEDS = (0,)
+
 
 class DefaultStart(AcquisitionPrior):
     """The acquisition's defaults whatever it found: the clicked beam's bearing, rate 0."""
@@ -62,7 +71,7 @@ class DefaultStart(AcquisitionPrior):
 
 
 def run_case(seed: int, *, rate: float, snr_db: float, window: int, track_scans: int,
-             rng: np.random.Generator) -> dict[str, float | bool]:
+             rng: np.random.Generator, perturb: bool = False) -> dict[str, float | bool]:
     n_scans = window + track_scans + 1
     span = abs(rate) * (n_scans - 1) / 60.0
     lo, hi = 15.0, 165.0
@@ -71,8 +80,14 @@ def run_case(seed: int, *, rate: float, snr_db: float, window: int, track_scans:
                        bearing_rate_deg_per_min=rate, snr_db=snr_db)
     c = sc.cube
     latest = window - 1
-    click = Click(int(np.clip(np.floor(sc.beam_track[latest] + 0.5), 0, c.n_beams - 1)),
-                  sc.click_freq, latest * c.scan_period)
+    beam = int(np.clip(np.floor(sc.beam_track[latest] + 0.5), 0, c.n_beams - 1))
+    freq = sc.click_freq
+    if perturb:  # one beam and one bin off (the other way at an edge of the cube)
+        step = int(rng.choice([-1, 1]))
+        beam = beam + step if 0 <= beam + step < c.n_beams else beam - step
+        k, step = int(np.argmin(np.abs(c.freqs - freq))), int(rng.choice([-1, 1]))
+        freq = float(c.freqs[k + step if 0 <= k + step < c.n_bins else k - step])
+    click = Click(beam, freq, latest * c.scan_period)
     cube = Cube(power=c.power[:latest + 1 + track_scans], freqs=c.freqs,
                 scan_period=c.scan_period, aperture=c.aperture, sound_speed=c.sound_speed)
     wl = c.sound_speed / sc.click_freq
@@ -102,20 +117,25 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--max-rate", type=float, default=40.0, help="deg/min")
     ap.add_argument("--window", type=int, default=60, help="acquisition window, scans")
     ap.add_argument("--track-scans", type=int, default=60, help="tracking run, scans")
+    ap.add_argument("--perturb", default="half", choices=("none", "half", "all"),
+                    help="clicks one beam and one bin off: none, every other one (default), all")
     a = ap.parse_args(argv)
     rng = np.random.default_rng(a.seed)
     t0 = time.perf_counter()
     result: dict[str, object] = {"bench": "acq_tracking", "chain": "passive_pipeline",
                                  "cases_per_snr": a.cases, "seed": a.seed,
                                  "window_scans": a.window, "track_scans": a.track_scans,
-                                 "rate_range_deg_per_min": [a.min_rate, a.max_rate]}
+                                 "rate_range_deg_per_min": [a.min_rate, a.max_rate],
+                                 "perturb": a.perturb, "tuning_seeds": list(TUNING_SEEDS)}
     per_snr = {}
     for snr in a.snr_db:
         rows = []
-        for _ in range(a.cases):
+        for i in range(a.cases):
             rate = rng.uniform(a.min_rate, a.max_rate) * rng.choice([-1.0, 1.0])
+            perturb = a.perturb == "all" or (a.perturb == "half" and i % 2 == 1)
             rows.append(run_case(int(rng.integers(2**31)), rate=rate, snr_db=snr,
-                                 window=a.window, track_scans=a.track_scans, rng=rng))
+                                 window=a.window, track_scans=a.track_scans, rng=rng,
+                                 perturb=perturb))
         summary = {k: float(np.mean([r[k] for r in rows])) for k in rows[0]
                    if isinstance(rows[0][k], bool)}
         summary["acq_rate_rmse"] = float(np.sqrt(np.mean([r["acq_rate_error"] ** 2

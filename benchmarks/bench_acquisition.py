@@ -1,19 +1,31 @@
-"""Benchmark of high bearing-rate acquisition: success versus per-bin SNR, and speed.
+"""Benchmark of high bearing-rate acquisition: success versus per-bin SNR with exact and perturbed
+operator clicks, on varied (default) or fixed cubes, and speed.
 
-Simulates cubes (64 beams x 60 scans x 16 bins by default) with bearing rates drawn uniformly in
-0..40 deg/min (either sign), start bearings drawn across the array such that the trace stays in
-10..170 deg, and per-bin SNRs on a grid; the operator's click is the beam nearest the shown bearing
-and the bin nearest the line at the latest scan. A cube is a success when
+Cubes: 64 beams x 60 scans x 16 bins by default. ``--vary`` (default): every cube draws its line
+frequency (150-800 Hz), bearing rate (0-40 deg/min, either sign), noise statistics (1-4 looks,
+sometimes a heavy-tailed texture) and noise level (scale, slope across the band, ripple across
+beams, scan jitter) from its seed (:func:`fusion.simulate.cube_varied.simulate_varied_cube`);
+``--fixed``: the original cubes (300 Hz line, white unit-mean noise of ``--averages`` looks,
+``--sim-lag``). The per-bin SNR runs over a grid.
 
-- ``|rate error| <= max(1 deg/min, 0.25 |true rate|)`` and
-- ``|bearing error| <= half a beamwidth`` at the true bearing (the cosine interval
-  ``cos(theta) +- 0.443 lambda / L`` mapped to bearing, halved).
+Clicks: the operator clicks the beam nearest the shown bearing and the bin nearest the line at
+the latest scan; with ``--perturb half`` (default) every other click is one beam AND one bin off
+(random signs), ``all`` perturbs every click, ``none`` none. The acquisition is never told the
+simulator's settings: its noise degrees of freedom are estimated from the cube, its lag is the
+user's ``--lag`` (default 0).
 
-Misses are broken down by cause per SNR: defaults output (``snr_ibw <= 1``), rate error only,
-bearing error only, both. Prints one JSON line; targets: success >= 0.95 at per-bin SNR >= 0 dB,
-median acquisition time <= 20 ms. Usage::
+A cube is a success when ``|rate error| <= max(1 deg/min, 0.25 |true rate|)`` and ``|bearing
+error| <= half a beamwidth`` at the true bearing. Reported per SNR, for exact and perturbed clicks:
+the success rate (the mean) and the worst decile (the 90th percentile over cubes of the larger of
+the two errors divided by its tolerance: <= 1 means at least 90 % succeed); misses by cause.
+Targets: success >= 0.90 at per-bin SNR >= 3 dB with the perturbed click (varied cubes); median
+acquisition time <= 20 ms.
 
-    python benchmarks/bench_acquisition.py [--cubes 240] [--seed 2026] [--snrs -9,-6,-3,0,3,6]
+Seeds: the design was chosen on the tuning seeds (:data:`TUNING_SEEDS`, and the dev seeds 500-559
+of :func:`~fusion.simulate.cube_varied.simulate_varied_cube`); the figures in RESULTS.md come from
+one run on the report seed given there, drawn after the last design change. Usage::
+
+    python benchmarks/bench_acquisition.py [--cubes 240] [--seed S] [--snrs 0,3,6,9] [--fixed]
 """
 
 from __future__ import annotations
@@ -29,6 +41,10 @@ import numpy as np
 from fusion.geometry import beamwidth_cos
 from fusion.passive.acquisition import Acquisition
 from fusion.simulate.cube import simulate_cube
+from fusion.simulate.cube_varied import simulate_varied_cube
+
+#: Seeds the design choices were made on (``--seed``); the report uses another.
+TUNING_SEEDS = (777, 31337, 2026)
 
 
 def half_beamwidth_deg(theta_deg: float, wavelength: float, aperture: float) -> float:
@@ -47,66 +63,88 @@ def draw_case(rng: np.random.Generator, n_scans: int, scan_period: float) -> tup
     return float(rng.uniform(lo, hi)), rate
 
 
+def perturbed_click(sc, rng: np.random.Generator) -> tuple[int, float]:
+    """The exact click moved one beam and one bin (random signs), kept inside the cube."""
+    cube = sc.cube
+    beam = sc.click_beam + int(rng.choice([-1, 1]))
+    if not 0 <= beam < cube.n_beams:
+        beam = sc.click_beam - (beam - sc.click_beam)
+    k = int(np.argmin(np.abs(cube.freqs - sc.click_freq))) + int(rng.choice([-1, 1]))
+    if not 0 <= k < cube.n_bins:
+        k = 2 * int(np.argmin(np.abs(cube.freqs - sc.click_freq))) - k
+    return beam, float(cube.freqs[k])
+
+
+def _summary(rows: list[dict]) -> dict:
+    ok = np.array([r["ok"] for r in rows])
+    err = np.array([r["norm_err"] for r in rows])
+    return {"success": round(float(ok.mean()), 4) if ok.size else None,
+            "worst_decile_norm_error": round(float(np.percentile(err, 90)), 3) if err.size else None,
+            "n": int(ok.size)}
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cubes", type=int, default=240, help="number of simulated cubes")
-    ap.add_argument("--seed", type=int, default=2026, help="base seed")
-    ap.add_argument("--snrs", default="-9,-6,-3,0,3,6", help="per-bin SNRs, dB, comma separated")
+    ap.add_argument("--seed", type=int, default=TUNING_SEEDS[0], help="base seed")
+    ap.add_argument("--snrs", default="0,3,6,9", help="per-bin SNRs, dB, comma separated")
+    ap.add_argument("--fixed", action="store_true", help="the fixed cubes instead of varied ones")
+    ap.add_argument("--perturb", default="half", choices=("none", "half", "all"),
+                    help="clicks one beam and one bin off: none, every other one (default), all")
     ap.add_argument("--beams", type=int, default=64)
     ap.add_argument("--scans", type=int, default=60)
     ap.add_argument("--bins", type=int, default=16)
-    ap.add_argument("--lag", type=float, default=0.0, help="spectral integration lag, s")
-    ap.add_argument("--averages", type=int, default=1, help="periodogram looks per cell")
+    ap.add_argument("--lag", type=float, default=0.0, help="the acquisition's lag setting, s")
+    ap.add_argument("--sim-lag", type=float, default=0.0, help="--fixed: simulated lag, s")
+    ap.add_argument("--averages", type=int, default=1, help="--fixed: periodogram looks per cell")
     ap.add_argument("--scan-period", type=float, default=1.0, help="time between scans, s")
     ap.add_argument("--ibw", type=float, default=None, help="IBW width, Hz (default: one bin)")
-    ap.add_argument("--rate-at", default="midpoint", choices=("midpoint", "latest"),
-                    help="--trace beam: where eq. 10 is evaluated")
-    ap.add_argument("--trace", default="bearing", choices=("bearing", "beam"),
-                    help="fan lines: constant-bearing-rate traces or the literal straight lines")
-    ap.add_argument("--sampling", default="nearest", choices=("nearest", "linear"))
-    ap.add_argument("--no-refine", action="store_true", help="skip the sub-beam refinement")
+    ap.add_argument("--noise-dof", type=float, default=None,
+                    help="the acquisition's noise degrees of freedom (default: estimated)")
+    ap.add_argument("--freq-tolerance", type=int, default=1,
+                    help="bins the click may be off (the acquisition's freq_tolerance_bins)")
+    ap.add_argument("--trace", default="bearing", choices=("bearing", "beam"))
     ap.add_argument("--repeats", type=int, default=50, help="timed repeats")
     args = ap.parse_args(argv)
     snrs = [float(s) for s in args.snrs.split(",")]
     rng = np.random.default_rng(args.seed)
-    acq = Acquisition(lag_s=args.lag, ibw_hz=args.ibw, rate_at=args.rate_at,
-                      noise_dof=2.0 * args.averages, trace=args.trace, sampling=args.sampling,
-                      refine=False if args.no_refine else None)
+    acq = Acquisition(lag_s=args.lag, ibw_hz=args.ibw, noise_dof=args.noise_dof,
+                      trace=args.trace, freq_tolerance_bins=args.freq_tolerance)
     scan_period = args.scan_period
 
-    per_snr: dict[float, list[bool]] = {s: [] for s in snrs}
-    defaults: dict[float, list[bool]] = {s: [] for s in snrs}
-    causes: dict[float, dict[str, int]] = {
-        s: {"default": 0, "rate": 0, "bearing": 0, "both": 0} for s in snrs}
-    rate_err, brg_err = [], []
+    rows: dict[float, list[dict]] = {s: [] for s in snrs}
+    causes = {s: {"default": 0, "rate": 0, "bearing": 0, "both": 0} for s in snrs}
     for i in range(args.cubes):
         snr = snrs[i % len(snrs)]
-        b0, rate = draw_case(rng, args.scans, scan_period)
-        sc = simulate_cube(seed=int(rng.integers(2**31)), n_beams=args.beams, n_scans=args.scans,
-                           n_bins=args.bins, scan_period_s=scan_period, bearing0_deg=b0,
-                           bearing_rate_deg_per_min=rate, snr_db=snr, lag_s=args.lag,
-                           n_averages=args.averages)
-        res = acq.acquire(sc.cube, beam=sc.click_beam, freq_hz=sc.click_freq)
-        truth = sc.latest_bearing_deg
-        e_rate = res.bearing_rate_deg_per_min - rate
-        e_brg = res.bearing_deg - truth
+        cube_seed = int(rng.integers(2**31))
+        if args.fixed:
+            b0, rate = draw_case(rng, args.scans, scan_period)
+            sc = simulate_cube(seed=cube_seed, n_beams=args.beams, n_scans=args.scans,
+                               n_bins=args.bins, scan_period_s=scan_period, bearing0_deg=b0,
+                               bearing_rate_deg_per_min=rate, snr_db=snr, lag_s=args.sim_lag,
+                               n_averages=args.averages)
+        else:
+            sc = simulate_varied_cube(cube_seed, snr_db=snr, n_beams=args.beams,
+                                      n_scans=args.scans, n_bins=args.bins,
+                                      scan_period_s=scan_period)
+        perturb = args.perturb == "all" or (args.perturb == "half" and (i // len(snrs)) % 2 == 1)
+        beam, freq = (perturbed_click(sc, rng) if perturb else (sc.click_beam, sc.click_freq))
+        res = acq.acquire(sc.cube, beam=beam, freq_hz=freq)
+        truth, rate = sc.latest_bearing_deg, sc.bearing_rate_deg_per_min
         wl = sc.cube.sound_speed / sc.line_freq_hz
-        rate_ok = abs(e_rate) <= max(1.0, 0.25 * abs(rate))
-        brg_ok = abs(e_brg) <= half_beamwidth_deg(truth, wl, sc.cube.aperture)
-        ok = rate_ok and brg_ok
+        tol_rate = max(1.0, 0.25 * abs(rate))
+        tol_brg = half_beamwidth_deg(truth, wl, sc.cube.aperture)
+        e_rate = abs(res.bearing_rate_deg_per_min - rate) / tol_rate
+        e_brg = abs(res.bearing_deg - truth) / tol_brg
+        ok = e_rate <= 1.0 and e_brg <= 1.0
         if not ok:
-            cause = ("default" if res.default_used else "rate" if brg_ok
-                     else "bearing" if rate_ok else "both")
+            cause = ("default" if res.default_used else "rate" if e_brg <= 1 else
+                     "bearing" if e_rate <= 1 else "both")
             causes[snr][cause] += 1
-        per_snr[snr].append(bool(ok))
-        defaults[snr].append(res.default_used)
-        if snr >= 0:
-            rate_err.append(abs(e_rate))
-            brg_err.append(abs(e_brg))
-        if not ok:
-            print(f"miss: snr {snr:+.0f} dB rate {rate:+.1f} est {res.bearing_rate_deg_per_min:+.1f}"
-                  f" brg {truth:.1f} est {res.bearing_deg:.1f} default {res.default_used}",
-                  file=sys.stderr)
+            print(f"miss: snr {snr:+.0f} dB {'perturbed' if perturb else 'exact'} click, rate "
+                  f"{rate:+.1f} est {res.bearing_rate_deg_per_min:+.1f}, brg {truth:.1f} est "
+                  f"{res.bearing_deg:.1f}, default {res.default_used}", file=sys.stderr)
+        rows[snr].append({"ok": bool(ok), "norm_err": max(e_rate, e_brg), "perturbed": perturb})
 
     # speed: one acquisition of a fresh cube, after warm-up
     sc = simulate_cube(seed=args.seed, n_beams=args.beams, n_scans=args.scans, n_bins=args.bins,
@@ -118,30 +156,26 @@ def main(argv: list[str] | None = None) -> int:
         acq.acquire(sc.cube, beam=sc.click_beam, freq_hz=sc.click_freq)
         times.append(time.perf_counter() - t0)
 
-    hi = [ok for s in snrs if s >= 0 for ok in per_snr[s]]
-    # lowest SNR of the grid from which every SNR at or above it reaches the target
-    reach = None
-    for s in sorted(snrs, reverse=True):
-        if not per_snr[s] or np.mean(per_snr[s]) < 0.95:
-            break
-        reach = s
+    def pooled(pred, kind) -> dict:
+        sel = [r for s in snrs if pred(s) for r in rows[s]
+               if kind == "all" or r["perturbed"] == (kind == "perturbed")]
+        return _summary(sel)
+
     out = {
         "benchmark": "acquisition",
         "cubes": args.cubes,
+        "varied": not args.fixed,
+        "perturb": args.perturb,
         "shape": [args.scans, args.beams, args.bins],
         "seed": args.seed,
-        "success_snr_ge_0db": round(float(np.mean(hi)), 4) if hi else None,
-        "success_vs_snr_db": {f"{s:g}": round(float(np.mean(per_snr[s])), 4) for s in snrs},
-        "defaults_vs_snr_db": {f"{s:g}": round(float(np.mean(defaults[s])), 4) for s in snrs},
+        "tuning_seeds": list(TUNING_SEEDS),
+        "per_snr_db": {f"{s:g}": {k: _summary([r for r in rows[s] if k == "all"
+                                                or r["perturbed"] == (k == "perturbed")])
+                                   for k in ("all", "exact", "perturbed")} for s in snrs},
+        "snr_ge_3db": {k: pooled(lambda s: s >= 3, k) for k in ("all", "exact", "perturbed")},
         "misses_by_cause_vs_snr_db": {f"{s:g}": causes[s] for s in snrs},
-        "lowest_snr_db_reaching_target": reach,
-        "median_abs_rate_err_deg_per_min_snr_ge_0db": round(float(np.median(rate_err)), 3)
-        if rate_err else None,
-        "median_abs_bearing_err_deg_snr_ge_0db": round(float(np.median(brg_err)), 3)
-        if brg_err else None,
         "median_ms_per_acquisition": round(1e3 * float(np.median(times)), 3),
-        "target_success": 0.95,
-        "target_ms": 20.0,
+        "targets": {"success_perturbed_snr_ge_3db": 0.90, "ms": 20.0},
     }
     print(json.dumps(out))
     return 0
