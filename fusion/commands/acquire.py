@@ -37,8 +37,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--min-scans", type=number(int, ge=2), default=None,
                    help="fewest scans a line may span before leaving the BTR, at most the "
                         "cube's scans (default: all)")
-    p.add_argument("--noise-dof", type=number(float, gt=0), default=2.0,
-                   help="degrees of freedom of the noise per cell (default 2: one look)")
+    p.add_argument("--noise-dof", type=number(float, gt=0), default=None,
+                   help="degrees of freedom of the noise per cell (2: one periodogram look; "
+                        "default: estimated from the cube)")
+    p.add_argument("--freq-tolerance", type=number(int, ge=0), default=1,
+                   help="bins the clicked frequency may be off the line: the initialisation band "
+                        "is also tried shifted by up to this many bins (default 1; 0: the "
+                        "clicked band only)")
     p.add_argument("--pool-scans", type=number(int, ge=1), default=None,
                    help="scans pooled into each noise estimate of the normaliser (default: the "
                         "whole history; 1: every scan on its own, the method's literal normaliser)")
@@ -74,7 +79,8 @@ def run(args: argparse.Namespace) -> int:
     acq = Acquisition(lag_s=args.lag, ibw_hz=args.ibw, normalize=not args.no_normalize,
                       min_scans=args.min_scans, noise_dof=args.noise_dof,
                       pool_scans=args.pool_scans, trace=args.trace,
-                      rate_at=args.rate_at or "midpoint")
+                      rate_at=args.rate_at or "midpoint",
+                      freq_tolerance_bins=args.freq_tolerance)
     try:
         res = acq.acquire(cube, beam=args.beam, freq_hz=args.freq)
     except ValueError as e:
