@@ -227,6 +227,9 @@ class PairRanker:
     edge_likelihood : float, optional
         Likelihood ratio at the edge of the acceptance region of the derived threshold, in
         (0, 1] (default :data:`EDGE_LIKELIHOOD`).
+    confirmed_edge_likelihood : float, optional
+        The same for pairs of confirmed tracks (default: `edge_likelihood`); lower lets a
+        confirmed track keep a manoeuvring target whose detections fall further out.
     aspect : {"geometry", "measured"}, optional
         Where the equivalent aspect angle comes from. ``geometry`` (default): computed from the
         track's heading and the detection's source/receiver positions; an ``aspect_deg`` column
@@ -252,6 +255,7 @@ class PairRanker:
         min_rank: float | None = None,
         edge_likelihood: float = EDGE_LIKELIHOOD,
         aspect: Literal["geometry", "measured"] = "geometry",
+        confirmed_edge_likelihood: float | None = None,
     ) -> None:
         if aspect not in ("geometry", "measured"):
             raise ValueError(f"aspect must be 'geometry' or 'measured', got {aspect!r}")
@@ -264,21 +268,30 @@ class PairRanker:
             raise ValueError(f"min_rank must lie in [0, 1], got {min_rank!r}")
         if not 0.0 < edge_likelihood <= 1.0:
             raise ValueError(f"edge_likelihood must lie in (0, 1], got {edge_likelihood!r}")
+        if confirmed_edge_likelihood is not None and not 0.0 < confirmed_edge_likelihood <= 1.0:
+            raise ValueError("confirmed_edge_likelihood must lie in (0, 1], got "
+                             f"{confirmed_edge_likelihood!r}")
         self.system = system
         self.clues = frozenset(chosen)
         self.min_rank = None if min_rank is None else float(min_rank)
         self.edge_likelihood = float(edge_likelihood)
+        self.confirmed_edge_likelihood = (self.edge_likelihood if confirmed_edge_likelihood is None
+                                          else float(confirmed_edge_likelihood))
         self.aspect = aspect
-        #: Derived thresholds by clue set (filled as clue sets are met).
+        #: Derived thresholds by clue set (filled as clue sets are met), for tentative and for
+        #: confirmed tracks.
         self.thresholds: dict[frozenset[str], float] = {}
+        self.confirmed_thresholds: dict[frozenset[str], float] = {}
 
-    def threshold(self, present: Iterable[str]) -> float:
+    def threshold(self, present: Iterable[str], *, confirmed: bool = False) -> float:
         """Lowest associable rank for pairs whose rank used the inputs ``present``.
 
         Parameters
         ----------
         present : iterable of str
             Inputs of the rank besides the likelihood.
+        confirmed : bool, optional
+            For a confirmed track: derived at ``confirmed_edge_likelihood`` instead.
 
         Returns
         -------
@@ -288,16 +301,18 @@ class PairRanker:
         if self.min_rank is not None:
             return self.min_rank
         key = frozenset(present)
-        if key not in self.thresholds:
-            self.thresholds[key] = derived_min_rank(self.system, key,
-                                                    edge_likelihood=self.edge_likelihood)
-            logger.info("rank threshold with clues {%s}: %.4f", ", ".join(sorted(key)),
-                        self.thresholds[key])
-        return self.thresholds[key]
+        edge = self.confirmed_edge_likelihood if confirmed else self.edge_likelihood
+        cache = self.confirmed_thresholds if confirmed else self.thresholds
+        if key not in cache:
+            cache[key] = derived_min_rank(self.system, key, edge_likelihood=edge)
+            logger.info("rank threshold with clues {%s}%s: %.4f", ", ".join(sorted(key)),
+                        " (confirmed tracks)" if confirmed else "", cache[key])
+        return cache[key]
 
     def rank(
         self, ping: Ping, ti: NDArray[np.int64], di: NDArray[np.int64], L: NDArray[np.float64],
         hot_d: NDArray[np.float64], x: NDArray[np.float64], P: NDArray[np.float64],
+        confirmed: NDArray[np.bool_] | None = None,
     ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Fuzzy rank and rank threshold of the gated pairs ``(ti, di)``.
 
@@ -315,12 +330,16 @@ class PairRanker:
             Predicted track states (their velocities give the aspect angle).
         P : ndarray, shape (n_tracks, 4, 4)
             Predicted covariances.
+        confirmed : ndarray of bool, shape (n_tracks,), optional
+            Confirmed tracks: their pairs get the confirmed threshold.
 
         Returns
         -------
         rank, limit : ndarray, shape (n_pairs,)
             Rank of each pair and the threshold of its clue set (:meth:`threshold`).
         """
+        conf = (np.zeros(ti.size, dtype=bool) if confirmed is None
+                else np.asarray(confirmed, dtype=bool)[ti])
         inputs: dict[str, NDArray[np.float64]] = {"likelihood": L}
         for name in ("score", "snr_db"):
             if name in self.clues and name in ping.clues:
@@ -345,7 +364,8 @@ class PairRanker:
                 inputs["aspect_deg"] = aspect
                 others.add("aspect_deg")
             rank = np.asarray(self.system.evaluate(inputs).crisp, dtype=float)
-            return rank, np.full(L.size, self.threshold(others))
+            return rank, np.where(conf, self.threshold(others, confirmed=True),
+                                  self.threshold(others))
         # Pairs with and without an aspect angle use different rule subsets (the engine takes
         # no missing values), hence two calls; each gets the threshold of its own clue set.
         rank = np.empty(L.size)
@@ -358,5 +378,7 @@ class PairRanker:
             if with_aspect:
                 part["aspect_deg"] = aspect[sel]
             rank[sel] = self.system.evaluate(part).crisp
-            limit[sel] = self.threshold(others | ({"aspect_deg"} if with_aspect else set()))
+            used = others | ({"aspect_deg"} if with_aspect else set())
+            limit[sel] = np.where(conf[sel], self.threshold(used, confirmed=True),
+                                  self.threshold(used))
         return rank, limit

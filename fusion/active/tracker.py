@@ -131,7 +131,12 @@ class Tracker:
         all of them.
     edge_likelihood : float, optional
         Likelihood ratio at the edge of the acceptance region used by the derived threshold
-        (default :data:`fusion.active.association.EDGE_LIKELIHOOD` = 0.25, the crossover of "unlikely").
+        (default :data:`fusion.active.association.EDGE_LIKELIHOOD` = 0.25, the crossover of
+        "unlikely").
+    confirmed_edge_likelihood : float, optional
+        The same for confirmed tracks (default 0.1, where "unlikely" is full; None: as
+        `edge_likelihood`): a confirmed track keeps a turning target whose echoes fall further
+        from its straight-line prediction, where a new track would wait for the next ping.
     confirm_hits, confirm_window : int, optional
         M-of-N confirmation (default 3 of 4).
     max_misses : int, optional
@@ -240,6 +245,7 @@ class Tracker:
         score_evidence: bool = True,
         min_speed_mps: float = 0.5,
         hotspot_drop: bool = False,
+        confirmed_edge_likelihood: float | None = 0.1,
     ) -> None:
         if mode not in ("fuzzy", "kalman"):
             raise ValueError(f"mode must be 'fuzzy' or 'kalman', got {mode!r}")
@@ -263,7 +269,8 @@ class Tracker:
         self.mode = mode
         self.system = system
         self.ranker = PairRanker(system, clues=clues, min_rank=min_rank,
-                                 edge_likelihood=edge_likelihood, aspect=aspect)
+                                 edge_likelihood=edge_likelihood, aspect=aspect,
+                                 confirmed_edge_likelihood=confirmed_edge_likelihood)
         self.measurement_model = MeasurementModel(
             position_errors=position_errors, position_sigma_m=position_sigma_m,
             range_sum_sigma_m=range_sum_sigma_m, bearing_sigma_deg=bearing_sigma_deg,
@@ -391,7 +398,8 @@ class Tracker:
                 score[ti, di] = L
                 valid[ti, di] = True
             else:
-                rank, limit = self.ranker.rank(ping.subset(idx), ti, di, L, hot, self._x, self._P)
+                rank, limit = self.ranker.rank(ping.subset(idx), ti, di, L, hot, self._x, self._P,
+                                               confirmed=confirmed)
                 score[ti, di] = rank
                 valid[ti, di] = rank >= limit
         det_of = assign_by_priority(score, valid, confirmed)

@@ -130,7 +130,8 @@ class Acquisition:
     noise_dof : float, optional
         Degrees of freedom of the noise in one cell, for the normaliser (2 for one periodogram
         look); None (default): estimated from the cube's cells away from the click
-        (:func:`~fusion.passive.acquisition.normalise.estimate_noise_dof`).
+        (:func:`~fusion.passive.acquisition.normalise.estimate_noise_dof`; 2 when the cube has
+        fewer than 3 scans or no bin away from the click).
     trace : {"bearing", "beam"}
         Lines of the fans: constant-bearing-rate traces in the cosine beam spacing (default, see
         :func:`constant_rate_traces`) or the method's literal straight lines in beam number.
@@ -373,7 +374,11 @@ StraightLineFans`, :class:`~fusion.passive.acquisition.fans.ConstantRateFans` or
             if dof is None:
                 near = np.arange(clicked_bin - self.freq_tolerance_bins - self.gap_bins - 1,
                                  clicked_bin + self.freq_tolerance_bins + self.gap_bins + 2)
-                dof = estimate_noise_dof(cube.power, exclude_bins=near)
+                try:
+                    dof = estimate_noise_dof(cube.power, exclude_bins=near)
+                except ValueError as e:  # too small a cube to tell: one periodogram look
+                    logger.info("noise degrees of freedom not estimated (%s): 2 assumed", e)
+                    dof = 2.0
             out = normalize_spectra(cube.power, window_bins=self.window_bins,
                                     gap_bins=self.gap_bins, noise_dof=dof,
                                     pool_scans=(None if self.pool_scans is None
