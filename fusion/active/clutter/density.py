@@ -17,7 +17,8 @@ association of echoes is the statistical one:
   error ellipse. A detection is *hot* when its recurrence is at least ``min_pings`` and more than
   ``fraction`` of the pings seen.
 - *Hotspots.* Hot detections (that pass the drift test below) linked by the relation above form
-  clusters (connected components);
+  clusters (connected components); a cluster whose echoes span fewer than ``min_pings`` pings is
+  dropped;
   a cluster's centre is the mean of its detections and its covariance their sample covariance,
   raised to at least their mean error covariance plus ``F``
   (:func:`fusion.active.clutter.base.floor_covariance`). Its region is the ellipse holding
@@ -294,6 +295,19 @@ class DensityClutterMap(ClutterMapBase):
         graph = coo_matrix((np.ones(e.shape[0]), (pos[e[:, 0]], pos[e[:, 1]])),
                            shape=(hot.size, hot.size))
         n_spots, label = connected_components(graph, directed=False)
+        # A hotspot's own echoes must recur: its cluster spans at least min_pings pings (the
+        # newest echo of a slow target, whose neighbourhood is too short to show its drift,
+        # is no hotspot on its own).
+        pings = np.zeros(n_spots, np.int64)
+        np.add.at(pings, np.unique(np.column_stack([label, self._ping[hot]]), axis=0)[:, 0], 1)
+        keep = pings[label] >= self.min_pings
+        if not keep.all():
+            hot, label = hot[keep], np.unique(label[keep], return_inverse=True)[1].reshape(-1)
+            n_spots = int(label.max()) + 1 if label.size else 0
+        if hot.size == 0:
+            self._cache = Hotspots(np.zeros((0, 2)), np.zeros((0, 2, 2)), self._gate,
+                                   np.zeros(0, np.int64), np.zeros(0, np.int64), self.n_pings)
+            return self._cache
         xy = self._xy[hot]
         count = np.bincount(label, minlength=n_spots).astype(float)
         mean = np.stack([np.bincount(label, weights=xy[:, a], minlength=n_spots)

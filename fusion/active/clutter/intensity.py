@@ -10,13 +10,14 @@ number of pings remembered,
 ``lambda(x) = (1 / n_pings) sum_j N(x; p_j, B)``, ``B = bandwidth_m^2 I``, floored at
 ``min_intensity``.
 
-It is evaluated on a grid: the detections are binned into square cells of ``bandwidth_m / 4``,
-the histogram is smoothed with the Gaussian kernel (:func:`scipy.ndimage.gaussian_filter`) and
-read at the query points by bilinear interpolation, so its cost does not grow with the number of
-detections near a query. A detection's own position error (typically a few hundred metres) is
-small beside the bandwidth and is left out of the kernel. Target echoes are a small part of the
-sum where clutter is dense; where it is sparse they raise ``lambda`` near the target's recent
-path, which only makes the tracker more cautious there. Bottom hotspots, far narrower than the
+It is evaluated on a grid: the detections are binned (cloud in cell) into square cells of
+``bandwidth_m / 4``, the histogram is smoothed with the Gaussian kernel
+(:func:`scipy.ndimage.gaussian_filter`) and read at the query points by bilinear interpolation,
+so its cost does not grow with the number of detections near a query. A detection's own
+position error (typically a few hundred metres) is small beside the bandwidth and is left out of
+the kernel. Target echoes are a small part of the sum where clutter is dense; where it is sparse
+they raise ``lambda`` near the target's recent path, which only makes the tracker more cautious
+there. Bottom hotspots, far narrower than the
 kernel, are added by the track score from the clutter map
 (:meth:`fusion.active.track_score.TrackScorer.observe`).
 """
@@ -131,10 +132,17 @@ class ClutterIntensity:
         pad = 4.0 * self.bandwidth_m
         lo, hi = pts.min(axis=0) - pad, pts.max(axis=0) + pad
         cell = max(self.bandwidth_m / _CELLS_PER_BANDWIDTH, float(np.max(hi - lo)) / _MAX_CELLS)
-        shape = np.ceil((hi - lo) / cell).astype(int) + 1
-        ij = np.floor((pts - lo) / cell).astype(int)
+        shape = np.ceil((hi - lo) / cell).astype(int) + 2
+        # Cloud-in-cell binning: each detection is shared by the four cell centres around it
+        # (centre of cell i at lo + (i + 1/2) cell), bilinearly, so the histogram keeps its
+        # position to well under a cell.
+        u = (pts - lo) / cell - 0.5
+        i0 = np.floor(u).astype(int)
+        f = u - i0
         hist = np.zeros(shape)
-        np.add.at(hist, (ij[:, 0], ij[:, 1]), 1.0)
+        for di, wi in ((0, 1.0 - f[:, 0]), (1, f[:, 0])):
+            for dj, wj in ((0, 1.0 - f[:, 1]), (1, f[:, 1])):
+                np.add.at(hist, (i0[:, 0] + di, i0[:, 1] + dj), wi * wj)
         dens = gaussian_filter(hist, self.bandwidth_m / cell, mode="constant", truncate=4.0)
         self._grid = (dens / (cell * cell * self.n_pings), lo, cell)
         return self._grid
