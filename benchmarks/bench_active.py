@@ -185,13 +185,17 @@ def _radar_system() -> FuzzySystem:
     return FuzzySystem.from_dict(d)
 
 
-def radar_tracker(mode: str) -> Tracker:
+def radar_tracker(mode: str, *, track_score: bool = False) -> Tracker:
     """The tracker with radar settings: 10-m isotropic errors, harbour boats' dynamics, the
     grid clutter map at 15 m with a 30-m exclusion and drop, the radar hotspot rule; boats may
-    idle, so no minimum speed in the motion test."""
+    idle, so no minimum speed in the motion test. Confirmation by M-of-N with the rank threshold
+    of tentative tracks for every track (the behaviour before the sonar track score); with
+    `track_score` the sonar defaults for both instead."""
     kw = dict(position_sigma_m=10.0, accel_psd=0.5, speed_sigma_mps=5.0, init_exclusion_m=30.0,
               hotspot_drop=True, min_speed_mps=0.0,
               clutter_map=ClutterMap(cell_m=15.0, position_sigma_m=10.0))
+    if not track_score:
+        kw.update(confirm_llr=None, confirmed_edge_likelihood=None)
     if mode == "fuzzy":
         kw["system"] = _radar_system()
     return Tracker(mode=mode, **kw)
@@ -209,8 +213,9 @@ def bench_real(match_m: float = 50.0) -> dict:
         scan_t = np.unique(det["time"])
         ev_t = {int(e): float(t) for e, t in zip(det["event"], det["time"], strict=True)}
         res = {}
-        for mode in ("fuzzy", "kalman"):
-            cols = radar_tracker(mode).run(table).columns()
+        for mode in ("fuzzy", "fuzzy_track_score", "kalman"):
+            tracker = radar_tracker(mode.split("_")[0], track_score=mode == "fuzzy_track_score")
+            cols = tracker.run(table).columns()
             conf = cols["status"] == "confirmed"
             d_tgt = []
             for tid in np.unique(truth["track_id"]):
