@@ -52,8 +52,10 @@ __all__ = [
     "Lifecycle",
     "MotionTest",
     "advance_status",
+    "hotspot_drop",
     "motion_statistic",
     "next_lifecycle",
+    "stationary_hold",
     "track_status",
 ]
 
@@ -302,3 +304,72 @@ class MotionTest:
         cov = seen[:, [3, 4, 4, 5]].reshape(-1, 2, 2)
         return bool(motion_statistic(seen[:, 0], seen[:, 1:3], cov=cov,
                                      min_speed_mps=self.min_speed_mps) > self.gate)
+
+
+def hotspot_drop(near: NDArray[np.bool_], seen: Sequence[Sequence[Sequence[float]]],
+                 motion_test: MotionTest) -> NDArray[np.bool_]:
+    """Tentative tracks near a hotspot to delete: those whose own detections do not move.
+
+    Parameters
+    ----------
+    near : ndarray of bool, shape (n_tracks,)
+        Tentative tracks within reach of a hotspot region.
+    seen : sequence of rows
+        Each track's detections (:meth:`MotionTest.moves`).
+    motion_test : MotionTest
+
+    Returns
+    -------
+    ndarray of bool, shape (n_tracks,)
+        A potential track inside a hotspot's reach is the hotspot, not a target, unless its
+        detections move significantly (a slow target mistaken for a hotspot).
+    """
+    out = np.array(near, dtype=bool)
+    for i in np.flatnonzero(out).tolist():
+        out[i] = motion_test.moves(seen[i]) is not True
+    return out
+
+
+def stationary_hold(
+    candidates: NDArray[np.bool_], lives: Sequence[Lifecycle],
+    seen: Sequence[Sequence[Sequence[float]]], *, m: int, motion_test: MotionTest | None,
+    score_short: NDArray[np.bool_] | None,
+) -> NDArray[np.bool_]:
+    """Tentative tracks with a hit that would confirm them but that stay tentative.
+
+    Parameters
+    ----------
+    candidates : ndarray of bool, shape (n_tracks,)
+        Tentative tracks with a hit on this ping.
+    lives : sequence of Lifecycle
+        Their counters before the ping.
+    seen : sequence of rows
+        Their detections (:meth:`MotionTest.moves`).
+    m : int
+        Hits that confirm.
+    motion_test : MotionTest or None
+        Hold tracks whose detections stand still (None: no such hold).
+    score_short : ndarray of bool, shape (n_tracks,), or None
+        Tracks whose track score is still below the confirmation score (held too).
+
+    Returns
+    -------
+    ndarray of bool, shape (n_tracks,)
+
+    Notes
+    -----
+    A feature echoes from one place, a submarine moves. The clutter map may not have flagged the
+    feature yet, so this is the track-level form of the map's test; once the map flags it, the
+    hotspot's echoes count as clutter in the track score (or the hotspot drop ends the track). A
+    track whose hits are no better explained by a target than by clutter waits for more evidence
+    the same way.
+    """
+    hold = np.zeros(len(candidates), dtype=bool)
+    for i in np.flatnonzero(candidates).tolist():
+        if lives[i].hits + 1 < m:
+            continue
+        if score_short is not None and score_short[i]:
+            hold[i] = True
+        elif motion_test is not None:
+            hold[i] = motion_test.moves(seen[i]) is False
+    return hold

@@ -65,7 +65,13 @@ from fusion.active.kalman import (
     kf_update,
     pair_statistics,
 )
-from fusion.active.lifecycle import Lifecycle, MotionTest, next_lifecycle
+from fusion.active.lifecycle import (
+    Lifecycle,
+    MotionTest,
+    hotspot_drop,
+    next_lifecycle,
+    stationary_hold,
+)
 from fusion.active.noise import NoiseEstimator
 from fusion.active.track_score import TrackScorer
 from fusion.active.types import (
@@ -116,8 +122,8 @@ class Tracker:
         Standard deviation of each position coordinate of a detection without source/receiver
         positions (or with ``position_errors="isotropic"``), m (default 100).
     accel_psd : float, optional
-        White-acceleration spectral density, m^2/s^3 (default 0.01: about a 90 deg turn in
-        10 min at 3 m/s, a ~ 0.008 m/s^2, sustained over a ping interval).
+        White-acceleration spectral density, m^2/s^3 (default 0.04: a turn at 0.3 deg/s at
+        4 m/s, a ~ 0.02 m/s^2, sustained over a ping interval).
     speed_sigma_mps : float, optional
         Standard deviation of each velocity component of a new track, m/s (default 3, about the
         speed of a submarine on patrol).
@@ -140,7 +146,7 @@ class Tracker:
     confirm_hits, confirm_window : int, optional
         M-of-N confirmation (default 3 of 4).
     max_misses : int, optional
-        Consecutive misses that delete a confirmed track (default 3).
+        Consecutive misses that delete a confirmed track (default 5).
     init_exclusion_m : float, optional
         Detections closer than this to a hotspot region start no track (fuzzy mode; default 0:
         only those inside a region; a track score that counts hotspot echoes as clutter keeps
@@ -158,9 +164,9 @@ class Tracker:
         scatter more than their stated errors does not pass for a slow target.
     hold_stationary : bool, optional
         Fuzzy mode: a track that reaches ``confirm_hits`` hits while its own detections do not
-        move significantly (:func:`fusion.active.lifecycle.motion_statistic` at ``motion_probability``, from
-        ``confirm_hits`` detections) stays tentative until they do (default True); such a
-        held track is deleted after ``max_misses`` consecutive misses.
+        move significantly (:func:`fusion.active.lifecycle.motion_statistic` at
+        ``motion_probability``) stays tentative until they do (default True); such a held
+        track is deleted after ``max_misses`` consecutive misses.
     clutter_map : ClutterMapBase, optional
         Clutter map (default ``DensityClutterMap(position_sigma_m=position_sigma_m)``, see
         :mod:`fusion.active.clutter`); fuzzy mode only.
@@ -458,10 +464,20 @@ class Tracker:
         confirmed = np.zeros(nt, dtype=bool)
         confirmed[:n0] = scan.confirmed
         old = np.arange(nt) < n0
-        dropped = self._on_hotspot(confirmed | ~old)
+        dropped = np.zeros(nt, dtype=bool)
+        if self.clutter_map is not None and self.hotspot_drop:
+            tent = ~confirmed & old
+            dropped[tent] = (self.clutter_map.distance(self._x[tent, :2])
+                             <= self.init_exclusion_m)
+            dropped = hotspot_drop(dropped, self._seen, self.motion_test)
         if self.scorer is not None:
             dropped |= old & ~confirmed & (self._llr < self.scorer.delete_llr)
-        held = self._held(old & hit & ~confirmed & ~dropped, self._llr)
+        held = stationary_hold(
+            old & hit & ~confirmed & ~dropped, self._life, self._seen, m=self.m,
+            motion_test=(self.motion_test if self.clutter_map is not None and self.hold_stationary
+                         else None),
+            score_short=(self._llr < self.scorer.confirm_llr if self.scorer is not None
+                         else None))
         life = [next_lifecycle(lc, h, dropped=d, held=s, m=self.m, n=self.n,
                                max_misses=self.max_misses, window=self.scorer is None)
                 for lc, h, d, s in zip(self._life[:n0], hit[:n0].tolist(), dropped[:n0].tolist(),
@@ -511,42 +527,6 @@ class Tracker:
             return np.arange(ping.n), ping
         keep = np.flatnonzero(ping.clues["score"] >= self.score_threshold)
         return keep, (ping if keep.size == ping.n else ping.subset(keep))
-
-    def _on_hotspot(self, confirmed: NDArray[np.bool_]) -> NDArray[np.bool_]:
-        """Tentative tracks to drop: within ``init_exclusion_m`` of a hotspot and not moving.
-
-        A potential track inside a hotspot's reach is the hotspot, not a target: it is dropped,
-        as a detection there starts no track (same distance), unless its own detections move
-        significantly (a slow target mistaken for a hotspot).
-        """
-        nt = confirmed.size
-        on_hot = np.zeros(nt, dtype=bool)
-        if self.clutter_map is not None and self.hotspot_drop and nt and not confirmed.all():
-            on_hot[~confirmed] = (self.clutter_map.distance(self._x[~confirmed, :2])
-                                  <= self.init_exclusion_m)
-            for i in np.flatnonzero(on_hot):
-                on_hot[i] = self.motion_test.moves(self._seen[i]) is not True
-        return on_hot
-
-    def _held(self, candidates: NDArray[np.bool_], llr: NDArray[np.float64]) -> NDArray[np.bool_]:
-        """Tentative tracks with a hit that would be confirmed but whose detections stand still
-        or whose track score is still below ``confirm_llr``.
-
-        A feature echoes from one place, a submarine moves. The clutter map may not have flagged
-        the feature yet (its echoes scatter over several cells, or it skipped a ping), so this is
-        the track-level form of the map's test; once the map flags it, the hotspot drop ends the
-        track. A track whose hits are no better explained by a target than by clutter waits for
-        more evidence the same way.
-        """
-        hold = np.zeros(candidates.size, dtype=bool)
-        for i in np.flatnonzero(candidates).tolist():
-            if self._life[i].hits + 1 < self.m:
-                continue
-            if self.scorer is not None and llr[i] < self.scorer.confirm_llr:
-                hold[i] = True
-            elif self.clutter_map is not None and self.hold_stationary:
-                hold[i] = self.motion_test.moves(self._seen[i]) is False
-        return hold
 
     def run(self, detections: Iterable[Ping] | Columns) -> TrackingResult:
         """Track a whole run from a fresh start.

@@ -21,8 +21,10 @@ Per ping and receiver:
   lost, as in a real receiver.
 - **Classifier score** in [0, 1]: Beta distributions, higher on average for the target than for
   clutter, overlapping.
-- **Equivalent aspect angle**: the true one plus noise for the target (as estimated from the
-  target's heading); for clutter no true heading exists and the value is uniform in [0, 180].
+- **Equivalent aspect angle**: the true one plus noise for the target; for clutter no true
+  heading exists and the value is uniform in [0, 180]. This column carries the target's truth:
+  the tracker ignores it unless told it is a measurement (``Tracker(aspect="measured")``,
+  ``fusion track --aspect-column measured``).
 - **Hotspots**: strong (high-SNR), low-ish scores, at fixed places, echoing on a given ping and
   receiver with probability ``hotspot_return_probability``.
 - **Random clutter**: Poisson number per receiver, uniform over the area, SNR just above the
@@ -30,6 +32,10 @@ Per ping and receiver:
 
 Truth: the target state at every ping and the origin of each detection
 (``target``/``hotspot``/``clutter``).
+
+``vary=True`` draws the scenario's assumptions instead
+(:mod:`fusion.simulate.multistatic_varied`); scoring against the truth is in
+:mod:`fusion.simulate.multistatic_scoring`.
 """
 
 from __future__ import annotations
