@@ -10,6 +10,7 @@ One module per role, bottom up:
 - :mod:`~fusion.active.clutter`: the online clutter map (hotspots);
 - :mod:`~fusion.active.association`: fuzzy rank of gated pairs, rank threshold, assignment;
 - :mod:`~fusion.active.lifecycle`: M-of-N confirmation, deletion, the motion test;
+- :mod:`~fusion.active.ping_scan`: one ping's work state, score gate, new tracks, the result;
 - :mod:`~fusion.active.tracker`: the tracker, composed of the above;
 - :mod:`~fusion.active.smoothing`: confirmed tracks refined on a GTSAM factor graph.
 """

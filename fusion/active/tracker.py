@@ -39,16 +39,14 @@ Choices where the paper is silent, besides those documented in the stage modules
   (two when the aspect angle is computed from geometry and unknown for some tracks, as the
   engine takes no missing values).
 - Nothing a simulator knows reaches the tracker: the aspect angle comes from the track's heading
-  unless the user declares a column a measurement (``aspect="measured"``), the sonar accuracies,
-  clutter intensities and detection probabilities are estimated from the detections or set by
-  the user.
+  unless the user declares a column a measurement (``aspect="measured"``); accuracies, clutter
+  intensities and detection probabilities are estimated from the detections or set by the user.
 """
 
 from __future__ import annotations
 
 import logging
 from collections.abc import Iterable, Sequence
-from dataclasses import dataclass, field
 from typing import Literal
 
 import numpy as np
@@ -59,7 +57,6 @@ from fusion.active.bistatic import MeasurementModel
 from fusion.active.clutter import ClutterMapBase, DensityClutterMap
 from fusion.active.kalman import (
     cv_model,
-    fuse_positions,
     gate_threshold,
     kf_predict,
     kf_update,
@@ -73,6 +70,7 @@ from fusion.active.lifecycle import (
     stationary_hold,
 )
 from fusion.active.noise import NoiseEstimator
+from fusion.active.ping_scan import PingScan, birth_states, ping_result, score_gate
 from fusion.active.track_score import TrackScorer
 from fusion.active.types import (
     Columns,
@@ -89,20 +87,6 @@ logger = logging.getLogger(__name__)
 
 #: Former name of :func:`fusion.active.types.pings_from_columns` (any named columns will do).
 pings_from_table = pings_from_columns
-
-
-@dataclass
-class _PingScan:
-    """Work state of one ping while its receivers are scanned (per track: the detections taken,
-    the rank of the first; per detection: its motion-test row)."""
-
-    ping: Ping
-    Rz: NDArray[np.float64]
-    hot_d: NDArray[np.float64]
-    confirmed: NDArray[np.bool_]
-    dets: list[list[int]]
-    rank: list[float]
-    rows: list[list[float]] = field(default_factory=list)
 
 
 class Tracker:
@@ -367,13 +351,13 @@ class Tracker:
         # detection; the score gate applies to tracking only.
         if self.clutter_map is not None:
             self.clutter_map.update(ping.xy, ping.time, cov=Rz if geometric else None)
-        full_index, ping = self._score_gate(ping)
+        full_index, ping = score_gate(ping, self.score_threshold)
         Rz = Rz[full_index]
         hot_d = (self.clutter_map.distance(ping.xy) if self.clutter_map is not None
                  else np.full(ping.n, np.inf))
         n0 = self._ids.size
         confirmed0 = np.fromiter((lc.status == "confirmed" for lc in self._life), bool, n0)
-        scan = _PingScan(ping=ping, Rz=Rz, hot_d=hot_d, confirmed=confirmed0,
+        scan = PingScan(ping=ping, Rz=Rz, hot_d=hot_d, confirmed=confirmed0,
                          dets=[[] for _ in range(n0)], rank=[np.nan] * n0,
                          rows=np.column_stack([np.full(ping.n, ping.time), ping.xy, Rz[:, 0, 0],
                                                Rz[:, 0, 1], Rz[:, 1, 1]]).tolist())
@@ -384,7 +368,7 @@ class Tracker:
             self._scan(scan, key, idx)
         return self._manage(scan, full_index, n0)
 
-    def _scan(self, scan: _PingScan, key: tuple[float, ...] | None,
+    def _scan(self, scan: PingScan, key: tuple[float, ...] | None,
               idx: NDArray[np.int64]) -> None:
         """Associate one receiver's detections of the ping; update, score, start tracks."""
         ping = scan.ping
@@ -441,11 +425,7 @@ class Tracker:
         new = np.flatnonzero(free)
         if new.size == 0:
             return
-        x_new = np.zeros((new.size, 4))
-        x_new[:, :2] = xy[new]
-        P_new = np.zeros((new.size, 4, 4))
-        P_new[:, :2, :2] = R[new]
-        P_new[:, 2:, 2:] = np.eye(2) * self.speed_sigma_mps**2
+        x_new, P_new = birth_states(xy[new], R[new], speed_sigma_mps=self.speed_sigma_mps)
         self._ids = np.concatenate([self._ids, np.arange(self._next_id, self._next_id + new.size)])
         self._next_id += new.size
         self._x = np.concatenate([self._x, x_new])
@@ -456,9 +436,9 @@ class Tracker:
         scan.dets += [[int(j)] for j in idx[new].tolist()]
         scan.rank += [np.nan] * new.size
 
-    def _manage(self, scan: _PingScan, full_index: NDArray[np.int64], n0: int) -> PingResult:
+    def _manage(self, scan: PingScan, full_index: NDArray[np.int64], n0: int) -> PingResult:
         """Track management after all receivers of a ping; the ping's result."""
-        ping, Rz = scan.ping, scan.Rz
+        ping = scan.ping
         nt = self._ids.size
         hit = np.fromiter((bool(d) for d in scan.dets), bool, nt)
         confirmed = np.zeros(nt, dtype=bool)
@@ -484,32 +464,12 @@ class Tracker:
                                        held[:n0].tolist(), strict=True)]
         self._life = life + self._life[n0:]
 
-        # One equivalent measurement per track: the information-weighted fusion of its hits.
-        z = np.full((nt, 2), np.nan)
-        Rz_all = np.full((nt, 2, 2), np.nan)
-        for i in np.flatnonzero(hit).tolist():
-            d = scan.dets[i]
-            if len(d) == 1:
-                z[i], Rz_all[i] = ping.xy[d[0]], Rz[d[0]]
-            else:
-                z[i], Rz_all[i] = fuse_positions(ping.xy[d], Rz[d])
-        first = np.array([full_index[d[0]] if d else -1 for d in scan.dets], dtype=np.int64)
         status = np.array([lc.status for lc in self._life], dtype=str)
-        result = PingResult(
-            event=ping.event,
-            time=ping.time,
-            track_id=self._ids.copy(),
-            state=self._x.copy(),
-            status=status,
-            detection=first,
-            rank=np.asarray(scan.rank, dtype=float),
+        result = ping_result(
+            scan, full_index=full_index, track_id=self._ids, state=self._x,
+            covariance=self._P, status=status,
             hotspots=(self.clutter_map.hotspots().positions if self.clutter_map is not None
-                      else np.zeros((0, 2))),
-            covariance=self._P.copy(),
-            measurement=z,
-            measurement_cov=Rz_all,
-            detections=tuple(full_index[np.asarray(d, dtype=np.int64)] for d in scan.dets),
-        )
+                      else np.zeros((0, 2))))
         alive = status != "deleted"
         alive_l = alive.tolist()
         self._ids, self._x, self._P = self._ids[alive], self._x[alive], self._P[alive]
@@ -520,13 +480,6 @@ class Tracker:
         logger.debug("event %d: %d detections, %d tracks, %d new", ping.event, ping.n, n0,
                      nt - n0)
         return result
-
-    def _score_gate(self, ping: Ping) -> tuple[NDArray[np.int64], Ping]:
-        """The detections that pass the classifier-score gate, and their indices in `ping`."""
-        if self.score_threshold is None or "score" not in ping.clues or ping.n == 0:
-            return np.arange(ping.n), ping
-        keep = np.flatnonzero(ping.clues["score"] >= self.score_threshold)
-        return keep, (ping if keep.size == ping.n else ping.subset(keep))
 
     def run(self, detections: Iterable[Ping] | Columns) -> TrackingResult:
         """Track a whole run from a fresh start.
