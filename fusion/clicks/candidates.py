@@ -4,7 +4,7 @@ The association-weighted volume of eq. (18) over depths has many local maxima; t
 become the candidate solutions that compete for the TDOAs (:mod:`fusion.clicks.competition`).
 :class:`CandidateFinder` finds the 3-D local maxima with :func:`scipy.ndimage.maximum_filter`,
 keeps those above a fraction of the largest, optionally refines each on finer grids
-(:func:`fusion.clicks.surfaces.refine_peak`) and rescans its depth, suppresses near-duplicates
+(:func:`fusion.clicks.peak_search.refine_peak`) and rescans its depth, suppresses near-duplicates
 and returns at most ``max_candidates``, strongest first.
 
 Notes
@@ -22,7 +22,9 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.ndimage import maximum_filter
 
-from fusion.clicks.surfaces import IntensityVolume, WindowTdoas, refine_peak, scan_depth
+from fusion.clicks.intensity import IntensityVolume
+from fusion.clicks.peak_search import refine_peak, scan_depth
+from fusion.clicks.window_tdoas import WindowTdoas
 
 __all__ = ["CandidateFinder", "Candidates"]
 
@@ -79,7 +81,7 @@ class CandidateFinder:
         Two candidates closer than this many coarse cells are one (the weaker is dropped).
     scan_depth : bool, keyword-only
         After the first two refinement levels, scan the whole vertical range of the box at the
-        refined ``x, y`` (:func:`fusion.clicks.surfaces.scan_depth`) and move to a better depth
+        refined ``x, y`` (:func:`fusion.clicks.peak_search.scan_depth`) and move to a better depth
         if there is one, then refine on (default True; needs `lo`, `hi` and a volume with
         several depths).
 

@@ -58,7 +58,15 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from factors.tdoa import weighted_tdoa_vector_factor
-from fusion.clicks.surfaces import WindowTdoas
+from fusion.clicks.ownership import (
+    association_weights,
+    cap_per_pair,
+    holds_a_source,
+    independent_pairs,
+    pair_ids,
+    supported_weights,
+)
+from fusion.clicks.window_tdoas import WindowTdoas
 
 __all__ = [
     "CompetitionResult",
@@ -212,41 +220,6 @@ class _CandidateGraph:
         return np.asarray(result.atPoint3(self.key), dtype=float)
 
 
-def independent_pairs(pairs: NDArray[np.intp], rows: NDArray[np.bool_]) -> int:
-    """Rank of the incidence of the selected pairs: sensors they touch minus their components.
-
-    (The number of independent TDOAs: a spanning forest of the pair graph.)
-    """
-    parent: dict[int, int] = {}
-
-    def root(i: int) -> int:
-        while parent.setdefault(i, i) != i:
-            parent[i] = parent[parent[i]]
-            i = parent[i]
-        return i
-
-    rank = 0
-    for i, j in pairs[rows].tolist():
-        ri, rj = root(i), root(j)
-        if ri != rj:
-            parent[ri] = rj
-            rank += 1
-    return rank
-
-
-def _pair_ids(pairs: NDArray[np.intp]) -> NDArray[np.intp]:
-    """Id of the unordered sensor pair of each TDOA."""
-    lo, hi = np.minimum(pairs[:, 0], pairs[:, 1]), np.maximum(pairs[:, 0], pairs[:, 1])
-    return np.unique(lo * (hi.max() + 1) + hi, return_inverse=True)[1].reshape(-1)
-
-
-def _cap_per_pair(w: NDArray[np.float64], pair_id: NDArray[np.intp]) -> NDArray[np.float64]:
-    """Scale each candidate's weights on one pair down to a total of at most one."""
-    totals = np.zeros((w.shape[0], int(pair_id.max()) + 1))
-    np.add.at(totals.T, pair_id, w.T)
-    return w / np.maximum(totals[:, pair_id], 1.0)
-
-
 def _same_source(
     tdoas: WindowTdoas, xa: NDArray, xb: NDArray, wa: NDArray, wb: NDArray, scale: NDArray,
     settings: CompetitionSettings, *, settled: bool,
@@ -266,64 +239,6 @@ def _same_source(
     shared = float(np.minimum(wa, wb).sum() / small) if small > 0 else 0.0
     return rms < settings.merge_sigmas or (settled and shared > settings.max_overlap)
 
-
-def association_weights(
-    residuals: ArrayLike, sigma_t: ArrayLike, alpha: ArrayLike | None = None
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Delay-fit weights ``beta`` (eq. 20) and association weights ``gamma`` (eq. 21).
-
-    Parameters
-    ----------
-    residuals : array_like, shape (K, M)
-        ``d_m(x_k) - tau_m`` of each TDOA at each candidate, s.
-    sigma_t : float or array_like, broadcastable to (K, M)
-        Delay scale ``sigma_t`` of eq. (20), s.
-    alpha : array_like, shape (M, M), optional
-        Cross-pair association (symmetric); None gives ``gamma = beta``.
-
-    Returns
-    -------
-    beta : ndarray, shape (K, M)
-        ``exp(-(d_m - tau_m)^2 / (sigma_t^2 / 4))``.
-    gamma : ndarray, shape (K, M)
-        ``sum_l (1 - exp(-alpha_ml / 4)) beta_kl beta_km``.
-
-    Examples
-    --------
-    >>> alpha = 1e9 * (1.0 - np.eye(3))  # three strongly associated TDOAs
-    >>> beta, gamma = association_weights([[0.0, 0.0, 2.0]], 1.0, alpha)
-    >>> np.round(gamma, 6)  # two fitting TDOAs confirm each other; the third fits nothing
-    array([[1., 1., 0.]])
-    """
-    r = np.asarray(residuals, dtype=float)
-    beta = np.exp(-(r * r) / (np.asarray(sigma_t, dtype=float) ** 2 / 4.0))  # eq. (20)
-    if alpha is None:
-        return beta, beta
-    link = 1.0 - np.exp(-np.asarray(alpha, dtype=float) / 4.0)  # 1 - exp(-alpha_ml / 4)
-    return beta, beta * (beta @ link)  # eq. (21), alpha symmetric
-
-
-def supported_weights(w: NDArray[np.float64], alpha: NDArray[np.float64] | None,
-                      min_alpha_link: float) -> NDArray[np.float64]:
-    """A candidate's TDOA weights, zero where a TDOA is associated with none of its others.
-
-    With ``alpha``, TDOA ``m`` counts only if some other TDOA of weight > 0.5 is linked to it
-    (``alpha_ml >= min_alpha_link``): a true source's TDOAs share its clicks, a chance fit of a
-    clutter TDOA does not. Without ``alpha`` the weights are returned unchanged.
-    """
-    if alpha is None:
-        return w
-    held = w > 0.5
-    linked = np.any((np.asarray(alpha) >= min_alpha_link) & held[None, :], axis=1)
-    return np.where(linked, w, 0.0)
-
-
-def holds_a_source(w: NDArray[np.float64], pairs: NDArray[np.intp],
-                   alpha: NDArray[np.float64] | None, cfg: CompetitionSettings) -> bool:
-    """Whether weights `w` hold enough associated TDOAs to fix a source (the drop rule)."""
-    ws = supported_weights(w, alpha, cfg.min_alpha_link)
-    return bool(ws.sum() >= cfg.min_weight
-                and independent_pairs(pairs, ws > 0.5) >= cfg.min_independent)
 
 
 def vertical_starts(x: NDArray, z_range: tuple[float, float] | None, levels: int = 4
@@ -428,7 +343,7 @@ def compete(
     sig = np.asarray(tdoas.sigmas)
     alpha = np.asarray(tdoas.alpha) if cfg.use_alpha and tdoas.alpha is not None else None
     pairs = np.asarray(tdoas.pairs)
-    pair_id = _pair_ids(pairs)
+    pair_id = pair_ids(pairs)
     # uniform clutter density over the physically possible delays of each pair
     log_clutter = np.log(cfg.clutter_fraction) - np.log(2.0 * np.maximum(tdoas.max_delay_s, sig))
     w = np.full((k0, m), 1.0 / max(k0, 1))  # eq. (19)
@@ -499,7 +414,7 @@ def compete(
         resp = np.exp(both - both.max(axis=0))
         resp = (resp / resp.sum(axis=0))[:-1]
         if cfg.pair_exclusive:
-            resp = _cap_per_pair(resp, pair_id)
+            resp = cap_per_pair(resp, pair_id)
         change = float(np.abs(resp - w[idx]).max())
         w[idx] = resp
         totals = resp.sum(axis=1)

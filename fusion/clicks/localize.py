@@ -42,7 +42,6 @@ Notes
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
 
 import gtsam
 import numpy as np
@@ -50,7 +49,6 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import connected_components
 
-from factors.tdoa import weighted_tdoa_vector_factor
 from fusion.clicks.candidates import CandidateFinder
 from fusion.clicks.competition import (
     CompetitionSettings,
@@ -59,15 +57,18 @@ from fusion.clicks.competition import (
     supported_weights,
     vertical_starts,
 )
-from fusion.clicks.surfaces import (
-    SearchGrid,
-    SearchRegion,
-    WindowTdoas,
-    fine_step,
-    intensity_volume,
-    sensor_distances,
-    smoothing_sigma,
+from fusion.clicks.intensity import intensity_volume, smoothing_sigma
+from fusion.clicks.peak_search import fine_step
+from fusion.clicks.search_grid import SearchGrid, SearchRegion, sensor_distances
+from fusion.clicks.source_fix import (
+    LocalizationOutput,
+    SourceFix,
+    solve_weighted,
+    weighted_cost,
+    weighted_graph,
 )
+from fusion.clicks.types import frozen_array
+from fusion.clicks.window_tdoas import WindowTdoas
 
 __all__ = ["METHODS", "LocalizationOutput", "MultiSourceLocalizer", "SourceFix"]
 
@@ -78,86 +79,6 @@ _CHI2_3SIGMA = 14.16
 
 #: The localization methods of :class:`MultiSourceLocalizer`.
 METHODS: tuple[str, ...] = ("competition", "eq17", "eq18", "lsq")
-
-
-def _frozen(a: ArrayLike) -> NDArray[np.float64]:
-    out = np.array(a, dtype=float)
-    out.setflags(write=False)
-    return out
-
-
-@dataclass(frozen=True)
-class SourceFix:
-    """One localized source of a window.
-
-    Attributes
-    ----------
-    position : ndarray, shape (3,)
-        Position, m (z up).
-    covariance : ndarray, shape (3, 3)
-        Marginal covariance from ``gtsam.Marginals`` at `position` with the fix's TDOA weights,
-        m^2; NaN where the information is singular.
-    information : ndarray, shape (3, 3)
-        Position information ``J^T W J`` of the weighted TDOAs, m^-2 (finite even when singular).
-    weights : ndarray, shape (M,)
-        Weight of each of the window's TDOAs in this fix, in [0, 1].
-    tdoas_used : int
-        TDOAs of weight > 0.5.
-    residual_rms_s : float
-        RMS delay residual of those TDOAs, s.
-    condition_number : float
-        Largest over smallest eigenvalue of `information` (inf when singular).
-    observable : bool
-        False when the geometry leaves a direction (nearly) unfixed: condition number above the
-        localizer's ``max_condition``, or a mirror solution fits as well.
-    mirror_ambiguous : bool
-        Whether the mirror test found a distinct, equally good solution.
-    mirror_position : ndarray, shape (3,)
-        That solution, m; NaN when there is none.
-    """
-
-    position: NDArray[np.float64]
-    covariance: NDArray[np.float64]
-    information: NDArray[np.float64]
-    weights: NDArray[np.float64]
-    tdoas_used: int
-    residual_rms_s: float
-    condition_number: float
-    observable: bool
-    mirror_ambiguous: bool
-    mirror_position: NDArray[np.float64]
-
-    def __post_init__(self) -> None:
-        for name in ("position", "covariance", "information", "weights", "mirror_position"):
-            object.__setattr__(self, name, _frozen(getattr(self, name)))
-
-
-@dataclass(frozen=True)
-class LocalizationOutput:
-    """All sources of one window.
-
-    Attributes
-    ----------
-    sources : tuple of SourceFix
-        The sources, the one using most TDOAs first.
-    method : str
-        The method used (one of :data:`METHODS`).
-    clutter_weights : ndarray, shape (M,)
-        Weight of each TDOA left to no source, ``1 - sum_k w_km`` clipped to [0, 1].
-    candidates : ndarray, shape (K, 3)
-        Starting candidates, m.
-    iterations : int
-        Competition iterations (0 for the other methods).
-    converged : bool
-        Whether the competition converged (True for the other methods).
-    """
-
-    sources: tuple[SourceFix, ...]
-    method: str
-    clutter_weights: NDArray[np.float64]
-    candidates: NDArray[np.float64]
-    iterations: int
-    converged: bool
 
 
 class MultiSourceLocalizer:
@@ -280,8 +201,8 @@ class MultiSourceLocalizer:
         LocalizationOutput
         """
         if np.size(taus) == 0:  # a window without validated TDOAs has no source
-            return LocalizationOutput((), self.method, _frozen(np.zeros(0)), _frozen(np.zeros((0, 3))),
-                                      0, True)
+            return LocalizationOutput((), self.method, frozen_array(np.zeros(0)),
+                                      frozen_array(np.zeros((0, 3))), 0, True)
         tdoas = WindowTdoas(sensors, np.asarray(pairs), taus,
                             np.broadcast_to(np.asarray(sigmas, dtype=float), np.shape(taus)),
                             c=c, alpha=alpha)
@@ -359,7 +280,7 @@ class MultiSourceLocalizer:
                 continue
             pos = res.positions[k]
             if self.polish:
-                pos = _solve(tdoas, pos, w)
+                pos = solve_weighted(tdoas, pos, w)
             fixes.append(self._fix(tdoas, pos, w))
         return self._output(fixes, tdoas, starts, iterations, res.converged)
 
@@ -398,7 +319,7 @@ class MultiSourceLocalizer:
         w = np.ones(tdoas.m)
         if peaks.shape[0] == 0 or independent_pairs(np.asarray(tdoas.pairs), w > 0) < 3:
             return self._output((), tdoas, peaks, 0, True)
-        pos = _solve(tdoas, peaks[0], w)
+        pos = solve_weighted(tdoas, peaks[0], w)
         return self._output([self._fix(tdoas, pos, w)], tdoas, peaks, 0, True)
 
     # ------------------------------------------------------------------ helpers
@@ -421,8 +342,8 @@ class MultiSourceLocalizer:
                 converged: bool) -> LocalizationOutput:
         fixes = sorted(fixes, key=lambda f: -float(f.weights.sum()))
         owned = np.sum([f.weights for f in fixes], axis=0) if fixes else np.zeros(tdoas.m)
-        return LocalizationOutput(tuple(fixes), self.method, _frozen(np.clip(1.0 - owned, 0, 1)),
-                                  _frozen(np.asarray(starts).reshape(-1, 3)), int(iterations),
+        return LocalizationOutput(tuple(fixes), self.method, frozen_array(np.clip(1.0 - owned, 0, 1)),
+                                  frozen_array(np.asarray(starts).reshape(-1, 3)), int(iterations),
                                   bool(converged))
 
     def _fix(self, tdoas: WindowTdoas, pos: NDArray, w: NDArray, *, mirror: bool = True
@@ -432,7 +353,7 @@ class MultiSourceLocalizer:
         ambiguous = False
         if mirror:
             pos, mirror_pos, ambiguous = self._mirror_test(tdoas, pos, w)
-        graph, values, key = _graph(tdoas, pos, w)
+        graph, values, key = weighted_graph(tdoas, pos, w)
         a, _ = graph.linearize(values).jacobian()
         info = a.T @ a  # J^T W J, whitened
         evals = np.linalg.eigvalsh(info)
@@ -466,21 +387,21 @@ class MultiSourceLocalizer:
         height = float((pos - centre) @ normal)
         lo, hi = self.region.bounds(s)
         starts = [pos - 2.0 * height * normal] + vertical_starts(pos, (lo[2], hi[2]))[1:]
-        graph, values, _ = _graph(tdoas, pos, w)
+        graph, values, _ = weighted_graph(tdoas, pos, w)
         a, _ = graph.linearize(values).jacobian()
         info = a.T @ a
-        cost = _cost(tdoas, pos, w)
+        cost = weighted_cost(tdoas, pos, w)
         none = np.full(3, np.nan)
         rival: NDArray | None = None
         for start in starts:
-            other = _solve(tdoas, start, w, iterations=30, tol=1e-6)  # a rival, roughly
+            other = solve_weighted(tdoas, start, w, iterations=30, tol=1e-6)  # a rival, roughly
             d = other - pos
             if float(d @ info @ d) <= _CHI2_3SIGMA or not self._in_water(other):
                 continue  # the same solution, or a rival outside the water column
-            rise = 2.0 * (_cost(tdoas, other, w) - cost)  # chi-square rise
+            rise = 2.0 * (weighted_cost(tdoas, other, w) - cost)  # chi-square rise
             if rise < -self.mirror_chi2 or (rise <= self.mirror_chi2 and not self._in_water(pos)):
                 # clearly better, or the physical one: polish it and test again from there
-                return self._mirror_test(tdoas, _solve(tdoas, other, w), w)
+                return self._mirror_test(tdoas, solve_weighted(tdoas, other, w), w)
             if rise <= self.mirror_chi2 and rival is None:
                 rival = other
         return (pos, none, False) if rival is None else (pos, rival, True)
@@ -494,40 +415,3 @@ def _levels_to_fine(tdoas: WindowTdoas, step: float, shrink: float = 3.0) -> int
     """Coarse-to-fine levels from `step` down to :func:`fine_step`."""
     target = fine_step(tdoas)
     return max(0, int(np.ceil(np.log(max(step, target) / target) / np.log(shrink))))
-
-
-def _aperture(s: NDArray) -> float:
-    return float(np.max(np.linalg.norm(s[:, None] - s[None], axis=-1)))
-
-
-def _graph(tdoas: WindowTdoas, pos: NDArray, w: NDArray) -> tuple:
-    key = gtsam.symbol("x", 0)
-    weights = np.array(w, dtype=float)
-    graph = gtsam.NonlinearFactorGraph()
-    graph.add(weighted_tdoa_vector_factor(gtsam.noiseModel.Diagonal.Sigmas(np.asarray(tdoas.sigmas)),
-                                          key, tdoas.sensors, tdoas.pairs, tdoas.taus, weights,
-                                          c=tdoas.c))
-    values = gtsam.Values()
-    values.insert(key, gtsam.Point3(*np.asarray(pos, dtype=float)))
-    return graph, values, key
-
-
-def _cost(tdoas: WindowTdoas, pos: NDArray, w: NDArray) -> float:
-    """Graph error: half the weighted sum of squared whitened residuals."""
-    r = (tdoas.predicted(pos) - tdoas.taus) / np.asarray(tdoas.sigmas)
-    return float(0.5 * np.sum(np.maximum(w, 0.0) * r * r))
-
-
-def _solve(tdoas: WindowTdoas, start: NDArray, w: NDArray, iterations: int = 50,
-           tol: float = 1e-12) -> NDArray:
-    """Weighted least-squares position from `start` (Levenberg-Marquardt on a one-factor graph).
-
-    `tol` is the relative decrease of the error at which it stops.
-    """
-    graph, values, key = _graph(tdoas, start, w)
-    params = gtsam.LevenbergMarquardtParams()
-    params.setMaxIterations(iterations)
-    params.setRelativeErrorTol(tol)
-    params.setAbsoluteErrorTol(1e-20)
-    result = gtsam.LevenbergMarquardtOptimizer(graph, values, params).optimize()
-    return np.asarray(result.atPoint3(key), dtype=float)
