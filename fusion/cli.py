@@ -59,6 +59,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "passive": ("fusion.commands.passive", "track narrowband lines through beam/frequency/time cubes"),
     "localize": ("fusion.commands.localize", "localize clicking sources (whales) from multichannel audio"),
     "train-validator": ("fusion.commands.train_validator", "retrain the TDOA validator on labelled audio"),
+    "import": ("fusion.commands.import_data", "convert a recorded data set into the project's CSV files"),
 }
 
 #: Exit code for bad input or bad options.
