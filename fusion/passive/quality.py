@@ -68,15 +68,15 @@ Examples
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
-from enum import IntEnum
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from fusion.passive.tracker import cell_power_statistics
+from fusion.passive.quality_flow import design_statistics, omega_for_beamwidth, tqi_transition
+from fusion.passive.quality_types import LABELS, START, TQIHistory, TQIMemory, TrackQuality
 
 __all__ = [
+    "LABELS",
     "SLLR0_CEILING_MARGIN",
     "START",
     "TQIHistory",
@@ -90,222 +90,8 @@ __all__ = [
 
 logger = logging.getLogger(__name__)
 
-#: Code of the "previous state" before a tracker's first update (no TQI yet).
-START: int = -1
-
 #: Default ceiling of ``SLLR_0`` above ``TU + LH`` (see the module notes on clamps).
 SLLR0_CEILING_MARGIN: float = 0.25
-
-
-class TrackQuality(IntEnum):
-    """The four TQI states, ordered from worst to best; :attr:`label` is the file name."""
-
-    LOST = 0
-    UNCERTAIN = 1
-    LOW_SNR = 2
-    STRONG = 3
-
-    @property
-    def label(self) -> str:
-        """Name used in files: ``lost``, ``uncertain``, ``low_snr`` or ``strong``."""
-        return self.name.lower()
-
-    @classmethod
-    def from_label(cls, label: str) -> TrackQuality:
-        """The state named `label` in files (``ValueError`` if unknown)."""
-        try:
-            return cls[label.strip().upper()]
-        except KeyError:
-            names = ", ".join(s.label for s in cls)
-            raise ValueError(f"unknown TQI state {label!r} (expected one of {names})") from None
-
-
-#: File names indexed by state code.
-LABELS: NDArray[np.str_] = np.array([s.label for s in TrackQuality])
-
-
-def omega_for_beamwidth(beamwidth_deg: float, *, n: float = 0.5) -> float:
-    """Effective angular centre frequency ``Omega`` (1/deg) whose linear range ``n / Omega`` is one beamwidth.
-
-    Parameters
-    ----------
-    beamwidth_deg : float
-        Main-lobe width of the tracked beam in bearing, deg.
-    n : float, optional
-        The method's constant ``n`` (0.5).
-
-    Returns
-    -------
-    float
-        ``n / beamwidth_deg``, 1/deg.
-    """
-    if not np.isfinite(beamwidth_deg) or beamwidth_deg <= 0:
-        raise ValueError(f"beamwidth_deg must be positive, got {beamwidth_deg!r}")
-    return n / beamwidth_deg
-
-
-def design_statistics(
-    snr_db: ArrayLike, *, n_looks: int = 1, noise_mean: float = 1.0
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Mean ``C`` and standard deviation ``O`` of the amplitude estimate at design SNRs.
-
-    The amplitude estimate is the tracker's cell power minus the noise mean; its statistics follow
-    from the cell power statistics of the tracker (mean ``noise_mean (1 + s)``, standard deviation
-    ``noise_mean sqrt((1 + 2 s) / L)`` for ``L`` averaged looks, SNR ``s`` linear).
-
-    Parameters
-    ----------
-    snr_db : float or array_like, shape (m,)
-        Per-cell SNRs, dB.
-    n_looks : int, optional
-        Independent looks averaged in one cell of the spectra.
-    noise_mean : float, optional
-        Noise mean of the normalised power (1 for normalised spectra).
-
-    Returns
-    -------
-    C : ndarray, shape (m,)
-        Means of the amplitude estimate (power above the noise mean), linear.
-    O : ndarray, shape (m,)
-        Standard deviations, linear.
-    """
-    mean, std = cell_power_statistics(snr_db, n_looks=n_looks, noise_mean=noise_mean)
-    return np.atleast_1d(mean - noise_mean), np.atleast_1d(std)
-
-
-def tqi_transition(
-    previous: ArrayLike,
-    sllr0: ArrayLike,
-    sllr1: ArrayLike,
-    residual_high: ArrayLike,
-    *,
-    tl: float = -3.5,
-    tu: float = 1.75,
-    ts: float = 7.0,
-    lh: float = 1.5,
-    sh: float = 2.0,
-) -> NDArray[np.int8]:
-    """One step of the hysteresis flow, steps 102-132 of the TQI method, for many trackers.
-
-    Parameters
-    ----------
-    previous : array_like of int, shape (n,)
-        ``TQI(k-1)``: a :class:`TrackQuality` code, or :data:`START` before the first update.
-    sllr0, sllr1 : array_like, shape (n,)
-        ``SLLR_0(k)`` and ``SLLR_1(k)``.
-    residual_high : array_like of bool, shape (n,)
-        Whether the smoothed residual exceeds ``ERR_max`` (step 122).
-    tl, tu, ts : float, optional
-        Lost (``TL``) and uncertain (``TU``) thresholds of ``SLLR_0``, strong threshold (``TS``)
-        of ``SLLR_1``.
-    lh, sh : float, optional
-        Low-SNR and strong-SNR hysteresis constants (``LH``, ``SH``); 0 gives single thresholds.
-
-    Returns
-    -------
-    ndarray of int8, shape (n,)
-        ``TQI(k)`` codes.
-
-    Notes
-    -----
-    Step 102/104/110: lost if ``SLLR_0 <= TL + LH`` after a lost track, ``SLLR_0 <= TL``
-    otherwise. Step 108/112: after an uncertain or lost track, uncertain if
-    ``SLLR_0 < TU + LH``; step 116/118: after a low-SNR or strong track, uncertain if
-    ``SLLR_0 < TU``. Step 122: uncertain if ``|ES| > ERR_max``. Step 124/126/132: strong if
-    ``SLLR_1 >= TS - SH`` after a strong track, ``SLLR_1 >= TS + SH`` otherwise; else low SNR.
-    :data:`START` falls through every "no" branch.
-    """
-    prev = np.asarray(previous)
-    s0 = np.asarray(sllr0, dtype=float)
-    s1 = np.asarray(sllr1, dtype=float)
-    high = np.asarray(residual_high, dtype=bool)
-    was_lost = prev == TrackQuality.LOST
-    # steps 102, 104, 110
-    lost = np.where(was_lost, s0 <= tl + lh, s0 <= tl)
-    # steps 108, 112 / 116, 118 (START and unknown codes skip both tests)
-    was_weak = was_lost | (prev == TrackQuality.UNCERTAIN)
-    was_good = (prev == TrackQuality.LOW_SNR) | (prev == TrackQuality.STRONG)
-    uncertain = (was_weak & (s0 < tu + lh)) | (was_good & (s0 < tu))
-    # step 122
-    uncertain |= high
-    # steps 124, 126, 132
-    strong = np.where(prev == TrackQuality.STRONG, s1 >= ts - sh, s1 >= ts + sh)
-    out = np.where(
-        lost,
-        TrackQuality.LOST,
-        np.where(uncertain, TrackQuality.UNCERTAIN,
-                 np.where(strong, TrackQuality.STRONG, TrackQuality.LOW_SNR)),
-    )
-    return out.astype(np.int8)
-
-
-@dataclass(frozen=True)
-class TQIMemory:
-    """What the TQI carries from one update to the next, per tracker.
-
-    Attributes
-    ----------
-    state : ndarray of int8, shape (n,)
-        ``TQI(k)`` codes (:data:`START` before the first update).
-    sllr0, sllr1 : ndarray, shape (n,)
-        ``SLLR_0(k)``, ``SLLR_1(k)``.
-    residual_deg : ndarray, shape (n,)
-        Smoothed error residual ``ES(k)``, deg.
-    residual_var : ndarray, shape (n,)
-        Smoothed squared deviation of the raw residual from ``ES``, deg^2.
-    snr : ndarray, shape (n,)
-        Smoothed amplitude estimate (linear SNR estimate in the cell).
-    err_max_deg : ndarray, shape (n,)
-        Residual threshold ``n KE / (2 Omega) + T_err SRESVAR`` of the last update, deg.
-    """
-
-    state: NDArray[np.int8]
-    sllr0: NDArray[np.float64]
-    sllr1: NDArray[np.float64]
-    residual_deg: NDArray[np.float64]
-    residual_var: NDArray[np.float64]
-    snr: NDArray[np.float64]
-    err_max_deg: NDArray[np.float64]
-
-    @property
-    def n_tracks(self) -> int:
-        """Number of trackers."""
-        return int(self.state.shape[0])
-
-
-@dataclass(frozen=True)
-class TQIHistory:
-    """TQI of many trackers over many updates (rows: updates, columns: trackers).
-
-    Attributes
-    ----------
-    state : ndarray of int8, shape (n_updates, n_tracks)
-        :class:`TrackQuality` codes (:data:`START` where a tracker has not yet been updated).
-    sllr0, sllr1 : ndarray, shape (n_updates, n_tracks)
-        Summed log likelihood ratios after each update.
-    residual_deg : ndarray, shape (n_updates, n_tracks)
-        Smoothed error residual ``ES``, deg.
-    err_max_deg : ndarray, shape (n_updates, n_tracks)
-        Residual threshold in degrees (``|ES|`` above it means uncertain).
-    """
-
-    state: NDArray[np.int8]
-    sllr0: NDArray[np.float64]
-    sllr1: NDArray[np.float64]
-    residual_deg: NDArray[np.float64]
-    err_max_deg: NDArray[np.float64]
-
-    def labels(self) -> NDArray[np.str_]:
-        """State names (``lost`` ...); ``""`` where no state exists yet."""
-        out = np.full(self.state.shape, "", dtype=LABELS.dtype)
-        ok = self.state >= 0
-        out[ok] = LABELS[self.state[ok]]
-        return out
-
-    def n_changes(self) -> NDArray[np.int64]:
-        """Number of state changes per tracker, shape (n_tracks,)."""
-        s = self.state
-        return np.sum((s[1:] != s[:-1]) & (s[:-1] >= 0), axis=0)
 
 
 class TrackQualityIndicator:
