@@ -1,0 +1,373 @@
+"""The streaming crossing detector: window ladder, confirmation and alert de-duplication.
+
+:class:`CrossingDetector` is the streaming component of *Target Track Crossing
+Prediction/Detection* (blocks 104A-104E, output 106): each :meth:`CrossingDetector.step` updates
+the tracks' sliding window fits, evaluates equation (2) and inequalities (3)/(4) for the pairs
+within reach and raises the alerts. Importable from :mod:`fusion.passive.crossing` too, which
+holds the batch entry point :func:`~fusion.passive.crossing.detect_crossings`.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from fusion.passive.crossing_pairs import pair_intervals, pairs_in_reach
+from fusion.passive.crossing_types import AlertKind, CrossingAlert
+from fusion.passive.line_fit import LineStats, SlidingLineFit
+
+__all__ = ["CrossingDetector"]
+
+logger = logging.getLogger(__name__)
+
+
+@dataclass
+class _Events:
+    """Open crossing events, one row per pair, sorted by pair key (internal, mutable).
+
+    ``key = slot_a * 2**32 + slot_b`` with the tracks' storage slots; ``t_cross``, ``low``,
+    ``high`` are the latest crossing time and interval seen for the event; ``predicted`` and
+    ``detected`` say which alerts the event has raised.
+    """
+
+    key: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, np.int64))
+    t_cross: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
+    low: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
+    high: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
+    predicted: NDArray[np.bool_] = field(default_factory=lambda: np.zeros(0, bool))
+    detected: NDArray[np.bool_] = field(default_factory=lambda: np.zeros(0, bool))
+
+    _COLUMNS = ("key", "t_cross", "low", "high", "predicted", "detected")
+
+    def keep(self, index: NDArray) -> None:
+        for name in self._COLUMNS:
+            setattr(self, name, getattr(self, name)[index])
+
+    def append(self, **cols: NDArray) -> None:
+        for name in self._COLUMNS:
+            setattr(self, name, np.concatenate([getattr(self, name), cols[name]]))
+        self.keep(np.argsort(self.key, kind="stable"))
+
+
+@dataclass(frozen=True)
+class _Hits:
+    """Pairs that satisfied an inequality at one sample, with their intervals (internal)."""
+
+    a: NDArray[np.int64]
+    b: NDArray[np.int64]
+    t_cross: NDArray[np.float64]
+    low: NDArray[np.float64]
+    high: NDArray[np.float64]
+    predicted: NDArray[np.bool_]
+    window_s: NDArray[np.float64]
+
+
+class CrossingDetector:
+    """Streaming crossing prediction and detection for many bearing tracks.
+
+    Parameters
+    ----------
+    J : int, optional
+        Samples in each track's least-squares window (> 2; the method text suggests at
+        least 10).
+    K : float
+        Sample period, s: `step` is called every K seconds.
+    horizon_s : float, optional
+        Prediction horizon: inequality (3) becomes ``t_i < t_c <= t_i + horizon_s`` (default
+        ``J K``, the method's form).
+    min_rate_diff_deg_per_s : float, optional
+        In-range check: pairs whose bearing rates differ by this much or less are treated as
+        parallel and never alert (default 1e-9 deg/s: only numerically equal rates).
+    merge_window_s : float, optional
+        De-duplication window, s (default ``J K``; see Notes).
+    max_gap_s : float, optional
+        A track silent for longer than this restarts its windows (default ``3 K``).
+    n_windows : int, optional
+        Length of the window ladder: windows of ``J, 2 J, ..., 2^(n_windows - 1) J`` samples
+        (default 1, the method's single window).
+    level : float or None, optional
+        Confidence level of the crossing-time intervals (default 0.95); None computes no
+        interval and raises every alert the inequalities give (the method text alone; the
+        ladder is then not used).
+    max_interval_s : float, optional
+        An alert needs an interval no wider than this, s (default `horizon_s`).
+    lead_windows : float, optional
+        Predictions from a window reach at most this many window spans ahead (default 1, the
+        method's ``t_c <= t_i + J K`` for each window; never beyond `horizon_s`).
+    confirm : int, optional
+        An alert needs its pair to satisfy an inequality (resolved) at this many samples in a
+        row (default 1, the method's rule).
+
+    Notes
+    -----
+    Per sample (*Target Track Crossing Prediction/Detection*, FIG. 2): each reported track's
+    window lines are updated (104A, :class:`SlidingLineFit`); equation (2), the in-range check
+    (104C) and inequalities (3) and (4) (104D, 104E) are evaluated for the pairs of tracks with
+    full windows, with the current sample time ``t_i`` in place of ``i K``.
+
+    Intervals and the window ladder (not in the method text): the crossing time gets Fieller's
+    interval from the two fits' covariance (:func:`~fusion.passive.crossing_pairs.pair_intervals`;
+    the noise is each window's residual variance, so nothing about the noise needs to be
+    known). A pair is *resolved* on a window when its interval is bounded (the bearing-rate
+    difference exceeds its uncertainty) and no wider than `max_interval_s`. Each pair is judged
+    on the shortest window that resolves it; pairs resolved on none raise no alert. Inequality
+    (4) then reads ``t_i - W <= t_c <= t_i`` with ``W`` the span of the window used.
+
+    De-duplication (the method text raises an alert whenever an inequality holds, which would
+    repeat it at up to J consecutive samples): each pair keeps its current crossing *event*,
+    identified by the latest ``t_c`` and interval seen for it. A satisfied inequality whose
+    ``t_c`` lies within `merge_window_s` of the event's, or whose interval overlaps the
+    event's, belongs to that event (and updates it); otherwise it opens a new event. Per event
+    at most one ``predicted`` alert (only before any ``detected`` alert of the event) and at
+    most one ``detected`` alert are issued.
+
+    Examples
+    --------
+    >>> det = CrossingDetector(J=5, K=1.0)
+    >>> alerts = []
+    >>> for i in range(12):
+    ...     alerts += det.step(float(i), [1, 2], [0.5 * i, 8.0 - 0.5 * i])
+    >>> [(a.kind.value, a.t_cross) for a in alerts]
+    [('predicted', 8.0), ('detected', 8.0)]
+    """
+
+    def __init__(
+        self,
+        *,
+        J: int = 10,
+        K: float,
+        horizon_s: float | None = None,
+        min_rate_diff_deg_per_s: float = 1e-9,
+        merge_window_s: float | None = None,
+        max_gap_s: float | None = None,
+        n_windows: int = 1,
+        level: float | None = 0.95,
+        max_interval_s: float | None = None,
+        lead_windows: float = 1.0,
+        confirm: int = 1,
+    ) -> None:
+        if int(J) != J or J < 3:
+            raise ValueError(f"J (samples per window) must be an integer > 2, got {J!r}")
+        if not (np.isfinite(K) and K > 0):
+            raise ValueError(f"K (sample period) must be > 0 s, got {K!r}")
+        for name, v in (("horizon_s", horizon_s), ("merge_window_s", merge_window_s),
+                        ("max_gap_s", max_gap_s), ("max_interval_s", max_interval_s)):
+            if v is not None and not (np.isfinite(v) and v > 0):
+                raise ValueError(f"{name} must be > 0, got {v!r}")
+        if not (np.isfinite(min_rate_diff_deg_per_s) and min_rate_diff_deg_per_s >= 0):
+            raise ValueError(f"min_rate_diff_deg_per_s must be >= 0, got {min_rate_diff_deg_per_s!r}")
+        if int(n_windows) != n_windows or n_windows < 1:
+            raise ValueError(f"n_windows must be a positive integer, got {n_windows!r}")
+        if not (np.isfinite(lead_windows) and lead_windows > 0):
+            raise ValueError(f"lead_windows must be > 0, got {lead_windows!r}")
+        if level is not None and not 0.0 < level < 1.0:
+            raise ValueError(f"level must lie in (0, 1), got {level!r}")
+        self.J = int(J)
+        self.K = float(K)
+        self.horizon_s = self.J * self.K if horizon_s is None else float(horizon_s)
+        self.min_rate_diff_rad_per_s = float(np.radians(min_rate_diff_deg_per_s))
+        self.merge_window_s = self.J * self.K if merge_window_s is None else float(merge_window_s)
+        self.max_gap_s = 3.0 * self.K if max_gap_s is None else float(max_gap_s)
+        self.level = None if level is None else float(level)
+        self.n_windows = int(n_windows) if self.level is not None else 1
+        self.max_interval_s = self.horizon_s if max_interval_s is None else float(max_interval_s)
+        self.lead_windows = float(lead_windows)
+        if int(confirm) != confirm or confirm < 1:
+            raise ValueError(f"confirm must be a positive integer, got {confirm!r}")
+        self.confirm = int(confirm)
+        self.reset()
+
+    @property
+    def windows(self) -> tuple[int, ...]:
+        """Samples in each window of the ladder, shortest first."""
+        return tuple(self.J * 2**k for k in range(self.n_windows))
+
+    def reset(self) -> None:
+        """Forget every track and event."""
+        self._fits = tuple(SlidingLineFit(window=w, max_gap_s=self.max_gap_s)
+                           for w in self.windows)
+        self._events = _Events()
+        self._last_time = -np.inf
+        self._streak_key = np.zeros(0, np.int64)  # pairs hit at the previous sample ...
+        self._streak_count = np.zeros(0, np.int64)  # ... and for how many samples in a row
+
+    @property
+    def fit(self) -> SlidingLineFit:
+        """The per-track fits of the J-sample window (read them, do not update them)."""
+        return self._fits[0]
+
+    @property
+    def fits(self) -> tuple[SlidingLineFit, ...]:
+        """The per-track fits of every window of the ladder, shortest first."""
+        return self._fits
+
+    def step(
+        self, time: float, track_ids: ArrayLike, bearings_deg: ArrayLike
+    ) -> list[CrossingAlert]:
+        """Process the bearings of one sample and return the new alerts.
+
+        Parameters
+        ----------
+        time : float
+            Sample time, s; strictly increasing from call to call (every K s).
+        track_ids : array_like of int, shape (n,)
+            Distinct ids of the tracks reported at this sample (negative ids, detections of
+            unknown origin, are ignored).
+        bearings_deg : array_like, shape (n,)
+            Their bearings, deg (any wrap).
+
+        Returns
+        -------
+        list of CrossingAlert
+            Alerts raised at this sample, sorted by track pair.
+        """
+        t = float(time)
+        if not np.isfinite(t):
+            raise ValueError(f"time must be finite, got {time!r}")
+        if t <= self._last_time:
+            raise ValueError(f"time {t} is not after the previous step ({self._last_time})")
+        ids = np.asarray(track_ids)
+        bdeg = np.asarray(bearings_deg, dtype=float)
+        if ids.ndim != 1 or ids.shape != bdeg.shape:
+            raise ValueError("track_ids and bearings_deg must be 1-D arrays of one length")
+        if ids.size and not np.issubdtype(ids.dtype, np.integer):
+            if not np.all(np.isfinite(ids.astype(float))) or np.any(ids != np.round(ids)):
+                raise ValueError("track_ids must be integers")
+            ids = ids.astype(np.int64)
+        if not np.all(np.isfinite(bdeg)):
+            raise ValueError("bearings_deg must be finite")
+        keep = ids >= 0
+        ids, bdeg = ids[keep], bdeg[keep]
+        if np.unique(ids).size != ids.size:
+            raise ValueError(f"duplicate track ids at time {t}")
+        self._last_time = t
+        order = np.argsort(ids, kind="stable")
+        ids, bdeg = ids[order], bdeg[order]
+        for fit in self._fits:
+            fit.update(ids, t, np.radians(bdeg))
+        self._prune(t)
+        hits = self._confirmed(self._hits(t, ids))
+        return self._alerts(t, hits)
+
+    def _confirmed(self, h: _Hits) -> _Hits:
+        """Hits of pairs that satisfied an inequality at `confirm` samples in a row."""
+        fit = self._fits[0]
+        key = fit.slots(h.a) * (1 << 32) + fit.slots(h.b)
+        pos = np.searchsorted(self._streak_key, key)
+        pos_ok = np.minimum(pos, max(self._streak_key.size - 1, 0))
+        seen = (pos < self._streak_key.size) & (self._streak_key[pos_ok] == key) \
+            if self._streak_key.size else np.zeros(key.size, bool)
+        count = np.where(seen, self._streak_count[pos_ok] + 1 if self._streak_key.size else 1, 1)
+        order = np.argsort(key, kind="stable")
+        self._streak_key, self._streak_count = key[order], count[order]
+        if self.confirm <= 1:
+            return h
+        keep = count >= self.confirm
+        return _Hits(*(getattr(h, f)[keep] for f in (
+            "a", "b", "t_cross", "low", "high", "predicted", "window_s")))
+
+    # -- pairs -------------------------------------------------------------------------------
+    def _judge(
+        self, st: LineStats, ia: NDArray[np.int64], ib: NDArray[np.int64]
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
+        """Crossing time, interval and resolved flag of pairs on one window of the ladder."""
+        tau, low, high, ok = pair_intervals(ia, ib, st.value, st, level=self.level)
+        ok &= (high - low) <= self.max_interval_s
+        return tau, low, high, ok
+
+    def _hits(self, t: float, ids: NDArray[np.int64]) -> _Hits:
+        """Pairs satisfying an inequality on the shortest window that resolves them."""
+        parts: list[tuple] = []
+        stats: list[LineStats] = []
+        for level, (fit, J) in enumerate(zip(self._fits, self.windows, strict=True)):
+            st = fit.stats(ids, t)
+            stats.append(st)
+            sel = np.flatnonzero(st.n >= J)
+            if sel.size < 2:
+                break
+            span = J * self.K
+            lead = min(self.horizon_s, self.lead_windows * span)
+            ia, ib, tau = pairs_in_reach(
+                st.value[sel], st.slope[sel], reach_s=lead,
+                min_rate_diff_rad_per_s=self.min_rate_diff_rad_per_s)
+            ia, ib = sel[ia], sel[ib]  # positions among `ids`
+            if self.level is None:
+                low = high = np.full(tau.size, np.nan)
+                ok = np.ones(tau.size, bool)
+            else:
+                tau, low, high, ok = self._judge(st, ia, ib)
+                for lower in range(level):  # judged on the shortest window that resolves it
+                    ok &= ~self._judge(stats[lower], ia, ib)[3]
+            with np.errstate(invalid="ignore"):
+                pred = ok & (tau > 0.0) & (tau <= lead)  # inequality (3)
+                det = ok & (tau >= -min(span, lead)) & (tau <= 0.0)  # inequality (4)
+            k = np.flatnonzero(pred | det)
+            parts.append((ids[ia[k]], ids[ib[k]], t + tau[k], t + low[k], t + high[k], pred[k],
+                          np.full(k.size, span)))
+        if not parts:
+            z = np.zeros(0)
+            return _Hits(np.zeros(0, np.int64), np.zeros(0, np.int64), z, z, z,
+                         np.zeros(0, bool), z)
+        cols = [np.concatenate(c) for c in zip(*parts, strict=True)]
+        srt = np.lexsort((cols[1], cols[0]))
+        return _Hits(*(c[srt] for c in cols))
+
+    # -- events ------------------------------------------------------------------------------
+    def _prune(self, t: float) -> None:
+        """Drop events no later ``t_c`` can join (older than the longest window + merge window)."""
+        limit = t - self.windows[-1] * self.K - self.merge_window_s
+        ev = self._events
+        if ev.key.size:
+            latest = np.fmax(ev.t_cross, ev.high)
+            if latest.min() < limit:
+                ev.keep(latest >= limit)
+
+    def _alerts(self, t: float, h: _Hits) -> list[CrossingAlert]:
+        """Apply the de-duplication rule to the pairs that satisfied an inequality."""
+        if h.a.size == 0:
+            return []
+        fit = self._fits[0]
+        key = fit.slots(h.a) * (1 << 32) + fit.slots(h.b)
+        ev = self._events
+        pos = np.searchsorted(ev.key, key)
+        found = pos < ev.key.size
+        found[found] = ev.key[pos[found]] == key[found]
+        pf = pos[found]
+        same = np.zeros(key.size, bool)
+        near = np.abs(h.t_cross[found] - ev.t_cross[pf]) <= self.merge_window_s
+        overlap = (h.low[found] <= ev.high[pf]) & (h.high[found] >= ev.low[pf])  # NaN: False
+        same[found] = near | overlap
+        old_pred = np.zeros(key.size, bool)
+        old_det = np.zeros(key.size, bool)
+        old_pred[found] = ev.predicted[pf]
+        old_det[found] = ev.detected[pf]
+        old_pred &= same  # a new event starts with no alerts
+        old_det &= same
+        emit_pred = h.predicted & ~old_pred & ~old_det
+        emit_det = ~h.predicted & ~old_det
+        # Existing rows: the event (same or replaced) takes the latest t_c, interval and flags.
+        ev.t_cross[pf] = h.t_cross[found]
+        ev.low[pf] = h.low[found]
+        ev.high[pf] = h.high[found]
+        ev.predicted[pf] = (old_pred | emit_pred)[found]
+        ev.detected[pf] = (old_det | emit_det)[found]
+        new = ~found
+        if np.any(new):
+            ev.append(key=key[new], t_cross=h.t_cross[new], low=h.low[new], high=h.high[new],
+                      predicted=emit_pred[new], detected=emit_det[new])
+        emit = np.flatnonzero(emit_pred | emit_det)
+        kind_of = (AlertKind.PREDICTED, AlertKind.DETECTED)
+        out = [
+            CrossingAlert(t, ta, tb, tc, kind_of[k], lo, hi, w)
+            for ta, tb, tc, k, lo, hi, w in zip(
+                h.a[emit].tolist(), h.b[emit].tolist(), h.t_cross[emit].tolist(),
+                np.where(emit_pred[emit], 0, 1).tolist(), h.low[emit].tolist(),
+                h.high[emit].tolist(), h.window_s[emit].tolist(), strict=True)
+        ]
+        if out:
+            logger.debug("t=%.3f: %d crossing alert(s)", t, len(out))
+        return out
+
