@@ -2,18 +2,19 @@
 
 Equation (2) of *Target Track Crossing Prediction/Detection* (block 104B), the in-range check
 (104C) and inequalities (3) and (4) (104D, 104E), for all pairs of tracks at once on numpy pair
-arrays. With the covariance of each track's window fit (:class:`fusion.passive.line_fit.LineStats`)
-each crossing time also gets a confidence interval (:func:`crossing_time_interval`).
+arrays. Equation (2) itself is :func:`fusion.passive.crossing_time.crossing_time_terms`, the one
+copy in the code base. With the covariance of each track's window fit
+(:class:`fusion.passive.line_fit.LineStats`) each crossing time also gets a confidence interval
+(:func:`~fusion.passive.crossing_interval.crossing_time_interval`, importable from here too).
 """
 
 from __future__ import annotations
 
-from functools import lru_cache
-
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy import stats as _stats
 
+from fusion.passive.crossing_interval import crossing_time_interval, t_quantile, welch_dof
+from fusion.passive.crossing_time import crossing_time_terms
 from fusion.passive.crossing_types import PairCheck
 from fusion.passive.line_fit import LineStats
 
@@ -27,7 +28,6 @@ __all__ = [
 ]
 
 _TWO_PI = 2.0 * np.pi
-_MAX_DOF = 1000
 
 
 def _wrap(a: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -81,87 +81,6 @@ def _candidate_pairs(
     return np.minimum(i, j), np.maximum(i, j)
 
 
-@lru_cache(maxsize=8)
-def _t_table(level: float) -> NDArray[np.float64]:
-    """Two-sided Student-t quantiles at `level` for 0 .. _MAX_DOF degrees of freedom."""
-    dof = np.arange(_MAX_DOF + 1, dtype=float)
-    q = _stats.t.ppf(0.5 + level / 2.0, np.maximum(dof, 1.0))
-    q[-1] = _stats.norm.ppf(0.5 + level / 2.0)  # the last entry stands for many
-    return q
-
-
-def t_quantile(level: float, dof: ArrayLike) -> NDArray[np.float64]:
-    """Two-sided Student-t quantile ``t_{(1 + level)/2}(dof)``, with `dof` rounded down.
-
-    Parameters
-    ----------
-    level : float
-        Confidence level in (0, 1).
-    dof : array_like
-        Degrees of freedom (>= 1; rounded down, so the quantile errs wide; above 1000 the
-        normal quantile).
-
-    Returns
-    -------
-    ndarray
-        Quantiles, same shape as `dof`.
-    """
-    if not 0.0 < level < 1.0:
-        raise ValueError(f"level must lie in (0, 1), got {level!r}")
-    d = np.clip(np.floor(np.nan_to_num(np.asarray(dof, dtype=float), nan=1.0)), 1, _MAX_DOF)
-    return _t_table(float(level))[d.astype(np.int64)]
-
-
-def crossing_time_interval(
-    d0: ArrayLike, d1: ArrayLike, v00: ArrayLike, v01: ArrayLike, v11: ArrayLike, q: ArrayLike
-) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
-    """Fieller confidence interval of the root of a fitted line ``d(tau) = d0 + d1 tau``.
-
-    Parameters
-    ----------
-    d0, d1 : array_like, shape (p,)
-        Bearing difference of the two tracks at the current sample (rad) and its rate
-        (rad/s): the root ``tau = -d0 / d1`` is the crossing time relative to the sample, s.
-    v00, v01, v11 : array_like, shape (p,)
-        Variance of `d0`, covariance of `d0` and `d1`, variance of `d1`.
-    q : array_like, shape (p,) or scalar
-        Quantile of the interval (Student-t or normal).
-
-    Returns
-    -------
-    low, high : ndarray, shape (p,)
-        Interval bounds relative to the sample, s (``-inf``, ``inf`` where unbounded).
-    bounded : ndarray of bool, shape (p,)
-        Whether the rate difference is resolved (``d1^2 > q^2 v11``): only then is the set
-        an interval.
-
-    Notes
-    -----
-    The interval is the set of ``tau`` at which the fitted difference is within `q` standard
-    deviations of zero, ``(d0 + d1 tau)^2 <= q^2 (v00 + 2 tau v01 + tau^2 v11)``: the
-    quadratic ``A tau^2 + 2 B tau + C <= 0`` with ``A = d1^2 - q^2 v11``,
-    ``B = d0 d1 - q^2 v01`` and ``C = d0^2 - q^2 v00``. Unlike the delta method it stays
-    honest when the rate difference is small against its error (the interval then becomes
-    wide or unbounded rather than wrong). For noise-free lines it shrinks to the root.
-
-    Examples
-    --------
-    >>> lo, hi, ok = crossing_time_interval([1.0], [-0.1], [0.0], [0.0], [0.0], 2.0)
-    >>> float(lo[0]), float(hi[0]), bool(ok[0])
-    (10.0, 10.0, True)
-    """
-    d0, d1 = np.asarray(d0, dtype=float), np.asarray(d1, dtype=float)
-    q2 = np.asarray(q, dtype=float) ** 2
-    a = d1 * d1 - q2 * np.asarray(v11, dtype=float)
-    b = d0 * d1 - q2 * np.asarray(v01, dtype=float)
-    c = d0 * d0 - q2 * np.asarray(v00, dtype=float)
-    bounded = a > 0
-    root = np.sqrt(np.maximum(b * b - a * c, 0.0))
-    a_ok = np.where(bounded, a, 1.0)
-    low = np.where(bounded, (-b - root) / a_ok, -np.inf)
-    high = np.where(bounded, (-b + root) / a_ok, np.inf)
-    return low, high, bounded
-
 
 def pairs_in_reach(
     bearing_rad: NDArray[np.float64],
@@ -191,10 +110,7 @@ def pairs_in_reach(
     b = _wrap(bearing_rad)
     r = rate_rad_per_s
     ia, ib = _candidate_pairs(b, r, reach_s)
-    num = b[ib] - b[ia]  # B0_b - B0_a at the current sample, in (-2 pi, 2 pi)
-    num -= _TWO_PI * (num >= np.pi)
-    num += _TWO_PI * (num < -np.pi)  # now wrapped to [-pi, pi)
-    den = r[ia] - r[ib]  # B'_a - B'_b
+    num, den = crossing_time_terms(b[ia], r[ia], b[ib], r[ib])  # wrap(B0_b - B0_a), B'_a - B'_b
     # 104C in-range check, division-free: |t_c - t_i| <= reach and tracks not parallel.
     keep = np.abs(num) <= reach_s * np.abs(den)
     keep &= np.abs(den) > min_rate_diff_rad_per_s
@@ -238,14 +154,13 @@ def pair_intervals(
     """
     b = _wrap(bearing_rad)
     r = stats.slope
-    d0 = b[index_b] - b[index_a]
-    d0 = d0 - _TWO_PI * (d0 >= np.pi) + _TWO_PI * (d0 < -np.pi)  # wrapped to [-pi, pi)
-    d1 = r[index_b] - r[index_a]
+    num, den = crossing_time_terms(b[index_a], r[index_a], b[index_b], r[index_b])
+    d0, d1 = num, -den  # the difference line B_b - B_a: value at the sample (rad), rate (rad/s)
     va, vb = stats.var_slope[index_a], stats.var_slope[index_b]
     v11 = va + vb
-    dof = _welch_dof(va, vb, stats.n[index_a] - 2.0, stats.n[index_b] - 2.0)
+    dof = welch_dof(va, vb, stats.n[index_a] - 2.0, stats.n[index_b] - 2.0)
     with np.errstate(invalid="ignore", divide="ignore"):
-        tau = np.where(d1 != 0, -d0 / np.where(d1 != 0, d1, 1.0), np.inf)
+        tau = np.where(den != 0, num / np.where(den != 0, den, 1.0), np.inf)  # equation (2)
     q = t_quantile(level, dof)
     low, high, bounded = crossing_time_interval(
         d0, d1, stats.var_value[index_a] + stats.var_value[index_b],
@@ -253,13 +168,6 @@ def pair_intervals(
     bounded &= np.isfinite(low) & np.isfinite(high)
     return tau, low, high, bounded
 
-
-def _welch_dof(var_a, var_b, dof_a, dof_b):
-    """Welch-Satterthwaite degrees of freedom of a sum of two variance estimates."""
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return np.where(var_a + var_b > 0,
-                        (var_a + var_b) ** 2 / (var_a * var_a / dof_a + var_b * var_b / dof_b),
-                        np.minimum(dof_a, dof_b))
 
 
 def evaluate_pairs(
