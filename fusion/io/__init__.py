@@ -30,8 +30,16 @@ some track is out of order, announced by one warning; rows already in order keep
 order) and refuse two rows of one track at the same time -- the algorithms are defined on
 time-ordered samples with distinct times. Detections are put in ``event`` order the same way.
 
+Chunked reading: :func:`iter_table` yields a CSV file's rows in chunks
+(:class:`~fusion.io.tables.TableChunk`) with the checks of :func:`read_table`, and
+:func:`write_table_chunks` writes chunks as they come, atomically; :func:`iter_amplitudes`,
+:func:`iter_bearings` and :func:`iter_detections` (:mod:`~fusion.io.table_stream`) are the
+chunked readers of those kinds, which raise :class:`RowOrderError` where the whole-file reader
+would sort (callers then read the whole file).
+
 Modules, one file kind each: :mod:`~fusion.io.tables` (CSV read and write),
-:mod:`~fusion.io.table_kinds` (the named CSV kinds), :mod:`~fusion.io.json_files`,
+:mod:`~fusion.io.table_kinds` (the named CSV kinds), :mod:`~fusion.io.table_stream`
+(the chunked readers of time series), :mod:`~fusion.io.json_files`,
 :mod:`~fusion.io.arrays` (``array.json``), :mod:`~fusion.io.audio` (WAV/FLAC),
 :mod:`~fusion.io.cubes` (``.npz`` cubes), :mod:`~fusion.io.results` (localization results). The
 data types the readers return, :class:`~fusion.types.Table` and :class:`~fusion.types.Cube`, live
@@ -76,7 +84,14 @@ from fusion.io.table_kinds import (
     read_tqi,
     read_tracks,
 )
-from fusion.io.tables import read_table, write_table
+from fusion.io.table_stream import (
+    RowOrderError,
+    TimeOrderCheck,
+    iter_amplitudes,
+    iter_bearings,
+    iter_detections,
+)
+from fusion.io.tables import TableChunk, iter_table, read_table, write_table, write_table_chunks
 from fusion.types import Cube, Table
 
 __all__ = [
@@ -96,6 +111,14 @@ __all__ = [
     "Table",
     "atomic_output",
     "iter_audio_blocks",
+    "iter_amplitudes",
+    "iter_bearings",
+    "iter_detections",
+    "iter_table",
+    "RowOrderError",
+    "TableChunk",
+    "TimeOrderCheck",
+    "write_table_chunks",
     "read_amplitudes",
     "read_array",
     "read_audio",

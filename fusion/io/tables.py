@@ -9,7 +9,8 @@ from __future__ import annotations
 
 import csv
 import math
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Iterable, Iterator, Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -29,7 +30,7 @@ from fusion.io._files import (
 )
 from fusion.types import Table
 
-__all__ = ["Table", "read_table", "write_table"]
+__all__ = ["Table", "TableChunk", "iter_table", "read_table", "write_table", "write_table_chunks"]
 
 
 def _csv_lines(p: Path, fh: Any) -> Iterator[str]:
@@ -112,6 +113,147 @@ def _numbers(
     raise AssertionError("a bad cell was expected")  # pragma: no cover
 
 
+@dataclass(frozen=True)
+class TableChunk:
+    """Consecutive data rows of a CSV file, as read by :func:`iter_table`.
+
+    Attributes
+    ----------
+    table : Table
+        The chunk's columns (as :func:`read_table` would return them for these rows).
+    start_row : int
+        Index of the chunk's first row among the file's data rows (0 for the first chunk).
+    lines : ndarray of int64, shape (n_rows,)
+        Line number in the file of each row (1-based, the header is a line), for messages.
+    """
+
+    table: Table
+    start_row: int
+    lines: NDArray[np.int64]
+
+    def __len__(self) -> int:
+        return len(self.lines)
+
+
+def iter_table(
+    path: PathLike,
+    *,
+    required: Sequence[str],
+    optional: Sequence[str] = (),
+    integer: Sequence[str] = (),
+    text: Sequence[str] = (),
+    max_abs: float | None = MAX_ABS_VALUE,
+    rows_per_chunk: int = _ROWS_PER_CHUNK,
+) -> Iterator[TableChunk]:
+    """Read a CSV file with a header line in chunks of rows, validating as :func:`read_table`.
+
+    Parameters
+    ----------
+    path : path-like
+        CSV file (limits as in :func:`read_table`). A missing file, a folder or a file over
+        the size limit is refused at the call; everything else while iterating.
+    required, optional, integer, text, max_abs
+        As in :func:`read_table`.
+    rows_per_chunk : int, optional
+        Rows per chunk (default 65,536: the chunks :func:`read_table` validates one at a time,
+        so both report the same first bad cell of a file).
+
+    Yields
+    ------
+    TableChunk
+        Consecutive rows in file order; the last chunk may be shorter. Memory is bounded by
+        one chunk (its cells as text and as numbers), whatever the file's length.
+
+    Raises
+    ------
+    FileNotFoundError, ValueError
+        As :func:`read_table`, with the same messages: header problems (empty file, missing
+        column) at the first chunk, a bad cell or row with the chunk that holds it, ``no data
+        rows`` when the file ends without one. A consumer that writes as it reads must
+        therefore write atomically (:func:`fusion.io.atomic_output`) so that bad input late
+        in the file leaves no partial output.
+
+    Notes
+    -----
+    Only the rows' own content is checked here. Checks across rows (time order, repeated
+    times) are the reader of each file kind's (:mod:`fusion.io.table_stream`); a chunked reader
+    cannot sort, so it refuses rows out of order where the whole-file reader sorts them.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> f = pathlib.Path(tempfile.mkdtemp()) / "t.csv"
+    >>> _ = f.write_text("time,x\\n0,1\\n1,2\\n2,3\\n")
+    >>> [c.table["x"].tolist() for c in iter_table(f, required=("time", "x"), rows_per_chunk=2)]
+    [[1.0, 2.0], [3.0]]
+    """
+    if int(rows_per_chunk) != rows_per_chunk or rows_per_chunk < 1:
+        raise ValueError(f"rows_per_chunk must be a positive integer, got {rows_per_chunk!r}")
+    p = _check_file(path, max_bytes=MAX_CSV_BYTES, what="CSV inputs")
+    return _chunks(p, required=tuple(required), optional=tuple(optional),
+                   integer=frozenset(integer), text=frozenset(text), max_abs=max_abs,
+                   rows_per_chunk=int(rows_per_chunk))
+
+
+def _chunks(
+    p: Path,
+    *,
+    required: tuple[str, ...],
+    optional: tuple[str, ...],
+    integer: frozenset[str],
+    text: frozenset[str],
+    max_abs: float | None,
+    rows_per_chunk: int,
+) -> Iterator[TableChunk]:
+    """The chunks of :func:`iter_table` (a generator: nothing is read before the first)."""
+    with p.open(newline="", encoding="utf-8-sig") as fh:
+        reader = csv.reader(_csv_lines(p, fh))
+        rows = _csv_rows(p, reader)
+        first = next(rows, None)
+        if first is None:
+            raise ValueError(f"{p}: file is empty")
+        header = [h.strip() for h in first]
+        missing = [c for c in required if c not in header]
+        if missing:
+            raise ValueError(f"{p}: missing required column(s) {', '.join(missing)}")
+        wanted = list(required) + [c for c in optional if c in header and c not in required]
+        index = [header.index(c) for c in wanted]
+        need = max(index) + 1
+        cells: list[list[str]] = [[] for _ in wanted]  # per column, the cells of this chunk
+        lines: list[int] = []  # line number of each row of this chunk
+        n_rows = 0
+
+        def chunk() -> TableChunk:
+            columns: dict[str, NDArray[Any]] = {}
+            for k, name in enumerate(wanted):
+                if name in text:
+                    columns[name] = np.array([c.strip() for c in cells[k]], dtype=str)
+                else:
+                    x = _numbers(cells[k], lines, f"{p}: line {{line}}, column {name!r}",
+                                 whole=name in integer, max_abs=max_abs)
+                    columns[name] = x.astype(np.int64) if name in integer else x
+                cells[k] = []
+            out = TableChunk(Table(columns, str(p)), n_rows - len(lines),
+                             np.array(lines, dtype=np.int64))
+            lines.clear()
+            return out
+
+        for row in rows:
+            if len(row) < need:
+                raise ValueError(f"{p}: line {reader.line_num} has {len(row)} fields, header has "
+                                 f"{len(header)}")
+            lines.append(reader.line_num)
+            for k, j in enumerate(index):
+                cells[k].append(row[j])
+            n_rows += 1
+            if len(lines) == rows_per_chunk:
+                yield chunk()
+        if lines:
+            yield chunk()
+    if n_rows == 0:
+        raise ValueError(f"{p}: no data rows")
+
+
 def read_table(
     path: PathLike,
     *,
@@ -155,58 +297,15 @@ def read_table(
         field, empty file, no data rows, a missing required column, a ragged row, a non-numeric
         value, NaN, infinity or a value beyond `max_abs`. The message starts with the path and
         names line and column.
+
+    See Also
+    --------
+    iter_table : the same, one chunk of rows at a time.
     """
-    p = _check_file(path, max_bytes=MAX_CSV_BYTES, what="CSV inputs")
-    with p.open(newline="", encoding="utf-8-sig") as fh:
-        reader = csv.reader(_csv_lines(p, fh))
-        rows = _csv_rows(p, reader)
-        first = next(rows, None)
-        if first is None:
-            raise ValueError(f"{p}: file is empty")
-        header = [h.strip() for h in first]
-        missing = [c for c in required if c not in header]
-        if missing:
-            raise ValueError(f"{p}: missing required column(s) {', '.join(missing)}")
-        wanted = list(required) + [c for c in optional if c in header and c not in required]
-        index = [header.index(c) for c in wanted]
-        need = max(index) + 1
-        cells: list[list[str]] = [[] for _ in wanted]  # per column, the cells of this chunk
-        lines: list[int] = []  # line number of each row of this chunk
-        parsed: list[list[Any]] = [[] for _ in wanted]  # per column, float64 chunks or strings
-        n_rows = 0
-
-        def flush() -> None:
-            for k, name in enumerate(wanted):
-                if name in text:
-                    parsed[k] += [c.strip() for c in cells[k]]
-                else:
-                    parsed[k].append(_numbers(
-                        cells[k], lines, f"{p}: line {{line}}, column {name!r}",
-                        whole=name in integer, max_abs=max_abs))
-                cells[k] = []
-            lines.clear()
-
-        for row in rows:
-            if len(row) < need:
-                raise ValueError(f"{p}: line {reader.line_num} has {len(row)} fields, header has "
-                                 f"{len(header)}")
-            lines.append(reader.line_num)
-            for k, j in enumerate(index):
-                cells[k].append(row[j])
-            n_rows += 1
-            if len(lines) == _ROWS_PER_CHUNK:
-                flush()
-        flush()
-    if n_rows == 0:
-        raise ValueError(f"{p}: no data rows")
-    columns: dict[str, NDArray[Any]] = {}
-    for k, name in enumerate(wanted):
-        if name in text:
-            columns[name] = np.array(parsed[k], dtype=str)
-        else:
-            values = np.concatenate(parsed[k])
-            columns[name] = values.astype(np.int64) if name in integer else values
-    return Table(columns, str(p))
+    parts = [c.table for c in iter_table(path, required=required, optional=optional,
+                                         integer=integer, text=text, max_abs=max_abs)]
+    columns = {name: np.concatenate([t[name] for t in parts]) for name in parts[0].columns}
+    return Table(columns, parts[0].source)
 
 
 _FIXED_LIMIT = 1e15  # floats this large are written as repr (e.g. 1e+20), not fixed-point
@@ -223,6 +322,21 @@ def _format_cell(v: Any, float_format: str) -> str:
     if abs(x) >= _FIXED_LIMIT:  # no 300-digit fixed-point numbers: shortest exact form instead
         return repr(x)
     return float_format % x
+
+
+def _columns(path: PathLike, columns: Mapping[str, ArrayLike]) -> tuple[dict[str, NDArray[Any]], int]:
+    """`columns` as arrays and their common length (a ValueError if they differ)."""
+    cols = {k: np.asarray(v) for k, v in columns.items()}
+    lengths = {len(v) for v in cols.values()}
+    if len(lengths) > 1:
+        raise ValueError(f"{path}: columns have different lengths {sorted(lengths)}")
+    return cols, (lengths.pop() if lengths else 0)
+
+
+def _write_rows(w: Any, cols: dict[str, NDArray[Any]], n: int, float_format: str) -> None:
+    values = list(cols.values())
+    for i in range(n):
+        w.writerow([_format_cell(v[i], float_format) for v in values])
 
 
 def write_table(
@@ -245,15 +359,55 @@ def write_table(
     pathlib.Path
         The written path.
     """
-    cols = {k: np.asarray(v) for k, v in columns.items()}
-    lengths = {len(v) for v in cols.values()}
-    if len(lengths) > 1:
-        raise ValueError(f"{path}: columns have different lengths {sorted(lengths)}")
-    n = lengths.pop() if lengths else 0
+    cols, n = _columns(path, columns)
     with atomic_output(path) as tmp, tmp.open("w", newline="") as fh:
         w = csv.writer(fh, lineterminator="\n")
         w.writerow(list(cols))
-        values = list(cols.values())
-        for i in range(n):
-            w.writerow([_format_cell(v[i], float_format) for v in values])
+        _write_rows(w, cols, n, float_format)
+    return Path(path)
+
+
+def write_table_chunks(
+    path: PathLike,
+    chunks: Iterable[Mapping[str, ArrayLike]],
+    *,
+    header: Sequence[str],
+    float_format: str = "%.6f",
+) -> Path:
+    """Write a CSV file from chunks of rows as they come, atomically.
+
+    Parameters
+    ----------
+    path : path-like
+        Destination (``"-"``: standard output; see :func:`atomic_output`).
+    chunks : iterable of mapping of str to array_like
+        Consecutive rows: each chunk maps every name of `header` to 1-D values of one length.
+        Typically a generator that computes each chunk from a chunk of the input
+        (:func:`iter_table`); it is consumed once.
+    header : sequence of str
+        Column names, in order.
+    float_format : str, optional
+        As in :func:`write_table`.
+
+    Returns
+    -------
+    pathlib.Path
+        The written path.
+
+    Notes
+    -----
+    The bytes equal those :func:`write_table` writes for the concatenated chunks. Rows go to a
+    temporary file beside `path`; only when `chunks` is exhausted is it renamed onto `path`.
+    An exception raised by `chunks` (bad input found late in the file) deletes it, so the
+    destination is never partly written and an existing file there keeps its content.
+    """
+    names = list(header)
+    with atomic_output(path) as tmp, tmp.open("w", newline="") as fh:
+        w = csv.writer(fh, lineterminator="\n")
+        w.writerow(names)
+        for chunk in chunks:
+            if list(chunk) != names:
+                raise ValueError(f"{path}: a chunk has columns {list(chunk)}, expected {names}")
+            cols, n = _columns(path, chunk)
+            _write_rows(w, cols, n, float_format)
     return Path(path)
