@@ -60,17 +60,12 @@ from collections.abc import Iterable
 from typing import Literal
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
 from fusion._validation import check_positive
 from fusion.clicks._click_peaks import local_maxima, not_ringing
-from fusion.clicks._frames import (
-    CHUNK,
-    framed_filter,
-    gather_frames,
-    interp_nodes,
-    segment_medians,
-)
+from fusion.clicks._detect_statistic import all_finite, centre_frequency, chunked_statistic
+from fusion.clicks._frames import gather_frames, interp_nodes, segment_medians
 from fusion.clicks._kernels import DetectorKernels
 from fusion.clicks.replica import Replica, load_replica
 from fusion.clicks.types import ChannelClicks
@@ -350,7 +345,7 @@ class ClickDetector:
         if x.ndim != 2 or x.shape[0] == 0 or x.shape[1] == 0:
             raise ValueError(f"samples must have shape (n,) or (n, channels) with n > 0, got "
                              f"{np.shape(samples)}")
-        if not np.issubdtype(x.dtype, np.number) or not _all_finite(x):
+        if not np.issubdtype(x.dtype, np.number) or not all_finite(x):
             raise ValueError("samples contain NaN or infinite values")
         if not np.isfinite(t0):
             raise ValueError(f"t0 must be finite, got {t0!r}")
@@ -402,9 +397,10 @@ class ClickDetector:
         if self.method == "stft":
             # flat band weights over the per-bin background, on the re and im columns
             coef = np.repeat((1.0 / k.band.size) / bin_bg[:, :, k.band], 2, axis=2)
-            stat = self._chunked(x, s0, j_a, n_frames, k, coef.astype(np.float32), left, wgt)
+            stat = chunked_statistic(x, s0, j_a, n_frames, k, coef.astype(np.float32), left, wgt,
+                                     nfft=self.nfft)
         else:
-            env = self._chunked(x, s0, j_a, n_frames, k, None, left, wgt)
+            env = chunked_statistic(x, s0, j_a, n_frames, k, None, left, wgt, nfft=self.nfft)
             _, env_bg = segment_medians(env[:, sub], frames[sub], seg_len, min_count)
             env_bg = np.maximum(env_bg / k.env_median_to_mean, _TINY)  # mean-equivalent
             right = np.minimum(left + 1, nodes.size - 1)
@@ -430,7 +426,7 @@ class ClickDetector:
             times = t0 + (pos - s0) / fs
             power = s[peaks].astype(float)
             near = np.clip(np.round(peaks + delta), 0, n_frames - 1).astype(np.int64)
-            fc = self._centre_freq(x[:, c:c + 1], s0, frames, near, k, bin_bg[c], left, wgt)
+            fc = centre_frequency(x[:, c:c + 1], s0, frames, near, k, bin_bg[c], left, wgt)
             ok = fc >= self.min_centre_freq_hz
             times, power, fc = times[ok], power[ok], fc[ok]
             keep = not_ringing(times, power, self.suppress_s, self.suppress_ratio)
@@ -438,84 +434,3 @@ class ClickDetector:
             out.append(clicks if span_s is None else clicks.between(*span_s))
         lap("peaks")
         return out
-
-    def _chunked(
-        self,
-        x: NDArray[np.floating],
-        s0: int,
-        j_a: int,
-        n_frames: int,
-        k: DetectorKernels,
-        coef: NDArray[np.float32] | None,
-        left: NDArray[np.int64],
-        wgt: NDArray[np.float64],
-    ) -> NDArray[np.float32]:
-        """Statistic over chunks of frames that stay in cache: the STFT band sum with per-bin
-        weights `coef` (ch, nodes, 2 n_band) interpolated between nodes, or (``coef=None``) the
-        smoothed squared envelope; (ch, n_frames) float32."""
-        n_ch = x.shape[1]
-        out = np.empty((n_ch, n_frames), dtype=np.float32)
-        for a in range(0, n_frames, CHUNK):
-            b = min(a + CHUNK, n_frames)
-            if coef is None:
-                out[:, a:b] = self._envelope(x, s0, j_a + a, b - a, k)
-                continue
-            y = framed_filter(x, s0, j_a + a, b - a, k.stft)
-            y *= y
-            last = coef.shape[1] - 1
-            i0, i1 = int(left[a]), int(min(left[b - 1] + 1, last))
-            z = y @ np.swapaxes(coef[:, i0:i1 + 1], 1, 2)  # (ch, L, nodes in chunk)
-            w = wgt[a:b].astype(np.float32)
-            if i1 - i0 <= 1 and left[b - 1] == i0:  # one node interval: z_l + w (z_r - z_l)
-                zl, zr = z[..., 0], z[..., i1 - i0]
-                out[:, a:b] = zl + w * (zr - zl)
-                continue
-            rng = np.arange(b - a)
-            zl = z[:, rng, left[a:b] - i0]
-            zr = z[:, rng, np.minimum(left[a:b] + 1, last) - i0]
-            out[:, a:b] = zl + w * (zr - zl)
-        return out
-
-    def _envelope(self, x: NDArray[np.floating], s0: int, j0: int, count: int,
-                  k: DetectorKernels) -> NDArray[np.float32]:
-        """The smoothed squared envelope at `count` consecutive frames from `j0` (ch, count)."""
-        hop = self.hop
-        # y_b at full rate over the frames and their nfft-sample windows
-        n_smp = hop * count + self.nfft
-        y = framed_filter(x, s0, hop * j0, n_smp, k.env)[:, :, 0]
-        y *= y
-        # sum_n v_n y_b^2(hop J + n), with y_b^2 as a signal starting at the first frame
-        return framed_filter(y.T, hop * j0, j0, count, k.smooth)[:, :, 0]
-
-    def _centre_freq(
-        self,
-        x: NDArray[np.floating],
-        s0: int,
-        frames: NDArray[np.int64],
-        at: NDArray[np.int64],
-        k: DetectorKernels,
-        bg: NDArray[np.float64],
-        left: NDArray[np.int64],
-        wgt: NDArray[np.float64],
-    ) -> NDArray[np.float64]:
-        """Eq. (2) at frames ``frames[at]`` of one channel `x` (n, 1): mean frequency weighted
-        by the power above the (interpolated) per-bin background, bins inside (0, fs/2)."""
-        spec = gather_frames(x, s0, frames[at], k.full)[0]
-        p = spec[:, 0::2] ** 2 + spec[:, 1::2] ** 2  # (m, n_bins)
-        right = np.minimum(left[at] + 1, bg.shape[0] - 1)
-        w = wgt[at, None]
-        b = bg[left[at]] * (1.0 - w) + bg[right] * w
-        inner = (k.freqs > 0) & (k.freqs < 0.5 * k.fs)
-        excess = np.maximum(p / b - 1.0, 0.0)[:, inner]
-        tot = excess.sum(axis=1)
-        fc = excess @ k.freqs[inner]  # eq. (2): sum |X_k|^2 f_k / sum |X_k|^2
-        return np.divide(fc, tot, out=np.zeros_like(fc), where=tot > 0)
-
-
-def _all_finite(x: NDArray[np.number]) -> bool:
-    """Whether every sample is finite (a finite sum decides it without a pass of its own over
-    an array of flags; an overflowing sum falls back to the test of every sample)."""
-    with np.errstate(over="ignore", invalid="ignore"):
-        if np.isfinite(np.sum(x)):
-            return True
-    return bool(np.isfinite(x).all())
