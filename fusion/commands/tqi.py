@@ -6,6 +6,13 @@ hysteresis on every track (all tracks at once, vectorised), and writes the input
 ``tqi`` (``lost``, ``uncertain``, ``low_snr``, ``strong``) in the input's row order -- after
 :func:`fusion.io.read_amplitudes` has put rows that were out of time order within a track in time
 order (one warning says so); two updates of one track at the same time are an error.
+
+The file is read and written in chunks of rows (:func:`fusion.io.iter_amplitudes`,
+:func:`fusion.io.write_table_chunks`): the TQI is recursive per track, so each chunk's updates
+follow from the memory the chunk before left, and memory stays one chunk plus one memory entry
+per track, whatever the file's length. The output is byte-identical to that of the whole table at
+once. A file whose rows are out of time order within a track cannot be streamed; it is then read
+whole (and sorted, with the warning).
 """
 
 from __future__ import annotations
@@ -17,8 +24,15 @@ from pathlib import Path
 import numpy as np
 
 from fusion.cli import number
-from fusion.io import read_amplitudes, write_table
-from fusion.passive.quality import TrackQualityIndicator
+from fusion.io import (
+    RowOrderError,
+    TableChunk,
+    iter_amplitudes,
+    read_amplitudes,
+    write_table,
+    write_table_chunks,
+)
+from fusion.passive.quality import LABELS, TQIMemory, TrackQualityIndicator
 
 logger = logging.getLogger(__name__)
 
@@ -71,14 +85,114 @@ def run(args: argparse.Namespace) -> int:
     if args.sllr0_max is not None and not args.sllr0_max > args.tl - args.lh:
         raise ValueError(f"--sllr0-max ({args.sllr0_max:g}) must exceed the SLLR_0 floor "
                          f"TL - LH ({args.tl - args.lh:g})")
-    table = read_amplitudes(args.amplitudes)
+    tqi = _indicator(args)
+    streamed = _StreamedTQI(tqi, diagnostics=args.diagnostics)
+    try:
+        write_table_chunks(args.out, map(streamed.columns, iter_amplitudes(args.amplitudes)),
+                           header=_header(args.diagnostics))
+        n_tracks, n_rows = streamed.n_tracks, streamed.n_rows
+    except RowOrderError as e:  # rows out of order or repeated: the whole-file reader decides
+        logger.debug("%s; reading the whole file", e)
+        n_tracks, n_rows = _whole_file(args, tqi)
+    logger.info("TQI of %d tracks, %d updates written to %s", n_tracks, n_rows, args.out)
+    return 0
+
+
+_INPUT = ("track_id", "time", "amplitude", "residual")
+_DIAGNOSTICS = {"sllr0": "sllr0", "sllr1": "sllr1", "smoothed_residual": "residual_deg",
+                "err_max": "err_max_deg"}  # output column: TQIMemory field
+
+
+def _indicator(args: argparse.Namespace) -> TrackQualityIndicator:
+    """The TQI configured by the command line."""
     limits = None if args.sllr0_max is None else (args.tl - args.lh, args.sllr0_max)
-    tqi = TrackQualityIndicator(
+    return TrackQualityIndicator(
         snr0_db=args.snr0_db, snr1_db=args.snr1_db, n_looks=args.n_looks, tl=args.tl,
         tu=args.tu, ts=args.ts, lh=args.lh, sh=args.sh, hysteresis=not args.no_hysteresis,
         omega=args.omega, t_err=args.t_err, residual_smoothing=args.residual_smoothing,
         sllr0_limits=limits,
     )
+
+
+def _header(diagnostics: bool) -> list[str]:
+    return [*_INPUT, "tqi", *(_DIAGNOSTICS if diagnostics else ())]
+
+
+class _StreamedTQI:
+    """TQI of tracker rows arriving in chunks; each track's memory carried between chunks.
+
+    ``columns(chunk)`` returns the output columns of a chunk. Within a chunk, the k-th row of
+    each track is its k-th update (rows of a track in time order, checked by the reader); the
+    updates of all tracks present are stepped together, the rest keep their memory. The step is
+    elementwise per track, so the result equals the whole-table run.
+    """
+
+    def __init__(self, tqi: TrackQualityIndicator, *, diagnostics: bool) -> None:
+        self.tqi = tqi
+        self.diagnostics = diagnostics
+        self.ids = np.zeros(0, np.int64)  # tracks seen, sorted
+        self.memory: TQIMemory | None = None  # one entry per track of `ids`
+        self.n_rows = 0
+
+    @property
+    def n_tracks(self) -> int:
+        return int(self.ids.size)
+
+    def _slots(self, ids: np.ndarray) -> np.ndarray:
+        """Memory slots of `ids` (sorted, distinct), adding tracks not seen before."""
+        new = np.setdiff1d(ids, self.ids)
+        if new.size:
+            fresh = self.tqi.initial_memory(new.size)
+            old = self.memory if self.memory is not None else fresh
+            merged = np.concatenate([self.ids, new])
+            order = np.argsort(merged, kind="stable")
+            self.memory = TQIMemory(**{
+                f: np.concatenate([getattr(old, f)[:self.ids.size], getattr(fresh, f)])[order]
+                for f in TQIMemory.__dataclass_fields__})
+            self.ids = merged[order]
+        return np.searchsorted(self.ids, ids)
+
+    def columns(self, chunk: TableChunk) -> dict[str, np.ndarray]:
+        """Output columns (input columns, ``tqi``, diagnostics) of one chunk of rows."""
+        table = chunk.table
+        tracks, col = np.unique(table["track_id"], return_inverse=True)
+        slots = self._slots(tracks)
+        # update index of each row within its track in this chunk
+        order = np.argsort(col, kind="stable")
+        counts = np.bincount(col, minlength=tracks.size)
+        starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+        row_k = np.empty(len(table), dtype=np.int64)
+        row_k[order] = np.arange(len(table)) - np.repeat(starts, counts)
+        shape = (int(counts.max()), tracks.size)
+        amp = np.full(shape, np.nan)
+        res = np.full(shape, np.nan)
+        valid = np.zeros(shape, dtype=bool)
+        amp[row_k, col] = table["amplitude"]
+        res[row_k, col] = table["residual"]
+        valid[row_k, col] = True
+        fields = list(TQIMemory.__dataclass_fields__)
+        mem = TQIMemory(**{f: getattr(self.memory, f)[slots] for f in fields})
+        state = np.empty(shape, dtype=np.int8)
+        diag = {f: np.empty(shape) for f in _DIAGNOSTICS.values()} if self.diagnostics else {}
+        for k in range(shape[0]):
+            mem = self.tqi.step(mem, amp[k], res[k], active=valid[k])
+            state[k] = mem.state
+            for f, arr in diag.items():
+                arr[k] = getattr(mem, f)
+        for f in fields:
+            getattr(self.memory, f)[slots] = getattr(mem, f)
+        self.n_rows += len(table)
+        out = {name: table[name] for name in _INPUT}
+        out["tqi"] = LABELS[state[row_k, col]]
+        for name, f in _DIAGNOSTICS.items():
+            if self.diagnostics:
+                out[name] = diag[f][row_k, col]
+        return out
+
+
+def _whole_file(args: argparse.Namespace, tqi: TrackQualityIndicator) -> tuple[int, int]:
+    """The TQI of the whole table at once (rows sorted by the reader if they were out of order)."""
+    table = read_amplitudes(args.amplitudes)
     ids = table["track_id"]
     tracks, col = np.unique(ids, return_inverse=True)
     # update index of each row within its track (rows of a track are in time order)
@@ -103,5 +217,4 @@ def run(args: argparse.Namespace) -> int:
         columns["smoothed_residual"] = hist.residual_deg[row_k, col]
         columns["err_max"] = hist.err_max_deg[row_k, col]
     write_table(args.out, columns)
-    logger.info("TQI of %d tracks, %d updates written to %s", tracks.size, len(table), args.out)
-    return 0
+    return int(tracks.size), len(table)
