@@ -60,6 +60,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "localize": ("fusion.commands.localize", "localize clicking sources (whales) from multichannel audio"),
     "train-validator": ("fusion.commands.train_validator", "retrain the TDOA validator on labelled audio"),
     "import": ("fusion.commands.import_data", "convert a recorded data set into the project's CSV files"),
+    "report": ("fusion.commands.report", "PNG figures of any command's output, with axis labels and units"),
 }
 
 #: Exit code for bad input or bad options.

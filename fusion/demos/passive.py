@@ -14,12 +14,9 @@ from pathlib import Path
 import numpy as np
 
 from fusion.io import atomic_output, write_table
+from fusion.report.figures import TQI_COLOURS
 
 __all__ = ["run_demo"]
-
-#: Colour of each TQI state on the figure.
-TQI_COLOURS = {"lost": "0.5", "uncertain": "tab:orange", "low_snr": "tab:blue",
-               "strong": "tab:green"}
 
 
 def run_demo(out_dir: Path, *, seed: int) -> dict:

@@ -17,6 +17,7 @@ from fusion.geometry import wrap_angle
 from fusion.io import write_table
 from fusion.metrics.crossings import crossing_outcomes
 from fusion.passive.smoothing import MultiTrackSmoother
+from fusion.report.figures import bearing_band
 from fusion.simulate.bearings import simulate_bearings
 
 __all__ = ["run_demo"]
@@ -59,11 +60,8 @@ def run_demo(out_dir: Path, *, seed: int) -> dict:
     fig, ax = plt.subplots(figsize=(7, 8))
     ax.plot(sc.bearing_deg, sc.time, ".", color="0.6", ms=2, label="detections (unlabeled)")
     for tr in res.tracks:
-        b = np.mod(np.degrees(tr.bearing), 360)
-        s = np.degrees(tr.sigma_bearing)
-        br = np.where(np.abs(np.diff(b, prepend=b[0])) > 180, np.nan, b)  # no line across 0/360
-        line, = ax.plot(br, tr.times, lw=1.2, label=f"track {tr.track_id}")
-        ax.fill_betweenx(tr.times, br - s, br + s, color=line.get_color(), alpha=0.3)
+        bearing_band(ax, tr.times, np.mod(np.degrees(tr.bearing), 360),
+                     np.degrees(tr.sigma_bearing), lw=1.2, label=f"track {tr.track_id}")
     for a, _b, tc in cr:
         k = int(np.argmin(np.abs(sc.truth_time - tc)))
         ax.plot(sc.truth_bearing_deg[a, k], tc, "kx", ms=8)

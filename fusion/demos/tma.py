@@ -40,7 +40,8 @@ def run_demo(out_dir: Path, *, seed: int) -> dict:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from matplotlib.patches import Ellipse
+
+    from fusion.report.figures import covariance_ellipse
 
     out_dir = Path(out_dir)
     write_scenario(out_dir, seed=seed)
@@ -60,10 +61,8 @@ def run_demo(out_dir: Path, *, seed: int) -> dict:
     ax.plot(sc.truth[:, 0], sc.truth[:, 1], "g-", lw=2, label="true target")
     ax.plot(res.x, res.y, "b--", label="TMA estimate")
     for k in np.linspace(0, res.times.size - 1, 6).astype(int):
-        vals, vecs = np.linalg.eigh(res.covariances[k, :2, :2])
-        angle = np.degrees(np.arctan2(vecs[1, 1], vecs[0, 1]))
-        w, h = 2 * 2 * np.sqrt(np.maximum(vals[::-1], 0.0))  # 2-sigma: full axes = 4 sigma
-        ax.add_patch(Ellipse((res.x[k], res.y[k]), w, h, angle=angle, fill=False, color="b"))
+        covariance_ellipse(ax, (res.x[k], res.y[k]), res.covariances[k, :2, :2], n_sigma=2.0,
+                           color="b")
         ax.plot([res.ownship_xy[k, 0], sc.truth[k, 0]], [res.ownship_xy[k, 1], sc.truth[k, 1]],
                 ":", color="0.6", lw=0.8)
     ax.set_aspect("equal")
