@@ -13,7 +13,8 @@ family has a fast form:
   linear factors (``JacobianFactor`` in a ``LinearContainerFactor``), set up for a whole chain.
 - :mod:`factors.target` -- true bearing of a constant-velocity target: scalar and one vector
   ``CustomFactor`` per batch of bearings, analytic Jacobians.
-- :mod:`factors.tdoa` (with :mod:`factors.tdoa_model`) -- time differences of arrival.
+- :mod:`factors.tdoa` (with :mod:`factors.tdoa_model` and :mod:`factors.tdoa_factors`) -- time
+  differences of arrival: the model, the factories and the one-source solve.
 - :mod:`factors.weighted` -- association weights read live from an array, one per factor or
   one per row of a vector factor.
 - :mod:`factors.testing` -- analytic Jacobians against central differences.
