@@ -106,16 +106,26 @@ def _read_bearings(path: Path) -> Any:
     return read_bearings(path)
 
 
+def _header_only(path: Path) -> bool:
+    """Whether a CSV file holds a header line and no row (a run without alerts writes that)."""
+    with path.open("rb") as fh:
+        lines = [line for line in (fh.readline() for _ in range(3)) if line.strip()]
+    return len(lines) == 1
+
+
 def _read_alerts(path: Path) -> Any:
     from fusion.io import read_alerts, read_table
+    from fusion.report.kinds import file_kind
+    from fusion.types import Table
 
+    if _header_only(path) and file_kind(path) == "alerts":
+        return Table({c: np.zeros(0) for c in ("time", "track_a", "track_b", "t_cross")}
+                     | {"kind": np.zeros(0, dtype=str)}, source=str(path))
     alerts = read_alerts(path)
     try:  # the interval columns, when the file has them
         extra = read_table(path, required=("t_cross_low", "t_cross_high"), max_abs=None)
     except ValueError:
         return alerts
-    from fusion.types import Table
-
     return Table({**alerts.columns, "t_cross_low": extra["t_cross_low"],
                   "t_cross_high": extra["t_cross_high"]}, source=alerts.source)
 
@@ -223,13 +233,13 @@ def _acquisition(res: DetectedResult, extra: ReportInputs, out: FigureWriter) ->
 
 def _localization(res: DetectedResult, extra: ReportInputs, out: FigureWriter) -> None:
     from fusion.io import read_array
-    from fusion.report.kinds import _file_kind
+    from fusion.report.kinds import file_kind
     from fusion.report.localization import fixes_figure, read_fixes, surface_figure
 
     array = read_array(extra.array) if extra.array else None
     folder = res.kind == "localization_folder"
     for path in res.files:
-        kind = _file_kind(path) if folder else res.kind
+        kind = file_kind(path) if folder else res.kind
         prefix = f"{path.stem}_" if folder else ""
         fixes = read_fixes(path, kind)
         out.save(fixes_figure(fixes, array=array, title=f"fusion localize: {path.name}"),

@@ -34,7 +34,7 @@ from pathlib import Path
 
 from fusion._output import special_file_kind
 
-__all__ = ["KINDS", "DetectedResult", "detect_result"]
+__all__ = ["KINDS", "DetectedResult", "detect_result", "file_kind"]
 
 #: Bytes read to find a CSV header line or to tell a JSON file's keys (larger JSON is parsed whole).
 SNIFF_BYTES = 1 << 16
@@ -139,7 +139,8 @@ def _json_kind(path: Path, head: bytes) -> str | None:
     return None
 
 
-def _file_kind(path: Path) -> str | None:
+def file_kind(path: Path) -> str | None:
+    """The kind of a regular result file from its first bytes (None: not a known result)."""
     head = _head(path)
     if b"\0" in head:
         return None  # binary: neither a CSV table nor JSON
@@ -150,10 +151,10 @@ def _file_kind(path: Path) -> str | None:
 
 def _folder(path: Path) -> DetectedResult:
     tracks, alerts = path / "tracks.csv", path / "alerts.csv"
-    if tracks.is_file() and alerts.is_file() and _file_kind(tracks) == "passive_tracks":
+    if tracks.is_file() and alerts.is_file() and file_kind(tracks) == "passive_tracks":
         return DetectedResult("passive", path, (tracks, alerts))
     jsons = sorted(p for p in path.iterdir() if p.suffix.lower() == ".json" and p.is_file())
-    found = tuple(p for p in jsons if _file_kind(p) in ("localization", "events"))
+    found = tuple(p for p in jsons if file_kind(p) in ("localization", "events"))
     if found:
         return DetectedResult("localization_folder", path, found)
     raise ValueError(f"{path}: a folder without a fusion result (no tracks.csv + alerts.csv of "
@@ -191,7 +192,7 @@ def detect_result(path: str | os.PathLike[str]) -> DetectedResult:
     if kind is not None:
         raise ValueError(f"{p}: is {kind}, not a result file")
     try:
-        found = _file_kind(p)
+        found = file_kind(p)
     except PermissionError:
         raise ValueError(f"{p}: permission denied") from None
     if found is None:
