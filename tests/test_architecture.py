@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import ast
+import importlib
 import importlib.metadata as metadata
 import re
 import sys
@@ -185,6 +186,47 @@ def test_old_import_paths_still_work():
     assert Cube is Cube2
 
 
+#: Names moved out of a module when it was split by role -> (old module, new module).
+MOVED_NAMES = {
+    "ClickWaveform": ("fusion.simulate.clicks", "fusion.simulate._click_types"),
+    "ClickScenario": ("fusion.simulate.clicks", "fusion.simulate._click_types"),
+    "WhaleTrack": ("fusion.simulate.clicks", "fusion.simulate._click_types"),
+    "draw_emission_times": ("fusion.simulate.clicks", "fusion.simulate._click_synthesis"),
+    "_transient_shape": ("fusion.simulate.clicks", "fusion.simulate._click_synthesis"),
+    "FILE_PEAK": ("fusion.simulate.clicks", "fusion.simulate._click_files"),
+    "truth_document": ("fusion.simulate.clicks", "fusion.simulate._click_files"),
+    "write_click_scenario": ("fusion.simulate.clicks", "fusion.simulate._click_files"),
+    "TrackQuality": ("fusion.passive.quality", "fusion.passive.quality_types"),
+    "LABELS": ("fusion.passive.quality", "fusion.passive.quality_types"),
+    "START": ("fusion.passive.quality", "fusion.passive.quality_types"),
+    "TQIMemory": ("fusion.passive.quality", "fusion.passive.quality_types"),
+    "TQIHistory": ("fusion.passive.quality", "fusion.passive.quality_types"),
+    "tqi_transition": ("fusion.passive.quality", "fusion.passive.quality_flow"),
+    "design_statistics": ("fusion.passive.quality", "fusion.passive.quality_flow"),
+    "omega_for_beamwidth": ("fusion.passive.quality", "fusion.passive.quality_flow"),
+    "CrossingDetector": ("fusion.passive.crossing", "fusion.passive.crossing_detector"),
+    "crossing_time_interval": ("fusion.passive.crossing_pairs", "fusion.passive.crossing_interval"),
+    "t_quantile": ("fusion.passive.crossing_pairs", "fusion.passive.crossing_interval"),
+    "RefinedTdoa": ("fusion.clicks.tdoa", "fusion.clicks.tdoa_types"),
+    "scm2_features": ("fusion.clicks.validate", "fusion.clicks.validate_features"),
+    "default_freqs_hz": ("fusion.clicks.validate", "fusion.clicks.validate_features"),
+    "FEATURE_NAMES": ("fusion.clicks.validate", "fusion.clicks.validate_features"),
+    "TdoaPeak": ("fusion.clicks.scm", "fusion.clicks.scm_types"),
+    "ScmCorrelation": ("fusion.clicks.scm", "fusion.clicks.scm_types"),
+    "tdoa_factor": ("factors.tdoa", "factors.tdoa_factors"),
+    "tdoa_vector_factor": ("factors.tdoa", "factors.tdoa_factors"),
+    "weighted_tdoa_vector_factor": ("factors.tdoa", "factors.tdoa_factors"),
+    "AcquisitionResult": ("fusion.passive.acquisition.acquire", "fusion.passive.acquisition.result"),
+}
+
+
+@pytest.mark.parametrize("name", sorted(MOVED_NAMES))
+def test_moved_names_keep_their_old_import_path(name):
+    """A name moved by a split is the same object at its old import path and its new home."""
+    old, new = (importlib.import_module(m) for m in MOVED_NAMES[name])
+    assert getattr(old, name) is getattr(new, name)
+
+
 def test_docstring_examples_run_with_the_suite():
     """pytest collects the docstring examples of fusion/ and factors/ (doctests run in CI)."""
     options = tomllib.loads((ROOT / "pyproject.toml").read_text(encoding="utf-8"))["tool"]["pytest"][
@@ -194,20 +236,9 @@ def test_docstring_examples_run_with_the_suite():
 
 
 #: Longest module, lines (the project's rule is "about 500, one role each").
-MAX_MODULE_LINES = 550
+MAX_MODULE_LINES = 500
 #: Modules already longer, each waiting for its own split; nothing may join this list.
-LONG_MODULES = {
-    "fusion/active/tracker.py",
-    "fusion/clicks/competition.py",
-    "fusion/clicks/scm.py",
-    "fusion/clicks/surfaces.py",
-    "fusion/clicks/tdoa.py",
-    "fusion/passive/crossing.py",
-    "fusion/passive/crossing_pairs.py",
-    "fusion/passive/line_fit.py",
-    "fusion/passive/quality.py",
-    "fusion/simulate/clicks.py",
-}
+LONG_MODULES: set[str] = set()
 
 
 def test_modules_stay_small():
