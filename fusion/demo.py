@@ -2,8 +2,9 @@
 
 Each part is a function ``run_demo(out_dir, *, seed) -> dict`` that writes its results and a
 figure into its own folder and returns a few measured summary numbers. The demo runs the parts
-in order, writes ``summary.json`` and ``summary.md`` into the output folder, and reports a part
-that fails without hiding the others' results.
+in order, writes ``summary.json`` and ``summary.md`` (every figure linked, with what it shows and
+its numbers: :mod:`fusion.demos.summary`) into the output folder, and reports a part that fails
+without hiding the others' results.
 """
 
 from __future__ import annotations
@@ -16,7 +17,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from fusion.io import atomic_output, write_json
+from fusion.demos.summary import write_summary
+from fusion.io import write_json
 
 logger = logging.getLogger(__name__)
 
@@ -106,12 +108,5 @@ def run_demo(
         out_dir / "summary.json",
         {"seed": seed, "parts": [r.__dict__ for r in results]},
     )
-    lines = ["# fusion demo", "", f"seed {seed}", ""]
-    for r in results:
-        lines.append(f"## {r.name} — {'ok' if r.ok else 'FAILED'} ({r.seconds:.1f} s)")
-        lines.append("")
-        lines.extend(f"- {k}: {v}" for k, v in r.summary.items())
-        lines.append("")
-    with atomic_output(out_dir / "summary.md") as tmp:
-        tmp.write_text("\n".join(lines), encoding="utf-8")
+    write_summary(out_dir, seed=seed, results=results)  # every figure linked, with its numbers
     return results

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 
 from fusion.demo import PARTS
 
@@ -32,3 +33,35 @@ def test_fusion_demo_runs_every_part(run_cli, tmp_path):
     smoothing = parts["smoothing"]["summary"]
     assert smoothing["tracks"] == smoothing["true_tracks"]
     assert smoothing["median_track_rmse_deg"] < smoothing["raw_noise_deg"]
+    _check_summary_links(out)
+
+
+def _check_summary_links(out):
+    """summary.md links every PNG the demo wrote exactly once, relative, each with a description."""
+    text = (out / "summary.md").read_text(encoding="utf-8")
+    links = re.findall(r"^- \[([^\]]+)\]\(([^)]+)\): (.+)$", text, flags=re.M)
+    targets = [t for _, t, _ in links]
+    pngs = sorted(str(p.relative_to(out)) for p in out.rglob("*.png"))
+    assert sorted(targets) == pngs
+    for name, target, what in links:
+        assert not target.startswith("/") and (out / target).is_file() and target.endswith(name)
+        assert len(what) > 20
+
+
+def test_summary_links_figures_with_their_numbers(tmp_path):
+    """Each figure line says what it shows and carries its part's numbers; unknown figures linked."""
+    from fusion.demo import PartResult
+    from fusion.demos.summary import FIGURES, summary_lines
+
+    for part, png in (("tma", "tma.png"), ("tma", "extra.png"), ("tqi", "tqi_timeline.png")):
+        (tmp_path / part).mkdir(exist_ok=True)
+        (tmp_path / part / png).write_bytes(b"png")
+    results = [PartResult("tma", True, 1.25, {"final_range_error_pct": 1.5, "observable": True,
+                                              "n_bearings": 91}),
+               PartResult("tqi", False, 0.5, {"error": "ValueError: boom"})]
+    lines = summary_lines(tmp_path, seed=4, results=results)
+    what = FIGURES["tma/tma.png"][0]
+    assert f"- [tma.png](tma/tma.png): {what} — final_range_error_pct=1.5, observable=True" in lines
+    assert "- [extra.png](tma/extra.png): figure of the tma part" in lines
+    assert "- numbers: n_bearings=91" in lines  # numbers no figure line carries
+    assert "## tqi — FAILED (0.5 s)" in lines and "- numbers: error=ValueError: boom" in lines
