@@ -67,5 +67,5 @@ def run(args: argparse.Namespace) -> int:
     kind, written = make_report(args.result, args.out, inputs=extra)
     for path in written:
         emit(str(path))
-    emit(f"{len(written)} figure(s) of a {kind} result -> {args.out}", err=True)
+    emit(f"{len(written)} figure(s) of the {kind} result -> {args.out}", err=True)
     return 0
