@@ -13,9 +13,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from fusion.cli import EXIT_BAD_INPUT, main
-from fusion.report.kinds import detect_result
+from fusion.report.kinds import KINDS, detect_result
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
@@ -233,3 +235,33 @@ def test_report_help_imports_no_matplotlib():
             "except SystemExit:\n    pass\nprint('matplotlib' in sys.modules, file=sys.stderr)")
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=False)
     assert r.stderr.strip().splitlines()[-1] == "False"
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(data=st.binary(max_size=300))
+def test_detect_result_of_any_bytes_is_a_kind_or_one_valueerror(tmp_path, data):
+    """Whatever a file holds, telling its kind gives a known kind or a ValueError naming the file."""
+    p = tmp_path / "r.csv"
+    p.write_bytes(data)
+    try:
+        kind = detect_result(p).kind
+    except ValueError as e:
+        assert str(p) in str(e) and "\n" not in str(e)
+    else:
+        assert kind in KINDS
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(columns=st.permutations(["track_id", "time", "amplitude", "residual", "tqi", "x", "note"]),
+       keep=st.integers(3, 7))
+def test_kind_needs_every_required_column(tmp_path, columns, keep):
+    """A header is the tqi kind exactly when it holds all five tqi columns, in any order."""
+    header = columns[:keep]
+    p = tmp_path / "h.csv"
+    p.write_text(",".join(header) + "\n", encoding="utf-8")
+    needed = {"track_id", "time", "amplitude", "residual", "tqi"}
+    if needed <= set(header):
+        assert detect_result(p).kind == "tqi"
+    else:
+        with pytest.raises(ValueError, match="not a result the report knows"):
+            detect_result(p)

@@ -124,6 +124,11 @@ def no_wrap_line(bearing_deg: ArrayLike, *, jump_deg: float = 180.0) -> NDArray[
     Returns
     -------
     ndarray, shape (n,)
+
+    Examples
+    --------
+    >>> no_wrap_line([350.0, 355.0, 2.0, 8.0]).tolist()
+    [350.0, 355.0, nan, 8.0]
     """
     b = np.asarray(bearing_deg, dtype=float)
     return np.where(np.abs(np.diff(b, prepend=b[:1])) > jump_deg, np.nan, b)
