@@ -7,19 +7,28 @@ sorted (one warning); two rows of one labelled track at the same time are an err
 (``docs/formats.md``, section 7):
 ``track_id,time,bearing_deg,bearing_rate_deg_per_min,sigma_bearing_deg``, bearings in [0, 360)
 when every input bearing is >= 0, else in [-180, 180).
+
+Settings not given are fitted to the input (:func:`fusion.passive.smoothing.settings.
+fit_smooth_settings`): scan period, bearing noise, clutter density, detection probability,
+bearing acceleration PSD and the track rules that follow from them. One line says what was
+chosen; the same goes to ``S.settings.json`` beside ``S.csv`` (not with ``--out -``).
 """
 
 from __future__ import annotations
 
 import argparse
 import logging
+import os
 from pathlib import Path
 
 import numpy as np
 
-from fusion.cli import number
-from fusion.io import read_bearings, write_table
+from fusion._output import STDOUT
+from fusion.cli import emit, number
+from fusion.io import read_bearings, write_json, write_table
 from fusion.passive.smoothing import BearingSmoother, MultiTrackSmoother, smooth_bearings
+from fusion.passive.smoothing.merge import merge_scan_detections
+from fusion.passive.smoothing.settings import fit_smooth_settings
 
 logger = logging.getLogger(__name__)
 
@@ -34,20 +43,53 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--bearings", type=Path, required=True, help="input CSV track_id,time,bearing_deg")
     p.add_argument("--out", type=Path, required=True, help="output CSV")
-    p.add_argument("--sigma-bearing-deg", type=number(float, gt=0), default=0.5,
-                   help="bearing measurement standard deviation, deg (default 0.5)")
-    p.add_argument("--q-deg2-per-s3", type=number(float, gt=0), default=3e-6,
-                   help="bearing acceleration PSD, deg^2/s^3 (default 3e-6)")
+    p.add_argument("--sigma-bearing-deg", type=number(float, gt=0), default=None,
+                   help="bearing measurement standard deviation, deg (default: estimated from "
+                        "the scatter of the detections)")
+    p.add_argument("--q-deg2-per-s3", type=number(float, gt=0), default=None,
+                   help="bearing acceleration PSD, deg^2/s^3 (default: estimated from the "
+                        "changes of the bearing rate along tracks)")
     p.add_argument("--robust", choices=("none", "huber", "cauchy"), default="huber",
                    help="loss on the bearing factors of labelled tracks (default huber)")
-    p.add_argument("--clutter-density", type=number(float, gt=0), default=0.1,
-                   help="false detections per scan per radian (default 0.1)")
-    p.add_argument("--p-detect", type=number(float, gt=0, le=1), default=0.9,
-                   help="probability that a track is detected in a scan, (0, 1] (default 0.9)")
-    p.add_argument("--min-length", type=number(int, ge=2), default=5,
+    p.add_argument("--clutter-density", type=number(float, gt=0), default=None,
+                   help="false detections per scan per radian (default: estimated)")
+    p.add_argument("--p-detect", type=number(float, gt=0, le=1), default=None,
+                   help="probability that a track is detected in a scan, (0, 1] (default: "
+                        "estimated)")
+    p.add_argument("--init-sigma-rate-deg-per-s", type=number(float, gt=0), default=None,
+                   help="bearing-rate standard deviation of a new track, deg/s (default: "
+                        "estimated)")
+    p.add_argument("--max-misses", type=number(int, ge=1), default=None,
+                   help="scans in a row without a detection that end a track (default: from "
+                        "the detection probability)")
+    p.add_argument("--max-miss-s", type=number(float, gt=0), default=4.0,
+                   help="a track survives misses for at least this long, s (default 4; "
+                        "ignored with --max-misses)")
+    p.add_argument("--merge-deg", type=number(float, ge=0), default=1.0,
+                   help="unknown-origin bearings of one scan closer than this are one "
+                        "detection, deg (default 1.0: a camera detector may box one boat "
+                        "several times; 0: no merging)")
+    p.add_argument("--max-gap-scans", type=number(int, ge=1), default=None,
+                   help="longest gap, in scans, that a track may bridge (default: from "
+                        "--max-misses)")
+    p.add_argument("--min-length", type=number(int, ge=2), default=None,
                    help="fewest detections of a track formed from unknown-origin rows, >= 2 "
-                        "(default 5)")
+                        "(default: from the detection probability)")
     p.set_defaults(handler=run, inputs=("bearings",))
+
+
+def settings_path(out: Path) -> Path:
+    """Where the settings of a run go: ``S.csv`` -> ``S.settings.json`` beside it."""
+    out = Path(out)
+    return out.with_name(out.stem + ".settings.json") if out.suffix else out.with_name(
+        out.name + ".settings.json")
+
+
+def _is_input(path: Path, source: Path) -> bool:
+    try:
+        return os.path.samefile(path, source)
+    except OSError:
+        return False
 
 
 def run(args: argparse.Namespace) -> int:
@@ -59,14 +101,36 @@ def run(args: argparse.Namespace) -> int:
         listed = ", ".join(map(str, short[:5])) + (", ..." if len(short) > 5 else "")
         raise ValueError(f"{args.bearings}: track(s) {listed} have fewer than 2 distinct times; "
                          "a bearing rate needs at least 2 samples per track")
-    sigma = np.radians(args.sigma_bearing_deg)
-    q = args.q_deg2_per_s3 * np.radians(1.0) ** 2
+    z = np.radians(table["bearing_deg"])
+    merge = float(np.radians(args.merge_deg))
+    unk = ids < 0
+    if unk.any() and merge > 0:  # settings from the detections the tracker will see
+        order = np.argsort(times[unk], kind="stable")
+        tm, zm, _ = merge_scan_detections(times[unk][order], z[unk][order], within=merge)
+        fit_ids = np.r_[ids[~unk], np.full(tm.size, -1)]
+        fit_t, fit_z = np.r_[times[~unk], tm], np.r_[z[~unk], zm]
+    else:
+        fit_ids, fit_t, fit_z = ids, times, z
+    st = fit_smooth_settings(
+        fit_ids, fit_t, fit_z, sigma_bearing_deg=args.sigma_bearing_deg, max_miss_s=args.max_miss_s,
+        q_deg2_per_s3=args.q_deg2_per_s3, clutter_density=args.clutter_density,
+        p_detect=args.p_detect, init_sigma_rate_deg_per_s=args.init_sigma_rate_deg_per_s,
+        max_misses=args.max_misses, max_gap_scans=args.max_gap_scans, min_length=args.min_length)
+    sigma = np.radians(st.sigma_bearing_deg)
+    q = st.q_deg2_per_s3 * np.radians(1.0) ** 2
     single = BearingSmoother(sigma_bearing=sigma, q=q, robust=args.robust)
-    multi = MultiTrackSmoother(sigma_bearing=sigma, q=q, clutter_density=args.clutter_density,
-                               p_detect=args.p_detect, min_length=args.min_length)
+    multi = MultiTrackSmoother(sigma_bearing=sigma, q=q, clutter_density=st.clutter_density,
+                               p_detect=st.p_detect, min_length=st.min_length,
+                               init_sigma_rate=np.radians(st.init_sigma_rate_deg_per_s),
+                               max_misses=st.max_misses, max_gap_scans=st.max_gap_scans)
     bearing_deg = table["bearing_deg"]
-    tracks = smooth_bearings(table["track_id"], table["time"], np.radians(bearing_deg),
-                             single=single, multi=multi)
+    try:
+        tracks = smooth_bearings(table["track_id"], table["time"], np.radians(bearing_deg),
+                                 single=single, multi=multi, merge_within=merge)
+    except RuntimeError as e:  # gtsam: an ill-posed graph
+        first = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
+        raise ValueError(f"{args.bearings}: the smoothing graph is ill-conditioned ({first}); "
+                         "a larger --q-deg2-per-s3 or --sigma-bearing-deg may help") from None
     to_360 = bool(np.all(bearing_deg >= 0))
     cols: dict[str, list[np.ndarray]] = {k: [] for k in (
         "track_id", "time", "bearing_deg", "bearing_rate_deg_per_min", "sigma_bearing_deg")}
@@ -79,5 +143,10 @@ def run(args: argparse.Namespace) -> int:
         cols["sigma_bearing_deg"].append(np.degrees(tr.sigma_bearing))
     out = {k: (np.concatenate(v) if v else np.zeros(0)) for k, v in cols.items()}
     write_table(args.out, out)
+    side = settings_path(args.out)
+    if str(args.out) != STDOUT and not _is_input(side, args.bearings):
+        write_json(settings_path(args.out), {"command": "smooth", "tracks": len(tracks),
+                                             "settings": st.as_dict()})
+    emit(f"fusion smooth: {st.describe()}: {len(tracks)} track(s) -> {args.out}")
     logger.info("wrote %d tracks to %s", len(tracks), args.out)
     return 0

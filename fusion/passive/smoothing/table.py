@@ -11,6 +11,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from fusion.passive.smoothing.batch import BearingSmoother
+from fusion.passive.smoothing.merge import merge_scan_detections
 from fusion.passive.smoothing.multitrack import MultiTrackSmoother
 from fusion.passive.smoothing.types import SmoothedTrack
 
@@ -24,6 +25,7 @@ def smooth_bearings(
     *,
     single: BearingSmoother,
     multi: MultiTrackSmoother,
+    merge_within: float = 0.0,
 ) -> tuple[SmoothedTrack, ...]:
     """Smooth a bearing file's rows: labelled tracks alone, unknown-origin rows jointly.
 
@@ -40,6 +42,9 @@ def smooth_bearings(
     multi : MultiTrackSmoother
         Tracker-smoother of the unknown-origin rows; its tracks are numbered after the
         largest labelled id.
+    merge_within : float, keyword-only
+        Unknown-origin bearings of one scan closer than this are merged first, rad
+        (:func:`~fusion.passive.smoothing.merge.merge_scan_detections`; 0: none).
 
     Returns
     -------
@@ -60,7 +65,10 @@ def smooth_bearings(
     if unk.size:
         unk = unk[np.argsort(t[unk], kind="stable")]
         offset = int(ids.max()) + 1 if (ids >= 0).any() else 0
-        res = multi.run(t[unk], z[unk])
+        tu, zu = t[unk], z[unk]
+        if merge_within > 0:
+            tu, zu, _ = merge_scan_detections(tu, zu, within=merge_within)
+        res = multi.run(tu, zu)
         for tr in res.tracks:
             out.append(SmoothedTrack(tr.track_id + offset, tr.times, tr.bearing, tr.rate,
                                      tr.sigma_bearing, tr.sigma_rate))

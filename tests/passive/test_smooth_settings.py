@@ -1,0 +1,129 @@
+"""Tests of the data-fitted settings of ``fusion smooth`` and of same-scan merging."""
+
+import csv
+import json
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+
+from fusion.passive.smoothing.merge import merge_scan_detections
+from fusion.passive.smoothing.settings import (
+    fit_smooth_settings,
+    pair_scatter,
+    rate_diffusion,
+    second_difference_sigma,
+)
+
+SIGMA = np.radians(1.0)
+
+
+def _cluttered(seed, *, sigma=SIGMA, clutter=3.0, n_scans=400, period=1.0):
+    """Three straight bearing tracks seen every scan plus Poisson clutter uniform in bearing."""
+    rng = np.random.default_rng(seed)
+    t, z = [], []
+    for k in range(n_scans):
+        tk = k * period
+        for b0, rate in ((0.3, 2e-4), (1.5, -3e-4), (-2.0, 1e-4)):
+            t.append(tk)
+            z.append(b0 + rate * tk + rng.normal(0, sigma))
+        for _ in range(rng.poisson(clutter)):
+            t.append(tk)
+            z.append(rng.uniform(-np.pi, np.pi))
+    return np.array(t), np.angle(np.exp(1j * np.array(z)))
+
+
+def test_pair_scatter_recovers_noise_and_clutter():
+    """Noise within 10 % and clutter density within 30 % of the simulated 1 deg, 3/scan/2pi."""
+    t, z = _cluttered(0)
+    sigma, clutter, frac = pair_scatter(t, z)
+    assert_allclose(sigma, SIGMA, rtol=0.10)
+    assert_allclose(clutter, 3.0 / (2 * np.pi), rtol=0.30)
+    assert 0 < frac < 1
+
+
+def test_pair_scatter_ignores_repeated_scans():
+    """A scan sent twice (identical bearings) does not collapse the noise estimate."""
+    t, z = _cluttered(1, clutter=1.0)
+    t2 = np.r_[t, t + 0.5]  # every scan repeated half a period later
+    z2 = np.r_[z, z]
+    order = np.argsort(t2, kind="stable")
+    sigma, _, _ = pair_scatter(t2[order], z2[order])
+    assert sigma > 0.5 * SIGMA
+
+
+def test_second_difference_sigma_known_answer():
+    """White noise of 0.7 deg on smooth tracks: second-difference estimate within 8 %."""
+    rng = np.random.default_rng(2)
+    groups = []
+    for _ in range(3):
+        t = np.arange(500.0)
+        z = 0.4 + 1e-3 * t + 2e-7 * t**2 + rng.normal(0, np.radians(0.7), t.size)
+        groups.append((t, z))
+    assert_allclose(second_difference_sigma(groups), np.radians(0.7), rtol=0.08)
+
+
+def test_rate_diffusion_recovers_q():
+    """A white-noise-acceleration bearing with q = 1e-7 rad^2/s^3: estimate within a factor 1.6."""
+    rng = np.random.default_rng(3)
+    q, dt, sigma = 1e-7, 1.0, np.radians(0.2)
+    groups = []
+    for _ in range(20):
+        n = 600
+        acc = rng.normal(0, np.sqrt(q / dt), n)
+        rate = np.cumsum(acc) * dt
+        theta = np.cumsum(rate) * dt
+        t = np.arange(n) * dt
+        groups.append((t, theta + rng.normal(0, sigma, n)))
+    q_est, rates = rate_diffusion(groups, sigma=sigma, block_s=20.0)
+    assert q / 1.6 < q_est < q * 1.6
+    assert rates.size > 100
+
+
+def test_fit_keeps_given_values_and_names_estimates():
+    """Given settings are kept and not marked estimated; the others are estimated."""
+    t, z = _cluttered(4, n_scans=150)
+    st = fit_smooth_settings(np.full(t.size, -1), t, z, sigma_bearing_deg=0.8, p_detect=0.7)
+    assert st.sigma_bearing_deg == 0.8 and st.p_detect == 0.7
+    assert "sigma_bearing_deg" not in st.estimated and "p_detect" not in st.estimated
+    assert {"q_deg2_per_s3", "clutter_density", "period_s", "max_misses"} <= set(st.estimated)
+    assert_allclose(st.period_s, 1.0)
+    assert st.max_misses >= 4  # at least max_miss_s = 4 s at 1 s per scan
+    assert "(est.)" in st.describe() and "sigma 0.8 deg," in st.describe()
+    st2 = fit_smooth_settings(np.full(t.size, -1), t, z)
+    assert_allclose(st2.sigma_bearing_deg, 1.0, rtol=0.15)
+
+
+def test_merge_known_answer_and_wrap():
+    """Bearings of one scan within the width become their circular mean, also across north."""
+    t, z, g = merge_scan_detections([0, 0, 0, 1], np.radians([10, 10.4, 30, 10]),
+                                    within=np.radians(1.0))
+    assert_allclose(np.degrees(z), [10.2, 30.0, 10.0], atol=1e-9)
+    assert g.tolist() == [0, 0, 1, 2] and t.tolist() == [0, 0, 1]
+    t, z, g = merge_scan_detections([5, 5], np.radians([359.6, 0.2]), within=np.radians(1.0))
+    assert z.size == 1 and abs(np.degrees(z[0]) - (-0.1)) < 1e-9
+    t, z, g = merge_scan_detections([0, 0], [0.1, 0.1 + 1e-6], within=0.0)
+    assert z.size == 2
+    with pytest.raises(ValueError, match="within"):
+        merge_scan_detections([0], [0.0], within=-1.0)
+
+
+def test_cli_prints_and_writes_settings(run_cli, tmp_path):
+    """fusion smooth prints the chosen settings in one line and writes them beside the output."""
+    t, z = _cluttered(5, n_scans=120, clutter=1.0)
+    src = tmp_path / "b.csv"
+    with open(src, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["track_id", "time", "bearing_deg"])
+        for ti, zi in zip(t, np.degrees(z), strict=True):
+            w.writerow([-1, ti, zi])
+    code, out, err = run_cli("smooth", "--bearings", src, "--out", tmp_path / "s.csv",
+                             "--q-deg2-per-s3", "1e-4")
+    assert code == 0, err
+    lines = [ln for ln in out.splitlines() if ln.startswith("fusion smooth:")]
+    assert len(lines) == 1 and "sigma" in lines[0] and "(est.)" in lines[0]
+    meta = json.loads((tmp_path / "s.settings.json").read_text())
+    assert meta["settings"]["q_deg2_per_s3"] == 1e-4
+    assert "q_deg2_per_s3" not in meta["settings"]["estimated"]
+    assert_allclose(meta["settings"]["sigma_bearing_deg"], 1.0, rtol=0.15)
+    assert meta["tracks"] >= 3
