@@ -78,6 +78,8 @@ clutter echoes are specular as often as the target's.
 
 from __future__ import annotations
 
+import numpy as np
+
 from fusion.active.fuzzy import (
     FuzzySystem,
     LeftShoulder,
@@ -106,8 +108,17 @@ INPUT_NAMES: tuple[str, ...] = (
 OUTPUT_NAME: str = "rank"
 
 
-def default_variables() -> tuple[LinguisticVariable, ...]:
+def default_variables(
+    *, hotspot_near_m: tuple[float, float] = (100.0, 500.0)
+) -> tuple[LinguisticVariable, ...]:
     """Input variables of the paper's rule base (see the module docstring).
+
+    Parameters
+    ----------
+    hotspot_near_m : (float, float), optional
+        Distances to a hotspot where ``near`` is 1 and 0, m (default 100 and 500, sonar
+        scales; :func:`fusion.active.settings.track_settings` scales them with the data's
+        scatter). The universe is ``[0, 4 x`` the second``]``.
 
     Returns
     -------
@@ -143,8 +154,8 @@ def default_variables() -> tuple[LinguisticVariable, ...]:
         ),
         LinguisticVariable(
             "hotspot_distance_m",
-            (0.0, 2000.0),
-            {"near": LeftShoulder(100.0, 500.0), "far": RightShoulder(100.0, 500.0)},
+            (0.0, 4.0 * hotspot_near_m[1]),
+            {"near": LeftShoulder(*hotspot_near_m), "far": RightShoulder(*hotspot_near_m)},
         ),
     )
 
@@ -168,15 +179,20 @@ def default_output() -> LinguisticVariable:
     )
 
 
-def default_rules() -> tuple[Rule, ...]:
+def default_rules(*, hotspot_near_m: tuple[float, float] = (100.0, 500.0)) -> tuple[Rule, ...]:
     """The paper's seven rules (Section 4) with the weights of the module table.
+
+    Parameters
+    ----------
+    hotspot_near_m : (float, float), optional
+        As in :func:`default_variables`.
 
     Returns
     -------
     tuple of Rule
         Rules 1-7 in the order of the module docstring's table.
     """
-    likelihood, score, aspect, snr, hotspot = default_variables()
+    likelihood, score, aspect, snr, hotspot = default_variables(hotspot_near_m=hotspot_near_m)
     return (
         Rule(likelihood["likely"], "high", weight=1.0),
         Rule(likelihood["unlikely"], "low", weight=1.0),
@@ -188,8 +204,16 @@ def default_rules() -> tuple[Rule, ...]:
     )
 
 
-def default_association_system() -> FuzzySystem:
+def default_association_system(
+    *, hotspot_near_m: tuple[float, float] = (100.0, 500.0)
+) -> FuzzySystem:
     """The paper's fuzzy association system: inputs, rules, output ``rank``.
+
+    Parameters
+    ----------
+    hotspot_near_m : (float, float), optional
+        Distances to a hotspot where ``near`` is 1 and 0, m (default 100 and 500); see
+        :func:`default_variables`.
 
     Returns
     -------
@@ -206,4 +230,8 @@ def default_association_system() -> FuzzySystem:
     >>> bool(result.crisp[0] > result.crisp[1])
     True
     """
-    return FuzzySystem(default_variables(), default_output(), default_rules(), default=0.5)
+    if not (0.0 <= hotspot_near_m[0] < hotspot_near_m[1] and np.isfinite(hotspot_near_m[1])):
+        raise ValueError(f"hotspot_near_m must be (full, none) with 0 <= full < none, got "
+                         f"{hotspot_near_m!r}")
+    return FuzzySystem(default_variables(hotspot_near_m=hotspot_near_m), default_output(),
+                       default_rules(hotspot_near_m=hotspot_near_m), default=0.5)

@@ -54,7 +54,7 @@ from numpy.typing import NDArray
 
 from fusion.active.association import EDGE_LIKELIHOOD, PairRanker, assign_by_priority
 from fusion.active.bistatic import MeasurementModel
-from fusion.active.clutter import ClutterMapBase, DensityClutterMap
+from fusion.active.clutter import ClutterIntensity, ClutterMapBase, DensityClutterMap
 from fusion.active.kalman import (
     cv_model,
     gate_threshold,
@@ -193,13 +193,11 @@ class Tracker:
     clutter_intensity : float, optional
         Clutter detections per m^2 per ping and receiver, for the track score; None (default):
         estimated per receiver over the field from its detections
-        (:class:`fusion.active.clutter.ClutterIntensity`), hotspots included.
+        (:class:`fusion.active.clutter.ClutterIntensity` with a kernel of
+        ``intensity_bandwidth_m``, default 1000 m), hotspots included.
     score_evidence : bool, optional
         The track score weighs each hit's classifier score (default True;
         :meth:`fusion.active.track_score.TrackScorer.score_delta`).
-
-    Notes
-    -----
     :meth:`step` processes one ping (streaming); :meth:`run` a whole detections table.
     """
 
@@ -236,6 +234,7 @@ class Tracker:
         min_speed_mps: float = 0.5,
         hotspot_drop: bool = False,
         confirmed_edge_likelihood: float | None = 0.1,
+        intensity_bandwidth_m: float = 1000.0,
     ) -> None:
         if mode not in ("fuzzy", "kalman"):
             raise ValueError(f"mode must be 'fuzzy' or 'kalman', got {mode!r}")
@@ -272,7 +271,8 @@ class Tracker:
         self.scorer = (TrackScorer(confirm_llr=confirm_llr, delete_llr=delete_llr,
                                    detection_probability=detection_probability,
                                    clutter_intensity=clutter_intensity,
-                                   score_evidence=score_evidence)
+                                   score_evidence=score_evidence,
+                                   intensity=ClutterIntensity(bandwidth_m=intensity_bandwidth_m))
                        if mode == "fuzzy" and confirm_llr is not None else None)
         self.motion_test = MotionTest(probability=motion_probability,
                                       min_speed_mps=min_speed_mps)

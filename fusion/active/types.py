@@ -8,7 +8,7 @@ pings. Rows come as columns: a mapping of column name to array, e.g. a
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
 from typing import Protocol
 
@@ -22,6 +22,7 @@ __all__ = [
     "Ping",
     "PingResult",
     "TrackingResult",
+    "iter_pings",
     "pings_from_columns",
     "receiver_groups",
 ]
@@ -133,6 +134,69 @@ def pings_from_columns(columns: Columns | Mapping[str, ArrayLike]) -> list[Ping]
         a, b = by_event.get(int(e), (0, 0))
         pings.append(Ping(int(e), float(te), xy[a:b], {k: v[a:b] for k, v in clues.items()}))
     return pings
+
+
+def iter_pings(chunks: Iterable[Columns | Mapping[str, ArrayLike]]) -> Iterator[Ping]:
+    """Pings from consecutive chunks of detection rows, one ping at a time.
+
+    The streaming form of :func:`pings_from_columns` for rows already in event order (as
+    :func:`fusion.io.iter_detections` yields them): an event may be split between two chunks;
+    memory holds one chunk and one event.
+
+    Parameters
+    ----------
+    chunks : iterable of mapping of str to array_like
+        Consecutive rows with columns ``event, time, x, y`` and any of :data:`CLUE_COLUMNS`
+        (the same in every chunk), ``event`` non-decreasing over all chunks.
+
+    Yields
+    ------
+    Ping
+        One per event from the first to the last event number; missing event numbers become
+        empty pings at times interpolated between their neighbours, as in
+        :func:`pings_from_columns`.
+
+    Examples
+    --------
+    >>> rows = [{"event": [0, 0], "time": [0.0, 0.0], "x": [1.0, 2.0], "y": [0.0, 0.0]},
+    ...         {"event": [0, 3], "time": [0.0, 90.0], "x": [3.0, 4.0], "y": [0.0, 0.0]}]
+    >>> [(p.event, p.time, p.n) for p in iter_pings(rows)]
+    [(0, 0.0, 3), (1, 30.0, 0), (2, 60.0, 0), (3, 90.0, 1)]
+    """
+    held: dict[str, NDArray[np.float64]] | None = None   # rows of the last event so far
+    last: tuple[int, float] | None = None                # last event yielded and its time
+
+    def emit(rows: dict[str, NDArray[np.float64]]) -> Iterator[Ping]:
+        nonlocal last
+        e, t = int(rows["event"][0]), float(rows["time"][0])
+        if last is not None and e > last[0] + 1:
+            gap = np.arange(last[0] + 1, e)
+            for g, tg in zip(gap, np.interp(gap, [last[0], e], [last[1], t]), strict=True):
+                yield Ping(int(g), float(tg), np.zeros((0, 2)),
+                           {k: np.zeros(0) for k in rows if k in CLUE_COLUMNS})
+        last = (e, t)
+        yield Ping(e, t, np.column_stack([rows["x"], rows["y"]]),
+                   {k: v for k, v in rows.items() if k in CLUE_COLUMNS})
+
+    for chunk in chunks:
+        if len(chunk["event"]) == 0:
+            continue
+        rows = {"event": np.asarray(chunk["event"]).astype(np.int64)}
+        for k in ("time", "x", "y", *CLUE_COLUMNS):
+            if k in chunk:
+                rows[k] = np.asarray(chunk[k], dtype=float)
+        if held is not None:
+            rows = {k: np.concatenate([held[k], v]) for k, v in rows.items()}
+        ev = rows["event"]
+        if np.any(np.diff(ev) < 0) or (last is not None and ev[0] <= last[0]):
+            raise ValueError("detections must come in non-decreasing event order")
+        cut = np.flatnonzero(np.diff(ev)) + 1
+        bounds = np.concatenate([[0], cut, [ev.size]])
+        for a, b in zip(bounds[:-2], bounds[1:-1], strict=True):
+            yield from emit({k: v[a:b] for k, v in rows.items()})
+        held = {k: v[bounds[-2]:] for k, v in rows.items()}
+    if held is not None:
+        yield from emit(held)
 
 
 def receiver_groups(ping: Ping) -> list[tuple[tuple[float, ...] | None, NDArray[np.int64]]]:

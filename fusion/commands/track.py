@@ -12,18 +12,52 @@ equivalent aspect angle comes from each track's heading and the source/receiver 
 ``aspect_deg`` column is used only with ``--aspect-column measured`` (nothing in a file says how
 it was obtained). With ``--smooth`` each confirmed track is refined with all of its detections on
 a factor graph (:mod:`fusion.active.smoothing`) and every row gets ``sigma_x, sigma_y`` (m).
+
+Scales not given are read from the first ``--fit-pings`` pings
+(:func:`fusion.active.settings.track_settings`): scan period, position scatter, speed prior,
+process noise, clutter density, start exclusion and the hotspot lengths. One line on stderr says
+what was chosen; the same goes to ``T.settings.json`` beside ``T.csv`` (not with ``--out -``),
+with a line saying why when no track was confirmed. The file is read and written in chunks,
+ping after ping (the tracker is online), unless ``--smooth`` or ``--confirmed-only`` need the
+whole run or the rows are not in event order (then the whole-file reader sorts them).
 """
 
 from __future__ import annotations
 
 import argparse
+import itertools
 import logging
+import os
+from collections.abc import Iterable, Iterator
 from pathlib import Path
+from typing import TYPE_CHECKING
 
+import numpy as np
+
+from fusion._output import STDOUT
 from fusion.cli import emit, number
-from fusion.io import read_detections, write_table
+from fusion.io import (
+    RowOrderError,
+    iter_detections,
+    read_detections,
+    write_json,
+    write_table,
+    write_table_chunks,
+)
+
+if TYPE_CHECKING:
+    from fusion.active.settings import TrackSettings
+    from fusion.active.tracker import Tracker
+    from fusion.active.types import Ping, PingResult
+
+logger = logging.getLogger(__name__)
 
 _POSITIONS = ("src_x", "src_y", "rcv_x", "rcv_y")
+_HEADER = ("track_id", "event", "time", "x", "y", "vx", "vy", "status")
+#: Pings whose detections the settings are read from, by default.
+FIT_PINGS = 500
+#: Pings per written chunk when streaming.
+_PINGS_PER_CHUNK = 256
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -32,17 +66,48 @@ def register(sub: argparse._SubParsersAction) -> None:
         "track",
         help="track targets in active-sonar (or any position) detections",
         description="Kalman prediction + fuzzy-logic association (or Kalman nearest neighbour), "
-                    "clutter map, M-of-N confirmation.",
+                    "clutter map, M-of-N confirmation and track score. Scales not given (position "
+                    "sigma, speed prior, process noise, start exclusion, hotspot lengths) are "
+                    "read from the detections; one line on stderr and T.settings.json say what "
+                    "was chosen.",
     )
     p.add_argument("--detections", type=Path, required=True, help="detections CSV")
     p.add_argument("--out", type=Path, required=True, help="output tracks CSV")
     p.add_argument("--mode", choices=("fuzzy", "kalman"), default="fuzzy",
                    help="association: fuzzy rank (default) or Kalman likelihood alone")
     p.add_argument("--rules", type=Path, default=None,
-                   help="fuzzy system JSON file (default: the built-in rule base)")
-    p.add_argument("--position-sigma", type=number(float, gt=0), default=100.0,
+                   help="fuzzy system JSON file (default: the built-in rule base, its hotspot "
+                        "'near' from --hotspot-near)")
+    g = p.add_argument_group("scales (default: read from the detections)")
+    g.add_argument("--position-sigma", type=number(float, gt=0), default=None, metavar="M",
                    help="position error of a detection per axis, m, for detections without "
-                        "source/receiver positions (default 100)")
+                        "source/receiver positions (default: the scatter of straight-line "
+                        "triplets of detections)")
+    g.add_argument("--speed-sigma-mps", type=number(float, gt=0), default=None, metavar="V",
+                   help="standard deviation of each velocity component of a new track, m/s "
+                        "(default: half the 90th percentile speed of objects seen moving; 3 "
+                        "when too few are)")
+    g.add_argument("--accel-psd", type=number(float, ge=0), default=None, metavar="Q",
+                   help="white-acceleration spectral density, m^2/s^3 (default: "
+                        "speed_sigma^2 / (2.5 scan periods))")
+    g.add_argument("--init-exclusion-m", type=number(float, ge=0), default=None, metavar="M",
+                   help="detections this close to a hotspot region start no track, m (default: "
+                        "the position sigma)")
+    g.add_argument("--hotspot-near", type=number(float, ge=0), nargs=2, default=None,
+                   metavar=("FULL", "NONE"),
+                   help="distances to a hotspot where the rule 'near' is 1 and 0, m (default: "
+                        "1 and 5 position sigmas)")
+    g.add_argument("--feature-sigma", type=number(float, ge=0), default=None, metavar="M",
+                   help="spread of a clutter feature's echoes per axis, m, for the density "
+                        "clutter map (default: 0.3 position sigma)")
+    g.add_argument("--intensity-bandwidth", type=number(float, gt=0), default=None, metavar="M",
+                   help="kernel of the clutter intensity of the track score, m (default: 10 "
+                        "position sigmas)")
+    g.add_argument("--max-speed", type=number(float, gt=0), default=30.0, metavar="V",
+                   help="fastest plausible object, m/s: how far the settings look for the "
+                        "next detection of an object (default 30)")
+    g.add_argument("--fit-pings", type=number(int, ge=3), default=FIT_PINGS, metavar="N",
+                   help=f"pings the scales are read from (default {FIT_PINGS})")
     p.add_argument("--position-errors", choices=("geometry", "isotropic"), default="geometry",
                    help="position error of detections with src_x,src_y,rcv_x,rcv_y: bistatic "
                         "error ellipse from range-sum and bearing accuracies (default) or "
@@ -67,8 +132,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--confirm-llr", type=number(float), default=3.0,
                    help="track score (log-likelihood ratio, target against clutter) a tentative "
                         "track needs besides its M-of-N hits (default 3)")
+    p.add_argument("--delete-llr", type=number(float), default=-4.0,
+                   help="a tentative track whose score falls below this is deleted (default -4)")
     p.add_argument("--no-track-score", action="store_true",
                    help="confirm on M-of-N hits alone (the paper), no track score")
+    p.add_argument("--no-score-evidence", action="store_true",
+                   help="the track score ignores the classifier score of each hit")
     p.add_argument("--detection-probability", type=number(float, gt=0, le=0.999), default=None,
                    help="probability that a receiver detects a track on a ping, for the track "
                         "score (default: estimated from confirmed tracks)")
@@ -78,11 +147,19 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--min-speed", type=number(float, ge=0), default=0.5,
                    help="speeds up to this count as standing still in the motion test, m/s "
                         "(default 0.5)")
-    p.add_argument("--accel-psd", type=number(float, ge=0), default=0.04,
-                   help="white-acceleration spectral density, m^2/s^3 (default 0.04)")
+    p.add_argument("--motion-probability", type=number(float, gt=0, le=0.999999), default=0.999,
+                   help="confidence of the motion test (default 0.999)")
+    p.add_argument("--gate-probability", type=number(float, gt=0, le=0.999999), default=0.99,
+                   help="chi-square gate probability (default 0.99)")
     p.add_argument("--min-rank", type=number(float, ge=0, le=1), default=None,
                    help="lowest fuzzy rank associated, one value for all pairs (default: derived "
-                        "from the rule base for the clues present, at likelihood ratio 0.25)")
+                        "from the rule base for the clues present, at likelihood ratio "
+                        "--edge-likelihood)")
+    p.add_argument("--edge-likelihood", type=number(float, gt=0, le=0.999999), default=0.25,
+                   help="likelihood ratio at the edge of the acceptance region of the derived "
+                        "rank threshold (default 0.25)")
+    p.add_argument("--confirmed-edge-likelihood", type=number(float, gt=0, le=0.999999), default=0.1,
+                   help="the same for confirmed tracks (default 0.1)")
     p.add_argument("--confirm", type=number(int, ge=1), nargs=2, default=(3, 4), metavar=("M", "N"),
                    help="confirm after M hits in the first N pings (default 3 4)")
     p.add_argument("--max-misses", type=number(int, ge=1), default=5,
@@ -91,6 +168,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="fuzzy mode: confirm a track on its hits alone, even when its own "
                         "detections do not move (default: such a track is held tentative until "
                         "it moves or the clutter map flags it)")
+    p.add_argument("--hotspot-drop", action="store_true",
+                   help="fuzzy mode: delete a tentative track within --init-exclusion-m of a "
+                        "hotspot region unless its own detections move")
     p.add_argument("--clutter-map", choices=("density", "grid"), default="density",
                    help="clutter map: recurrence judged with each detection's own error "
                         "ellipse (default) or counted in fixed grid cells")
@@ -104,63 +184,146 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(handler=run, inputs=("detections", "rules"))
 
 
-def run(args: argparse.Namespace) -> int:
-    """Track the detections and write the tracks."""
+class _Summary:
+    """What a run did, for the closing line and the reason when nothing was confirmed."""
+
+    def __init__(self) -> None:
+        self.pings = self.detections = 0
+        self.hits: dict[int, int] = {}
+        self.confirmed: set[int] = set()
+
+    def add(self, ping_n: int, result: PingResult) -> None:
+        self.pings += 1
+        self.detections += ping_n
+        for tid, det, st in zip(result.track_id.tolist(), result.detection.tolist(),
+                                result.status.tolist(), strict=True):
+            self.hits[tid] = self.hits.get(tid, 0) + (det >= 0)
+            if st == "confirmed":
+                self.confirmed.add(tid)
+
+    def why_none(self, args: argparse.Namespace, st: TrackSettings) -> str | None:
+        """One line saying why no track was confirmed (None when some was)."""
+        if self.confirmed:
+            return None
+        m, n = args.confirm
+        if self.detections == 0:
+            return f"no track confirmed: {args.detections} holds no detections"
+        most = max(self.hits.values(), default=0)
+        if most < m:
+            return (f"no track confirmed: no detection sequence got {m} hits within {n} pings "
+                    f"(at most {most} of {self.pings} pings; {len(self.hits)} tracks started): "
+                    f"the detections do not recur along a path inside the gates (position "
+                    f"sigma {st.position_sigma_m:.3g} m, speed sigma "
+                    f"{st.speed_sigma_mps:.3g} m/s; see --position-sigma, --speed-sigma-mps)")
+        held = sum(h >= m for h in self.hits.values())
+        why = []
+        if not args.confirm_stationary and args.mode == "fuzzy":
+            why.append(f"their detections did not move faster than --min-speed "
+                       f"{args.min_speed:g} m/s significantly (stationary hold; "
+                       "--confirm-stationary)")
+        if not args.no_track_score and args.mode == "fuzzy":
+            why.append(f"their track score stayed below --confirm-llr {args.confirm_llr:g}")
+        return (f"no track confirmed: {held} track(s) reached {m} hits but were held "
+                f"tentative: {' or '.join(why) or 'deleted before confirmation'}")
+
+
+def _build(args: argparse.Namespace, prefix: list[Ping],
+           system: object | None) -> tuple[TrackSettings, Tracker]:
+    """The settings read from the first pings and the tracker they configure."""
     from fusion.active.clutter import ClutterMap, DensityClutterMap
+    from fusion.active.rulebase import default_association_system
+    from fusion.active.settings import track_settings
     from fusion.active.tracker import Tracker
 
-    if args.confirm[0] > args.confirm[1]:
-        raise ValueError(f"--confirm: M must not exceed N, got {args.confirm[0]} {args.confirm[1]}")
-    if args.smooth and args.accel_psd <= 0:
-        raise ValueError("--smooth needs --accel-psd > 0")
-    table = read_detections(args.detections)
-    system = None
-    if args.mode == "fuzzy" and args.rules is not None:
-        from fusion.active.fuzzy import load_system
-
-        system = load_system(args.rules)
     try:
+        st = track_settings(prefix, position_sigma_m=args.position_sigma,
+                            speed_sigma_mps=args.speed_sigma_mps, accel_psd=args.accel_psd,
+                            init_exclusion_m=args.init_exclusion_m,
+                            feature_sigma_m=args.feature_sigma,
+                            hotspot_near_m=(None if args.hotspot_near is None
+                                            else tuple(args.hotspot_near)),
+                            intensity_bandwidth_m=args.intensity_bandwidth,
+                            max_speed_mps=args.max_speed)
+        if args.mode == "fuzzy" and system is None:
+            system = default_association_system(hotspot_near_m=st.hotspot_near_m)
+        sigma = st.position_sigma_m
         tracker = Tracker(
-            mode=args.mode,
-            system=system,
-            position_sigma_m=args.position_sigma,
-            position_errors=args.position_errors,
-            range_sum_sigma_m=args.range_sum_sigma,
-            bearing_sigma_deg=args.bearing_sigma,
-            noise=args.noise,
+            mode=args.mode, system=system, position_sigma_m=sigma,
+            position_errors=args.position_errors, range_sum_sigma_m=args.range_sum_sigma,
+            bearing_sigma_deg=args.bearing_sigma, noise=args.noise,
             aspect="measured" if args.aspect_column == "measured" else "geometry",
             score_threshold=args.score_threshold,
             confirm_llr=None if args.no_track_score else args.confirm_llr,
+            delete_llr=args.delete_llr, score_evidence=not args.no_score_evidence,
             detection_probability=args.detection_probability,
-            clutter_intensity=args.clutter_density,
-            min_speed_mps=args.min_speed,
-            accel_psd=args.accel_psd,
-            min_rank=args.min_rank,
-            confirm_hits=args.confirm[0],
-            confirm_window=args.confirm[1],
-            max_misses=args.max_misses,
-            hold_stationary=not args.confirm_stationary,
-            clutter_map=(ClutterMap(cell_m=args.hotspot_cell, position_sigma_m=args.position_sigma)
+            clutter_intensity=args.clutter_density, min_speed_mps=args.min_speed,
+            motion_probability=args.motion_probability, gate_probability=args.gate_probability,
+            accel_psd=st.accel_psd, speed_sigma_mps=st.speed_sigma_mps,
+            init_exclusion_m=st.init_exclusion_m, hotspot_drop=args.hotspot_drop,
+            intensity_bandwidth_m=st.intensity_bandwidth_m, min_rank=args.min_rank,
+            edge_likelihood=args.edge_likelihood,
+            confirmed_edge_likelihood=args.confirmed_edge_likelihood,
+            confirm_hits=args.confirm[0], confirm_window=args.confirm[1],
+            max_misses=args.max_misses, hold_stationary=not args.confirm_stationary,
+            clutter_map=(ClutterMap(cell_m=args.hotspot_cell, position_sigma_m=sigma)
                          if args.clutter_map == "grid"
-                         else DensityClutterMap(position_sigma_m=args.position_sigma)),
+                         else DensityClutterMap(position_sigma_m=sigma,
+                                                feature_sigma_m=st.feature_sigma_m)),
         )
     except ValueError as e:
         raise ValueError(f"bad option: {e}") from None
     if args.mode == "fuzzy":
-        absent = [c for c in ("score", "snr_db") if c not in table]
-        measured = args.aspect_column == "measured" and "aspect_deg" in table
-        if not measured and not all(c in table for c in _POSITIONS):
+        present = set(prefix[0].clues) if prefix else set()
+        absent = [c for c in ("score", "snr_db") if c not in present]
+        measured = args.aspect_column == "measured" and "aspect_deg" in present
+        if not measured and not all(c in present for c in _POSITIONS):
             absent.append("src_x, src_y, rcv_x, rcv_y (aspect_deg from the track heading)"
                           if args.aspect_column == "ignored" else
                           "aspect_deg (or src_x, src_y, rcv_x, rcv_y)")
-        if absent:
+        if absent and prefix:
             emit(f"fusion track: note: {args.detections} has no {', '.join(absent)}; "
                  "the rules reading them are left out of the rank", err=True)
         # The note above replaces the fuzzy engine's own warning.
         logging.getLogger("fusion.active.fuzzy").setLevel(logging.ERROR)
-    from fusion.active.types import pings_from_columns
+    return st, tracker
 
-    result = tracker.run(pings_from_columns(table))
+
+def _streamed(args: argparse.Namespace, system: object | None,
+              summary: _Summary) -> TrackSettings:
+    """Read, track and write ping by ping (bounded memory); returns the settings."""
+    from fusion.active.types import TrackingResult, iter_pings
+
+    pings = iter_pings(chunk.table for chunk in iter_detections(args.detections))
+    prefix = list(itertools.islice(pings, args.fit_pings))
+    st, tracker = _build(args, prefix, system)
+
+    def chunks() -> Iterator[dict]:
+        results = []
+        for p in itertools.chain(prefix, pings):
+            r = tracker.step(p)
+            summary.add(p.n, r)
+            results.append(r)
+            if len(results) >= _PINGS_PER_CHUNK:
+                yield TrackingResult(tuple(results)).columns()
+                results = []
+        yield TrackingResult(tuple(results)).columns()
+
+    write_table_chunks(args.out, chunks(), header=_HEADER)
+    return st
+
+
+def _whole(args: argparse.Namespace, system: object | None, summary: _Summary) -> TrackSettings:
+    """Read the whole file (sorted by event), track, write; returns the settings."""
+    from fusion.active.types import TrackingResult, pings_from_columns
+
+    pings = pings_from_columns(read_detections(args.detections))
+    st, tracker = _build(args, pings[:args.fit_pings], system)
+    tracker.reset()
+    results = []
+    for p in pings:
+        results.append(tracker.step(p))
+        summary.add(p.n, results[-1])
+    result = TrackingResult(tuple(results))
     cols = result.columns()
     if args.smooth:
         from fusion.active.smoothing import TrackSmoother, smooth_tracks
@@ -169,10 +332,60 @@ def run(args: argparse.Namespace) -> int:
                                  speed_sigma_mps=tracker.speed_sigma_mps)
         cols = smooth_tracks(result, smoother).columns
     if args.confirmed_only:
-        import numpy as np
-
         keep = np.isin(cols["track_id"], result.confirmed_ids())
         cols = {k: v[keep] for k, v in cols.items()}
     write_table(args.out, cols)
-    logging.getLogger(__name__).info("%d tracks confirmed", result.confirmed_ids().size)
+    return st
+
+
+def settings_path(out: Path) -> Path:
+    """Where the settings of a run go: ``T.csv`` -> ``T.settings.json`` beside it."""
+    out = Path(out)
+    return out.with_name(out.stem + ".settings.json") if out.suffix else out.with_name(
+        out.name + ".settings.json")
+
+
+def _same_file(a: Path, b: Iterable[Path | None]) -> bool:
+    for p in b:
+        try:
+            if p is not None and os.path.samefile(a, p):
+                return True
+        except OSError:
+            continue
+    return False
+
+
+def run(args: argparse.Namespace) -> int:
+    """Track the detections and write the tracks, the settings and one line of summary."""
+    if args.confirm[0] > args.confirm[1]:
+        raise ValueError(f"--confirm: M must not exceed N, got {args.confirm[0]} {args.confirm[1]}")
+    if args.smooth and args.accel_psd is not None and args.accel_psd <= 0:
+        raise ValueError("--smooth needs --accel-psd > 0")
+    system = None
+    if args.mode == "fuzzy" and args.rules is not None:
+        from fusion.active.fuzzy import load_system
+
+        system = load_system(args.rules)
+    summary = _Summary()
+    streamed = not (args.smooth or args.confirmed_only)
+    if streamed:
+        try:
+            st = _streamed(args, system, summary)
+        except RowOrderError as e:  # rows out of event order: the whole-file reader sorts them
+            logger.debug("%s; reading the whole file", e)
+            summary, streamed = _Summary(), False
+    if not streamed:
+        st = _whole(args, system, summary)
+    why = summary.why_none(args, st)
+    side = settings_path(args.out)
+    if str(args.out) != STDOUT and not _same_file(side, (args.detections, args.rules)):
+        write_json(side, {"command": "track", "settings": st.metadata(),
+                          "pings": summary.pings, "detections": summary.detections,
+                          "tracks": len(summary.hits),
+                          "confirmed_tracks": len(summary.confirmed), "no_track_reason": why})
+    emit(f"fusion track: {st.describe()}: {len(summary.confirmed)} confirmed track(s) of "
+         f"{len(summary.hits)} -> {args.out}", err=True)
+    if why is not None:
+        emit(f"fusion track: {why}", err=True)
+    logger.info("%d tracks confirmed", len(summary.confirmed))
     return 0

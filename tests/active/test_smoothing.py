@@ -9,6 +9,7 @@ from filterpy.common import Q_continuous_white_noise
 from filterpy.kalman import KalmanFilter, rts_smoother
 from numpy.testing import assert_allclose
 
+from fusion.active.settings import track_settings
 from fusion.active.smoothing import (
     TrackSmoother,
     position_factor,
@@ -16,6 +17,7 @@ from fusion.active.smoothing import (
     velocity_prior_factor,
 )
 from fusion.active.tracker import Tracker
+from fusion.active.types import pings_from_columns
 from fusion.io import read_table, write_table
 from fusion.simulate.multistatic import simulate_multistatic
 
@@ -221,9 +223,11 @@ def test_cli_smooth_appends_sigmas(tmp_path, run_cli):
     smooth = read_table(tmp_path / "smooth.csv", required=(*cols, "sigma_x", "sigma_y"),
                         text=("status",))
     assert len(plain) == len(smooth)
-    tracker = Tracker()
+    # The command's tracker: the scales read from the detections.
+    tracker = Tracker(**track_settings(pings_from_columns(sc.detections)).tracker_options())
     result = tracker.run(sc.detections)
-    want = smooth_tracks(result, TrackSmoother()).columns
+    want = smooth_tracks(result, TrackSmoother(accel_psd=tracker.accel_psd,
+                                               speed_sigma_mps=tracker.speed_sigma_mps)).columns
     assert_allclose(smooth["x"], want["x"], rtol=1e-6)
     assert_allclose(smooth["sigma_y"], want["sigma_y"], rtol=1e-6)
     changed = ~np.isclose(plain["x"], smooth["x"], rtol=0, atol=1e-6)
