@@ -48,7 +48,7 @@ def test_recovers_noiseless_target(motion):
 def test_single_state_covariance_matches_independent_information():
     """Marginal covariance at the first time equals (J^T J / sigma^2 + prior)^-1 from numpy."""
     sc = simulate_tma(seed=9, bearing_sigma_deg=1.0, **SHORT)
-    tma = BearingsOnlyTMA(bearing_sigma_deg=1.0)
+    tma = BearingsOnlyTMA(bearing_sigma_deg=1.0, noise="given")
     res = tma.estimate(sc.times, sc.bearings, _track(sc))
     own = sc.ownship_at_bearings
     J = target_bearing_jacobian(res.states[0], own, dt=sc.times - sc.times[0])

@@ -17,6 +17,7 @@ from factors.motion import constant_velocity_chain
 from factors.target import target_bearing, target_bearing_batch_factor
 from fusion._validation import check_positive
 from fusion.geometry import wrap_angle
+from fusion.passive.tma.confidence import noise_inflation, range_interval
 from fusion.passive.tma.initial import _pseudo_linear, _range_candidates, _transitions
 from fusion.passive.tma.observability import ownship_manoeuvre, range_rel_sigma
 from fusion.passive.tma.types import OwnshipTrack, TmaResult, _finite_1d, _ranges
@@ -79,7 +80,21 @@ class BearingsOnlyTMA:
         Own-ship departure from a straight constant-speed track below which it counts as not
         manoeuvring, m.
     max_range_rel_sigma : float, keyword-only
-        Relative range standard deviation above which range counts as unobservable.
+        Relative range standard deviation (of the noise-fitted covariance) above which range
+        counts as unobservable (default 0.15: an estimate 50 % off is then more than 2.7 sigma
+        from the truth in log-range, ``ln 2 / 0.15``; chosen on varied simulated cases, seeds
+        0-199 of ``benchmarks/bench_tma.py --flags``).
+    min_manoeuvre_sigmas : float, keyword-only
+        Range counts as unobservable when the own-ship's departure from a straight
+        constant-speed track, seen from the target (departure / range), subtends fewer than
+        this many bearing standard deviations (the larger of the given and the fitted one).
+    noise : {"fit", "given"}, keyword-only
+        ``"fit"`` (default): covariances scaled to the residuals seen
+        (:func:`~fusion.passive.tma.confidence.noise_inflation`: their variance and their
+        correlation from one bearing to the next, never below the given noise); ``"given"``:
+        the graph's covariance with `bearing_sigma_deg` as it is.
+    interval_level : float, keyword-only
+        Coverage of the range interval (default 0.95).
     prior_sigma_m, prior_sigma_mps : float, keyword-only
         Standard deviations of the diffuse prior on the first state, m and m/s.
     max_iterations : int, keyword-only
@@ -107,7 +122,10 @@ class BearingsOnlyTMA:
         initial_ranges_m: ArrayLike | None = None,
         min_range_m: float = 1.0,
         min_manoeuvre_m: float = 5.0,
-        max_range_rel_sigma: float = 0.3,
+        max_range_rel_sigma: float = 0.15,
+        min_manoeuvre_sigmas: float = 1.0,
+        noise: str = "fit",
+        interval_level: float = 0.95,
         prior_sigma_m: float = 1e5,
         prior_sigma_mps: float = 100.0,
         max_iterations: int = 100,
@@ -124,6 +142,11 @@ class BearingsOnlyTMA:
         for name, value in positive.items():
             check_positive(name, value)
         check_positive("min_manoeuvre_m", min_manoeuvre_m, allow_zero=True)
+        check_positive("min_manoeuvre_sigmas", min_manoeuvre_sigmas, allow_zero=True)
+        if noise not in ("fit", "given"):
+            raise ValueError(f"noise must be 'fit' or 'given', got {noise!r}")
+        if not 0 < interval_level < 1:
+            raise ValueError(f"interval_level must be in (0, 1), got {interval_level!r}")
         if motion not in ("chain", "single"):
             raise ValueError(f"motion must be 'chain' or 'single', got {motion!r}")
         if robust is not None and robust not in _ROBUST:
@@ -146,6 +169,9 @@ class BearingsOnlyTMA:
         self.min_manoeuvre_m = float(min_manoeuvre_m)
         self.min_range_m = float(min_range_m)
         self.max_range_rel_sigma = float(max_range_rel_sigma)
+        self.min_manoeuvre_sigmas = float(min_manoeuvre_sigmas)
+        self.noise = noise
+        self.interval_level = float(interval_level)
         self.prior_sigma_m = float(prior_sigma_m)
         self.prior_sigma_mps = float(prior_sigma_mps)
         self.max_iterations = int(max_iterations)
@@ -329,16 +355,31 @@ class BearingsOnlyTMA:
                 states, covs = self._solve(motion, t, z, own, s0)
             resid = wrap_angle(target_bearing(states, own) - z)
             rms_deg = float(np.degrees(np.sqrt(np.mean(np.square(resid)))))
+            scale, rho, s_fit = noise_inflation(resid, self.bearing_sigma)
+            if self.noise == "given":
+                scale = 1.0
+            covs = covs * scale
             rel = range_rel_sigma(states[-1], own[-1], t - t[-1], own, self.bearing_sigma)
+            rel = rel * float(np.sqrt(scale))
+            low, high, rel_post = range_interval(states, covs, own, level=self.interval_level)
         reasons = []
         if manoeuvre < self.min_manoeuvre_m:
             reasons.append(
                 f"own-ship did not manoeuvre (largest departure from a straight constant-speed "
                 f"track {manoeuvre:.3g} m < {self.min_manoeuvre_m:g} m)"
             )
-        if not rel <= self.max_range_rel_sigma:
+        sigma_eff = max(self.bearing_sigma, s_fit)
+        subtended = manoeuvre / float(np.median(_ranges(states, own)))
+        if manoeuvre >= self.min_manoeuvre_m and subtended < self.min_manoeuvre_sigmas * sigma_eff:
             reasons.append(
-                f"range ill-conditioned (relative range sigma {rel:.3g} > "
+                f"own-ship manoeuvre too small for the range (departure {manoeuvre:.3g} m seen "
+                f"from the target: {np.degrees(subtended):.3g} deg < "
+                f"{self.min_manoeuvre_sigmas:g} x bearing sigma {np.degrees(sigma_eff):.3g} deg)"
+            )
+        rel_worst = max(rel, float(rel_post[-1]))
+        if not rel_worst <= self.max_range_rel_sigma:
+            reasons.append(
+                f"range ill-conditioned (relative range sigma {rel_worst:.3g} > "
                 f"{self.max_range_rel_sigma:g})"
             )
         reason = "; ".join(reasons)
@@ -346,6 +387,7 @@ class BearingsOnlyTMA:
             logger.warning("TMA range unobservable: %s", reason)
         return TmaResult(
             times=t, states=states, covariances=covs, ownship_xy=own, observable=not reasons,
-            reason=reason, ownship_manoeuvre_m=manoeuvre, range_rel_sigma=rel,
-            bearing_rms_deg=rms_deg, motion=motion,
+            reason=reason, ownship_manoeuvre_m=manoeuvre, range_rel_sigma=rel_worst,
+            bearing_rms_deg=rms_deg, motion=motion, range_low=low, range_high=high,
+            covariance_scale=float(scale), residual_rho=rho,
         )

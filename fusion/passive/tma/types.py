@@ -92,7 +92,8 @@ class TmaResult:
     states : ndarray, shape (n, 4)
         Target ``[x, y, vx, vy]`` at each time, m and m/s.
     covariances : ndarray, shape (n, 4, 4)
-        Marginal covariance of each state, m^2, m^2/s, m^2/s^2.
+        Marginal covariance of each state, m^2, m^2/s, m^2/s^2, scaled by
+        `covariance_scale`.
     ownship_xy : ndarray, shape (n, 2)
         Own-ship positions at the bearing times, m.
     observable : bool
@@ -103,11 +104,20 @@ class TmaResult:
         Largest distance, m, of the own-ship from a straight constant-speed track fitted to its
         positions at the bearing times.
     range_rel_sigma : float
-        Standard deviation of the final range along the line of sight divided by that range.
+        Standard deviation of the final range along the line of sight divided by that range:
+        the larger of the bearings' own Cramer-Rao bound and the graph's covariance, both
+        scaled by `covariance_scale`.
     bearing_rms_deg : float
         RMS of the bearing residuals at the solution, deg.
     motion : str
         Target model used, ``"single"`` or ``"chain"`` (see :class:`BearingsOnlyTMA`).
+    range_low, range_high : ndarray, shape (n,)
+        Range interval at each time, m (:func:`~fusion.passive.tma.confidence.range_interval`
+        of `covariances`, at the estimator's ``interval_level``).
+    covariance_scale : float
+        Factor applied to the graph's covariance to fit the residuals (1: none).
+    residual_rho : float
+        Lag-one autocorrelation of the bearing residuals.
     """
 
     times: NDArray[np.float64]
@@ -120,6 +130,10 @@ class TmaResult:
     range_rel_sigma: float
     bearing_rms_deg: float
     motion: str = field(default="single")
+    range_low: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
+    range_high: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
+    covariance_scale: float = 1.0
+    residual_rho: float = 0.0
 
     @property
     def x(self) -> NDArray[np.float64]:
