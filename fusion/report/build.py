@@ -210,12 +210,20 @@ def _tracks(res: DetectedResult, extra: ReportInputs, out: FigureWriter) -> None
 
 
 def _tma(res: DetectedResult, extra: ReportInputs, out: FigureWriter) -> None:
-    from fusion.io import read_ownship, read_tma_result
+    from fusion.io import read_ownship, read_table, read_tma_result
     from fusion.report.positions import tma_figure
+    from fusion.types import Table
 
     own = read_ownship(extra.ownship) if extra.ownship else None
-    out.save(tma_figure(read_tma_result(res.path), ownship=own,
-                        title=f"fusion tma: {res.path.name}"), "tma.png")
+    result = read_tma_result(res.path)
+    try:  # the range interval, when the output has it
+        interval = read_table(res.path, required=("range_low", "range_high"), max_abs=None)
+    except ValueError:
+        interval = None
+    if interval is not None:
+        result = Table({**result.columns, "range_low": interval["range_low"],
+                        "range_high": interval["range_high"]}, source=result.source)
+    out.save(tma_figure(result, ownship=own, title=f"fusion tma: {res.path.name}"), "tma.png")
 
 
 def _acquisition(res: DetectedResult, extra: ReportInputs, out: FigureWriter) -> None:

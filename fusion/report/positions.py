@@ -189,7 +189,8 @@ def tma_figure(result: Table, *, ownship: Table | None = None, title: str) -> An
     Parameters
     ----------
     result : Table
-        ``time,x,y,vx,vy,sigma_x,sigma_y,range`` (``fusion tma``; m, m/s, s).
+        ``time,x,y,vx,vy,sigma_x,sigma_y,range`` (``fusion tma``; m, m/s, s), with
+        ``range_low,range_high`` (95 % interval, m) when the output has them.
     ownship : Table, optional, keyword-only
         Own-ship ``time,x,y``: drawn with bearing lines to the estimate at a few times.
     title : str, keyword-only
@@ -221,7 +222,11 @@ def tma_figure(result: Table, *, ownship: Table | None = None, title: str) -> An
     ax.set_ylabel("y north, m")
     ax.legend(fontsize=7, loc="best")
     ax.set_title("plan view")
-    axes["range"].plot(t, result["range"] / 1000.0, "b-")
+    axes["range"].plot(t, result["range"] / 1000.0, "b-", label="range")
+    if "range_low" in result and "range_high" in result:
+        axes["range"].fill_between(t, result["range_low"] / 1000.0, result["range_high"] / 1000.0,
+                                   color="b", alpha=0.2, lw=0, label="95 % interval")
+        axes["range"].legend(fontsize=7, loc="best")
     axes["range"].set_ylabel("range, km")
     speed = np.hypot(result["vx"], result["vy"])
     axes["speed"].plot(t, speed, "b-")
