@@ -163,12 +163,15 @@ def score_crossings(alerts: dict, tracks: dict, truth: dict, *, gate: float,
 
 
 def run_fusion(*argv: str) -> str:
-    """Run ``fusion`` in-process; its stdout; ValueError on a non-zero exit."""
+    """Run ``fusion`` in-process; its stdout. Exit 2 (bad input): ValueError; any other
+    failure: RuntimeError (a broken command must not read as "no alert")."""
     buf = io.StringIO()
     with redirect_stdout(buf):
         code = fusion_main([str(a) for a in argv])
+    if code == 2:
+        raise ValueError(f"fusion {' '.join(map(str, argv))}: exit 2")
     if code != 0:
-        raise ValueError(f"fusion {' '.join(map(str, argv))}: exit {code}")
+        raise RuntimeError(f"fusion {' '.join(map(str, argv))}: exit {code}")
     return buf.getvalue().strip()
 
 

@@ -69,6 +69,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="unknown-origin bearings of one scan closer than this are one "
                         "detection, deg (default 1.0: a camera detector may box one boat "
                         "several times; 0: no merging)")
+    p.add_argument("--twin-deg", type=number(float, ge=0), default=2.0,
+                   help="tracks from unknown-origin rows whose median distance over their "
+                        "common time is below this are one source, deg (default 2.0; 0: "
+                        "keep them apart)")
     p.add_argument("--max-gap-scans", type=number(int, ge=1), default=None,
                    help="longest gap, in scans, that a track may bridge (default: from "
                         "--max-misses)")
@@ -126,7 +130,8 @@ def run(args: argparse.Namespace) -> int:
     bearing_deg = table["bearing_deg"]
     try:
         tracks = smooth_bearings(table["track_id"], table["time"], np.radians(bearing_deg),
-                                 single=single, multi=multi, merge_within=merge)
+                                 single=single, multi=multi, merge_within=merge,
+                                 twin_within=float(np.radians(args.twin_deg)))
     except RuntimeError as e:  # gtsam: an ill-posed graph
         first = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
         raise ValueError(f"{args.bearings}: the smoothing graph is ill-conditioned ({first}); "

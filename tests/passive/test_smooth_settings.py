@@ -127,3 +127,25 @@ def test_cli_prints_and_writes_settings(run_cli, tmp_path):
     assert "q_deg2_per_s3" not in meta["settings"]["estimated"]
     assert_allclose(meta["settings"]["sigma_bearing_deg"], 1.0, rtol=0.15)
     assert meta["tracks"] >= 3
+
+
+def _track(tid, t, theta):
+    from fusion.passive.smoothing.types import SmoothedTrack
+
+    n = t.size
+    return SmoothedTrack(tid, t, np.angle(np.exp(1j * theta)), np.zeros(n), np.ones(n),
+                         np.ones(n))
+
+
+def test_twin_groups_join_twins_not_crossers():
+    """Side-by-side tracks 0.5 deg apart are one group; tracks that cross stay apart."""
+    from fusion.passive.smoothing.twins import twin_groups
+
+    t = np.arange(0.0, 100.0)
+    a = _track(0, t, np.radians(10 + 0.2 * t))
+    twin = _track(1, t[20:90], np.radians(10.5 + 0.2 * t[20:90]))
+    crosser = _track(2, t, np.radians(30 - 0.2 * t))  # crosses a at t = 50
+    far = _track(3, t, np.radians(-170 + 0.01 * t))
+    groups = twin_groups((a, twin, crosser, far), within=np.radians(2.0))
+    assert groups == [[0, 1], [2], [3]]
+    assert twin_groups((a, twin), within=np.radians(0.2)) == [[0], [1]]

@@ -13,6 +13,7 @@ from numpy.typing import ArrayLike
 from fusion.passive.smoothing.batch import BearingSmoother
 from fusion.passive.smoothing.merge import merge_scan_detections
 from fusion.passive.smoothing.multitrack import MultiTrackSmoother
+from fusion.passive.smoothing.twins import twin_groups
 from fusion.passive.smoothing.types import SmoothedTrack
 
 __all__ = ["smooth_bearings"]
@@ -26,6 +27,7 @@ def smooth_bearings(
     single: BearingSmoother,
     multi: MultiTrackSmoother,
     merge_within: float = 0.0,
+    twin_within: float = 0.0,
 ) -> tuple[SmoothedTrack, ...]:
     """Smooth a bearing file's rows: labelled tracks alone, unknown-origin rows jointly.
 
@@ -45,6 +47,11 @@ def smooth_bearings(
     merge_within : float, keyword-only
         Unknown-origin bearings of one scan closer than this are merged first, rad
         (:func:`~fusion.passive.smoothing.merge.merge_scan_detections`; 0: none).
+    twin_within : float, keyword-only
+        Tracks formed from unknown-origin rows that stay this close to each other over most
+        of their common time are one source (:func:`~fusion.passive.smoothing.twins.
+        twin_groups`): their detections are smoothed together by `single` (Gaussian loss
+        replaced by its robust one), rad (0: none).
 
     Returns
     -------
@@ -69,7 +76,14 @@ def smooth_bearings(
         if merge_within > 0:
             tu, zu, _ = merge_scan_detections(tu, zu, within=merge_within)
         res = multi.run(tu, zu)
-        for tr in res.tracks:
-            out.append(SmoothedTrack(tr.track_id + offset, tr.times, tr.bearing, tr.rate,
+        groups = (twin_groups(res.tracks, within=twin_within) if twin_within > 0
+                  else [[k] for k in range(len(res.tracks))])
+        for new_id, group in enumerate(groups):
+            if len(group) == 1:
+                tr = res.tracks[group[0]]
+            else:  # twins: one source, its detections smoothed as one track
+                own = np.flatnonzero(np.isin(res.labels, [res.tracks[k].track_id for k in group]))
+                tr = single.smooth(tu[own], zu[own], track_id=new_id)
+            out.append(SmoothedTrack(new_id + offset, tr.times, tr.bearing, tr.rate,
                                      tr.sigma_bearing, tr.sigma_rate))
     return tuple(out)
