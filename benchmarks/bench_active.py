@@ -12,7 +12,10 @@ Prints ONE JSON line:
   (the mean over the worst 10 % of runs), and the origin of the false tracks (by the majority of
   their detections: hotspot, clutter, target). Targets (fuzzy, varied): false <= 1 per run,
   coverage >= 0.95, identity switches <= 1 per run.
-- Variants: ``fuzzy`` (the defaults), ``kalman`` (the paper's comparison), ablations of the
+- Variants: ``fuzzy`` (the defaults of ``fusion track``: the scales read from each run's
+  detections by :func:`fusion.active.settings.track_settings`), ``class_defaults`` (the
+  :class:`~fusion.active.tracker.Tracker` constructor's fixed sonar scales: 100 m, 3 m/s,
+  0.04 m^2/s^3), ``kalman`` (the paper's comparison), ablations of the
   track score, of the classifier-score evidence, of the learnt accuracies (the user's 100 m /
   1.5 deg for every receiver), of the density clutter map (the grid map), the paper's
   classifier-score gate at ``--score-gates``, and the ``aspect_column`` variant that trusts the
@@ -20,13 +23,17 @@ Prints ONE JSON line:
   No variant is given the simulator's noise, clutter or detection-probability settings.
 - ``speed``: median wall time of one ping with 200 detections against 20 confirmed tracks
   (target <= 5 ms), detections with source/receiver positions.
-- ``real``: Autoferry radar (Trondheim harbour), positions only, scored against GNSS truth, with
-  the radar settings of :func:`radar_tracker`.
+
+The recorded Autoferry radar is scored through the command line by
+``benchmarks/bench_autoferry_radar.py`` (``fusion import autoferry`` + ``fusion track`` with its
+defaults). Every setting a variant uses is a ``fusion track`` option (``--mode kalman``,
+``--no-track-score``, ``--no-score-evidence``, ``--noise fixed``, ``--clutter-map grid``,
+``--aspect-column measured``, ``--score-threshold``).
 
 Seeds: the design was chosen on :data:`TUNING_SEEDS`; the figures in RESULTS.md come from one run
-on the report seeds named there, drawn after the last design change. Usage::
+on :data:`REPORT_SEEDS` (``--report``), drawn after the last design change. Usage::
 
-    python benchmarks/bench_active.py [--seeds 100] [--first-seed S] [--fixed] [--no-real]
+    python benchmarks/bench_active.py [--seeds 100] [--first-seed S] [--report] [--fixed]
 """
 
 from __future__ import annotations
@@ -38,23 +45,25 @@ import sys
 import time
 
 import numpy as np
-from _realdata import AUTOFERRY as REAL
 
 from fusion.active.clutter import ClutterMap
-from fusion.active.fuzzy import FuzzySystem
-from fusion.active.rulebase import default_association_system
+from fusion.active.settings import track_settings
 from fusion.active.tracker import Ping, Tracker
+from fusion.active.types import pings_from_columns
 from fusion.io import Table
 from fusion.simulate.multistatic import score_tracks, simulate_multistatic
 
-#: Seeds the design was chosen on: varied scenarios 1000-1099; the fixed scenario 100-119 and
-#: 200-299 (earlier versions). Report seeds are others.
+#: Seeds the design was chosen on: varied scenarios 1000-1099 (the scales read from the data:
+#: 1000-1059); the fixed scenario 100-119 and 200-299 (earlier versions).
 TUNING_SEEDS = {"varied": (1000, 1099), "fixed": ((100, 119), (200, 299))}
+#: Report seeds (varied), drawn after the last design change and run once (``--report``).
+REPORT_SEEDS = (7300, 7399)
 
 
 def _variants(score_gates) -> dict:
     out = {
         "fuzzy": {},
+        "class_defaults": {"fitted": False},
         "kalman": {"mode": "kalman"},
         "no_track_score": {"confirm_llr": None},
         "no_score_evidence": {"score_evidence": False},
@@ -94,11 +103,15 @@ def bench_sim(seeds, *, vary: bool, score_gates=(0.3, 0.5)) -> dict:
     for s in seeds:
         sc = simulate_multistatic(seed=s, vary=vary)
         truth = sc.truth
+        pings = pings_from_columns(sc.detections)
+        fitted = track_settings(pings).tracker_options()    # what fusion track does
         for name, kw in variants.items():
             kw = dict(kw)
+            base = fitted if kw.pop("fitted", True) else {}
             if kw.get("clutter_map") == "grid":
-                kw["clutter_map"] = ClutterMap()
-            res = Tracker(**kw).run(sc.detections)
+                kw["clutter_map"] = ClutterMap(
+                    position_sigma_m=base.get("position_sigma_m", 100.0))
+            res = Tracker(**{**base, **kw}).run(pings)
             cols = res.columns()
             score = score_tracks(cols, truth)
             a = acc[name]
@@ -174,86 +187,20 @@ def bench_speed(repeats: int = 50, n_tracks: int = 20, n_det: int = 200) -> dict
             "detections": n_det, "setup_pings": n_setup}
 
 
-def _radar_system() -> FuzzySystem:
-    """The default rules with the hotspot 'near' set scaled from sonar (100-500 m) to radar."""
-    d = default_association_system().to_dict()
-    for v in d["variables"]:
-        if v["name"] == "hotspot_distance_m":
-            v["universe"] = [0.0, 200.0]
-            v["terms"] = {"near": {"type": "left_shoulder", "a": 10.0, "b": 50.0},
-                          "far": {"type": "right_shoulder", "a": 10.0, "b": 50.0}}
-    return FuzzySystem.from_dict(d)
-
-
-def radar_tracker(mode: str, *, track_score: bool = False) -> Tracker:
-    """The tracker with radar settings: 10-m isotropic errors, harbour boats' dynamics, the
-    grid clutter map at 15 m with a 30-m exclusion and drop, the radar hotspot rule; boats may
-    idle, so no minimum speed in the motion test. Confirmation by M-of-N with the rank threshold
-    of tentative tracks for every track (the behaviour before the sonar track score); with
-    `track_score` the sonar defaults for both instead."""
-    kw = dict(position_sigma_m=10.0, accel_psd=0.5, speed_sigma_mps=5.0, init_exclusion_m=30.0,
-              hotspot_drop=True, min_speed_mps=0.0,
-              clutter_map=ClutterMap(cell_m=15.0, position_sigma_m=10.0))
-    if not track_score:
-        kw.update(confirm_llr=None, confirmed_edge_likelihood=None)
-    if mode == "fuzzy":
-        kw["system"] = _radar_system()
-    return Tracker(mode=mode, **kw)
-
-
-def bench_real(match_m: float = 50.0) -> dict:
-    from fusion.datasets.autoferry import load_autoferry
-
-    out = {}
-    for folder in sorted(REAL.glob("scenario*")):
-        rec = load_autoferry(folder)
-        det = rec.positions()
-        table = Table({k: det[k] for k in ("event", "time", "x", "y")})
-        truth = rec.truth
-        scan_t = np.unique(det["time"])
-        ev_t = {int(e): float(t) for e, t in zip(det["event"], det["time"], strict=True)}
-        res = {}
-        for mode in ("fuzzy", "fuzzy_track_score", "kalman"):
-            tracker = radar_tracker(mode.split("_")[0], track_score=mode == "fuzzy_track_score")
-            cols = tracker.run(table).columns()
-            conf = cols["status"] == "confirmed"
-            d_tgt = []
-            for tid in np.unique(truth["track_id"]):
-                m = truth["track_id"] == tid
-                tt, idx = np.unique(truth["time"][m], return_index=True)
-                gx = np.interp(cols["time"], tt, truth["x"][m][idx])
-                gy = np.interp(cols["time"], tt, truth["y"][m][idx])
-                d_tgt.append(np.hypot(cols["x"] - gx, cols["y"] - gy))
-            d_tgt = np.array(d_tgt)
-            cov = []
-            for j in range(d_tgt.shape[0]):
-                ok = conf & (d_tgt[j] <= match_m)
-                covered = np.unique(cols["event"][ok])
-                n_ev = len(np.unique(cols["event"]))
-                cov.append(len(covered[covered >= 3]) / max(n_ev - 3, 1))
-            false = 0
-            for tid in np.unique(cols["track_id"][conf]):
-                m = conf & (cols["track_id"] == tid)
-                if np.mean(np.min(d_tgt[:, m], axis=0) <= match_m) < 0.5:
-                    false += 1
-            res[mode] = {"coverage_per_target": [round(c, 3) for c in cov],
-                         "false_tracks": int(false)}
-        res["scans"] = int(len(scan_t))
-        res["detections_per_scan"] = round(len(table) / max(len(ev_t), 1), 2)
-        out[folder.name] = res
-    return out
-
-
 def main(argv=None) -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--seeds", type=int, default=100, help="runs")
     p.add_argument("--first-seed", type=int, default=TUNING_SEEDS["varied"][0])
+    p.add_argument("--report", action="store_true",
+                   help=f"the report seeds {REPORT_SEEDS[0]}-{REPORT_SEEDS[1]} (replaces "
+                        "--seeds/--first-seed)")
     p.add_argument("--fixed", action="store_true", help="the fixed scenario instead of varied ones")
     p.add_argument("--score-gates", default="0.3,0.5",
                    help="classifier-score gate variants, comma separated ('' for none)")
-    p.add_argument("--no-real", action="store_true")
     p.add_argument("--no-speed", action="store_true")
     args = p.parse_args(argv)
+    if args.report:
+        args.first_seed, args.seeds = REPORT_SEEDS[0], REPORT_SEEDS[1] - REPORT_SEEDS[0] + 1
     logging.getLogger("fusion.active.fuzzy").setLevel(logging.ERROR)
     gates = [float(g) for g in args.score_gates.split(",") if g.strip()]
     t0 = time.perf_counter()
@@ -263,15 +210,13 @@ def main(argv=None) -> None:
     fz = sim["fuzzy"]
     result = {"scenarios": "fixed" if args.fixed else "varied",
               "seeds": [args.first_seed, args.first_seed + args.seeds - 1],
-              "tuning_seeds": TUNING_SEEDS, "sim": sim,
+              "tuning_seeds": TUNING_SEEDS, "report_seeds": REPORT_SEEDS, "sim": sim,
               "targets": {"false_tracks_per_run<=1": fz["false_tracks_per_run"] <= 1,
                           "coverage>=0.95": fz["coverage"] >= 0.95,
                           "identity_switches_per_run<=1": fz["identity_switches_per_run"] <= 1}}
     if not args.no_speed:
         result["speed"] = bench_speed()
         result["targets"]["ping_ms<=5"] = result["speed"]["ms_per_ping_200det_20trk_median"] <= 5
-    if not args.no_real and REAL.exists():
-        result["real_autoferry_radar"] = bench_real()
     print(json.dumps(result))
 
 

@@ -2,43 +2,49 @@
 
 The tracker's sizes (a detection's position error, the velocity prior of a new track, the
 process noise, the clutter map's and the clutter intensity's lengths, the hotspot rule's
-"near") depend on the sensor: a sonar's 100-m echoes a minute apart, a harbour radar's 5-m
-plots every two seconds. When the user does not give them, :func:`track_settings` reads them
-from the detections themselves (a prefix of the run is enough), by *straight-line triplets*:
+"near") depend on the sensor: a sonar's 100-m echoes a minute or two apart, a harbour radar's
+few-metre plots every two seconds. When the user does not give them, :func:`track_settings`
+reads them from the detections (the first pings of a run are enough) through *chains of
+straight-line triplets*:
 
-1. The scan period ``T`` is the median step between consecutive event times.
-2. For each detection ``b`` of scan ``k``, the detections ``a`` of scan ``k - 1`` and ``c`` of
-   scan ``k + 1`` within ``max_speed_mps`` times the time step of ``b`` are paired, and the
-   pair with the smallest second difference ``s = (a - b) / dt_1 - (b - c) / dt_2`` scaled to
-   positions, ``s = w_1 a - b + w_2 c`` with ``w_1 = dt_2 / (dt_1 + dt_2)``,
-   ``w_2 = dt_1 / (dt_1 + dt_2)`` (zero for any object moving at constant velocity, whatever
-   its speed), is kept. For three detections of one object each coordinate of ``s`` is normal
-   with variance ``(1 + w_1^2 + w_2^2) sigma^2`` (``1.5 sigma^2`` for equal steps); for a
-   clutter detection ``|s|`` is spread over the whole search disc.
-3. ``|s|`` is modelled as a mixture of a Rayleigh law (objects) and a law uniform over the
-   disc (``p(r) = 2 r / rho^2``, clutter), fitted by expectation-maximisation: the object
-   fraction and ``sigma``, the measurement scatter per axis (the position error).
-4. The triplets judged object (responsibility > 1/2) give velocities ``(c - a) / (t_c - t_a)``;
-   those that move significantly (chi-square, 2 degrees of freedom, at 0.99, against the
-   velocity error ``sigma sqrt(2) / (t_c - t_a)``) are the moving objects, and the velocity
-   prior of a new track is ``speed_sigma = speed_90 / 2`` per axis with ``speed_90`` the 90th
-   percentile of their speeds (noise removed in quadrature), so that nine moving objects in ten
-   lie within two standard deviations of a still start.
-5. The clutter density is the rate of detections not judged object, per scan and square metre
-   of the field (the bounding box of the detections).
+1. The scan period ``T`` is the median step between the times of scans with detections.
+2. For each detection ``b`` of a scan, the detections ``a`` of the scan before and ``c`` of the
+   scan after within ``max_speed_mps`` times the time step (default 30 m/s) are paired, and the
+   pair with the smallest second difference ``s = w_1 a + w_2 c - b``,
+   ``w_1 = dt_2 / (dt_1 + dt_2)``, ``w_2 = dt_1 / (dt_1 + dt_2)``, is kept: ``s`` is zero for
+   any object moving at constant velocity, whatever its speed, and each of its coordinates has
+   variance ``(1 + w_1^2 + w_2^2) sigma^2`` for detections with ``sigma`` per axis.
+3. Triplets link into chains when consecutive triplets share two detections (``(a, b, c)`` then
+   ``(b, c, d)``). A chain of at least ``MIN_CHAIN`` triplets is kept as one object (a target,
+   a bottom feature, a fixed echo) unless chance explains it: with ``mu`` the density of the
+   chance values of ``s`` near zero (the number of ``(a, c)`` pairs over the area their
+   weighted positions cover), the nearest of Poisson points lies within ``r`` with probability
+   ``1 - exp(-pi mu r^2)``; a chain whose product of these probabilities exceeds ``MAX_CHANCE``
+   (1e-3) is dropped.
+4. ``sigma`` is the maximum-likelihood scatter of the kept triplets, ``sqrt(mean(|s|^2 /
+   ratio) / 2)``: the scan-to-scan scatter of objects, tails (merged or split plots) included.
+5. A kept chain moves when its end-to-end velocity is significant (chi-square, 2 degrees of
+   freedom, 0.99, against ``sigma sqrt(2) / span``); with at least ``MIN_MOVING`` triplets in
+   moving chains, the velocity prior of a new track is ``speed_90 / 2`` per axis, ``speed_90``
+   the 90th percentile of their speeds (weighted by length, noise removed in quadrature), so
+   that nine moving objects in ten start within two standard deviations of a still start;
+   otherwise 3 m/s (the sonar default).
+6. The clutter density is the rate of detections outside kept chains, per scan and square
+   metre of the bounding box of the detections (reported; the track score estimates its own
+   intensity over the field).
 
-The other scales follow from these (see :class:`TrackSettings`): the process noise lets a
-target change its velocity by ``speed_sigma`` over about ten scans (``q = speed_sigma^2 /
-(10 T)``, the white-acceleration density whose velocity change per scan has standard deviation
-``speed_sigma / sqrt 10``); the clutter map's feature spread ``0.3 sigma``, the hotspot rule's
+The other scales follow: the process noise lets a target change its velocity by the speed
+prior over ``MANOEUVRE_SCANS`` (2.5) scans, ``q = v^2 / (2.5 T)`` with ``v`` the speed prior
+but at least 3 m/s (slow objects turn too; on the sonar's 60-120 s pings this is the sonar
+default 0.03-0.06 m^2/s^3); the clutter map's feature spread ``0.3 sigma``, the hotspot rule's
 "near" from ``sigma`` (full) to ``5 sigma`` (none), the clutter intensity's kernel ``10 sigma``
-and the start exclusion around hotspots ``sigma``: the ratios of the sonar defaults (100-m
-errors; 30-m features, 100-500 m, 1000 m) carried to any scatter.
+and the start exclusion around hotspot regions ``sigma``: the ratios of the sonar defaults
+(100-m errors; 30-m features, 100-500 m, 1000 m) carried to any scatter.
 
-The triplet statistic is the second difference used to estimate measurement noise from a
-constant-velocity sequence (e.g. the variance of second differences of equally spaced
-measurements, Bar-Shalom, Li and Kirubarajan, *Estimation with Applications to Tracking and
-Navigation*, 2001, Section 11.6's noise identification); the mixture keeps clutter out of it.
+The second difference of a constant-velocity sequence is the classic statistic for the
+measurement noise of a tracker (the noise-identification use of residuals of a polynomial fit,
+Bar-Shalom, Li and Kirubarajan, *Estimation with Applications to Tracking and Navigation*,
+2001, Section 11.6); the chains and the chance test keep clutter out of it.
 """
 
 from __future__ import annotations
@@ -54,7 +60,7 @@ from scipy.stats import chi2
 
 from fusion.active.types import Ping
 
-__all__ = ["TrackSettings", "fit_scales", "track_settings"]
+__all__ = ["Scales", "TrackSettings", "fit_scales", "track_settings"]
 
 logger = logging.getLogger(__name__)
 
@@ -72,7 +78,7 @@ MIN_CHAIN = 3
 MIN_MOVING = 30
 #: Largest probability that chance forms a chain as straight (chains kept as objects).
 MAX_CHANCE = 1e-3
-#: Scans over which a target may change its velocity by ``speed_sigma`` (process noise).
+#: Scans over which a target may change its velocity by the speed prior (process noise).
 MANOEUVRE_SCANS = 4
 
 
@@ -161,7 +167,23 @@ class TrackSettings:
 
 
 @dataclass(frozen=True)
-class _Scales:
+class Scales:
+    """What :func:`fit_scales` reads from the detections (None: the data cannot tell).
+
+    Attributes
+    ----------
+    period_s : float
+        Median step between scan times, s (NaN with fewer than two scans).
+    sigma_m : float or None
+        Scatter per axis of the kept chains' detections, m.
+    speed_sigma_mps : float or None
+        Half the 90th-percentile speed of moving chains, m/s.
+    clutter_density : float
+        Detections outside kept chains per scan and m^2.
+    object_triplets, moving_triplets : int
+        Triplets in kept chains, and in those that move.
+    """
+
     period_s: float
     sigma_m: float | None
     speed_sigma_mps: float | None
@@ -225,9 +247,26 @@ def _chains(tri: NDArray[np.float64]) -> list[NDArray[np.int64]]:
 
 
 def fit_scales(pings: Sequence[Ping], *, max_speed_mps: float = MAX_SPEED_MPS,
-               min_chain: int = MIN_CHAIN) -> _Scales:
-    """Scan period, scatter, speed prior and clutter density of a run (module docstring);
-    ``sigma_m`` / ``speed_sigma_mps`` are None when the data cannot tell."""
+               min_chain: int = MIN_CHAIN) -> Scales:
+    """Scan period, scatter, speed prior and clutter density of a run.
+
+    Parameters
+    ----------
+    pings : sequence of Ping
+        The run (or its first pings), in time order.
+    max_speed_mps : float, optional
+        Fastest plausible object, m/s: the search radius per second of the triplets.
+    min_chain : int, optional
+        Fewest linked triplets of a chain kept as an object (default 3: five scans).
+
+    Returns
+    -------
+    Scales
+
+    Notes
+    -----
+    Steps 1-6 of the module docstring.
+    """
     scans = [p for p in pings if p.n]
     times = np.array([p.time for p in scans], dtype=float)
     steps = np.diff(np.unique(times))
@@ -266,7 +305,7 @@ def fit_scales(pings: Sequence[Ping], *, max_speed_mps: float = MAX_SPEED_MPS,
     xy = np.concatenate([p.xy for p in scans]) if scans else np.zeros((0, 2))
     area = float(np.prod(np.maximum(np.ptp(xy, axis=0), 1.0))) if xy.size else 1.0
     n_clutter = xy.shape[0] - n_obj
-    return _Scales(period_s=period, sigma_m=sigma, speed_sigma_mps=speed,
+    return Scales(period_s=period, sigma_m=sigma, speed_sigma_mps=speed,
                    clutter_density=max(n_clutter, 0) / max(len(scans), 1) / area,
                    object_triplets=n_obj, moving_triplets=n_mov)
 
@@ -349,7 +388,9 @@ def track_settings(
     sigma = pick("position_sigma_m", position_sigma_m, sc.sigma_m, FALLBACK_SIGMA_M)
     speed = pick("speed_sigma_mps", speed_sigma_mps, sc.speed_sigma_mps,
                  FALLBACK_SPEED_SIGMA_MPS)
-    q = pick("accel_psd", accel_psd, speed**2 / (MANOEUVRE_SCANS * period), 0.04)
+    # Slow objects turn too: the manoeuvre allowance assumes at least the fallback speed.
+    v_man = max(speed, FALLBACK_SPEED_SIGMA_MPS)
+    q = pick("accel_psd", accel_psd, v_man**2 / (MANOEUVRE_SCANS * period), 0.04)
     if source["accel_psd"] == "data" and source["speed_sigma_mps"] != "data":
         source["accel_psd"] = source["speed_sigma_mps"]       # from a given/fallback speed
     excl = pick("init_exclusion_m", init_exclusion_m, sigma, sigma)
