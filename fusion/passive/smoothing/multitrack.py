@@ -317,8 +317,12 @@ class MultiTrackSmoother:
             prior = TrackPrior(bearing=float(x0[0, 0]), rate=float(x0[0, 1]),
                                sigma_bearing=10.0 * self.model.sigma_bearing,
                                sigma_rate=self.tracker.init_sigma_rate)
-            states, covs = _solve_cov(times_ab, meas, prior, self.model, x0,
-                                      (0, b - a))
+            try:
+                states, covs = _solve_cov(times_ab, meas, prior, self.model, x0,
+                                          (0, b - a))
+            except RuntimeError:  # gtsam: too few bearings for the scans spanned (dense scans)
+                weak = np.diag([self.model.sigma_bearing**2, self.tracker.init_sigma_rate**2])
+                states, covs = x0, [weak, weak]
             out.append((states, covs))
         (st_a, cov_a), (st_b, cov_b) = out[0], out[-1]
         return (s0, st_a[0], cov_a[0], s1, st_b[-1], cov_b[-1])
