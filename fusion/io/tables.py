@@ -333,10 +333,22 @@ def _columns(path: PathLike, columns: Mapping[str, ArrayLike]) -> tuple[dict[str
     return cols, (lengths.pop() if lengths else 0)
 
 
+def _format_column(v: NDArray[Any], float_format: str) -> list[str]:
+    """The cells of one column as :func:`_format_cell` writes them, a column at a time."""
+    if v.dtype.kind == "f":
+        return [repr(x) if abs(x) >= _FIXED_LIMIT else float_format % x for x in v.tolist()]
+    if v.dtype.kind in "iu":
+        return [str(x) for x in v.tolist()]
+    if v.dtype.kind == "b":
+        return ["true" if x else "false" for x in v.tolist()]
+    if v.dtype.kind == "U":
+        return v.tolist()
+    return [_format_cell(x, float_format) for x in v]
+
+
 def _write_rows(w: Any, cols: dict[str, NDArray[Any]], n: int, float_format: str) -> None:
-    values = list(cols.values())
-    for i in range(n):
-        w.writerow([_format_cell(v[i], float_format) for v in values])
+    if n:
+        w.writerows(zip(*(_format_column(v, float_format) for v in cols.values()), strict=True))
 
 
 def write_table(
