@@ -131,9 +131,10 @@ def qr_fit(x: NDArray, y: NDArray) -> tuple[NDArray, NDArray, NDArray] | None:
 
 
 def trimmed_consensus(ps: NDArray, ds: NDArray, z_max: float, max_rate: float, max_accel: float,
-             max_drop: int) -> NDArray[np.bool_] | None:
+             max_drop: int) -> tuple[NDArray[np.bool_], tuple[NDArray, NDArray, NDArray]] | None:
     """The clicks of the minimum of the truncated cost when it is a least-squares fit with at
-    most `max_drop` clicks left out and that can be certified; None otherwise.
+    most `max_drop` clicks left out and that can be certified, with :func:`qr_fit` of those
+    clicks (``qr_fit(ps[keep], ds[keep])``, for the caller's refit); None otherwise.
 
     Least squares on all clicks, dropping the click of largest deleted residual while the
     deletion test (:func:`deletion_certified`) fails; the result is accepted when its fit is
@@ -171,7 +172,7 @@ def trimmed_consensus(ps: NDArray, ds: NDArray, z_max: float, max_rate: float, m
         ho = np.sum(np.linalg.solve(r.T, xo.T) ** 2, axis=0)  # x_o^T (X^T X)^-1 x_o
         if np.any(np.abs(eo) <= z_max) or np.any(eo * eo <= thr * (1.0 + ho)):
             return None
-    return keep
+    return keep, fit
 
 
 def msac_consensus(u: NDArray, d: NDArray, sig: NDArray, top: int, z_max: float, max_rate: float,

@@ -192,15 +192,19 @@ def consensus_inliers(
     u = t - 0.5 * (t.min() + t.max())
     ps = u[:, None] ** np.arange(top + 1) / sig[:, None]  # whitened design and data
     ds = d / sig
-    best = trimmed_consensus(ps, ds, outlier_z, max_rate, max_accel, max(1, n // 5))
-    if best is None:
+    trimmed = trimmed_consensus(ps, ds, outlier_z, max_rate, max_accel, max(1, n // 5))
+    if trimmed is None:
         best = msac_consensus(u, d, sig, top, outlier_z, max_rate, max_accel, max_candidates, n_local)
         if best is None:
             return np.ones(n, dtype=bool)
+        fit = None
+    else:
+        best, fit = trimmed  # the shortcut's own fit of its clicks: the refit below
     if best.sum() < 2:
         return np.ones(n, dtype=bool)
     # refit on the consensus set (the degree of fit_delays), scatter-inflated residual test
-    fit = qr_fit(ps[best], ds[best])
+    if fit is None:
+        fit = qr_fit(ps[best], ds[best])
     if fit is None:
         c, _, t_ref, _ = fit_delays(t[best], d[best], sig[best], max_degree=top)
         z = (d - ((t - t_ref)[:, None] ** np.arange(c.size)) @ c) / sig
