@@ -90,7 +90,8 @@ class MultiTrackSmoother:
        Crossing Prediction/Detection" puts their crossing within ``J`` scans (eq. (3)
        prediction or eq. (4) detection), both tracks are cut and the detections of those
        scans (one scan of margin) are released: their origin is uncertain. What is left are
-       segments that follow one target each.
+       segments that follow one target each. Tracks with fewer than `min_length` detections
+       (dropped in the end anyway) cut no other track.
     3. Segment relabelling: each segment is smoothed on its bearing-rate graph (its first and
        last `fit_scans` scans, weak prior) and gives ``gtsam.Marginals`` of its first and last
        state. A segment ending at ``t_e`` and one starting at ``t_s > t_e`` are linked with
@@ -264,8 +265,14 @@ class MultiTrackSmoother:
         n_scans = tr.scan_times.size
         period = float(np.median(np.diff(tr.scan_times))) if n_scans > 1 else 1.0
         ambiguous = np.zeros((tr.n_tracks, n_scans), bool)
+        # a track too short to be kept does not cut others
+        counts = np.bincount(tr.labels[tr.labels >= 0], minlength=tr.n_tracks)
         for a in range(tr.n_tracks):
+            if counts[a] < self.min_length:
+                continue
             for b in range(a + 1, tr.n_tracks):
+                if counts[b] < self.min_length:
+                    continue
                 lo = max(tr.first_scan[a], tr.first_scan[b])
                 hi = min(tr.last_scan[a], tr.last_scan[b])
                 if hi < lo:
