@@ -56,6 +56,8 @@ _POSITIONS = ("src_x", "src_y", "rcv_x", "rcv_y")
 _HEADER = ("track_id", "event", "time", "x", "y", "vx", "vy", "status")
 #: Pings whose detections the settings are read from, by default.
 FIT_PINGS = 500
+#: Pings the density clutter map remembers by default (bounded memory on long runs).
+MAP_MEMORY_PINGS = 200
 #: Pings per written chunk when streaming.
 _PINGS_PER_CHUNK = 256
 
@@ -176,6 +178,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "ellipse (default) or counted in fixed grid cells")
     p.add_argument("--hotspot-cell", type=number(float, gt=0), default=150.0,
                    help="--clutter-map grid: cell size, m (default 150)")
+    p.add_argument("--map-memory-pings", type=number(int, ge=2), default=MAP_MEMORY_PINGS,
+                   metavar="N",
+                   help="the density clutter map remembers the last N pings (default "
+                        f"{MAP_MEMORY_PINGS}: memory and time per ping stay bounded on long runs)")
     p.add_argument("--confirmed-only", action="store_true",
                    help="write only rows of tracks that were confirmed at some point")
     p.add_argument("--smooth", action="store_true",
@@ -268,7 +274,8 @@ def _build(args: argparse.Namespace, prefix: list[Ping],
             clutter_map=(ClutterMap(cell_m=args.hotspot_cell, position_sigma_m=sigma)
                          if args.clutter_map == "grid"
                          else DensityClutterMap(position_sigma_m=sigma,
-                                                feature_sigma_m=st.feature_sigma_m)),
+                                                feature_sigma_m=st.feature_sigma_m,
+                                                memory_pings=args.map_memory_pings)),
         )
     except ValueError as e:
         raise ValueError(f"bad option: {e}") from None
