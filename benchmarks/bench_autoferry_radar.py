@@ -114,7 +114,7 @@ def main(argv: list[str] | None = None) -> None:
                                integer=("track_id",))
             res = score(tracks, truth, match_m=args.match_m)
             side = json.loads(trk.with_name(trk.stem + ".settings.json").read_text())
-            res["settings"] = {k: (round(v, 4) if isinstance(v, float) else v)
+            res["settings"] = {k: (float(f"{v:.4g}") if isinstance(v, float) else v)
                                for k, v in side["settings"].items() if k != "source"}
             res["no_track_reason"] = side["no_track_reason"]
             res["stderr_lines"] = [ln for ln in run.stderr.splitlines()
