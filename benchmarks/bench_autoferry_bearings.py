@@ -14,7 +14,8 @@ when given here). Scored against the GNSS bearings from the ferry (``truth_beari
 * crossings: the true ones are the sign changes of the two boats' bearing difference; an alert
   counts as a detection of one when its two tracks follow the two boats at the alert time
   (within the gate) and its ``t_cross`` (or interval) lies within ``--match-tol-s`` of it; an
-  alert between the two boats' tracks with no true crossing near is a false alarm; alerts
+  alert between the two boats' tracks with no true crossing near, or between two tracks on the
+  same boat, is a false alarm; alerts
   involving a track that follows neither boat are counted apart (``other_alerts``: crossings
   with objects that carry no GNSS, not verifiable).
 
@@ -148,8 +149,11 @@ def score_crossings(alerts: dict, tracks: dict, truth: dict, *, gate: float,
         a, b = int(alerts["track_a"][i]), int(alerts["track_b"][i])
         t = float(alerts["time"][i])
         oa, ob = owner(tracks, a, t, truth, gate), owner(tracks, b, t, truth, gate)
-        if oa < 0 or ob < 0 or oa == ob:
+        if oa < 0 or ob < 0:
             other += 1
+            continue
+        if oa == ob:  # two tracks on one boat (a big ship boxed in several places)
+            false_alarm += 1
             continue
         lo = float(alerts["t_cross_low"][i]) - tol
         hi = float(alerts["t_cross_high"][i]) + tol

@@ -69,10 +69,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="unknown-origin bearings of one scan closer than this are one "
                         "detection, deg (default 1.0: a camera detector may box one boat "
                         "several times; 0: no merging)")
-    p.add_argument("--twin-deg", type=number(float, ge=0), default=2.0,
+    p.add_argument("--twin-deg", type=number(float, ge=0), default=4.0,
                    help="tracks from unknown-origin rows whose median distance over their "
-                        "common time is below this are one source, deg (default 2.0; 0: "
-                        "keep them apart)")
+                        "common time is below this are one source, deg (default 4.0: a boat "
+                        "10 m long at 150 m; 0: keep them apart)")
     p.add_argument("--max-gap-scans", type=number(int, ge=1), default=None,
                    help="longest gap, in scans, that a track may bridge (default: from "
                         "--max-misses)")
