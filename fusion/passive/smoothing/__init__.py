@@ -23,6 +23,12 @@ Modules, one role each:
 - :mod:`~fusion.passive.smoothing.multitrack` -- :class:`MultiTrackSmoother`, tracks from
   unlabeled detections with expectation-maximisation around every crossing through
   association-weighted factors.
+- :mod:`~fusion.passive.smoothing.merge` -- :func:`~fusion.passive.smoothing.merge.
+  merge_scan_detections`, same-scan bearings closer than the sensor resolves made one.
+- :mod:`~fusion.passive.smoothing.twins` -- :func:`~fusion.passive.smoothing.twins.twin_groups`,
+  tracks that follow one source side by side.
+- :mod:`~fusion.passive.smoothing.settings` -- :func:`~fusion.passive.smoothing.settings.
+  fit_smooth_settings`, the scales of ``fusion smooth`` estimated from its input.
 - :mod:`~fusion.passive.smoothing.table` -- :func:`smooth_bearings`, the rows of a bearing table
   (labelled tracks alone, unknown-origin rows jointly).
 

@@ -40,13 +40,17 @@ loss when one is set; the lowest-cost candidate seeds the graph, which one Leven
 run solves.
 
 Observability: range is unobservable when the own-ship keeps a constant velocity (the target's
-relative track can be scaled without changing a single bearing). Two checks flag it, each with a
+relative track can be scaled without changing a single bearing). Three checks flag it, each with a
 ``logging`` warning and ``TmaResult.observable = False``: the own-ship's largest departure from a
-straight constant-speed track fitted to its positions (``min_manoeuvre_m``), and the relative
-standard deviation of the final range along the line of sight (``max_range_rel_sigma``), i.e. an
-ill-conditioned information matrix in the range direction.
+straight constant-speed track fitted to its positions (``min_manoeuvre_m``); that departure seen
+from the target, against the bearing noise (``min_manoeuvre_sigmas``); and the relative standard
+deviation of the final range along the line of sight (``max_range_rel_sigma``), i.e. an
+ill-conditioned information matrix in the range direction. The covariance is first fitted to the
+residuals (their variance and lag-one correlation, :mod:`~fusion.passive.tma.confidence`), and
+every time gets a range interval (``TmaResult.range_low``, ``range_high``).
 
 Modules: :mod:`~fusion.passive.tma.types` (:class:`OwnshipTrack`, :class:`TmaResult`),
+:mod:`~fusion.passive.tma.confidence` (:func:`noise_inflation`, :func:`range_interval`),
 :mod:`~fusion.passive.tma.observability` (:func:`ownship_manoeuvre`, :func:`range_rel_sigma`),
 :mod:`~fusion.passive.tma.initial` (closed-form starting states),
 :mod:`~fusion.passive.tma.estimator` (:class:`BearingsOnlyTMA`).
