@@ -190,17 +190,18 @@ class CandidateFinder:
             for k in range(pos.shape[0]):
                 pos[k], inten[k], fine = refine_peak(tdoas, pos[k], step, equation=volume.equation,
                                                      levels=first, half=self.refine_half,
-                                                     lo=lo, hi=hi)
+                                                     lo=lo, hi=hi, groups=volume.groups)
                 rest = self.refine_levels - first
                 if scan:  # the depth of a vertical ridge: scan it at the refined x, y
                     p, v = scan_depth(tdoas, pos[k], fine, (float(lo[2]), float(hi[2])),
-                                      equation=volume.equation)
+                                      equation=volume.equation, groups=volume.groups)
                     if v > inten[k]:  # then refine around the new depth from one level up
                         pos[k], inten[k], rest, fine = p, v, rest + 1, 3.0 * fine
                 if rest:
                     pos[k], inten[k], fine = refine_peak(tdoas, pos[k], fine,
                                                          equation=volume.equation, levels=rest,
-                                                         half=self.refine_half, lo=lo, hi=hi)
+                                                         half=self.refine_half, lo=lo, hi=hi,
+                                                         groups=volume.groups)
             # two coarse maxima refined onto one peak are one candidate
             order = np.argsort(-inten, kind="stable")
             pos, inten, rel = pos[order], inten[order], rel[order]

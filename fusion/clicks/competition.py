@@ -171,7 +171,8 @@ class CompetitionResult:
     combined : ndarray, shape (S, M)
         Weights ``w~_km = w_km gamma_km`` (eq. 22) of the last candidate update.
     clutter : ndarray, shape (M,)
-        Weight left to clutter, ``1 - sum_k w_km``.
+        Weight left to clutter, ``1 - sum_k w_km`` (summed over the columns of the column's
+        measurement when `groups` are given).
     origin : ndarray of int, shape (S,)
         Index of each survivor among the starting candidates.
     iterations : int
@@ -289,6 +290,13 @@ def _grow(
     return None if best is None else (best[2], best[3])
 
 
+def _group_total(v: NDArray[np.float64], group: NDArray[np.intp], n: int) -> NDArray[np.float64]:
+    """Sum of `v` over the columns of each measurement, shape (n,)."""
+    out = np.zeros(n)
+    np.add.at(out, group, v)
+    return out
+
+
 def compete(
     tdoas: WindowTdoas,
     starts: ArrayLike,
@@ -298,6 +306,8 @@ def compete(
     z_range: tuple[float, float] | None = None,
     weights: ArrayLike | None = None,
     settled: ArrayLike | None = None,
+    groups: ArrayLike | None = None,
+    surface_z: float | None = None,
 ) -> CompetitionResult:
     """Let candidate positions compete for the TDOAs of one window.
 
@@ -322,6 +332,17 @@ def compete(
     settled : array_like of bool, shape (K,), optional, keyword-only
         Candidates that converged in an earlier round: their delay scale starts at the TDOA
         sigmas instead of `start_scale_s`.
+    groups : array_like of int, shape (M,), optional, keyword-only
+        The measurement each TDOA column reads (several columns: one measured delay read as
+        several propagation paths, :mod:`fusion.clicks.surface_paths`). The responsibilities of
+        the columns of one measurement and its clutter component sum to one (a measured delay
+        belongs to one candidate along one path, or to clutter). Default: every column its own
+        measurement.
+    surface_z : float, optional, keyword-only
+        Height of the sea surface, m, when the columns include surface-reflected paths: a
+        candidate above the surface explains the same delays as its image below it (direct and
+        reflected paths swapped) and jumps there; the sensors' plane is then fitted to the
+        sensors below the surface (the others are their images).
 
     Returns
     -------
@@ -344,8 +365,15 @@ def compete(
     alpha = np.asarray(tdoas.alpha) if cfg.use_alpha and tdoas.alpha is not None else None
     pairs = np.asarray(tdoas.pairs)
     pair_id = pair_ids(pairs)
+    group = np.arange(m) if groups is None else np.asarray(groups, dtype=np.intp).reshape(-1)
+    if group.shape != (m,) or group.min(initial=0) < 0:
+        raise ValueError(f"groups must hold one non-negative measurement index per TDOA ({m})")
+    n_groups = int(group.max(initial=-1)) + 1
     # uniform clutter density over the physically possible delays of each pair
-    log_clutter = np.log(cfg.clutter_fraction) - np.log(2.0 * np.maximum(tdoas.max_delay_s, sig))
+    log_clutter_col = (np.log(cfg.clutter_fraction)
+                       - np.log(2.0 * np.maximum(tdoas.max_delay_s, sig)))
+    log_clutter = np.full(n_groups, -np.inf)  # per measurement: its narrowest pair's density
+    np.maximum.at(log_clutter, group, log_clutter_col)
     w = np.full((k0, m), 1.0 / max(k0, 1))  # eq. (19)
     if weights is not None:  # a warm start (a later round)
         w = np.array(weights, dtype=float)
@@ -363,8 +391,11 @@ def compete(
     if settled is not None:  # candidates already at their TDOA sigma level
         spread[np.asarray(settled, dtype=bool)] = float(sig.min())
     mirrored = np.zeros(k0, dtype=bool)
-    centre = np.asarray(tdoas.sensors).mean(axis=0)
-    normal = np.linalg.svd(np.asarray(tdoas.sensors) - centre)[2][-1]  # of the best-fit plane
+    real = np.asarray(tdoas.sensors)
+    if surface_z is not None:  # the sensors below the surface (the rest are their images)
+        real = real[real[:, 2] < surface_z]
+    centre = real.mean(axis=0)
+    normal = np.linalg.svd(real - centre)[2][-1]  # of the best-fit plane
     tol_m = cfg.tol * float(sig.min()) * tdoas.c
     z_margin = 0.01 * (z_range[1] - z_range[0]) if z_range is not None else 0.0
     converged, it, grow_passes = False, 0, 2
@@ -396,6 +427,8 @@ def compete(
                 if z_range[0] - z_margin <= x[k, 2] <= z_range[1] + z_margin:
                     continue
                 image = x[k] - 2.0 * float((x[k] - centre) @ normal) * normal
+                if surface_z is not None and x[k, 2] > surface_z:  # its surface image
+                    image = x[k] * np.array([1.0, 1.0, -1.0]) + np.array([0, 0, 2.0 * surface_z])
                 if not mirrored[k] and z_range[0] <= image[2] <= z_range[1]:
                     _LOG.debug("iteration %d: candidate %d (z = %.1f m) to its mirror image", it,
                                k, x[k, 2])
@@ -410,9 +443,13 @@ def compete(
         # (b) weight update: responsibilities with a uniform clutter component
         r = tdoas.predicted(x[idx]) - tdoas.taus
         loglik = log_pi[idx, None] - 0.5 * (r / scale) ** 2 - np.log(np.sqrt(2 * np.pi) * scale)
-        both = np.vstack([loglik, log_clutter[None]])
-        resp = np.exp(both - both.max(axis=0))
-        resp = (resp / resp.sum(axis=0))[:-1]
+        # normalised over the candidates, the columns of one measurement and clutter
+        top = log_clutter.copy()
+        np.maximum.at(top, group, loglik.max(axis=0))
+        resp = np.exp(loglik - top[group])
+        total = np.exp(log_clutter - top)
+        np.add.at(total, group, resp.sum(axis=0))
+        resp = resp / total[group]
         if cfg.pair_exclusive:
             resp = cap_per_pair(resp, pair_id)
         change = float(np.abs(resp - w[idx]).max())
@@ -450,7 +487,7 @@ def compete(
             # lost to clutter on the way) refits with the associated clutter TDOAs
             grew = False
             if grow_passes:
-                left = 1.0 - w[alive].sum(axis=0)
+                left = 1.0 - _group_total(w[alive].sum(axis=0), group, n_groups)[group]
                 for k in np.flatnonzero(alive):
                     out = _grow(tdoas, graphs[k], x[k], w[k], left, cfg, z_range)
                     if out is not None:
@@ -462,7 +499,8 @@ def compete(
                 converged = True
                 break
     idx = np.flatnonzero(alive)
-    clutter = 1.0 - w[idx].sum(axis=0) if idx.size else np.ones(m)
+    clutter = (1.0 - _group_total(w[idx].sum(axis=0), group, n_groups)[group] if idx.size
+               else np.ones(m))
     _LOG.debug("competition: %d of %d candidates survive after %d iterations (converged %s)",
                idx.size, k0, it, converged)
     return CompetitionResult(positions=x[idx], weights=w[idx], combined=wt[idx],

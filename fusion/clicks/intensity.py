@@ -30,6 +30,7 @@ __all__ = [
     "IntensityVolume",
     "associated_intensity",
     "check_equation",
+    "combine_intensities",
     "intensity_volume",
     "smoothing_sigma",
     "tdoa_intensities",
@@ -123,12 +124,16 @@ class IntensityVolume:
         17 or 18.
     sigma_t : ndarray, shape (M,)
         Delay smoothing used, s.
+    groups : ndarray of int, shape (M,), optional
+        The measurement each TDOA column reads (see :func:`combine_intensities`); None: one
+        column per measurement.
     """
 
     grid: SearchGrid
     values: NDArray[np.float64]
     equation: int
     sigma_t: NDArray[np.float64]
+    groups: NDArray[np.intp] | None = None
 
     def peak(self) -> tuple[NDArray[np.float64], float]:
         """Grid point of the largest value (m) and that value."""
@@ -152,6 +157,7 @@ def intensity_volume(
     cells: float = 1.0,
     chunk_points: int = 8192,
     distances: NDArray[np.float64] | None = None,
+    groups: ArrayLike | None = None,
 ) -> IntensityVolume:
     """Sample the intensity of eq. (17) or (18) on a grid, in chunks of points.
 
@@ -170,6 +176,8 @@ def intensity_volume(
     distances : ndarray, shape (grid.size, n), optional, keyword-only
         Ranges from the grid points to the sensors, m (:func:`sensor_distances`): a cache for
         grids used again and again (the coarse grid of every window of one array).
+    groups : array_like of int, shape (M,), optional, keyword-only
+        The measurement each TDOA column reads (:func:`combine_intensities`).
 
     Returns
     -------
@@ -206,6 +214,49 @@ def intensity_volume(
             d = distances[start:stop]
             r = ((d[:, first] - d[:, second]) / tdoas.c - tdoas.taus) / sig
             i = np.exp(-0.5 * r * r)
-        out[start:start + i.shape[0]] = (i.sum(axis=1) if equation == 17  # eq. (17)
-                                         else associated_intensity(i, tdoas.alpha))  # eq. (18)
-    return IntensityVolume(grid, out.reshape(grid.shape), equation, sig)
+        out[start:start + i.shape[0]] = combine_intensities(i, tdoas, equation, groups)
+    return IntensityVolume(grid, out.reshape(grid.shape), equation, sig,
+                           None if groups is None else np.asarray(groups, dtype=np.intp))
+
+
+def combine_intensities(intensities: ArrayLike, tdoas: WindowTdoas, equation: int,
+                        groups: ArrayLike | None = None) -> NDArray[np.float64]:
+    """Eq. (17) or eq. (18) from the per-column intensities ``I_m`` of eq. (16).
+
+    Parameters
+    ----------
+    intensities : array_like, shape (P, M)
+        ``I_m`` of each column at P points (:func:`tdoa_intensities`).
+    tdoas : WindowTdoas
+        The TDOA columns (``alpha`` for eq. 18).
+    equation : {17, 18}
+        Which intensity.
+    groups : array_like of int, shape (M,), optional
+        The measurement each column reads (one measured delay read along several propagation
+        paths, :mod:`fusion.clicks.surface_paths`): a measurement's intensity is the largest of
+        its columns' (the union of its hyperbolas, counted once), and eq. (18) uses the
+        association of each measurement's first column.
+
+    Returns
+    -------
+    ndarray, shape (P,)
+
+    Examples
+    --------
+    >>> s = np.array([[0, 0, 0], [100.0, 0, 0]])
+    >>> w = WindowTdoas(s, np.array([[0, 1], [0, 1]]), [0.0, 0.0], [1e-4, 1e-4], c=1500.0)
+    >>> combine_intensities([[1.0, 0.5]], w, 17), combine_intensities([[1.0, 0.5]], w, 17, [0, 0])
+    (array([1.5]), array([1.]))
+    """
+    i = np.asarray(intensities, dtype=float)
+    alpha = tdoas.alpha
+    if groups is not None:
+        g = np.asarray(groups, dtype=np.intp)
+        order = np.argsort(g, kind="stable")
+        starts = np.flatnonzero(np.r_[True, np.diff(g[order]) != 0])
+        i = np.maximum.reduceat(i[:, order], starts, axis=1)  # per measurement: its best path
+        first = order[starts]
+        alpha = None if alpha is None else np.asarray(alpha)[np.ix_(first, first)]
+    if equation == 17:
+        return i.sum(axis=1)  # eq. (17)
+    return associated_intensity(i, alpha)  # eq. (18)

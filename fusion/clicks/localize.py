@@ -42,6 +42,7 @@ Notes
 from __future__ import annotations
 
 import logging
+from dataclasses import dataclass
 
 import gtsam
 import numpy as np
@@ -67,6 +68,7 @@ from fusion.clicks.source_fix import (
     weighted_cost,
     weighted_graph,
 )
+from fusion.clicks.surface_paths import PathTdoas, surface_paths
 from fusion.clicks.types import frozen_array
 from fusion.clicks.window_tdoas import WindowTdoas
 
@@ -114,6 +116,13 @@ class MultiSourceLocalizer:
         ``alpha``) and could fix a source gets its own surface and candidates, and all
         candidates compete again: sources the coarse surface merged with a neighbour. Rounds
         stop as soon as no such group is left.
+    surface_z : float, optional, keyword-only
+        Height of the sea surface, m (0 in the project's convention). When given, every TDOA is
+        also read along surface-reflected paths (:mod:`fusion.clicks.surface_paths`: echoes of
+        the clicks at the surface give delays between echoes and between a direct arrival and
+        an echo), sources are searched below the surface only, and each fix records the path
+        pair of each of its TDOAs (:attr:`SourceFix.paths`). Not used by ``"lsq"``. Default
+        None: direct paths only.
 
     Examples
     --------
@@ -142,6 +151,7 @@ class MultiSourceLocalizer:
         mirror_chi2: float = 4.0,
         smoothing_cells: float = 1.0,
         max_rounds: int = 3,
+        surface_z: float | None = None,
     ) -> None:
         if method not in METHODS:
             raise ValueError(f"method must be one of {METHODS}, got {method!r}")
@@ -164,6 +174,9 @@ class MultiSourceLocalizer:
         self.mirror_chi2 = float(mirror_chi2)
         self.smoothing_cells = float(smoothing_cells)
         self.max_rounds = int(max_rounds)
+        if surface_z is not None and not np.isfinite(surface_z):
+            raise ValueError(f"surface_z must be finite or None, got {surface_z!r}")
+        self.surface_z = None if surface_z is None else float(surface_z)
         self._grid_cache: tuple[bytes, SearchGrid, NDArray[np.float64]] | None = None
 
     # ------------------------------------------------------------------ entry point
@@ -213,10 +226,16 @@ class MultiSourceLocalizer:
     def localize_window(self, tdoas: WindowTdoas) -> LocalizationOutput:
         """:meth:`localize` for an already checked :class:`WindowTdoas`."""
         equation = 17 if self.method in ("eq17", "lsq") or tdoas.alpha is None else 18
-        lo, hi = self.region.bounds(tdoas.sensors)
-        grid, ranges = self._coarse(tdoas.sensors)
+        real, paths = tdoas, None
+        region = self._region(real.sensors)
+        if self.surface_z is not None and self.method != "lsq":
+            paths = surface_paths(real, self.surface_z)
+            tdoas = paths.tdoas
+        lo, hi = region.bounds(real.sensors)
+        grid, ranges = self._coarse(region, real.sensors, tdoas.sensors)
         volume = intensity_volume(tdoas, grid, equation=equation, cells=self.smoothing_cells,
-                                  distances=ranges)
+                                  distances=ranges,
+                                  groups=None if paths is None else paths.measured)
         finder = self.finder
         if self.method in ("eq17", "eq18"):  # refine every peak to the fine level
             finder = CandidateFinder(max_candidates=finder.max_candidates,
@@ -226,39 +245,54 @@ class MultiSourceLocalizer:
                                      min_separation_cells=finder.min_separation_cells,
                                      scan_depth=finder.scan_depth)
         cand = finder.find(volume, tdoas, lo=lo, hi=hi)
+        ctx = _Context(real, paths, region)
         if self.method == "competition":
-            return self._competition(tdoas, cand.positions, cand.step)
+            return self._competition(tdoas, cand.positions, cand.step, ctx)
         if self.method == "lsq":
-            return self._lsq(tdoas, cand.positions)
-        return self._surface_peaks(tdoas, cand.positions)
+            return self._lsq(tdoas, cand.positions, ctx)
+        return self._surface_peaks(tdoas, cand.positions, ctx)  # eq17 / eq18
 
-    def _coarse(self, sensors: NDArray[np.float64]) -> tuple[SearchGrid, NDArray[np.float64]]:
-        """The coarse grid of the array and its sensor ranges (kept for the next window)."""
-        key = np.asarray(sensors, dtype=float).tobytes()
+    def _region(self, sensors: NDArray[np.float64]) -> SearchRegion:
+        """The search region, its top at the surface when surface paths are read."""
+        lo, hi = self.region.bounds(sensors)
+        if self.surface_z is None or hi[2] <= self.surface_z:
+            return self.region
+        return SearchRegion(extent_factor=self.region.extent_factor,
+                            water_column=(float(min(lo[2], self.surface_z - 1.0)), self.surface_z),
+                            max_points=self.region.max_points)
+
+    def _coarse(self, region: SearchRegion, sensors: NDArray[np.float64],
+                ranged: NDArray[np.float64]) -> tuple[SearchGrid, NDArray[np.float64]]:
+        """The coarse grid of the array and its ranges to `ranged` (kept for the next window)."""
+        key = np.asarray(ranged, dtype=float).tobytes() + np.asarray(sensors).tobytes()
         if self._grid_cache is None or self._grid_cache[0] != key:
-            grid = self.region.volume(sensors)
-            self._grid_cache = (key, grid, sensor_distances(grid, sensors))
+            grid = region.volume(sensors)
+            self._grid_cache = (key, grid, sensor_distances(grid, ranged))
         return self._grid_cache[1], self._grid_cache[2]
 
     # ------------------------------------------------------------------ methods
-    def _competition(self, tdoas: WindowTdoas, starts: NDArray, step: float) -> LocalizationOutput:
+    def _competition(self, tdoas: WindowTdoas, starts: NDArray, step: float, ctx: _Context
+                     ) -> LocalizationOutput:
         scale = float(np.max(smoothing_sigma(tdoas.sigmas, step, c=tdoas.c,
                                              cells=self.smoothing_cells)))
         if starts.shape[0] == 0:
-            return self._output((), tdoas, starts, 0, True)
-        res = compete(tdoas, starts, start_scale_s=scale, settings=self.competition,
-                      z_range=self.region.water_column)
+            return self._output((), ctx.real, starts, 0, True)
+        options = {"settings": self.competition, "z_range": ctx.region.water_column,
+                   "groups": None if ctx.paths is None else ctx.paths.measured,
+                   "surface_z": self.surface_z if ctx.paths is not None else None}
+        res = compete(tdoas, starts, start_scale_s=scale, **options)
         iterations = res.iterations
-        grid, ranges = self._coarse(tdoas.sensors)
-        lo, hi = self.region.bounds(tdoas.sensors)
+        grid, ranges = self._coarse(ctx.region, ctx.real.sensors, tdoas.sensors)
+        lo, hi = ctx.region.bounds(ctx.real.sensors)
         for _ in range(self.max_rounds - 1):
-            groups = self._unexplained(tdoas, res.clutter)
+            groups = self._unexplained(tdoas, res.clutter, ctx)
             # sources the coarse surface merged with a neighbour: look again, one surface per
             # group of associated TDOAs no candidate explains, and let everyone compete anew
             extra = [self.finder.find(
-                intensity_volume(sub, grid, equation=17 if sub.alpha is None else 18,
-                                 cells=self.smoothing_cells, distances=ranges),
-                sub, lo=lo, hi=hi).positions for sub in (tdoas.subset(g) for g in groups)]
+                intensity_volume(tdoas.subset(g), grid, equation=17 if tdoas.alpha is None else 18,
+                                 cells=self.smoothing_cells, distances=ranges,
+                                 groups=None if ctx.paths is None else ctx.paths.measured[g]),
+                tdoas.subset(g), lo=lo, hi=hi).positions for g in groups]
             extra = np.vstack(extra) if extra else np.zeros((0, 3))
             if extra.shape[0] == 0:
                 break
@@ -269,9 +303,8 @@ class MultiSourceLocalizer:
             k_old, k_new = res.positions.shape[0], extra.shape[0]
             weights = np.vstack([res.weights, np.tile(res.clutter / k_new, (k_new, 1))])
             res = compete(tdoas, np.vstack([res.positions, extra]), start_scale_s=scale,
-                          settings=self.competition, z_range=self.region.water_column,
                           weights=np.clip(weights, 0.0, 1.0),
-                          settled=np.arange(k_old + k_new) < k_old)
+                          settled=np.arange(k_old + k_new) < k_old, **options)
             iterations += res.iterations
         fixes = []
         for k in range(res.positions.shape[0]):
@@ -281,18 +314,20 @@ class MultiSourceLocalizer:
             pos = res.positions[k]
             if self.polish:
                 pos = solve_weighted(tdoas, pos, w)
-            fixes.append(self._fix(tdoas, pos, w))
-        return self._output(fixes, tdoas, starts, iterations, res.converged)
+            fixes.append(self._fix(tdoas, pos, w, ctx))
+        return self._output(fixes, ctx.real, starts, iterations, res.converged)
 
-    def _unexplained(self, tdoas: WindowTdoas, clutter: NDArray) -> list[NDArray[np.intp]]:
+    def _unexplained(self, tdoas: WindowTdoas, clutter: NDArray, ctx: _Context
+                     ) -> list[NDArray[np.intp]]:
         """Groups of TDOAs left to clutter that could each fix a source.
 
         The groups are the connected components of the leftovers linked by
         ``alpha >= min_alpha_link`` (all leftovers form one group without ``alpha``); a group
-        qualifies with at least ``min_tdoas`` TDOAs spanning three independent pairs.
+        qualifies with at least ``min_tdoas`` measured TDOAs spanning three independent pairs.
         """
         left = np.flatnonzero(clutter > 0.5)
-        if left.size < max(self.min_tdoas, 3):
+        measured = np.arange(tdoas.m) if ctx.paths is None else np.asarray(ctx.paths.measured)
+        if np.unique(measured[left]).size < max(self.min_tdoas, 3):
             return []
         label = np.zeros(left.size, dtype=int)
         if tdoas.alpha is not None:
@@ -303,24 +338,26 @@ class MultiSourceLocalizer:
         for g in np.unique(label):
             mask = np.zeros(tdoas.m, dtype=bool)
             mask[left[label == g]] = True
-            if mask.sum() >= self.min_tdoas and independent_pairs(pairs, mask) >= 3:
+            if (np.unique(measured[mask]).size >= self.min_tdoas
+                    and independent_pairs(pairs, mask) >= 3):
                 groups.append(left[label == g])
         return groups
 
-    def _surface_peaks(self, tdoas: WindowTdoas, peaks: NDArray) -> LocalizationOutput:
+    def _surface_peaks(self, tdoas: WindowTdoas, peaks: NDArray, ctx: _Context
+                       ) -> LocalizationOutput:
         fixes = []
         for p in peaks:
             w = self._gate(tdoas, p)
             if self._enough(tdoas, w, associated=False):
-                fixes.append(self._fix(tdoas, p, w, mirror=False))
-        return self._output(fixes, tdoas, peaks, 0, True)
+                fixes.append(self._fix(tdoas, p, w, ctx, mirror=False))
+        return self._output(fixes, ctx.real, peaks, 0, True)
 
-    def _lsq(self, tdoas: WindowTdoas, peaks: NDArray) -> LocalizationOutput:
+    def _lsq(self, tdoas: WindowTdoas, peaks: NDArray, ctx: _Context) -> LocalizationOutput:
         w = np.ones(tdoas.m)
         if peaks.shape[0] == 0 or independent_pairs(np.asarray(tdoas.pairs), w > 0) < 3:
             return self._output((), tdoas, peaks, 0, True)
         pos = solve_weighted(tdoas, peaks[0], w)
-        return self._output([self._fix(tdoas, pos, w)], tdoas, peaks, 0, True)
+        return self._output([self._fix(tdoas, pos, w, ctx)], tdoas, peaks, 0, True)
 
     # ------------------------------------------------------------------ helpers
     def _gate(self, tdoas: WindowTdoas, p: NDArray) -> NDArray[np.float64]:
@@ -346,13 +383,13 @@ class MultiSourceLocalizer:
                                   frozen_array(np.asarray(starts).reshape(-1, 3)), int(iterations),
                                   bool(converged))
 
-    def _fix(self, tdoas: WindowTdoas, pos: NDArray, w: NDArray, *, mirror: bool = True
-             ) -> SourceFix:
+    def _fix(self, tdoas: WindowTdoas, pos: NDArray, w: NDArray, ctx: _Context, *,
+             mirror: bool = True) -> SourceFix:
         pos = np.asarray(pos, dtype=float)
         mirror_pos = np.full(3, np.nan)
         ambiguous = False
         if mirror:
-            pos, mirror_pos, ambiguous = self._mirror_test(tdoas, pos, w)
+            pos, mirror_pos, ambiguous = self._mirror_test(tdoas, pos, w, ctx)
         graph, values, key = weighted_graph(tdoas, pos, w)
         a, _ = graph.linearize(values).jacobian()
         info = a.T @ a  # J^T W J, whitened
@@ -368,12 +405,16 @@ class MultiSourceLocalizer:
         r = tdoas.predicted(pos) - tdoas.taus
         rms = float(np.sqrt(np.mean(r[used] ** 2))) if np.any(used) else float("nan")
         observable = bool(cond <= self.max_condition and not ambiguous)
-        return SourceFix(position=pos, covariance=cov, information=info, weights=np.asarray(w),
-                         tdoas_used=int(used.sum()), residual_rms_s=rms, condition_number=cond,
-                         observable=observable, mirror_ambiguous=ambiguous,
-                         mirror_position=mirror_pos)
+        weights, paths = np.asarray(w, dtype=float), None
+        if ctx.paths is not None:  # per measured TDOA, with the path pair it is read along
+            weights = np.minimum(ctx.paths.collapse(w), 1.0)
+            paths = ctx.paths.paths_of(w)
+        return SourceFix(position=pos, covariance=cov, information=info, weights=weights,
+                         tdoas_used=int(np.sum(weights > 0.5)), residual_rms_s=rms,
+                         condition_number=cond, observable=observable,
+                         mirror_ambiguous=ambiguous, mirror_position=mirror_pos, paths=paths)
 
-    def _mirror_test(self, tdoas: WindowTdoas, pos: NDArray, w: NDArray
+    def _mirror_test(self, tdoas: WindowTdoas, pos: NDArray, w: NDArray, ctx: _Context
                      ) -> tuple[NDArray, NDArray, bool]:
         """(position, rival position or NaN, ambiguous) after the mirror / depth test.
 
@@ -381,11 +422,11 @@ class MultiSourceLocalizer:
         from its ``x, y`` at four heights over the search box; a distinct solution (more than
         3 sigma away by the fix's information) that fits within `mirror_chi2` is a rival.
         """
-        s = np.asarray(tdoas.sensors)
+        s = np.asarray(ctx.real.sensors)
         centre = s.mean(axis=0)
         normal = np.linalg.svd(s - centre)[2][-1]  # normal of the best-fitting plane
         height = float((pos - centre) @ normal)
-        lo, hi = self.region.bounds(s)
+        lo, hi = ctx.region.bounds(s)
         starts = [pos - 2.0 * height * normal] + vertical_starts(pos, (lo[2], hi[2]))[1:]
         graph, values, _ = weighted_graph(tdoas, pos, w)
         a, _ = graph.linearize(values).jacobian()
@@ -396,19 +437,31 @@ class MultiSourceLocalizer:
         for start in starts:
             other = solve_weighted(tdoas, start, w, iterations=30, tol=1e-6)  # a rival, roughly
             d = other - pos
-            if float(d @ info @ d) <= _CHI2_3SIGMA or not self._in_water(other):
+            if float(d @ info @ d) <= _CHI2_3SIGMA or not _in_water(ctx.region, other):
                 continue  # the same solution, or a rival outside the water column
             rise = 2.0 * (weighted_cost(tdoas, other, w) - cost)  # chi-square rise
-            if rise < -self.mirror_chi2 or (rise <= self.mirror_chi2 and not self._in_water(pos)):
+            if rise < -self.mirror_chi2 or (rise <= self.mirror_chi2
+                                            and not _in_water(ctx.region, pos)):
                 # clearly better, or the physical one: polish it and test again from there
-                return self._mirror_test(tdoas, solve_weighted(tdoas, other, w), w)
+                return self._mirror_test(tdoas, solve_weighted(tdoas, other, w), w, ctx)
             if rise <= self.mirror_chi2 and rival is None:
                 rival = other
         return (pos, none, False) if rival is None else (pos, rival, True)
 
-    def _in_water(self, p: NDArray) -> bool:
-        wc = self.region.water_column
-        return wc is None or bool(wc[0] <= p[2] <= wc[1])
+
+
+@dataclass(frozen=True)
+class _Context:
+    """One window's measured TDOAs, their path reading (or None) and the search region."""
+
+    real: WindowTdoas
+    paths: PathTdoas | None
+    region: SearchRegion
+
+
+def _in_water(region: SearchRegion, p: NDArray) -> bool:
+    wc = region.water_column
+    return wc is None or bool(wc[0] <= p[2] <= wc[1])
 
 
 def _levels_to_fine(tdoas: WindowTdoas, step: float, shrink: float = 3.0) -> int:

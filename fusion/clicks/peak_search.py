@@ -16,8 +16,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from fusion.clicks.intensity import (
-    associated_intensity,
     check_equation,
+    combine_intensities,
     intensity_volume,
     smoothing_sigma,
     tdoa_intensities,
@@ -46,6 +46,7 @@ def scan_depth(
     equation: int = 18,
     cells: float = 1.0,
     max_points: int = 512,
+    groups: ArrayLike | None = None,
 ) -> tuple[NDArray[np.float64], float]:
     """Best height on the vertical line through `point` (the depth of a horizontal fix).
 
@@ -65,6 +66,9 @@ def scan_depth(
         Smoothing in grid cells (:func:`smoothing_sigma`).
     max_points : int, keyword-only
         Largest number of heights (the spacing widens to fit).
+    groups : array_like of int, shape (M,), optional, keyword-only
+        The measurement each TDOA column reads
+        (:func:`fusion.clicks.intensity.combine_intensities`).
 
     Returns
     -------
@@ -86,7 +90,7 @@ def scan_depth(
     column = np.column_stack([np.full(n, p[0]), np.full(n, p[1]), z])
     sig = smoothing_sigma(tdoas.sigmas, max(step, float(z[1] - z[0])), c=tdoas.c, cells=cells)
     i = tdoa_intensities(column, tdoas, sig)
-    values = i.sum(axis=1) if equation == 17 else associated_intensity(i, tdoas.alpha)
+    values = combine_intensities(i, tdoas, equation, groups)
     k = int(np.argmax(values))
     return column[k], float(values[k])
 
@@ -103,6 +107,7 @@ def refine_peak(
     cells: float = 1.0,
     lo: ArrayLike | None = None,
     hi: ArrayLike | None = None,
+    groups: ArrayLike | None = None,
 ) -> tuple[NDArray[np.float64], float, float]:
     """Coarse-to-fine search for a peak of eq. (17)/(18) near `start`.
 
@@ -129,6 +134,9 @@ def refine_peak(
         Smoothing in grid cells (:func:`smoothing_sigma`).
     lo, hi : array_like, shape (3,), optional, keyword-only
         Bounds of the search box, m (a plane: ``lo[2] == hi[2]``).
+    groups : array_like of int, shape (M,), optional, keyword-only
+        The measurement each TDOA column reads
+        (:func:`fusion.clicks.intensity.combine_intensities`).
 
     Returns
     -------
@@ -149,11 +157,10 @@ def refine_peak(
     if int(levels) == 0:
         i = tdoa_intensities(pos[None], tdoas, smoothing_sigma(tdoas.sigmas, step, c=tdoas.c,
                                                                 cells=cells))
-        value = i.sum() if equation == 17 else associated_intensity(i, tdoas.alpha)[0]
-        return pos, float(value), step
+        return pos, float(combine_intensities(i, tdoas, equation, groups)[0]), step
     for _ in range(int(levels)):
         step = step / shrink
         grid = SearchGrid.centred(pos, step, int(half), lo=lo, hi=hi)
-        vol = intensity_volume(tdoas, grid, equation=equation, cells=cells)
+        vol = intensity_volume(tdoas, grid, equation=equation, cells=cells, groups=groups)
         pos, value = vol.peak()
     return pos, value, step

@@ -60,6 +60,11 @@ class SourceFix:
         Whether the mirror test found a distinct, equally good solution.
     mirror_position : ndarray, shape (3,)
         That solution, m; NaN when there is none.
+    paths : ndarray of int, shape (M,), optional
+        Path pair along which the fix reads each TDOA (index into
+        :data:`fusion.clicks.surface_paths.PATHS`: 0 direct, 1 both surface-reflected, 2 direct
+        then reflected, 3 reflected then direct), -1 for a TDOA it does not hold. Default (None):
+        every TDOA read along direct paths.
     """
 
     position: NDArray[np.float64]
@@ -72,10 +77,18 @@ class SourceFix:
     observable: bool
     mirror_ambiguous: bool
     mirror_position: NDArray[np.float64]
+    paths: NDArray[np.intp] | None = None
 
     def __post_init__(self) -> None:
         for name in ("position", "covariance", "information", "weights", "mirror_position"):
             object.__setattr__(self, name, _frozen(getattr(self, name)))
+        w = self.weights
+        paths = np.where(w > 0.5, 0, -1) if self.paths is None else np.asarray(self.paths)
+        if paths.shape != w.shape:
+            raise ValueError(f"paths must have one entry per TDOA ({w.shape}), got {paths.shape}")
+        paths = paths.astype(np.intp)
+        paths.setflags(write=False)
+        object.__setattr__(self, "paths", paths)
 
 
 @dataclass(frozen=True)

@@ -20,12 +20,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from fusion.clicks.candidates import CandidateFinder
+from fusion.clicks.competition import CompetitionSettings
 from fusion.clicks.localize import LocalizationOutput, MultiSourceLocalizer
+from fusion.clicks.search_grid import SearchRegion
 from fusion.clicks.tracks import SourceTracker, Track, WindowSources
 from fusion.geometry import SensorArray
 from fusion.pipelines.clicks import ClickFrontEnd, ClickWindow
 
-__all__ = ["ClickLocalization", "LocalizedWindow", "result_document", "track_windows"]
+__all__ = ["ClickLocalization", "LocalizedWindow", "result_document", "track_windows",
+           "whale_localizer"]
 
 logger = logging.getLogger(__name__)
 
@@ -49,6 +53,58 @@ class LocalizedWindow:
     output: LocalizationOutput | None
 
 
+#: Candidates per window and smallest TDOA weight of a source when surface paths are read.
+WHALE_MAX_CANDIDATES = 16
+WHALE_MIN_TDOAS = 5.5
+
+
+def whale_localizer(
+    method: str = "competition",
+    *,
+    surface_z: float | None = 0.0,
+    bottom_z: float | None = None,
+    max_candidates: int = WHALE_MAX_CANDIDATES,
+    min_tdoas: float = WHALE_MIN_TDOAS,
+) -> MultiSourceLocalizer:
+    """The localizer for whale clicks on hydrophones below the sea surface.
+
+    Parameters
+    ----------
+    method : str, optional
+        One of :data:`fusion.clicks.localize.METHODS`.
+    surface_z : float or None, keyword-only
+        Height of the sea surface, m (default 0, the project's convention, z up): every TDOA is
+        also read along surface-reflected paths and sources are searched below the surface.
+        None: direct paths only (the localizer's own defaults then apply).
+    bottom_z : float, optional, keyword-only
+        Height of the sea floor, m (e.g. the deepest hydrophone of a bottom-mounted array):
+        the water column is then ``(bottom_z, surface_z)`` and a solution below the floor
+        is none (the mirror image of a source through a near-planar bottom array).
+    max_candidates : int, keyword-only
+        Candidates per window (default 16: with three whales and their echoes, 8 left whales
+        without a candidate on the tuning seeds).
+    min_tdoas : float, keyword-only
+        Smallest total TDOA weight of a source (default 5.5). Read along four path pairs, a
+        set of TDOAs fits some position by chance far more often than along direct paths
+        alone, and sources of 4 or 5 TDOAs were mostly such chance fits on the tuning seeds
+        of ``benchmarks/bench_localize_e2e.py``; a whale heard along its echoes holds 6-30.
+
+    Returns
+    -------
+    MultiSourceLocalizer
+    """
+    if surface_z is None:
+        region = SearchRegion() if bottom_z is None else SearchRegion(
+            water_column=(float(bottom_z), 0.0))
+        return MultiSourceLocalizer(method=method, region=region)
+    region = SearchRegion() if bottom_z is None else SearchRegion(
+        water_column=(float(bottom_z), float(surface_z)))
+    return MultiSourceLocalizer(method=method, region=region, surface_z=surface_z,
+                                finder=CandidateFinder(max_candidates=max_candidates),
+                                min_tdoas=min_tdoas,
+                                competition=CompetitionSettings(min_weight=min_tdoas))
+
+
 class ClickLocalization:
     """Audio blocks in, localized windows out.
 
@@ -57,8 +113,8 @@ class ClickLocalization:
     front_end : ClickFrontEnd, optional
         Default: the method's parameters and the shipped validator.
     localizer : MultiSourceLocalizer or None, optional
-        Default: candidates competing for the TDOAs (eq. 19-22); ``None`` skips localization
-        (TDOAs only).
+        Default: :func:`whale_localizer` (candidates competing for the TDOAs, eq. 19-22, read
+        along direct and surface-reflected paths); ``None`` skips localization (TDOAs only).
     min_tdoas : int, optional
         Fewest valid TDOAs a window needs to be localized (default 3, a 3-D fix).
     sigma_floor_s : float, optional
@@ -76,7 +132,7 @@ class ClickLocalization:
     ) -> None:
         self.front_end = front_end if front_end is not None else ClickFrontEnd()
         if localizer is True:
-            localizer = MultiSourceLocalizer()
+            localizer = whale_localizer()
         self.localizer = localizer or None
         self.min_tdoas = int(min_tdoas)
         self.sigma_floor_s = float(sigma_floor_s)
@@ -92,8 +148,10 @@ class ClickLocalization:
         travel-time spread apart. Two passes: (1) every sigma is widened by the drift over half
         that spread (plus `sigma_floor_s`); (2) each TDOA is moved along its drift to the
         arrival time at its first sensor of one emission of the source that owns it (emitted
-        when the mean arrival is at the window centre) and the window is solved again with the
-        measured sigmas (plus the floor).
+        when the mean arrival is at the window centre, the arrival along the path the source
+        reads the TDOA on) and the window is solved again with the measured sigmas (plus the
+        floor). With surface-reflected paths (the localizer's ``surface_z``) pass (2) runs
+        twice: the paths found by the first retimed solve retime the echoes.
         """
         idx = np.array([k for k, d in enumerate(window.tdoas) if d.valid], dtype=int)
         if self.localizer is None or idx.size < self.min_tdoas:
@@ -107,19 +165,18 @@ class ClickLocalization:
         rate = np.array([t.rate for t in d])
         alpha = window.alpha[np.ix_(idx, idx)]
         spread = float(np.max(np.linalg.norm(pos[:, None] - pos[None], axis=2))) / c
+        surface_z = getattr(self.localizer, "surface_z", None)
         try:
+            # pass 1: direct paths, sigmas widened by the drift over half the travel-time spread
             out = self.localizer.localize(pos, pairs, taus, np.hypot(sig, rate * 0.5 * spread),
                                           alpha, c=c)
-            if out.sources and np.any(rate != 0):
-                mid = 0.5 * (window.t_start + window.t_end)
-                w = np.stack([s.weights for s in out.sources])  # (K, M)
-                owner = np.argmax(w, axis=0)
-                retimed = taus.copy()
-                for m in range(taus.size):
-                    p = out.sources[owner[m]].position
-                    r = np.linalg.norm(pos - p, axis=1) / c
-                    t_i = mid + r[pairs[m, 0]] - r.mean()  # arrival at sensor i of one emission
-                    retimed[m] = taus[m] + rate[m] * (t_i - mid)
+            # pass 2 (and 3 when surface-reflected paths are read: the paths of pass 2 retime
+            # the echoes): each TDOA moved to one emission of the source that owns it
+            for _ in range(1 if surface_z is None else 2):
+                if not (out.sources and np.any(rate != 0)):
+                    break
+                retimed = _retime(out, taus, rate, pairs, pos, c,
+                                  0.5 * (window.t_start + window.t_end), surface_z)
                 out = self.localizer.localize(pos, pairs, retimed, sig, alpha, c=c)
         except ValueError as e:  # e.g. too few independent pairs: no fix in this window
             logger.info("window %.1f s: not localized (%s)", window.t_start, e)
@@ -133,6 +190,29 @@ class ClickLocalization:
         for w in self.front_end.iter_windows(blocks, fs=fs, sensors=sensors,
                                              duration_s=duration_s):
             yield self.localize(w, sensors)
+
+
+def _retime(out: LocalizationOutput, taus: np.ndarray, rate: np.ndarray, pairs: np.ndarray,
+            pos: np.ndarray, c: float, mid: float, surface_z: float | None) -> np.ndarray:
+    """Each TDOA moved along its drift to the arrival at its first sensor of one emission.
+
+    The emission is that of the source owning the TDOA (largest weight) whose mean direct
+    arrival is at the window centre `mid`; the arrival at the first sensor is along the path
+    the source reads the TDOA on (direct, or reflected at the surface ``z = surface_z``).
+    """
+    w = np.stack([s.weights for s in out.sources])  # (K, M)
+    owner = np.argmax(w, axis=0)
+    retimed = taus.copy()
+    for m in range(taus.size):
+        fix = out.sources[owner[m]]
+        r = np.linalg.norm(pos - fix.position, axis=1) / c
+        first = r[pairs[m, 0]]
+        if surface_z is not None and fix.paths[m] in (1, 3):  # an echo at sensor i
+            image = pos[pairs[m, 0]] * [1.0, 1.0, -1.0] + [0.0, 0.0, 2.0 * surface_z]
+            first = float(np.linalg.norm(image - fix.position)) / c
+        t_i = mid + first - r.mean()  # arrival at sensor i of one emission
+        retimed[m] = taus[m] + rate[m] * (t_i - mid)
+    return retimed
 
 
 #: Variance written for a direction the geometry leaves unobservable, m^2 (``observable`` false).

@@ -5,15 +5,24 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fusion.pipelines.localization import ClickLocalization, result_document, track_windows
+from fusion.pipelines.localization import (
+    ClickLocalization,
+    result_document,
+    track_windows,
+    whale_localizer,
+)
 from fusion.simulate.clicks import simulate_clicks
 
 
 @pytest.fixture(scope="module")
 def localized():
-    """One whale near the centre of a 5-sensor array, 30 s at 30 dB, every window localized."""
+    """Two whales, a bottom-mounted 5-sensor array, 30 s at 30 dB, every window localized.
+
+    The sea floor is the deepest hydrophone's depth (what a user knows of the deployment).
+    """
     sc = simulate_clicks(seed=0, n_sensors=5, n_sources=2, duration_s=30.0, snr_db=30.0)
-    pipe = ClickLocalization()
+    bottom = float(sc.sensors.positions[:, 2].min())
+    pipe = ClickLocalization(localizer=whale_localizer(bottom_z=bottom))
     windows = pipe.front_end.run_array(sc.audio, sc.fs, sc.sensors)
     return sc, [pipe.localize(w, sc.sensors) for w in windows]
 
@@ -46,6 +55,15 @@ def test_track_follows_the_whale(localized):
     doc = result_document(lws, tracks=tracks)
     assert doc["tracks"][longest.track_id]["points"][0]["t"] == longest.times[0]
     assert len(doc["windows"]) == len(lws)
+
+
+def test_whale_localizer_settings():
+    """whale_localizer: water column from the floor to the surface, paths read; None: direct."""
+    loc = whale_localizer(bottom_z=-1700.0)
+    assert loc.region.water_column == (-1700.0, 0.0) and loc.surface_z == 0.0
+    assert loc.finder.max_candidates == 16 and loc.min_tdoas == 5.5
+    direct = whale_localizer(surface_z=None)
+    assert direct.surface_z is None and direct.region.water_column is None
 
 
 def test_cli_localize_writes_sources_and_tracks(tmp_path):
