@@ -1,6 +1,6 @@
 """Demo part ``clicks-scenario``: whale clicks to validated TDOAs and sources, with figures.
 
-A seeded two-whale scenario is written in the project's file formats (``fusion simulate
+A seeded three-whale scenario is written in the project's file formats (``fusion simulate
 clicks``), read back as a user's recording would be, and run through
 :class:`fusion.pipelines.localization.ClickLocalization` (click detection, smoothed click maps,
 GMM validation, sub-sample refinement, association across time and pairs, competing sources on
@@ -8,8 +8,12 @@ the factor graph). The truth is used only to score and to draw.
 
 Figures: ``clicks_correlogram.png`` (the smoothed-click-map correlation of one pair over the
 windows -- FIG. 7 of the method text -- with the accepted TDOAs and the truth),
-``clicks_tdoas.png`` (every pair's TDOAs against time: valid, rejected, truth) and
-``clicks_sources.png`` (sources of each window in plan view and depth, over the whales' tracks).
+``clicks_tdoas.png`` (every pair's TDOAs against time: valid, rejected, truth),
+``clicks_surfaces.png`` (eq. 17 beside eq. 18 in plan view at the estimated depth of one window,
+with the true and estimated positions) and ``clicks_tracks.png`` (the tracks smoothed on the
+factor graph with the per-window fixes, in plan view and depth against time, over the whales'
+true tracks). ``localization.json`` holds the windows and tracks as ``fusion localize`` writes
+them.
 """
 
 from __future__ import annotations
@@ -19,6 +23,10 @@ from typing import Any
 
 import numpy as np
 
+from fusion.clicks.intensity import intensity_volume
+from fusion.clicks.search_grid import SearchRegion
+from fusion.clicks.surface_paths import surface_paths
+from fusion.clicks.window_tdoas import WindowTdoas
 from fusion.io import read_array, read_audio, write_json
 
 __all__ = ["run_demo"]
@@ -28,8 +36,120 @@ def _truth_tau(labels, pair, t_mid: float, t0: float, t1: float) -> np.ndarray:
     return labels.tau_at(pair, t_mid, t0, t1)
 
 
+def _truth_at(sc, t_mid: float) -> np.ndarray:
+    """Each whale's position at the emission whose arrivals are centred on `t_mid` (to draw)."""
+    out = []
+    for s in sc.sources:
+        p = s.position_at([t_mid])[0]
+        for _ in range(3):  # emission time = t_mid - mean travel time (fixed point)
+            r = np.linalg.norm(sc.sensors.positions - p, axis=1).mean() / sc.sensors.sound_speed
+            p = s.position_at([t_mid - r])[0]
+        out.append(p)
+    return np.array(out)
+
+
+def _window_tdoas(lw, pipe, array) -> WindowTdoas:
+    """The valid TDOAs of a localized window as the localizer saw them (sigma floor added)."""
+    w, idx = lw.window, lw.valid_index
+    d = [w.tdoas[k] for k in idx]
+    sig = np.hypot([t.sigma_s for t in d], pipe.sigma_floor_s)
+    return WindowTdoas(array.positions, np.array([t.pair for t in d]), [t.tau_s for t in d],
+                       sig, c=array.sound_speed, alpha=w.alpha[np.ix_(idx, idx)])
+
+
+def _draw_surfaces(plt, path: Path, done, pipe, array, sc) -> float | None:
+    """Eq. (17) and eq. (18) side by side on a plane at the estimated depth of one window.
+
+    The window drawn is the one with the most sources (then the most valid TDOAs); the plane is
+    at the depth of its first source. True positions (o, from the simulator) and estimated ones
+    (x) are marked. Returns the window's start time, s (None when no window has a source).
+    """
+    best = max((lw for lw in done if lw.output is not None and lw.output.sources),
+               key=lambda lw: (len(lw.output.sources), lw.valid_index.size), default=None)
+    if best is None:
+        return None
+    tdoas = _window_tdoas(best, pipe, array)
+    surface_z = pipe.localizer.surface_z
+    groups = None
+    if surface_z is not None:  # as the localizer reads them: direct and surface-reflected paths
+        paths = surface_paths(tdoas, surface_z)
+        tdoas, groups = paths.tdoas, paths.measured
+    srcs = np.array([s.position for s in best.output.sources])
+    z = float(srcs[0, 2])
+    region = pipe.localizer.region
+    grid = SearchRegion(extent_factor=region.extent_factor, water_column=region.water_column,
+                        max_points=220 * 220).plane(array.positions, z)
+    truth = _truth_at(sc, 0.5 * (best.window.t_start + best.window.t_end))
+    ext = [grid.x[0], grid.x[-1], grid.y[0], grid.y[-1]]
+    fig, axes = plt.subplots(1, 2, figsize=(14, 6.2))
+    for ax, eq, label in ((axes[0], 17, "eq. 17: sum of the TDOA hyperbolas"),
+                          (axes[1], 18, "eq. 18: association-weighted pairs")):
+        vol = intensity_volume(tdoas, grid, equation=eq, groups=groups)
+        im = ax.imshow(vol.values[:, :, 0].T, origin="lower", extent=ext, cmap="magma",
+                       aspect="equal")
+        fig.colorbar(im, ax=ax, shrink=0.8, label="intensity" if eq == 17
+                     else "intensity (sum alpha I I)")
+        ax.plot(array.positions[:, 0], array.positions[:, 1], "c^", ms=8, label="hydrophones")
+        ax.plot(truth[:, 0], truth[:, 1], "o", mfc="none", mec="lime", ms=14, mew=2,
+                label="true (simulator)")
+        ax.plot(srcs[:, 0], srcs[:, 1], "x", color="w", ms=10, mew=2, label="estimated")
+        ax.set(xlabel="x east (m)", ylabel="y north (m)", title=label)
+    axes[0].legend(loc="lower left", fontsize=8)
+    fig.suptitle(f"window {best.window.t_start:.0f}-{best.window.t_end:.0f} s, "
+                 f"{best.valid_index.size} valid TDOAs"
+                 + (" read along direct and surface-reflected paths" if groups is not None
+                    else "") + f", plane at the estimated depth z = {z:.0f} m")
+    fig.tight_layout()
+    fig.savefig(path, dpi=80)
+    plt.close(fig)
+    return float(best.window.t_start)
+
+
+def _draw_tracks(plt, path: Path, done, tracks, array, sc) -> None:
+    """Tracks (smoothed, per-window fixes) over the true tracks: plan view and depth vs time."""
+    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(14, 6))
+    for k, s in enumerate(sc.sources):
+        p = s.positions
+        ax1.plot(p[:, 0], p[:, 1], "-", lw=6, color="0.8", label="true" if k == 0 else None)
+        ax2.plot(s.emission_times, p[:, 2], "-", lw=6, color="0.8")
+    fixes = [(0.5 * (lw.window.t_start + lw.window.t_end), f) for lw in done
+             if lw.output is not None for f in lw.output.sources]
+    for m, f in fixes:
+        mark = "k+" if f.observable else "rx"
+        ax1.plot(f.position[0], f.position[1], mark, ms=7)
+        ax2.plot(m, f.position[2], mark, ms=7)
+    for tr in tracks:
+        col = f"C{tr.track_id % 10}"
+        ax1.plot(tr.positions[:, 0], tr.positions[:, 1], "o-", color=col, ms=3,
+                 label=f"track {tr.track_id}")
+        sz = np.sqrt(np.clip(tr.covariances[:, 2, 2], 0.0, None))
+        ax2.plot(tr.times, tr.positions[:, 2], "o-", color=col, ms=3)
+        ax2.fill_between(tr.times, tr.positions[:, 2] - sz, tr.positions[:, 2] + sz, color=col,
+                         alpha=0.25)
+    ax1.plot([], [], "k+", label="fix per window")
+    ax1.plot([], [], "rx", label="flagged unobservable")
+    # zoom on the whales: their true tracks and the fixes near them, with a margin
+    pts = np.vstack([s.positions for s in sc.sources])
+    near = [f.position for _, f in fixes if np.min(np.linalg.norm(pts - f.position, axis=1)) < 200]
+    pts = np.vstack([pts] + near + [tr.positions for tr in tracks])
+    pad = max(50.0, 0.15 * float(np.ptp(pts[:, :2], axis=0).max()))
+    ax1.set(xlim=(pts[:, 0].min() - pad, pts[:, 0].max() + pad),
+            ylim=(pts[:, 1].min() - pad, pts[:, 1].max() + pad),
+            xlabel="x east (m)", ylabel="y north (m)", aspect="equal",
+            title="plan view (zoomed on the whales)")
+    ax1.legend(fontsize=8)
+    zpad = max(20.0, 0.15 * float(np.ptp(pts[:, 2])))
+    ax2.set(ylim=(pts[:, 2].min() - zpad, pts[:, 2].max() + zpad), xlabel="time (s)",
+            ylabel="z (m, up)", title="depth against time (band: smoothed 1 sigma)")
+    fig.suptitle(f"{len(tracks)} tracks smoothed on a constant-velocity factor graph; "
+                 "grey: the simulator's whales")
+    fig.tight_layout()
+    fig.savefig(path, dpi=80)
+    plt.close(fig)
+
+
 def run_demo(out_dir: Path, *, seed: int) -> dict[str, Any]:
-    """Run the click localization on a seeded scenario; write the result and three figures.
+    """Run the click localization on a seeded scenario; write the result and four figures.
 
     Parameters
     ----------
@@ -44,7 +164,8 @@ def run_demo(out_dir: Path, *, seed: int) -> dict[str, Any]:
         Windows, candidate and valid TDOAs, the fraction of valid TDOAs that are true (SCM delay
         within 3 ms of a true TDOA), the median |error| of valid refined TDOAs (us) and their
         median CRB (us), sources reported and the median 3-D error of sources matched to a
-        whale within 50 m.
+        whale within 50 m, the number of tracks and the start of the window whose surfaces are
+        drawn (s).
     """
     import matplotlib
 
@@ -52,20 +173,26 @@ def run_demo(out_dir: Path, *, seed: int) -> dict[str, Any]:
     import matplotlib.pyplot as plt
 
     from fusion.pipelines.click_training import label_windows, scenario_labels
-    from fusion.pipelines.localization import ClickLocalization, result_document
+    from fusion.pipelines.localization import (
+        ClickLocalization,
+        result_document,
+        track_windows,
+        whale_localizer,
+    )
     from fusion.simulate.clicks import simulate_clicks, write_click_scenario
 
     out = Path(out_dir)
-    sc = simulate_clicks(seed=seed, n_sensors=5, n_sources=2, duration_s=24.0, snr_db=30.0)
+    sc = simulate_clicks(seed=seed, n_sensors=5, n_sources=3, duration_s=24.0, snr_db=30.0)
     write_click_scenario(out / "scenario", sc)
     array = read_array(out / "scenario" / "array.json")
     audio, fs = read_audio(out / "scenario" / "audio.flac", n_channels=array.n_sensors)
 
-    pipe = ClickLocalization()
+    # bottom-mounted hydrophones: the sea floor at the deepest one, the surface at z = 0
+    bottom = float(array.positions[:, 2].min())
+    pipe = ClickLocalization(localizer=whale_localizer(bottom_z=bottom))
     step = int(round(pipe.front_end.hop_s * fs))
     blocks = ((a / fs, audio[a:a + step]) for a in range(0, audio.shape[0], step))
     done = list(pipe.iter_windows(blocks, fs=fs, sensors=array, duration_s=audio.shape[0] / fs))
-    write_json(out / "localization.json", result_document(done))
 
     windows = [d.window for d in done]
     labels = scenario_labels(sc)
@@ -83,14 +210,14 @@ def run_demo(out_dir: Path, *, seed: int) -> dict[str, Any]:
                     errs.append(e)
                     crbs.append(t.crb_s)
 
-    # sources against the whales' positions at the window centre (minus the travel time)
+    # sources against the whales' positions at the emission centred on the window
     src_err = []
     n_sources = 0
     for d in done:
         if d.output is None:
             continue
         mid = 0.5 * (d.window.t_start + d.window.t_end)
-        truth = np.array([s.position_at([mid - 1.0])[0] for s in sc.sources])
+        truth = _truth_at(sc, mid)
         for s in d.output.sources:
             n_sources += 1
             dist = np.linalg.norm(truth - s.position, axis=1)
@@ -151,28 +278,13 @@ def run_demo(out_dir: Path, *, seed: int) -> dict[str, Any]:
     fig.savefig(out / "clicks_tdoas.png", dpi=80)
     plt.close(fig)
 
-    # ---- figure 3: sources in plan view and depth
-    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(13, 5.5))
-    ax1.plot(array.positions[:, 0], array.positions[:, 1], "k^", ms=9, label="hydrophones")
-    for k, s in enumerate(sc.sources):
-        p = s.positions
-        ax1.plot(p[:, 0], p[:, 1], "-", lw=3, color=f"C{k}", alpha=0.5, label=f"whale {k}")
-        ax2.plot(s.emission_times, p[:, 2], "-", lw=3, color=f"C{k}", alpha=0.5)
-    for d in done:
-        if d.output is None:
-            continue
-        m = 0.5 * (d.window.t_start + d.window.t_end)
-        for s in d.output.sources:
-            ax1.plot(s.position[0], s.position[1], "k+", ms=8)
-            sz = float(np.sqrt(max(s.covariance[2, 2], 0.0))) if np.isfinite(s.covariance[2, 2]) else 0
-            ax2.errorbar(m - 1.0, s.position[2], yerr=min(sz, 500.0), fmt="k+", ms=8)
-    ax1.set(xlabel="x east (m)", ylabel="y north (m)", aspect="equal",
-            title="sources per window (+) over the whales' tracks")
-    ax1.legend(fontsize=8)
-    ax2.set(xlabel="time (s)", ylabel="z (m, up)", title="depth of the sources (+, 1 sigma)")
-    fig.tight_layout()
-    fig.savefig(out / "clicks_sources.png", dpi=80)
-    plt.close(fig)
+    # ---- figure 3: eq. 17 against eq. 18 in plan view at the estimated depth
+    tracks = track_windows(done)
+    write_json(out / "localization.json", result_document(done, tracks=tracks))
+    surf = _draw_surfaces(plt, out / "clicks_surfaces.png", done, pipe, array, sc)
+
+    # ---- figure 4: tracks in plan view and depth against time
+    _draw_tracks(plt, out / "clicks_tracks.png", done, tracks, array, sc)
 
     return {
         "windows": len(windows),
@@ -183,4 +295,6 @@ def run_demo(out_dir: Path, *, seed: int) -> dict[str, Any]:
         "tdoa_crb_median_us": round(float(np.median(crbs)) * 1e6, 3) if crbs else None,
         "sources": n_sources,
         "source_error_median_m": round(float(np.median(src_err)), 2) if src_err else None,
+        "tracks": len(tracks),
+        "surface_window_s": surf,
     }
