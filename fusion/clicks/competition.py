@@ -64,6 +64,7 @@ from fusion.clicks.ownership import (
     holds_a_source,
     independent_pairs,
     pair_ids,
+    same_source,
     supported_weights,
 )
 from fusion.clicks.window_tdoas import WindowTdoas
@@ -219,27 +220,6 @@ class _CandidateGraph:
         params = self.params_long if full else self.params
         result = gtsam.LevenbergMarquardtOptimizer(self.graph, values, params).optimize()
         return np.asarray(result.atPoint3(self.key), dtype=float)
-
-
-def _same_source(
-    tdoas: WindowTdoas, xa: NDArray, xb: NDArray, wa: NDArray, wb: NDArray, scale: NDArray,
-    settings: CompetitionSettings, *, settled: bool,
-) -> bool:
-    """Whether two candidates explain the same TDOAs.
-
-    Close in delay space (at the sharper candidate's scale), or, once both are annealed,
-    splitting the same TDOAs between them (while annealing, broad candidates share naturally).
-    """
-    union = np.maximum(wa, wb)
-    e = (tdoas.predicted(xa) - tdoas.predicted(xb)) / scale
-    if union.sum() > 0:
-        rms = float(np.sqrt(np.sum(union * e * e) / union.sum()))
-    else:
-        rms = float(np.sqrt(np.mean(e * e)))
-    small = min(wa.sum(), wb.sum())
-    shared = float(np.minimum(wa, wb).sum() / small) if small > 0 else 0.0
-    return rms < settings.merge_sigmas or (settled and shared > settings.max_overlap)
-
 
 
 def vertical_starts(x: NDArray, z_range: tuple[float, float] | None, levels: int = 4
@@ -464,7 +444,7 @@ def compete(
                 b = idx[pb]
                 if not (alive[a] and alive[b]):
                     continue
-                if _same_source(tdoas, x[a], x[b], w[a], w[b],
+                if same_source(tdoas, x[a], x[b], w[a], w[b],
                                 np.minimum(scale[pa], scale[pb]), cfg,
                                 settled=bool(max(spread[a], spread[b]) <= sig.min())):
                     loser = b if w[a].sum() >= w[b].sum() else a

@@ -1,4 +1,4 @@
-"""Which TDOAs a candidate holds: eq. (20)-(21) weights, the per-pair cap and the drop rule.
+"""Which TDOAs a candidate holds: eq. (20)-(21) weights, the per-pair cap, merging, dropping.
 
 The pieces of the competition (:mod:`fusion.clicks.competition`) that judge a candidate's share
 of a window's TDOAs: the delay-fit and association weights of eq. (20)-(21), the rank of the
@@ -20,6 +20,7 @@ from numpy.typing import ArrayLike, NDArray
 
 if TYPE_CHECKING:
     from fusion.clicks.competition import CompetitionSettings
+    from fusion.clicks.window_tdoas import WindowTdoas
 
 __all__ = [
     "association_weights",
@@ -27,6 +28,7 @@ __all__ = [
     "holds_a_source",
     "independent_pairs",
     "pair_ids",
+    "same_source",
     "supported_weights",
 ]
 
@@ -125,3 +127,23 @@ def holds_a_source(w: NDArray[np.float64], pairs: NDArray[np.intp],
     ws = supported_weights(w, alpha, cfg.min_alpha_link)
     return bool(ws.sum() >= cfg.min_weight
                 and independent_pairs(pairs, ws > 0.5) >= cfg.min_independent)
+
+
+def same_source(
+    tdoas: WindowTdoas, xa: NDArray, xb: NDArray, wa: NDArray, wb: NDArray, scale: NDArray,
+    settings: CompetitionSettings, *, settled: bool,
+) -> bool:
+    """Whether two candidates explain the same TDOAs.
+
+    Close in delay space (at the sharper candidate's scale), or, once both are annealed,
+    splitting the same TDOAs between them (while annealing, broad candidates share naturally).
+    """
+    union = np.maximum(wa, wb)
+    e = (tdoas.predicted(xa) - tdoas.predicted(xb)) / scale
+    if union.sum() > 0:
+        rms = float(np.sqrt(np.sum(union * e * e) / union.sum()))
+    else:
+        rms = float(np.sqrt(np.mean(e * e)))
+    small = min(wa.sum(), wb.sum())
+    shared = float(np.minimum(wa, wb).sum() / small) if small > 0 else 0.0
+    return rms < settings.merge_sigmas or (settled and shared > settings.max_overlap)
