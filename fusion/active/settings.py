@@ -275,7 +275,8 @@ def fit_scales(pings: Sequence[Ping], *, max_speed_mps: float = MAX_SPEED_MPS,
     chains = []
     for c in _chains(tri):
         # Probability that chance alone gives every triplet of the chain an |s| as small.
-        log_chance = float(np.sum(np.log1p(-np.exp(-np.pi * tri[c, 6] * tri[c, 4] ** 2))))
+        p_chance = -np.expm1(-np.pi * tri[c, 6] * tri[c, 4] ** 2)   # 1 - exp(-pi mu r^2)
+        log_chance = float(np.sum(np.log(np.maximum(p_chance, 1e-300))))
         if c.size >= min_chain and log_chance <= np.log(MAX_CHANCE):
             chains.append(c)
     sigma = speed = None
