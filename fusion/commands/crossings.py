@@ -1,4 +1,15 @@
-"""``fusion crossings --bearings B.csv --out C.csv``: predict and detect bearing-track crossings."""
+"""``fusion crossings --bearings B.csv --out C.csv``: predict and detect bearing-track crossings.
+
+The bearings are read in chunks, twice (:func:`fusion.io.iter_bearings`): a first pass collects
+what the data-fitted settings need of the whole file (the median time step within tracks and the
+median track span, exactly: :class:`~fusion.passive.crossing_summary.BearingStats`); the second
+puts the tracks on the grid and runs the detector as the rows arrive
+(:func:`~fusion.passive.crossing_stream.detect_crossings_streamed`), so memory holds a chunk and a
+few cells per track, not the file. The alerts are those of the whole-file path bit for bit. Rows
+out of time order (overall, not only within a track), repeated times, or a track that resumes
+after the streaming path took it as ended send the command to the whole-file path, which sorts
+(with its warning) or refuses with its usual message.
+"""
 
 from __future__ import annotations
 
@@ -10,7 +21,7 @@ import numpy as np
 
 from fusion.cli import emit, number
 from fusion.geometry import wrap_deg
-from fusion.io import read_bearings, write_table
+from fusion.io import RowOrderError, iter_bearings, read_bearings, write_table
 from fusion.passive.crossing import CrossingAlert, detect_crossings
 from fusion.passive.crossing_settings import (
     DEFAULT_CONFIRM,
@@ -21,8 +32,12 @@ from fusion.passive.crossing_settings import (
     DEFAULT_WINDOW_S,
     MAX_SAMPLES_PER_WINDOW,
     MIN_SAMPLES_PER_WINDOW,
+    CrossingSettings,
     crossing_settings,
+    crossing_settings_from_steps,
 )
+from fusion.passive.crossing_stream import GridAssumptionBroken, detect_crossings_streamed
+from fusion.passive.crossing_summary import BearingStats, BearingSummary
 
 logger = logging.getLogger(__name__)
 
@@ -84,32 +99,84 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Read the bearings, detect crossings, write the alerts; print a one-line summary."""
-    table = read_bearings(args.bearings)
-    tid = table["track_id"]
-    known = tid >= 0
-    if np.unique(tid[known]).size < 2:
-        raise ValueError(f"{args.bearings}: needs at least two tracks (track_id >= 0)")
     try:
-        st = crossing_settings(tid, table["time"], window_s=args.window_s,
-                               horizon_s=args.horizon, period_s=args.period, J=args.window,
-                               n_windows=args.windows, lead_windows=args.lead,
-                               confirm=args.confirm, level=args.level)
-    except ValueError as e:
-        raise ValueError(f"{args.bearings}: {e}") from None
-    spans = [np.ptp(table["time"][tid == k]) for k in np.unique(tid[known])]
-    n_samples = np.floor(np.asarray(spans) / st.period_s + 1e-9).astype(int) + 1
-    if np.sum(n_samples >= st.J) < 2:
-        raise ValueError(
-            f"{args.bearings}: fewer than two tracks span --window J={st.J} samples at "
-            f"K={st.period_s:g} s (longest: {int(n_samples.max())}); no crossing can be tested"
-        )
-    alerts = detect_crossings(table, merge_window_s=args.merge_window, max_gap_s=args.max_gap,
-                              **st.detector_options())
+        alerts, st = _streamed(args)
+    except (RowOrderError, GridAssumptionBroken, _NotInTimeOrder) as e:
+        logger.debug("%s; reading the whole file", e)
+        alerts, st = _whole_file(args)
     write_table(args.out, alert_columns(alerts))
     n_pred = sum(a.kind == "predicted" for a in alerts)
     emit(f"{st.describe()}: {len(alerts)} alert(s) ({n_pred} predicted, "
          f"{len(alerts) - n_pred} detected) -> {args.out}")
     return 0
+
+
+class _NotInTimeOrder(Exception):
+    """Rows of different tracks are not in time order overall (fine for the whole-file path)."""
+
+
+def _two_tracks(args: argparse.Namespace, n_tracks: int) -> None:
+    if n_tracks < 2:
+        raise ValueError(f"{args.bearings}: needs at least two tracks (track_id >= 0)")
+
+
+def _options(args: argparse.Namespace) -> dict:
+    """The settings options of the command line."""
+    return {"window_s": args.window_s, "horizon_s": args.horizon, "period_s": args.period,
+            "J": args.window, "n_windows": args.windows, "lead_windows": args.lead,
+            "confirm": args.confirm, "level": args.level}
+
+
+def _check_spans(args: argparse.Namespace, st: CrossingSettings, spans_s: np.ndarray) -> None:
+    n_samples = np.floor(np.asarray(spans_s) / st.period_s + 1e-9).astype(int) + 1
+    if np.sum(n_samples >= st.J) < 2:
+        raise ValueError(
+            f"{args.bearings}: fewer than two tracks span --window J={st.J} samples at "
+            f"K={st.period_s:g} s (longest: {int(n_samples.max())}); no crossing can be tested"
+        )
+
+
+def _streamed(args: argparse.Namespace) -> tuple[list[CrossingAlert], CrossingSettings]:
+    """Two passes over the file in chunks: the settings, then the detector as rows arrive."""
+    stats = BearingStats()
+    for c in iter_bearings(args.bearings):
+        stats.add(c.table["track_id"], c.table["time"])
+    summary: BearingSummary = stats.summary()
+    if not summary.time_ordered:
+        raise _NotInTimeOrder(f"{args.bearings}: tracks are not interleaved in time order")
+    _two_tracks(args, summary.track_ids.size)
+    try:
+        if summary.step_s is None:  # the message of estimate_period
+            raise ValueError("cannot infer the sample period: no track has two distinct times")
+        st = crossing_settings_from_steps(summary.step_s, float(np.median(summary.spans_s)),
+                                          **_options(args))
+    except ValueError as e:
+        raise ValueError(f"{args.bearings}: {e}") from None
+    _check_spans(args, st, summary.spans_s)
+    if summary.n_unknown:
+        logger.info("ignoring %d detection(s) of unknown origin (track_id -1)", summary.n_unknown)
+    rows = ((c.table["track_id"], c.table["time"], c.table["bearing_deg"])
+            for c in iter_bearings(args.bearings))
+    alerts = detect_crossings_streamed(rows, origin_s=summary.t_min_s,
+                                       merge_window_s=args.merge_window, max_gap_s=args.max_gap,
+                                       **st.detector_options())
+    return alerts, st
+
+
+def _whole_file(args: argparse.Namespace) -> tuple[list[CrossingAlert], CrossingSettings]:
+    """The whole table at once (rows sorted by the reader if they were out of order)."""
+    table = read_bearings(args.bearings)
+    tid = table["track_id"]
+    known = tid >= 0
+    _two_tracks(args, np.unique(tid[known]).size)
+    try:
+        st = crossing_settings(tid, table["time"], **_options(args))
+    except ValueError as e:
+        raise ValueError(f"{args.bearings}: {e}") from None
+    _check_spans(args, st, [np.ptp(table["time"][tid == k]) for k in np.unique(tid[known])])
+    alerts = detect_crossings(table, merge_window_s=args.merge_window, max_gap_s=args.max_gap,
+                              **st.detector_options())
+    return alerts, st
 
 
 def alert_columns(alerts: list[CrossingAlert]) -> dict[str, np.ndarray]:

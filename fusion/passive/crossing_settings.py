@@ -27,6 +27,7 @@ __all__ = [
     "MIN_SAMPLES_PER_WINDOW",
     "CrossingSettings",
     "crossing_settings",
+    "crossing_settings_from_steps",
 ]
 
 
@@ -153,13 +154,54 @@ def crossing_settings(
     tid = np.asarray(track_id)
     tt = np.asarray(time, dtype=float)
     step = estimate_period(tid[tid >= 0], tt[tid >= 0])
+    ids = np.unique(tid[tid >= 0])
+    track_span = float(np.median([np.ptp(tt[tid == k]) for k in ids]))
+    return crossing_settings_from_steps(
+        step, track_span, window_s=window_s, horizon_s=horizon_s, period_s=period_s, J=J,
+        n_windows=n_windows, lead_windows=lead_windows, confirm=confirm, level=level)
+
+
+def crossing_settings_from_steps(
+    step_s: float,
+    track_span_s: float,
+    *,
+    window_s: float | None = None,
+    horizon_s: float | None = None,
+    period_s: float | None = None,
+    J: int | None = None,
+    n_windows: int = DEFAULT_N_WINDOWS,
+    lead_windows: float = DEFAULT_LEAD_WINDOWS,
+    confirm: int = DEFAULT_CONFIRM,
+    level: float = DEFAULT_LEVEL,
+) -> CrossingSettings:
+    """:func:`crossing_settings` from the two numbers it takes of the data.
+
+    Parameters
+    ----------
+    step_s : float
+        Median positive time step within tracks, s
+        (:func:`~fusion.passive.bearing_grid.estimate_period`).
+    track_span_s : float
+        Median time span of the tracks, s.
+    window_s, horizon_s, period_s, J, n_windows, lead_windows, confirm, level
+        As in :func:`crossing_settings`.
+
+    Returns
+    -------
+    CrossingSettings
+
+    Notes
+    -----
+    For data read in chunks, where the table is never held at once
+    (:class:`~fusion.passive.crossing_summary.BearingStats` gives both numbers exactly).
+    """
+    step = float(step_s)
+    track_span = float(track_span_s)
     for name, v in (("window_s", window_s), ("horizon_s", horizon_s), ("period_s", period_s)):
         if v is not None and not (np.isfinite(v) and v > 0):
             raise ValueError(f"{name} must be > 0, got {v!r}")
     if J is not None and (int(J) != J or J < 3):
         raise ValueError(f"J must be an integer > 2, got {J!r}")
-    ids = np.unique(tid[tid >= 0])
-    track_span = float(np.median([np.ptp(tt[tid == k]) for k in ids]))
     span = min(DEFAULT_WINDOW_S, max(3.0 * step, track_span / 8.0)) if window_s is None \
         else float(window_s)
     if period_s is not None:
