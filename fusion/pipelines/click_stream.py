@@ -91,36 +91,56 @@ def stream_start(window_start: int, *, block: int, guard: int) -> tuple[int, int
 
 
 class _AudioRing:
-    """The most recent audio blocks, contiguous in time (a sliding buffer)."""
+    """The most recent audio, contiguous in time, in one buffer (a sliding window).
+
+    Blocks are copied in once; :meth:`cut` returns a view (no copy), valid until the next
+    :meth:`append` (which may move the samples).
+    """
 
     def __init__(self, start: int = 0) -> None:
-        self.blocks: list[tuple[int, NDArray]] = []  # (first sample index, samples)
-        self._first = start
+        self._buf: NDArray[np.float32] | None = None  # (capacity, channels)
+        self._base = start  # absolute index of _buf[0]
+        self._lo = 0  # _buf[_lo:_hi] holds the samples kept
+        self._hi = 0
 
     @property
     def end(self) -> int:
-        return self.blocks[-1][0] + self.blocks[-1][1].shape[0] if self.blocks else self._first
+        return self._base + self._hi
 
     @property
     def start(self) -> int:
-        return self.blocks[0][0] if self.blocks else self._first
+        return self._base + self._lo
 
     def append(self, first: int, x: NDArray) -> None:
-        if self.blocks and first != self.end:
+        if first != self.end:
             raise ValueError(f"audio blocks must be contiguous: block at sample {first}, "
                              f"expected {self.end}")
-        self.blocks.append((first, x))
+        m = x.shape[0]
+        if self._buf is None or self._buf.shape[1] != x.shape[1]:
+            self._buf = np.empty((max(4 * m, 1), x.shape[1]), dtype=np.float32)
+            self._base, self._lo, self._hi = first, 0, 0
+        elif self._hi + m > self._buf.shape[0]:
+            kept = self._hi - self._lo
+            if 2 * (kept + m) > self._buf.shape[0]:  # grow: moves happen once per capacity
+                buf = np.empty((2 * (kept + m), x.shape[1]), dtype=np.float32)
+                buf[:kept] = self._buf[self._lo:self._hi]
+                self._buf = buf
+            else:  # move the kept samples to the front
+                self._buf[:kept] = self._buf[self._lo:self._hi].copy()
+            self._base += self._lo
+            self._lo, self._hi = 0, kept
+        self._buf[self._hi:self._hi + m] = x
+        self._hi += m
 
     def drop_before(self, sample: int) -> None:
-        while self.blocks and self.blocks[0][0] + self.blocks[0][1].shape[0] <= sample:
-            self.blocks.pop(0)
+        self._lo = min(max(self._lo, sample - self._base), self._hi)
 
     def cut(self, a: int, b: int) -> tuple[int, NDArray]:
-        """Samples ``[max(a, start), min(b, end))`` and the index of the first."""
+        """Samples ``[max(a, start), min(b, end))`` (a view) and the index of the first."""
         a, b = max(a, self.start), min(b, self.end)
-        parts = [x[max(a - s, 0):max(min(b - s, x.shape[0]), 0)] for s, x in self.blocks
-                 if s < b and s + x.shape[0] > a]
-        return a, (np.concatenate(parts, axis=0) if len(parts) > 1 else parts[0])
+        if self._buf is None or b <= a:
+            raise ValueError(f"no audio held in [{a}, {b})")
+        return a, self._buf[a - self._base:b - self._base]
 
 
 def measure_stream(
