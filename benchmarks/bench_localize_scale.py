@@ -8,6 +8,10 @@ and with ``--workers N`` (a local Dask cluster), and reports per run:
 
 * ``wall_s`` and ``x_real_time`` (audio duration over wall time; the Dask cluster's start-up
   included);
+* ``cpu_s`` (user + system CPU time of the run and the processes it waited for: its Dask
+  workers) and ``x_real_time_cpu`` (audio duration over ``cpu_s`` divided by the workers, at
+  least 1: the speed on that many unshared cores); the 2 cores of the machine are shared, so
+  CPU time says more than wall time under load;
 * ``peak_rss_mb``: the largest resident set of any one process of the run (``wait4``'s
   ``ru_maxrss``: the command itself when serial, the largest worker with Dask);
 * ``peak_total_rss_mb``: the sum over the run's process tree, sampled every 0.1 s (psutil);
@@ -114,6 +118,7 @@ def run_localize(audio: Path, array: Path, out: Path, extra: list[str],
     proc.returncode = os.waitstatus_to_exitcode(status)
     err = proc.stderr.read().decode() if proc.stderr else ""
     return {"returncode": proc.returncode, "wall_s": round(wall, 2),
+            "cpu_s": round(usage.ru_utime + usage.ru_stime, 2),
             "peak_rss_mb": round(usage.ru_maxrss / 1024.0, 1),
             "peak_total_rss_mb": round(total_peak / 2**20, 1), "stderr": err.strip()[-300:]}
 
@@ -156,7 +161,10 @@ def main() -> None:
                 more = ["--workers", str(args.workers)] if mode == "workers" else []
                 r = run_localize(audio, array, out, extra + more)
                 r.update(minutes=minutes, mode=mode, workers=args.workers if more else 0,
-                         x_real_time=round(dur / r["wall_s"], 2), write_s=round(t_write, 1),
+                         x_real_time=round(dur / r["wall_s"], 2),
+                         x_real_time_cpu=round(dur * max(1, args.workers if more else 1)
+                                               / max(r["cpu_s"], 1e-9), 2),
+                         write_s=round(t_write, 1),
                          flac_mb=round(audio.stat().st_size / 2**20, 1),
                          load_avg=[round(v, 2) for v in os.getloadavg()])
                 if r["returncode"] == 0:
