@@ -100,13 +100,14 @@ def read_amplitudes(path: PathLike) -> Table:
     return _in_time_order(t, by="track_id")
 
 
-DETECTION_CLUES = ("snr_db", "score", "aspect_deg", "src_x", "src_y", "rcv_x", "rcv_y")
+DETECTION_CLUES = ("snr_db", "score", "aspect_deg", "src_x", "src_y", "rcv_x", "rcv_y", "own_x",
+                   "own_y")
 
 
 def read_detections(path: PathLike) -> Table:
     """Position detections ``event,time,x,y`` plus optional clue columns.
 
-    Optional: ``snr_db, score, aspect_deg, src_x, src_y, rcv_x, rcv_y``. ``score`` must lie in
+    Optional: ``snr_db, score, aspect_deg, src_x, src_y, rcv_x, rcv_y, own_x, own_y``. ``score`` must lie in
     [0, 1]. Rows are put in ``event`` order (stable; one warning if a sort was needed); many
     detections share an event.
     """
