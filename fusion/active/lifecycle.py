@@ -42,10 +42,14 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.stats import chi2
+
+if TYPE_CHECKING:
+    from fusion.active.platform import PlatformTest
 
 __all__ = [
     "MOTION_MIN_DETECTIONS",
@@ -333,7 +337,7 @@ def hotspot_drop(near: NDArray[np.bool_], seen: Sequence[Sequence[Sequence[float
 def stationary_hold(
     candidates: NDArray[np.bool_], lives: Sequence[Lifecycle],
     seen: Sequence[Sequence[Sequence[float]]], *, m: int, motion_test: MotionTest | None,
-    score_short: NDArray[np.bool_] | None,
+    score_short: NDArray[np.bool_] | None, platform_test: PlatformTest | None = None,
 ) -> NDArray[np.bool_]:
     """Tentative tracks with a hit that would confirm them but that stay tentative.
 
@@ -351,6 +355,10 @@ def stationary_hold(
         Hold tracks whose detections stand still (None: no such hold).
     score_short : ndarray of bool, shape (n_tracks,), or None
         Tracks whose track score is still below the confirmation score (held too).
+    platform_test : PlatformTest, optional
+        Hold tracks whose detections are steady relative to a sensor that moved
+        (:class:`fusion.active.platform.PlatformTest`; the rows then carry the sensor position
+        in columns 6-7). None (default): no such hold.
 
     Returns
     -------
@@ -372,4 +380,6 @@ def stationary_hold(
             hold[i] = True
         elif motion_test is not None:
             hold[i] = motion_test.moves(seen[i]) is False
+        if not hold[i] and platform_test is not None:
+            hold[i] = platform_test.fixed(seen[i]) is True
     return hold

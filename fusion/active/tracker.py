@@ -55,22 +55,11 @@ from numpy.typing import NDArray
 from fusion.active.association import EDGE_LIKELIHOOD, PairRanker, assign_by_priority
 from fusion.active.bistatic import MeasurementModel
 from fusion.active.clutter import ClutterIntensity, ClutterMapBase, DensityClutterMap
-from fusion.active.kalman import (
-    cv_model,
-    gate_threshold,
-    kf_predict,
-    kf_update,
-    pair_statistics,
-)
-from fusion.active.lifecycle import (
-    Lifecycle,
-    MotionTest,
-    hotspot_drop,
-    next_lifecycle,
-    stationary_hold,
-)
+from fusion.active.kalman import cv_model, gate_threshold, kf_predict, kf_update, pair_statistics
+from fusion.active.lifecycle import Lifecycle, MotionTest, hotspot_drop, next_lifecycle, stationary_hold
 from fusion.active.noise import NoiseEstimator
 from fusion.active.ping_scan import PingScan, birth_states, ping_result, score_gate
+from fusion.active.platform import PlatformTest, sensor_positions
 from fusion.active.track_score import TrackScorer
 from fusion.active.types import (
     Columns,
@@ -106,8 +95,7 @@ class Tracker:
         Standard deviation of each position coordinate of a detection without source/receiver
         positions (or with ``position_errors="isotropic"``), m (default 100).
     accel_psd : float, optional
-        White-acceleration spectral density, m^2/s^3 (default 0.04: a turn at 0.3 deg/s at
-        4 m/s, a ~ 0.02 m/s^2, sustained over a ping interval).
+        White-acceleration spectral density, m^2/s^3 (default 0.04).
     speed_sigma_mps : float, optional
         Standard deviation of each velocity component of a new track, m/s (default 3, about the
         speed of a submarine on patrol).
@@ -116,13 +104,10 @@ class Tracker:
     min_rank : float, optional
         Lowest rank (fuzzy mode) that may be associated, the same for every pair. Default None:
         derived from the rule base for the clues each pair actually has
-        (:func:`fusion.active.association.derived_min_rank` at ``edge_likelihood``), so that
-        data with fewer clues (e.g. positions only) are not held to a threshold calibrated with
-        all of them.
+        (:func:`fusion.active.association.derived_min_rank` at ``edge_likelihood``).
     edge_likelihood : float, optional
         Likelihood ratio at the edge of the acceptance region used by the derived threshold
-        (default :data:`fusion.active.association.EDGE_LIKELIHOOD` = 0.25, the crossover of
-        "unlikely").
+        (default :data:`fusion.active.association.EDGE_LIKELIHOOD` = 0.25).
     confirmed_edge_likelihood : float, optional
         The same for confirmed tracks (default 0.1, where "unlikely" is full; None: as
         `edge_likelihood`): a confirmed track keeps a turning target whose echoes fall further
@@ -137,8 +122,7 @@ class Tracker:
         hotspot tracks from confirming without a larger exclusion).
     hotspot_drop : bool, optional
         Fuzzy mode: delete a tentative track within ``init_exclusion_m`` of a hotspot region
-        unless its own detections move significantly (default False; True was the behaviour
-        before the track score).
+        unless its own detections move significantly (default False).
     motion_probability : float, optional
         Confidence of the motion test (stationary hold and hotspot drop), default 0.999, in
         (0, 1); see :func:`fusion.active.lifecycle.motion_statistic`. Fuzzy mode only.
@@ -151,6 +135,9 @@ class Tracker:
         move significantly (:func:`fusion.active.lifecycle.motion_statistic` at
         ``motion_probability``) stays tentative until they do (default True); such a held
         track is deleted after ``max_misses`` consecutive misses.
+    reject_platform_fixed : bool, optional
+        Fuzzy mode: hold tracks steady relative to a sensor that moved (default True;
+        :class:`fusion.active.platform.PlatformTest` at ``motion_probability``, ``min_speed_mps``).
     clutter_map : ClutterMapBase, optional
         Clutter map (default ``DensityClutterMap(position_sigma_m=position_sigma_m)``, see
         :mod:`fusion.active.clutter`); fuzzy mode only.
@@ -198,7 +185,6 @@ class Tracker:
     score_evidence : bool, optional
         The track score weighs each hit's classifier score (default True;
         :meth:`fusion.active.track_score.TrackScorer.score_delta`).
-    :meth:`step` processes one ping (streaming); :meth:`run` a whole detections table.
     """
 
     def __init__(
@@ -233,6 +219,7 @@ class Tracker:
         score_evidence: bool = True,
         min_speed_mps: float = 0.5,
         hotspot_drop: bool = False,
+        reject_platform_fixed: bool = True,
         confirmed_edge_likelihood: float | None = 0.1,
         intensity_bandwidth_m: float = 1000.0,
     ) -> None:
@@ -276,6 +263,8 @@ class Tracker:
                        if mode == "fuzzy" and confirm_llr is not None else None)
         self.motion_test = MotionTest(probability=motion_probability,
                                       min_speed_mps=min_speed_mps)
+        self.platform_test = (PlatformTest(probability=motion_probability, min_speed_mps=min_speed_mps)
+                              if mode == "fuzzy" and reject_platform_fixed else None)
         self.accel_psd = float(accel_psd)
         self.speed_sigma_mps = float(speed_sigma_mps)
         self.gate = gate_threshold(gate_probability)
@@ -302,7 +291,7 @@ class Tracker:
         self._x = np.zeros((0, 4))
         self._P = np.zeros((0, 4, 4))
         self._life: list[Lifecycle] = []
-        # Per track: time, x, y, R_xx, R_xy, R_yy of its detections while tentative (motion test).
+        # Per track: time, x, y, R_xx, R_xy, R_yy, sensor x, y of its tentative detections.
         self._seen: list[list[list[float]]] = []
         self._next_id = 0
         self._time: float | None = None
@@ -360,7 +349,8 @@ class Tracker:
         scan = PingScan(ping=ping, Rz=Rz, hot_d=hot_d, confirmed=confirmed0,
                          dets=[[] for _ in range(n0)], rank=[np.nan] * n0,
                          rows=np.column_stack([np.full(ping.n, ping.time), ping.xy, Rz[:, 0, 0],
-                                               Rz[:, 0, 1], Rz[:, 1, 1]]).tolist())
+                                               Rz[:, 0, 1], Rz[:, 1, 1],
+                                               sensor_positions(ping)]).tolist())
         # Each receiver's detections are a scan of their own at the ping time: a track takes at
         # most one detection per receiver, and a track born from one receiver's echo may take
         # the echoes of the same place from the receivers after it.
@@ -457,7 +447,8 @@ class Tracker:
             motion_test=(self.motion_test if self.clutter_map is not None and self.hold_stationary
                          else None),
             score_short=(self._llr < self.scorer.confirm_llr if self.scorer is not None
-                         else None))
+                         else None),
+            platform_test=self.platform_test)
         life = [next_lifecycle(lc, h, dropped=d, held=s, m=self.m, n=self.n,
                                max_misses=self.max_misses, window=self.scorer is None)
                 for lc, h, d, s in zip(self._life[:n0], hit[:n0].tolist(), dropped[:n0].tolist(),

@@ -18,6 +18,7 @@ from numpy.typing import ArrayLike, NDArray
 __all__ = [
     "CLUE_COLUMNS",
     "POSITION_CLUES",
+    "SENSOR_CLUES",
     "Columns",
     "Ping",
     "PingResult",
@@ -29,8 +30,10 @@ __all__ = [
 
 #: Source and receiver position columns of a bistatic detection, m.
 POSITION_CLUES: tuple[str, ...] = ("src_x", "src_y", "rcv_x", "rcv_y")
+#: Position of a monostatic sensor's platform (own ship) at the detection, m.
+SENSOR_CLUES: tuple[str, ...] = ("own_x", "own_y")
 #: Optional per-detection columns the tracker reads.
-CLUE_COLUMNS: tuple[str, ...] = ("snr_db", "score", "aspect_deg", *POSITION_CLUES)
+CLUE_COLUMNS: tuple[str, ...] = ("snr_db", "score", "aspect_deg", *POSITION_CLUES, *SENSOR_CLUES)
 
 
 class Columns(Protocol):
@@ -57,7 +60,7 @@ class Ping:
         Detection positions (x east, y north), m.
     clues : dict of str to ndarray, shape (n,)
         Optional per-detection clues among ``snr_db``, ``score``, ``aspect_deg`` and positions
-        ``src_x, src_y, rcv_x, rcv_y`` (m).
+        ``src_x, src_y, rcv_x, rcv_y``, ``own_x, own_y`` (m).
     """
 
     event: int

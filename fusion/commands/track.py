@@ -1,7 +1,8 @@
 """``fusion track --detections D.csv --out T.csv``: multistatic active tracking.
 
 Reads position detections (``event,time,x,y`` plus optional clue columns ``snr_db, score,
-aspect_deg, src_x, src_y, rcv_x, rcv_y``) and writes one row per track per event:
+aspect_deg, src_x, src_y, rcv_x, rcv_y`` and the sensor platform's position ``own_x, own_y``)
+and writes one row per track per event:
 ``track_id,event,time,x,y,vx,vy,status``. Clue columns absent from the file leave the rules that
 read them out of the rank; the command says so once on stderr. With ``src_x, src_y, rcv_x, rcv_y``
 each detection's position error is the bistatic error ellipse propagated from the range-sum and
@@ -12,6 +13,9 @@ equivalent aspect angle comes from each track's heading and the source/receiver 
 ``aspect_deg`` column is used only with ``--aspect-column measured`` (nothing in a file says how
 it was obtained). With ``--smooth`` each confirmed track is refined with all of its detections on
 a factor graph (:mod:`fusion.active.smoothing`) and every row gets ``sigma_x, sigma_y`` (m).
+A tentative track whose detections stand still relative to the sensor (``rcv_x, rcv_y``, else
+``own_x, own_y``) while the sensor moved significantly is platform-fixed clutter and is not
+confirmed (:mod:`fusion.active.platform`; ``--keep-platform-fixed`` turns this off).
 
 Scales not given are read from the first ``--fit-pings`` pings
 (:func:`fusion.active.settings.track_settings`): scan period, position scatter, speed prior,
@@ -170,6 +174,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="fuzzy mode: confirm a track on its hits alone, even when its own "
                         "detections do not move (default: such a track is held tentative until "
                         "it moves or the clutter map flags it)")
+    p.add_argument("--keep-platform-fixed", action="store_true",
+                   help="fuzzy mode: confirm a track even when its detections stand still "
+                        "relative to a sensor that moved (default: held tentative; the sensor "
+                        "position is rcv_x,rcv_y or own_x,own_y)")
     p.add_argument("--hotspot-drop", action="store_true",
                    help="fuzzy mode: delete a tentative track within --init-exclusion-m of a "
                         "hotspot region unless its own detections move")
@@ -227,6 +235,9 @@ class _Summary:
             why.append(f"their detections did not move faster than --min-speed "
                        f"{args.min_speed:g} m/s significantly (stationary hold; "
                        "--confirm-stationary)")
+            if not args.keep_platform_fixed:
+                why.append("they stood still relative to the moving sensor (platform-fixed; "
+                           "--keep-platform-fixed)")
         if not args.no_track_score and args.mode == "fuzzy":
             why.append(f"their track score stayed below --confirm-llr {args.confirm_llr:g}")
         return (f"no track confirmed: {held} track(s) reached {m} hits but were held "
@@ -271,6 +282,7 @@ def _build(args: argparse.Namespace, prefix: list[Ping],
             confirmed_edge_likelihood=args.confirmed_edge_likelihood,
             confirm_hits=args.confirm[0], confirm_window=args.confirm[1],
             max_misses=args.max_misses, hold_stationary=not args.confirm_stationary,
+            reject_platform_fixed=not args.keep_platform_fixed,
             clutter_map=(ClutterMap(cell_m=args.hotspot_cell, position_sigma_m=sigma)
                          if args.clutter_map == "grid"
                          else DensityClutterMap(position_sigma_m=sigma,
