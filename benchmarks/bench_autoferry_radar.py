@@ -2,7 +2,8 @@
 
 Each shared Autoferry scenario (real radar plots of boats in Trondheim harbour, GNSS truth of two
 of them) is converted by ``fusion import autoferry DIR --out OUT`` (``radar.csv``: detections
-``event,time,x,y`` plus own-ship columns, which ``fusion track`` ignores; ``truth.csv``: GNSS),
+``event,time,x,y`` plus the own-ship columns ``own_x, own_y``, which ``fusion track`` reads as
+the sensor position for its platform-fixed test; ``truth.csv``: GNSS),
 tracked by ``fusion track --detections radar.csv --out tracks.csv`` with NO tuning option (the
 scales are read from the detections; ``--track-args`` adds options for comparisons), and scored
 against the GNSS truth:
