@@ -113,8 +113,9 @@ class ClickLocalization:
     front_end : ClickFrontEnd, optional
         Default: the method's parameters and the shipped validator.
     localizer : MultiSourceLocalizer or None, optional
-        Default: :func:`whale_localizer` (candidates competing for the TDOAs, eq. 19-22, read
-        along direct and surface-reflected paths); ``None`` skips localization (TDOAs only).
+        Default: candidates competing for the TDOAs (eq. 19-22) along direct paths, as
+        ``fusion localize`` runs them; :func:`whale_localizer` reads them along
+        surface-reflected paths too. ``None`` skips localization (TDOAs only).
     min_tdoas : int, optional
         Fewest valid TDOAs a window needs to be localized (default 3, a 3-D fix).
     sigma_floor_s : float, optional
@@ -132,7 +133,7 @@ class ClickLocalization:
     ) -> None:
         self.front_end = front_end if front_end is not None else ClickFrontEnd()
         if localizer is True:
-            localizer = whale_localizer()
+            localizer = MultiSourceLocalizer()
         self.localizer = localizer or None
         self.min_tdoas = int(min_tdoas)
         self.sigma_floor_s = float(sigma_floor_s)
