@@ -11,11 +11,14 @@ Seeds: tuning 0-99 was used while building, seeds 0-4 (three whales) and 0-9 (on
 reading the TDOAs along surface-reflected paths and its settings (``whale_localizer``); report
 seeds 7000-7009, each configuration run once on them.
 
-The localizer is :func:`fusion.pipelines.localization.whale_localizer`: TDOAs read along direct
-and surface-reflected paths (the surface at z = 0), and, with ``--water-column bottom`` (default),
-the sea floor at the deepest hydrophone (the simulated arrays are bottom-mounted: what a user
+The localizer is that of ``fusion localize``'s defaults
+(:class:`fusion.pipelines.localization.LocalizerSettings`, i.e.
+:func:`fusion.pipelines.localization.whale_localizer` for these arrays below the surface): TDOAs
+read along direct and surface-reflected paths (the surface at z = 0), and, with
+``--water-column bottom`` (default; ``fusion localize --sea-floor-z``), the sea floor at the
+deepest hydrophone (the simulated arrays are bottom-mounted: what a user
 knows of the deployment, not of the whales). ``competition-direct`` is the competition reading
-direct paths only, with the same water column (the earlier default).
+direct paths only, with the same water column (``--direct-only``, the earlier default).
 
 Cases:
 
@@ -45,7 +48,7 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from fusion.pipelines.clicks import ClickFrontEnd
-from fusion.pipelines.localization import ClickLocalization, whale_localizer
+from fusion.pipelines.localization import ClickLocalization, LocalizerSettings
 from fusion.simulate.clicks import simulate_clicks
 
 METHODS = ("competition", "eq18", "eq17", "lsq", "competition-direct")
@@ -85,12 +88,16 @@ def scenario(seed: int, n_sources: int, snr_db: float, duration: float, snr_def:
                            snr_db=snr_db + snr_db - 20.0 * np.log10(weakest))
 
 
-def localizer_for(method: str, sensors, water_column: str):
-    """The benchmarked localizer of `method` for an array (see the module docstring)."""
+def localizer_for(method: str, sensors, water_column: str) -> LocalizerSettings:
+    """The ``fusion localize`` settings benchmarked as `method` for an array (module docstring).
+
+    ``competition`` with ``--water-column bottom`` is ``fusion localize --sea-floor-z Z`` (Z the
+    deepest hydrophone); ``competition-direct`` adds ``--direct-only``, the others ``--method``.
+    """
     bottom = float(np.min(sensors.positions[:, 2])) if water_column == "bottom" else None
     if method == "competition-direct":
-        return whale_localizer("competition", surface_z=None, bottom_z=bottom)
-    return whale_localizer(method, bottom_z=bottom)
+        return LocalizerSettings(method="competition", surface_paths=False, sea_floor_z=bottom)
+    return LocalizerSettings(method=method, sea_floor_z=bottom)
 
 
 def run_case(seeds: list[int], n_sources: int, snr_range: tuple[float, float],

@@ -33,6 +33,13 @@ A folder of recordings: ``--audio DIR --out OUTDIR`` localizes every multichanne
 the chunks of all the files form one run (on Dask, the files are processed side by side), with
 its parts in ``OUTDIR/localize.parts/`` (keyed by every file of the folder).
 
+Sources (:class:`fusion.pipelines.localization.LocalizerSettings`): every TDOA is read along
+direct and surface-reflected paths (the sea surface at z = 0, z up as in the file formats) when
+every sensor is below the surface, else along direct paths with one logged line
+(``--surface-paths`` / ``--direct-only`` decide instead); ``--sea-floor-z`` bounds the search
+below, ``--candidates`` and ``--min-source-tdoas`` set the candidates per window and the weight
+a source needs (by default those of the path reading).
+
 With ``--events E.csv`` (``t_start,t_end[,f_low,f_high]``, events found by any other detector)
 each event is localized instead from band-passed waveform cross-correlation TDOAs of every pair,
 screened by triangle closure, solved on the factor graph with its covariance and 95 % interval,
@@ -61,7 +68,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                "serially in this process by default, on Dask with --workers or --scheduler (the "
                "output is the same byte for byte). Finished chunks are kept in OUT.parts/ "
                "beside the output; after an interruption, run the same command again to resume. "
-               "The folder is removed when the output is written.",
+               "The folder is removed when the output is written. TDOAs are read along "
+               "surface-reflected paths too when every sensor is below the sea surface z = 0 "
+               "(z up), else along direct paths (logged).",
     )
     p.add_argument("--audio", type=Path, nargs="+", required=True, action=_AudioPaths,
                    help="one multichannel WAV/FLAC, or one mono file per sensor in array order, "
@@ -92,6 +101,22 @@ def register(sub: argparse._SubParsersAction) -> None:
                    default="competition",
                    help="localization: competing candidates (default), the eq. 18 or eq. 17 "
                         "surface peak, one least-squares source, or none (TDOAs only)")
+    paths = p.add_mutually_exclusive_group()
+    paths.add_argument("--surface-paths", dest="surface_paths", action="store_const", const=True,
+                       default=None,
+                       help="read every TDOA along direct and surface-reflected paths (the sea "
+                            "surface at z = 0, z up); default when every sensor is below z = 0")
+    paths.add_argument("--direct-only", dest="surface_paths", action="store_const", const=False,
+                       help="read TDOAs along direct paths only; default (with one logged line) "
+                            "when a sensor is not below z = 0")
+    p.add_argument("--sea-floor-z", type=number(float), default=None, metavar="Z",
+                   help="height of the sea floor, m (z up, e.g. -1700; at or below every sensor): "
+                        "sources are searched between it and the surface (default: unknown)")
+    p.add_argument("--candidates", type=number(int, ge=1), default=None, metavar="N",
+                   help="candidates per window (default 16 with surface paths, 8 direct only)")
+    p.add_argument("--min-source-tdoas", type=number(float, gt=0), default=None, metavar="W",
+                   help="smallest total TDOA weight of a source (default 5.5 with surface "
+                        "paths, 3.5 direct only)")
     p.add_argument("--events", type=Path, default=None,
                    help="CSV t_start,t_end[,f_low,f_high] of events found by another detector: "
                         "localize each event from band-passed waveform cross-correlation "
@@ -157,7 +182,8 @@ def _run_key(args: argparse.Namespace, audio: list) -> str:
         "replica": file_identity(args.replica or GENERIC_PATH, content=True),
         "options": {k: getattr(args, k) for k in (
             "window", "hop", "band", "min_centre_freq", "detect_threshold", "llr_threshold",
-            "no_refine", "method", "chunk")},
+            "no_refine", "method", "chunk", "surface_paths", "sea_floor_z", "candidates",
+            "min_source_tdoas")},
     })
 
 
@@ -172,7 +198,6 @@ def run(args: argparse.Namespace) -> int:
         return run_events(args)
     from fusion._output import STDOUT
     from fusion.clicks.detect import ClickDetector
-    from fusion.clicks.localize import MultiSourceLocalizer
     from fusion.clicks.replica import load_replica
     from fusion.clicks.scm import ClickMapCorrelator, ScmConfig
     from fusion.clicks.validate import TdoaValidator
@@ -184,7 +209,7 @@ def run(args: argparse.Namespace) -> int:
         write_document,
     )
     from fusion.pipelines.clicks import ClickFrontEnd, default_validator
-    from fusion.pipelines.localization import ClickLocalization
+    from fusion.pipelines.localization import ClickLocalization, settings_from_args
     from fusion.scale import PartStore, dask_client, progress, run_tasks
 
     if args.hop > args.window:
@@ -211,7 +236,9 @@ def run(args: argparse.Namespace) -> int:
         detector=ClickDetector(**det_opts),
         correlator=ClickMapCorrelator(config=ScmConfig(window_s=args.window)),
         validator=validator, refiner=not args.no_refine, hop_s=args.hop)
-    localizer = None if args.method == "none" else MultiSourceLocalizer(method=args.method)
+    # resolved once for the array (surface paths or direct, logged when it falls back)
+    localizer = (None if args.method == "none"
+                 else settings_from_args(args).localizer(array.positions))
     pipe = ClickLocalization(front_end=front, localizer=localizer)
     plans = [plan_chunks(source, pipe, chunk_s=args.chunk) for source, _ in recordings]
     tasks = [t for plan in plans for t in plan]

@@ -19,17 +19,18 @@ from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from fusion.clicks.candidates import CandidateFinder
 from fusion.clicks.competition import CompetitionSettings
-from fusion.clicks.localize import LocalizationOutput, MultiSourceLocalizer
+from fusion.clicks.localize import METHODS, LocalizationOutput, MultiSourceLocalizer
 from fusion.clicks.search_grid import SearchRegion
 from fusion.clicks.tracks import SourceTracker, Track, WindowSources
 from fusion.geometry import SensorArray
 from fusion.pipelines.clicks import ClickFrontEnd, ClickWindow
 
-__all__ = ["ClickLocalization", "LocalizedWindow", "result_document", "track_windows",
-           "whale_localizer"]
+__all__ = ["ClickLocalization", "LocalizedWindow", "LocalizerSettings", "result_document",
+           "settings_from_args", "track_windows", "whale_localizer"]
 
 logger = logging.getLogger(__name__)
 
@@ -56,6 +57,9 @@ class LocalizedWindow:
 #: Candidates per window and smallest TDOA weight of a source when surface paths are read.
 WHALE_MAX_CANDIDATES = 16
 WHALE_MIN_TDOAS = 5.5
+
+#: Height of the sea surface in the project's convention (z up, formats section 2), m.
+SEA_SURFACE_Z = 0.0
 
 
 def whale_localizer(
@@ -105,6 +109,100 @@ def whale_localizer(
                                 competition=CompetitionSettings(min_weight=min_tdoas))
 
 
+@dataclass(frozen=True)
+class LocalizerSettings:
+    """The localization settings of ``fusion localize`` (one option each), array-independent.
+
+    Attributes
+    ----------
+    method : str
+        One of :data:`fusion.clicks.localize.METHODS` (default ``"competition"``).
+    surface_paths : bool or None
+        Read every TDOA along direct and surface-reflected paths, the surface at z = 0
+        (True), along direct paths only (False), or decide from the array (None, default):
+        surface paths when every sensor is below the surface (z < 0, z up as in the file
+        formats), else direct paths with one logged line.
+    sea_floor_z : float or None
+        Height of the sea floor, m (z up; at or below every sensor); the search then stays in
+        the water column between it and the surface. Default None: unknown.
+    max_candidates : int or None
+        Candidates per window. None: 16 with surface paths (:data:`WHALE_MAX_CANDIDATES`),
+        the candidate finder's 8 with direct paths.
+    min_source_tdoas : float or None
+        Smallest total TDOA weight of a source. None: 5.5 with surface paths
+        (:data:`WHALE_MIN_TDOAS`), the localizer's 3.5 with direct paths.
+    """
+
+    method: str = "competition"
+    surface_paths: bool | None = None
+    sea_floor_z: float | None = None
+    max_candidates: int | None = None
+    min_source_tdoas: float | None = None
+
+    def __post_init__(self) -> None:
+        if self.method not in METHODS:
+            raise ValueError(f"method must be one of {METHODS}, got {self.method!r}")
+        if self.sea_floor_z is not None and not np.isfinite(self.sea_floor_z):
+            raise ValueError(f"sea_floor_z must be finite, got {self.sea_floor_z!r}")
+        if self.max_candidates is not None and self.max_candidates < 1:
+            raise ValueError(f"max_candidates must be >= 1, got {self.max_candidates}")
+        if self.min_source_tdoas is not None and not self.min_source_tdoas > 0:
+            raise ValueError(f"min_source_tdoas must be > 0, got {self.min_source_tdoas}")
+
+    def reads_surface_paths(self, sensors: ArrayLike) -> bool:
+        """Whether TDOAs are read along surface-reflected paths for these sensors (n, 3), m.
+
+        Raises
+        ------
+        ValueError
+            Surface paths asked for (``surface_paths=True``) or a sea floor given while a
+            sensor is not below the surface.
+        """
+        z = np.asarray(sensors, dtype=float)[:, 2]
+        below = bool(np.all(z < SEA_SURFACE_Z))
+        if not below and (self.surface_paths or self.sea_floor_z is not None):
+            what = "surface paths" if self.surface_paths else "a sea floor"
+            raise ValueError(f"{what} need every sensor below the sea surface z = 0 (z up); "
+                             f"the highest sensor is at z = {z.max():g} m")
+        if self.sea_floor_z is not None and self.sea_floor_z > z.min():
+            raise ValueError(f"the sea floor z = {self.sea_floor_z:g} m is above the deepest "
+                             f"sensor (z = {z.min():g} m)")
+        if self.surface_paths is None and not below:
+            logger.warning("sensors not all below the sea surface z = 0 (highest z = %g m): "
+                           "TDOAs read along direct paths only", z.max())
+        return below if self.surface_paths is None else bool(self.surface_paths)
+
+    def localizer(self, sensors: ArrayLike) -> MultiSourceLocalizer:
+        """The localizer of these settings for an array of sensors (n, 3), m."""
+        if self.reads_surface_paths(sensors):
+            return whale_localizer(
+                self.method, surface_z=SEA_SURFACE_Z, bottom_z=self.sea_floor_z,
+                max_candidates=(WHALE_MAX_CANDIDATES if self.max_candidates is None
+                                else self.max_candidates),
+                min_tdoas=(WHALE_MIN_TDOAS if self.min_source_tdoas is None
+                           else self.min_source_tdoas))
+        opts: dict = {}
+        if self.max_candidates is not None:
+            opts["finder"] = CandidateFinder(max_candidates=self.max_candidates)
+        if self.min_source_tdoas is not None:
+            opts["min_tdoas"] = self.min_source_tdoas
+            opts["competition"] = CompetitionSettings(min_weight=self.min_source_tdoas)
+        region = SearchRegion() if self.sea_floor_z is None else SearchRegion(
+            water_column=(float(self.sea_floor_z), SEA_SURFACE_Z))
+        return MultiSourceLocalizer(method=self.method, region=region, **opts)
+
+    def to_dict(self) -> dict:
+        """The settings as JSON-ready values."""
+        return dataclasses.asdict(self)
+
+
+def settings_from_args(args: object) -> LocalizerSettings:
+    """:class:`LocalizerSettings` of ``fusion localize``'s options (an argparse namespace)."""
+    return LocalizerSettings(method=args.method, surface_paths=args.surface_paths,
+                             sea_floor_z=args.sea_floor_z, max_candidates=args.candidates,
+                             min_source_tdoas=args.min_source_tdoas)
+
+
 class ClickLocalization:
     """Audio blocks in, localized windows out.
 
@@ -112,10 +210,12 @@ class ClickLocalization:
     ----------
     front_end : ClickFrontEnd, optional
         Default: the method's parameters and the shipped validator.
-    localizer : MultiSourceLocalizer or None, optional
-        Default: candidates competing for the TDOAs (eq. 19-22) along direct paths, as
-        ``fusion localize`` runs them; :func:`whale_localizer` reads them along
-        surface-reflected paths too. ``None`` skips localization (TDOAs only).
+    localizer : MultiSourceLocalizer, LocalizerSettings or None, optional
+        Default ``LocalizerSettings()``, as ``fusion localize`` runs it: candidates competing
+        for the TDOAs (eq. 19-22), read along direct and surface-reflected paths when every
+        sensor is below the surface z = 0, else along direct paths. Settings are turned into a
+        localizer for each array met (:meth:`LocalizerSettings.localizer`). ``None`` skips
+        localization (TDOAs only).
     min_tdoas : int, optional
         Fewest valid TDOAs a window needs to be localized (default 3, a 3-D fix).
     sigma_floor_s : float, optional
@@ -127,16 +227,27 @@ class ClickLocalization:
         self,
         *,
         front_end: ClickFrontEnd | None = None,
-        localizer: MultiSourceLocalizer | None | bool = True,
+        localizer: MultiSourceLocalizer | LocalizerSettings | None | bool = True,
         min_tdoas: int = 3,
         sigma_floor_s: float = 1e-6,
     ) -> None:
         self.front_end = front_end if front_end is not None else ClickFrontEnd()
         if localizer is True:
-            localizer = MultiSourceLocalizer()
-        self.localizer = localizer or None
+            localizer = LocalizerSettings()
+        self.settings = localizer if isinstance(localizer, LocalizerSettings) else None
+        self.localizer = None if self.settings is not None else (localizer or None)
+        self._resolved: tuple[bytes, MultiSourceLocalizer] | None = None
         self.min_tdoas = int(min_tdoas)
         self.sigma_floor_s = float(sigma_floor_s)
+
+    def localizer_for(self, sensors: SensorArray) -> MultiSourceLocalizer | None:
+        """The localizer used for this array (settings resolved once per array)."""
+        if self.settings is None:
+            return self.localizer
+        key = np.asarray(sensors.positions, dtype=float).tobytes()
+        if self._resolved is None or self._resolved[0] != key:
+            self._resolved = (key, self.settings.localizer(sensors.positions))
+        return self._resolved[1]
 
     def localize(self, window: ClickWindow, sensors: SensorArray) -> LocalizedWindow:
         """Localize the sources of one front-end window from its valid TDOAs.
@@ -155,7 +266,8 @@ class ClickLocalization:
         twice: the paths found by the first retimed solve retime the echoes.
         """
         idx = np.array([k for k, d in enumerate(window.tdoas) if d.valid], dtype=int)
-        if self.localizer is None or idx.size < self.min_tdoas:
+        localizer = self.localizer_for(sensors)
+        if localizer is None or idx.size < self.min_tdoas:
             return LocalizedWindow(window, idx, None)
         d = [window.tdoas[k] for k in idx]
         pos = sensors.positions
@@ -166,10 +278,10 @@ class ClickLocalization:
         rate = np.array([t.rate for t in d])
         alpha = window.alpha[np.ix_(idx, idx)]
         spread = float(np.max(np.linalg.norm(pos[:, None] - pos[None], axis=2))) / c
-        surface_z = getattr(self.localizer, "surface_z", None)
+        surface_z = getattr(localizer, "surface_z", None)
         try:
             # pass 1: direct paths, sigmas widened by the drift over half the travel-time spread
-            out = self.localizer.localize(pos, pairs, taus, np.hypot(sig, rate * 0.5 * spread),
+            out = localizer.localize(pos, pairs, taus, np.hypot(sig, rate * 0.5 * spread),
                                           alpha, c=c)
             # pass 2 (and 3 when surface-reflected paths are read: the paths of pass 2 retime
             # the echoes): each TDOA moved to one emission of the source that owns it
@@ -178,7 +290,7 @@ class ClickLocalization:
                     break
                 retimed = _retime(out, taus, rate, pairs, pos, c,
                                   0.5 * (window.t_start + window.t_end), surface_z)
-                out = self.localizer.localize(pos, pairs, retimed, sig, alpha, c=c)
+                out = localizer.localize(pos, pairs, retimed, sig, alpha, c=c)
         except ValueError as e:  # e.g. too few independent pairs: no fix in this window
             logger.info("window %.1f s: not localized (%s)", window.t_start, e)
             out = None

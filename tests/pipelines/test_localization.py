@@ -7,7 +7,9 @@ import pytest
 
 from fusion.pipelines.localization import (
     ClickLocalization,
+    LocalizerSettings,
     result_document,
+    settings_from_args,
     track_windows,
     whale_localizer,
 )
@@ -64,6 +66,74 @@ def test_whale_localizer_settings():
     assert loc.finder.max_candidates == 16 and loc.min_tdoas == 5.5
     direct = whale_localizer(surface_z=None)
     assert direct.surface_z is None and direct.region.water_column is None
+
+
+_BELOW = np.array([[0.0, 0, -1600], [1500, 0, -1650], [0, 1500, -1700], [1500, 1500, -1620]])
+_TANK = np.array([[-0.9, -0.9, -0.7], [-0.9, -0.9, 0.5], [0.9, -0.9, -0.7], [0.0, 0.0, 0.0]])
+
+
+def _same(a, b) -> bool:
+    """Two localizers configured alike (the settings that differ between the readings)."""
+    return (a.method == b.method and a.surface_z == b.surface_z and a.region == b.region
+            and a.finder.max_candidates == b.finder.max_candidates and a.min_tdoas == b.min_tdoas
+            and a.competition == b.competition)
+
+
+def test_settings_default_reads_surface_paths_below_the_surface(caplog):
+    """Default settings: sensors below z = 0 get whale_localizer, no log line."""
+    loc = LocalizerSettings().localizer(_BELOW)
+    assert _same(loc, whale_localizer()) and loc.surface_z == 0.0
+    assert loc.finder.max_candidates == 16 and loc.min_tdoas == 5.5
+    floor = LocalizerSettings(sea_floor_z=-1700.0).localizer(_BELOW)
+    assert _same(floor, whale_localizer(bottom_z=-1700.0))
+    assert not [r for r in caplog.records if r.levelname == "WARNING"]
+
+
+def test_settings_fall_back_to_direct_paths_with_one_line(caplog):
+    """A sensor not below z = 0 (a tank array): direct paths, the localizer's own defaults,
+    one logged line; surface paths or a sea floor asked for there are refused."""
+    loc = LocalizerSettings().localizer(_TANK)
+    assert loc.surface_z is None and loc.finder.max_candidates == 8 and loc.min_tdoas == 3.5
+    assert len([r for r in caplog.records if "direct paths only" in r.message]) == 1
+    with pytest.raises(ValueError, match="below the sea surface"):
+        LocalizerSettings(surface_paths=True).localizer(_TANK)
+    with pytest.raises(ValueError, match="below the sea surface"):
+        LocalizerSettings(surface_paths=False, sea_floor_z=-2.0).localizer(_TANK)
+
+
+def test_settings_direct_only_and_explicit_values():
+    """--direct-only equals the earlier direct reading; explicit candidates and weights apply
+    to either reading; a floor above the deepest sensor is refused."""
+    direct = LocalizerSettings(surface_paths=False, sea_floor_z=-1700.0).localizer(_BELOW)
+    assert _same(direct, whale_localizer(surface_z=None, bottom_z=-1700.0))
+    loc = LocalizerSettings(method="eq18", max_candidates=5, min_source_tdoas=7.0
+                            ).localizer(_BELOW)
+    assert _same(loc, whale_localizer("eq18", max_candidates=5, min_tdoas=7.0))
+    d = LocalizerSettings(surface_paths=False, max_candidates=5, min_source_tdoas=7.0
+                          ).localizer(_BELOW)
+    assert (d.surface_z, d.finder.max_candidates, d.min_tdoas, d.competition.min_weight) == (
+        None, 5, 7.0, 7.0)
+    with pytest.raises(ValueError, match="above the deepest sensor"):
+        LocalizerSettings(sea_floor_z=-1650.0).localizer(_BELOW)
+    with pytest.raises(ValueError, match="method must be"):
+        LocalizerSettings(method="best")
+
+
+def test_cli_options_give_the_settings():
+    """fusion localize's options map one to one onto LocalizerSettings (defaults: all auto)."""
+    from fusion.cli import build_parser
+
+    base = ["localize", "--audio", "a.flac", "--array", "j.json", "--out", "r.json"]
+    parser = build_parser("localize")
+    assert settings_from_args(parser.parse_args(base)) == LocalizerSettings()
+    args = parser.parse_args(base + ["--direct-only", "--sea-floor-z", "-1700", "--candidates",
+                                     "12", "--min-source-tdoas", "6", "--method", "eq17"])
+    assert settings_from_args(args) == LocalizerSettings(
+        method="eq17", surface_paths=False, sea_floor_z=-1700.0, max_candidates=12,
+        min_source_tdoas=6.0)
+    assert settings_from_args(parser.parse_args(base + ["--surface-paths"])).surface_paths
+    with pytest.raises(SystemExit):
+        parser.parse_args(base + ["--surface-paths", "--direct-only"])
 
 
 def test_cli_localize_writes_sources_and_tracks(tmp_path):
