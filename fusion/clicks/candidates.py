@@ -141,12 +141,24 @@ class CandidateFinder:
         order = np.argsort(-vals, kind="stable")
         return idx[order], vals[order]
 
-    def _suppress(self, positions: NDArray[np.float64], radius: float) -> NDArray[np.intp]:
-        """Indices kept by greedy non-maximum suppression (input strongest first)."""
+    def _suppress(self, positions: NDArray[np.float64], radius: float, limit: int | None = None
+                  ) -> NDArray[np.intp]:
+        """Indices kept by greedy non-maximum suppression (input strongest first).
+
+        A point is kept when no kept point lies within `radius`; each kept point suppresses
+        the later points within `radius` at once. Stops after `limit` kept points.
+        """
+        n = positions.shape[0]
+        suppressed = np.zeros(n, dtype=bool)
         kept: list[int] = []
-        for k, p in enumerate(positions):
-            if all(np.linalg.norm(p - positions[j]) > radius for j in kept):
-                kept.append(k)
+        for k in range(n):
+            if suppressed[k]:
+                continue
+            kept.append(k)
+            if limit is not None and len(kept) >= limit:
+                break
+            d = np.sqrt(np.sum((positions[k + 1:] - positions[k]) ** 2, axis=1))
+            suppressed[k + 1:] |= d <= radius
         return np.array(kept, dtype=np.intp)
 
     def find(
@@ -178,7 +190,7 @@ class CandidateFinder:
         top = float(vals[0]) if vals.size else 1.0
         # suppress plateaus / neighbours on the coarse grid, then cap (refinement costs)
         pos = volume.grid.points(0, None)[idx] if idx.size else np.zeros((0, 3))
-        keep = self._suppress(pos, self.min_separation_cells * step)[: self.max_candidates]
+        keep = self._suppress(pos, self.min_separation_cells * step, self.max_candidates)
         pos, vals = pos[keep], vals[keep]
         rel = vals / top
         inten = vals.copy()

@@ -83,3 +83,19 @@ def test_finder_checks_options(kw, match):
     """Bad options are ValueErrors naming the option."""
     with pytest.raises(ValueError, match=match):
         CandidateFinder(**kw)
+
+
+def test_suppression_equals_the_pairwise_greedy_rule():
+    """Non-maximum suppression keeps exactly the points no earlier kept point is within radius
+    of (the pairwise greedy rule), on grids with ties at many distances; a limit truncates."""
+    rng = np.random.default_rng(5)
+    finder = CandidateFinder()
+    for _ in range(50):
+        p = rng.integers(0, 5, (int(rng.integers(0, 60)), 3)) * 7.3 - 900.0
+        radius = 7.3 * float(rng.choice([1.0, 1.5, 2.0]))
+        kept: list[int] = []
+        for k in range(p.shape[0]):
+            if all(np.linalg.norm(p[k] - p[j]) > radius for j in kept):
+                kept.append(k)
+        assert finder._suppress(p, radius).tolist() == kept
+        assert finder._suppress(p, radius, 3).tolist() == kept[:3]

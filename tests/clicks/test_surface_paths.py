@@ -110,3 +110,29 @@ def test_localizer_reads_the_echoes_of_one_whale():
     assert fix.tdoas_used == w.m
     assert fix.paths.tolist() == kinds.tolist()
     assert np.all(fix.weights <= 1.0) and fix.observable
+
+
+def test_combined_path_intensities_equal_the_reduceat_reference():
+    """The per-measurement best path and eq. 17/18 equal maximum.reduceat's, bit for bit."""
+    rng = np.random.default_rng(11)
+    s = np.array([[0.0, 0, -1000], [1000, 0, -1000], [0, 1000, -1000], [500, 500, -990]])
+    for trial in range(20):
+        m = int(rng.integers(1, 9))
+        pairs = np.array(all_pairs(4))[rng.integers(0, 6, m)]
+        alpha = rng.random((m, m))
+        alpha = alpha + alpha.T
+        np.fill_diagonal(alpha, 0.0)
+        w = WindowTdoas(s, pairs, rng.uniform(-0.5, 0.5, m), [1e-3] * m, c=1500.0, alpha=alpha)
+        p = surface_paths(w, 0.0)
+        keep = np.sort(rng.choice(p.tdoas.m, size=int(rng.integers(1, p.tdoas.m + 1)),
+                                  replace=False)) if trial % 2 else np.arange(p.tdoas.m)
+        sub, groups = p.tdoas.subset(keep), p.measured[keep]
+        i = rng.random((257, keep.size))
+        order = np.argsort(groups, kind="stable")
+        starts = np.flatnonzero(np.r_[True, np.diff(groups[order]) != 0])
+        best = np.maximum.reduceat(i[:, order], starts, axis=1)
+        first = order[starts]
+        assert np.array_equal(combine_intensities(i, sub, 17, groups), best.sum(axis=1))
+        a = np.asarray(sub.alpha)[np.ix_(first, first)]
+        assert np.array_equal(combine_intensities(i, sub, 18, groups),
+                              np.einsum("pm,pm->p", best @ a, best))
