@@ -10,6 +10,7 @@ from numpy.testing import assert_allclose
 from fusion.passive.smoothing.merge import merge_scan_detections
 from fusion.passive.smoothing.settings import (
     fit_smooth_settings,
+    lag_diffusion,
     pair_scatter,
     rate_diffusion,
     second_difference_sigma,
@@ -78,6 +79,61 @@ def test_rate_diffusion_recovers_q():
     q_est, rates = rate_diffusion(groups, sigma=sigma, block_s=20.0)
     assert q / 1.6 < q_est < q * 1.6
     assert rates.size > 100
+
+
+def _white_acceleration_tracks(seed, *, q, sigma, n_tracks=8, n=2000, period=10.0, p_detect=0.85):
+    """Bearing tracks whose rate is a random walk of PSD ``q`` (exact discretisation), noisy."""
+    rng = np.random.default_rng(seed)
+    f = np.array([[1.0, period], [0.0, 1.0]])
+    chol = np.linalg.cholesky(q * np.array([[period**3 / 3, period**2 / 2],
+                                            [period**2 / 2, period]]))
+    groups = []
+    for _ in range(n_tracks):
+        steps = (chol @ rng.normal(size=(2, n)))
+        x = np.zeros((2, n))
+        x[:, 0] = [rng.uniform(-np.pi, np.pi), rng.normal(0.0, 1e-3)]
+        for k in range(1, n):
+            x[:, k] = f @ x[:, k - 1] + steps[:, k]
+        t = np.arange(n) * period
+        keep = rng.random(n) < p_detect  # missed scans: uneven gaps
+        z = np.angle(np.exp(1j * (x[0] + rng.normal(0.0, sigma, n))))
+        groups.append((t[keep], z[keep]))
+    return groups
+
+
+@pytest.mark.parametrize("q_deg", [1e-8, 1e-7, 1e-6, 1e-5, 1e-4])
+def test_lag_diffusion_recovers_q_and_noise(q_deg):
+    """Known q (1e-8..1e-4 deg^2/s^3, 10 s scans, 0.5 deg): q within x1.5, noise within 20 %."""
+    deg2 = np.radians(1.0) ** 2
+    sigma = np.radians(0.5)
+    groups = _white_acceleration_tracks(int(-np.log10(q_deg)), q=q_deg * deg2, sigma=sigma)
+    q_est, sigma_est = lag_diffusion(groups)
+    assert q_deg / 1.5 < q_est / deg2 < q_deg * 1.5
+    assert_allclose(sigma_est, sigma, rtol=0.20)
+
+
+def test_lag_diffusion_follows_curvature_of_long_tracks():
+    """A 5.5 h curving bearing: the fitted q lets the smoother follow it (RMS miss ~ noise)."""
+    from fusion.passive.smoothing.batch import BearingSmoother
+
+    rng = np.random.default_rng(11)
+    sigma = np.radians(0.5)
+    t = np.arange(2000) * 10.0
+    # closest approach of a straight-line target at 3 km, 5 m/s, half-way through
+    truth = np.arctan2(5.0 * (t - t.mean()), 3000.0)
+    z = truth + rng.normal(0.0, sigma, t.size)
+    q_est, _ = lag_diffusion([(t, z)])
+    q_old, _ = rate_diffusion([(t, z)], sigma=sigma, block_s=100.0)
+    assert q_est > 10 * q_old  # consecutive blocks see mostly noise
+    fit = BearingSmoother(sigma_bearing=sigma, q=q_est, robust="huber").smooth(t, z)
+    rms = np.sqrt(np.mean(np.angle(np.exp(1j * (fit.bearing - z))) ** 2))
+    assert rms < 1.05 * sigma
+
+
+def test_lag_diffusion_without_long_tracks_is_nan():
+    """Tracks shorter than three lag windows give no estimate (nan), not a guess."""
+    t = np.arange(30.0)
+    assert np.isnan(lag_diffusion([(t, 1e-3 * t)])[0])
 
 
 def test_fit_keeps_given_values_and_names_estimates():

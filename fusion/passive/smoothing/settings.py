@@ -12,8 +12,11 @@ Estimators, one function each:
   differences between detections of consecutive scans (a Gaussian for pairs of one source plus
   a uniform floor for the rest, fitted by expectation-maximisation);
 - :func:`second_difference_sigma` -- bearing noise of labelled tracks from second differences;
-- :func:`rate_diffusion` -- bearing acceleration PSD from the changes of block-wise fitted
-  bearing rates along tracks, less what the fits' own noise explains;
+- :func:`lag_diffusion` -- bearing acceleration PSD (and noise) from the growth of second
+  differences along tracks with the lag, fitted by least squares over lags;
+- :func:`rate_diffusion` -- the block-wise fitted bearing rates along tracks (the rate spread of
+  new tracks) and, where tracks are too short for the lags, the acceleration PSD from their
+  changes;
 - :func:`fit_smooth_settings` -- all of them, the user's values kept where given.
 """
 
@@ -25,12 +28,14 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from scipy.optimize import nnls
 
 from fusion.geometry import wrap_angle
 
 __all__ = [
     "SmoothSettings",
     "fit_smooth_settings",
+    "lag_diffusion",
     "pair_scatter",
     "rate_diffusion",
     "scan_period",
@@ -286,6 +291,96 @@ def rate_diffusion(
     return max(q, 0.0), np.asarray(rates)
 
 
+def lag_diffusion(
+    groups: list[tuple[FloatArray, FloatArray]], *, max_signal_to_noise: float = 4.0,
+    min_triplets: int = 20, iterations: int = 5,
+) -> tuple[float, float]:
+    """Bearing acceleration PSD and noise from second differences across lags along tracks.
+
+    Parameters
+    ----------
+    groups : list of (times, bearings)
+        Per track, time-ordered times (s) and bearings (rad) of its detections.
+    max_signal_to_noise : float, keyword-only
+        Lags are taken up to the first one whose motion part exceeds this many times the noise
+        part (the time scale on which the motion shows above the noise).
+    min_triplets : int, keyword-only
+        Fewest second differences of a lag (and fewest detections / 3 of a track).
+    iterations : int, keyword-only
+        Reweighting passes of the least-squares fit.
+
+    Returns
+    -------
+    q : float
+        Acceleration PSD, rad^2/s^3: the upper quartile over tracks (``nan`` without a usable
+        track; one value serves every track, and a PSD too small for the more manoeuvring
+        sources biases their bearings while one too large costs little precision).
+    sigma : float
+        Bearing noise standard deviation, rad: the median over tracks.
+
+    Notes
+    -----
+    For three detections ``t_{i-L} < t_i < t_{i+L}`` of one track (``L`` detections apart, gaps
+    ``h1``, ``h2``) the change of slope ``D = (z_{i+L} - z_i) / h2 - (z_i - z_{i-L}) / h1`` of a
+    white-noise-acceleration bearing of PSD ``q`` seen with white noise ``sigma`` has
+    ``E D^2 = q (h1 + h2) / 3 + sigma^2 (1/h1^2 + 1/h2^2 + (1/h1 + 1/h2)^2)`` (the slopes are
+    the mean rates over abutting intervals; at equal gaps ``h = L K`` this is ``(2/3) q L^3 K^3
+    + 6 sigma^2`` for the second difference ``h^2 D``). Per track and lag ``L`` (about
+    geometric, 1, 2, 3, 4, 6, ...), the robust mean square is ``median(D^2) / 0.4549`` (the
+    median of chi-square with one degree of freedom), with the median coefficients. ``q`` and
+    ``sigma^2`` are fitted by non-negative least squares over the lags, each lag weighted by
+    the inverse of its fitted value (relative errors), reweighted a few times. Short lags tell
+    the noise, long lags the motion; the lags stop once the motion is ``max_signal_to_noise``
+    times the noise, so a deterministic curvature (which grows as ``L^4`` rather than ``L^3``)
+    is fitted at the time scale where the smoother has to follow it. Consecutive-scan
+    differences alone see mostly noise and give ``q`` far too small for long tracks.
+    """
+    qs, s2s = [], []
+    for t, z in groups:
+        n = t.size
+        if n < 3 * min_triplets:
+            continue
+        u = np.unwrap(z)
+        lags = np.unique(np.round(np.geomspace(1, max(n // 4, 1), 40)).astype(int))
+        rows, ys = [], []
+        noise1 = np.nan
+        for lag in lags:
+            i = np.arange(lag, n - lag)
+            if i.size < min_triplets:
+                break
+            h1 = t[i] - t[i - lag]
+            h2 = t[i + lag] - t[i]
+            ok = (h1 > 0) & (h2 > 0)
+            if ok.sum() < min_triplets:
+                continue
+            h1, h2, i = h1[ok], h2[ok], i[ok]
+            d = (u[i + lag] - u[i]) / h2 - (u[i] - u[i - lag]) / h1
+            a = float(np.median((h1 + h2) / 3.0))
+            b = float(np.median(1 / h1**2 + 1 / h2**2 + (1 / h1 + 1 / h2) ** 2))
+            y = float(np.median(d * d) / 0.4549)
+            rows.append((a, b))
+            ys.append(y)
+            if not np.isfinite(noise1):
+                noise1 = y / b  # the shortest lag: about the noise alone
+            elif y > (1.0 + max_signal_to_noise) * noise1 * b:
+                break
+        if len(ys) < 3:
+            continue
+        m = np.asarray(rows)
+        y = np.asarray(ys)
+        w = 1.0 / y
+        x = np.zeros(2)
+        for _ in range(iterations):
+            x = nnls(m * w[:, None], y * w)[0]
+            fit = m @ x
+            w = 1.0 / np.maximum(fit, 1e-6 * y)
+        qs.append(x[0])
+        s2s.append(x[1])
+    if not qs:
+        return float("nan"), float("nan")
+    return float(np.quantile(qs, 0.75)), float(np.sqrt(np.median(s2s)))
+
+
 def fit_smooth_settings(
     track_id: ArrayLike,
     times: ArrayLike,
@@ -330,9 +425,10 @@ max_misses, max_gap_scans, min_length : optional, keyword-only
     pass of :class:`~fusion.passive.smoothing.nearest_neighbour.NearestNeighbourTracker` with a
     generous acceleration PSD (the rate may change by ``sigma / (10 K)`` per scan) gives tracks
     whose hit fraction is ``P_D`` (lower quartile over tracks: the weaker sources must
-    survive) and whose block rates
-    (:func:`rate_diffusion`, blocks of ``J/2`` scans) give ``q`` and the rate spread of new
-    tracks; labelled tracks give ``q`` directly. ``max_misses`` is the shortest run of misses
+    survive), whose second differences across lags (:func:`lag_diffusion`) give ``q``, and
+    whose block rates (:func:`rate_diffusion`, blocks of ``J/2`` scans) give the rate spread of
+    new tracks (and ``q`` where no track is long enough for the lags); labelled tracks give
+    both directly. ``max_misses`` is the shortest run of misses
     that a track of detection probability ``P_D`` has with probability below 1 %, and at least
     `max_miss_s`; a link may
     bridge 4 such runs (at least 40 scans); a track needs ``P_D J`` detections (at least 5).
@@ -382,7 +478,10 @@ max_misses, max_gap_scans, min_length : optional, keyword-only
         if hits:
             p_est = float(np.quantile(hits, 0.25))  # the weaker sources set the track rules
     block = WINDOW_SCANS / 2 * period
-    q_est, rates = rate_diffusion(groups, sigma=sigma, block_s=block)
+    q_rates, rates = rate_diffusion(groups, sigma=sigma, block_s=block)
+    q_est, _ = lag_diffusion(groups)
+    if not np.isfinite(q_est):  # no track long enough for the lags
+        q_est = q_rates
     if q_deg2_per_s3 is None:
         # floor: the motion factor over one scan no stiffer than 1e-6 of a bearing factor's
         # variance (q K^3 / 3 >= 1e-6 sigma^2), else the chain is too ill-conditioned to solve
