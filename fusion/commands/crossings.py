@@ -5,16 +5,18 @@ what the data-fitted settings need of the whole file (the median time step withi
 median track span, exactly: :class:`~fusion.passive.crossing_summary.BearingStats`); the second
 puts the tracks on the grid and runs the detector as the rows arrive
 (:func:`~fusion.passive.crossing_stream.detect_crossings_streamed`), so memory holds a chunk and a
-few cells per track, not the file. The alerts are those of the whole-file path bit for bit. Rows
-out of time order (overall, not only within a track), repeated times, or a track that resumes
-after the streaming path took it as ended send the command to the whole-file path, which sorts
-(with its warning) or refuses with its usual message.
+few cells per track, not the file. The alerts are those of the whole-file path bit for bit. A
+track that resumes after the streaming path took it as ended costs one more pass
+(:func:`~fusion.passive.crossing_stream.scan_long_gaps`) and a fresh start that assumes nothing.
+Rows out of time order (overall, not only within a track) or repeated times send the command to
+the whole-file path, which sorts (with its warning) or refuses with its usual message.
 """
 
 from __future__ import annotations
 
 import argparse
 import logging
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -36,7 +38,11 @@ from fusion.passive.crossing_settings import (
     crossing_settings,
     crossing_settings_from_steps,
 )
-from fusion.passive.crossing_stream import GridAssumptionBroken, detect_crossings_streamed
+from fusion.passive.crossing_stream import (
+    GridAssumptionBroken,
+    detect_crossings_streamed,
+    scan_long_gaps,
+)
 from fusion.passive.crossing_summary import BearingStats, BearingSummary
 
 logger = logging.getLogger(__name__)
@@ -101,7 +107,7 @@ def run(args: argparse.Namespace) -> int:
     """Read the bearings, detect crossings, write the alerts; print a one-line summary."""
     try:
         alerts, st = _streamed(args)
-    except (RowOrderError, GridAssumptionBroken, _NotInTimeOrder) as e:
+    except (RowOrderError, _NotInTimeOrder) as e:
         logger.debug("%s; reading the whole file", e)
         alerts, st = _whole_file(args)
     write_table(args.out, alert_columns(alerts))
@@ -155,11 +161,19 @@ def _streamed(args: argparse.Namespace) -> tuple[list[CrossingAlert], CrossingSe
     _check_spans(args, st, summary.spans_s)
     if summary.n_unknown:
         logger.info("ignoring %d detection(s) of unknown origin (track_id -1)", summary.n_unknown)
-    rows = ((c.table["track_id"], c.table["time"], c.table["bearing_deg"])
-            for c in iter_bearings(args.bearings))
-    alerts = detect_crossings_streamed(rows, origin_s=summary.t_min_s,
-                                       merge_window_s=args.merge_window, max_gap_s=args.max_gap,
-                                       **st.detector_options())
+    def rows() -> Iterator[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+        for c in iter_bearings(args.bearings):
+            yield c.table["track_id"], c.table["time"], c.table["bearing_deg"]
+
+    options = {"origin_s": summary.t_min_s, "merge_window_s": args.merge_window,
+               "max_gap_s": args.max_gap, **st.detector_options()}
+    try:
+        alerts = detect_crossings_streamed(rows(), **options)
+    except GridAssumptionBroken as e:  # one more pass: the knots after long gaps, then exact
+        logger.debug("%s; passing over the file for the gaps", e)
+        gaps = scan_long_gaps(rows(), period_s=st.period_s, origin_s=summary.t_min_s,
+                              max_gap_s=args.max_gap)
+        alerts = detect_crossings_streamed(rows(), next_knots=gaps, **options)
     return alerts, st
 
 

@@ -16,14 +16,16 @@ on the same bracketing cell means). One case needs the future: a grid point a ha
 ``1e-9 K``) after the last cell mean of a track that then falls silent -- its value is that mean
 if the track has ended, the interpolation towards the next mean if the track resumes. After
 ``10 max_gap_s + 2 K`` of silence the track is taken as ended; should it resume after all,
-:class:`GridAssumptionBroken` is raised and the caller starts again on the whole table.
+:class:`GridAssumptionBroken` is raised. The caller then makes one more pass
+(:func:`scan_long_gaps`: the cell mean after every gap longer than ``max_gap_s``) and starts
+again with that knowledge, which leaves nothing to assume.
 """
 
 from __future__ import annotations
 
 import logging
 import math
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -36,6 +38,7 @@ __all__ = [
     "GridAssumptionBroken",
     "StreamingGrid",
     "detect_crossings_streamed",
+    "scan_long_gaps",
 ]
 
 logger = logging.getLogger(__name__)
@@ -77,6 +80,10 @@ class StreamingGrid:
         Grid origin ``t0``, s: the earliest sample time of the table (the batch default).
     max_gap_s : float, optional
         As in :func:`~fusion.passive.bearing_grid.resample_bearings` (default ``3 K``).
+    next_knots : mapping, optional
+        :attr:`long_gaps` of a first pass over the same rows (:func:`scan_long_gaps`): with
+        it nothing is assumed about tracks that fall silent (module notes), so
+        :class:`GridAssumptionBroken` is never raised.
 
     Notes
     -----
@@ -86,7 +93,14 @@ class StreamingGrid:
     :func:`~fusion.passive.bearing_grid.resample_bearings` on the whole table, in its order.
     """
 
-    def __init__(self, *, period_s: float, origin_s: float, max_gap_s: float | None = None) -> None:
+    def __init__(
+        self,
+        *,
+        period_s: float,
+        origin_s: float,
+        max_gap_s: float | None = None,
+        next_knots: Mapping[int, Mapping[float, tuple[float, float]]] | None = None,
+    ) -> None:
         if not (np.isfinite(period_s) and period_s > 0):
             raise ValueError(f"period K must be > 0 s, got {period_s!r}")
         self.K = float(period_s)
@@ -96,6 +110,11 @@ class StreamingGrid:
             raise ValueError(f"max_gap_s must be > 0, got {max_gap_s!r}")
         self.eps = 1e-9 * self.K
         self.lag = 10.0 * self.gap + 2.0 * self.K  # silence after which a track is taken as ended
+        self._known = next_knots
+        #: Per track, each cell mean followed by the next one more than `max_gap_s` later:
+        #: ``{track: {t_m: (t_next, bearing_next)}}`` (unwrapped deg), as far as pushed.
+        self.long_gaps: dict[int, dict[float, tuple[float, float]]] = {}
+        self._scan = False
         self._tracks: dict[int, _Track] = {}
         self._t_read = -np.inf
         self._out_k: list[NDArray[np.int64]] = []
@@ -138,16 +157,16 @@ class StreamingGrid:
                 self._add(int(k), tt[m], bb[m])
             self._t_read = float(tt[-1])
         c_read = int(self._cell(np.array([self._t_read]))[0]) if np.isfinite(self._t_read) else None
-        for tr in self._tracks.values():
+        for k_id, tr in self._tracks.items():
             if tr.open_cell is not None and c_read is not None and tr.open_cell < c_read:
-                self._close_cell(tr)
+                self._close_cell(k_id, tr)
         return self._decide(final=False)
 
     def finish(self) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.float64]]:
         """Close the table: the remaining grid rows."""
-        for tr in self._tracks.values():
+        for k_id, tr in self._tracks.items():
             if tr.open_cell is not None:
-                self._close_cell(tr)
+                self._close_cell(k_id, tr)
         return self._decide(final=True)
 
     # ----------------------------------------------------------------------------------------
@@ -202,27 +221,36 @@ class StreamingGrid:
             cn[0] += n_prev - 1  # the carried sums stand for n_prev samples
         n_cells = starts.size
         for i in range(n_cells - 1):  # every cell but the last is complete
-            tr.kt.append(float(st[i] / cn[i]))
-            tr.ky.append(float(sy[i] / cn[i]))
-            tr.n_knots += 1
-            if tr.first_knot is None:
-                tr.first_knot = tr.kt[-1]
-                tr.k_next = self._k_lo(tr.first_knot)
+            self._knot(k, tr, float(st[i] / cn[i]), float(sy[i] / cn[i]))
         tr.open_cell = int(cells_all[starts[-1]])
         tr.open_t, tr.open_y, tr.open_n = float(st[-1]), float(sy[-1]), int(cn[-1])
         tr.open_first = float(first_all[starts[-1]])
 
-    def _close_cell(self, tr: _Track) -> None:
-        tr.kt.append(tr.open_t / tr.open_n)
-        tr.ky.append(tr.open_y / tr.open_n)
-        tr.n_knots += 1
-        if tr.first_knot is None:
-            tr.first_knot = tr.kt[-1]
-            tr.k_next = self._k_lo(tr.first_knot)
+    def _close_cell(self, k_id: int, tr: _Track) -> None:
+        self._knot(k_id, tr, tr.open_t / tr.open_n, tr.open_y / tr.open_n)
         tr.open_cell = None
 
+    def _knot(self, k_id: int, tr: _Track, t: float, y: float) -> None:
+        """A final cell mean of a track (its last knot stays in `tr.kt` until passed)."""
+        if tr.kt and t - tr.kt[-1] > self.gap:
+            self.long_gaps.setdefault(k_id, {})[tr.kt[-1]] = (t, y)
+        tr.kt.append(t)
+        tr.ky.append(y)
+        tr.n_knots += 1
+        if tr.first_knot is None:
+            tr.first_knot = t
+            tr.k_next = self._k_lo(t)
+        if self._scan:
+            del tr.kt[:-1], tr.ky[:-1]
+
     # ----------------------------------------------------------------------------------------
+    def _next_knot(self, k_id: int, t_m: float) -> tuple[float, float] | None:
+        """The knot after `t_m` if a first pass saw one more than max_gap_s later."""
+        return self._known.get(k_id, {}).get(t_m) if self._known is not None else None
+
     def _decide(self, *, final: bool):
+        if self._scan:  # a pass for the long gaps only
+            return np.zeros(0, np.int64), np.zeros(0), np.zeros(0)
         horizon = None if final else self._unseen_horizon()
         for k_id, tr in self._tracks.items():
             d = self._decide_track(k_id, tr, final=final)
@@ -260,7 +288,9 @@ class StreamingGrid:
         eps = self.eps
         kt, ky = tr.kt, tr.ky
         silent = tr.open_cell is None and self._t_read > kt[-1] + self.lag
-        if tr.n_knots == 1:
+        resumes = (tr.n_knots == 1 and silent and not final
+                   and self._next_knot(k_id, kt[0]) is not None)
+        if tr.n_knots == 1 and not resumes:
             if not (final or silent):
                 return tr.k_next - 1  # one knot or more: the rule differs (batch notes)
             # the batch rule of a track of one knot: its value where the grid is within eps
@@ -271,7 +301,8 @@ class StreamingGrid:
             if ks.size:
                 tr.k_next = int(ks[-1]) + 1
                 # with more knots the grid would be clipped to the knot, or interpolated past it
-                tr.assumed_end = tr.assumed_end or (not final and bool(np.any(g != kt[0])))
+                tr.assumed_end = tr.assumed_end or (not final and self._known is None
+                                                    and bool(np.any(g != kt[0])))
         else:
             self._interpolate(k_id, tr)
         return self._past_last_knot(k_id, tr, final=final, silent=silent)
@@ -314,9 +345,17 @@ class StreamingGrid:
                 # a hair past the knot: its value if the track ended, else interpolated
                 if tr.open_cell is not None or not (final or silent):
                     return k0 - 1
-                if k0 <= k_hi:
+                nxt = None if final else self._next_knot(k_id, t_m)
+                if nxt is not None:  # it resumes (a first pass saw it): interpolated
+                    ts, ys = np.array([t_m, nxt[0]]), np.array([y_m, nxt[1]])
+                    g = np.array([g0])
+                    ok = (np.isclose(g, ts[0], rtol=0, atol=eps)
+                          | np.isclose(g, ts[1], rtol=0, atol=eps) | (ts[1] - ts[0] <= self.gap))
+                    if ok[0]:
+                        self._emit(k_id, np.array([k0]), np.interp(g, ts, ys))
+                elif k0 <= k_hi:  # it ended: the batch clips the grid to its last knot
                     self._emit(k_id, np.array([k0]), np.array([y_m]))
-                tr.assumed_end = tr.assumed_end or not final
+                tr.assumed_end = tr.assumed_end or (not final and self._known is None)
                 tr.k_next = k0 + 1
                 continue
             if final:
@@ -336,10 +375,32 @@ class StreamingGrid:
 _NEVER = 1 << 62
 
 
+def scan_long_gaps(
+    chunks: Iterable[tuple[NDArray, NDArray, NDArray]],
+    *,
+    period_s: float,
+    origin_s: float,
+    max_gap_s: float | None = None,
+) -> dict[int, dict[float, tuple[float, float]]]:
+    """A pass over the rows that only builds the cell means: :attr:`StreamingGrid.long_gaps`.
+
+    Given to :class:`StreamingGrid` (``next_knots``), it lets a second pass decide the grid
+    points of tracks that fall silent without assuming anything (module notes). Memory: one
+    entry per gap longer than `max_gap_s`.
+    """
+    grid = StreamingGrid(period_s=period_s, origin_s=origin_s, max_gap_s=max_gap_s)
+    grid._scan = True
+    for tid, tt, bb in chunks:
+        grid.push(tid, tt, bb)
+    grid.finish()
+    return grid.long_gaps
+
+
 def detect_crossings_streamed(
     chunks: Iterable[tuple[NDArray, NDArray, NDArray]],
     *,
     origin_s: float,
+    next_knots: Mapping[int, Mapping[float, tuple[float, float]]] | None = None,
     J: int = 10,
     K: float,
     horizon_s: float | None = None,
@@ -362,6 +423,9 @@ def detect_crossings_streamed(
     origin_s : float
         Grid origin, s: the earliest time of a labelled track
         (:attr:`BearingSummary.t_min_s`), the origin the batch path takes.
+    next_knots : mapping, optional
+        :func:`scan_long_gaps` of the same rows: nothing assumed, never a
+        :class:`GridAssumptionBroken`.
     J, K, horizon_s, min_rate_diff_deg_per_s, merge_window_s, max_gap_s, n_windows, level, \
 max_interval_s, lead_windows, confirm
         As in :func:`~fusion.passive.crossing.detect_crossings` (`K` required).
@@ -399,7 +463,8 @@ max_interval_s, lead_windows, confirm
         merge_window_s=merge_window_s, max_gap_s=max_gap_s, n_windows=n_windows, level=level,
         max_interval_s=max_interval_s, lead_windows=lead_windows, confirm=confirm,
     )
-    grid = StreamingGrid(period_s=det.K, origin_s=origin_s, max_gap_s=det.max_gap_s)
+    grid = StreamingGrid(period_s=det.K, origin_s=origin_s, max_gap_s=det.max_gap_s,
+                         next_knots=next_knots)
     alerts: list[CrossingAlert] = []
     ids_seen: list[NDArray[np.int64]] = []
 

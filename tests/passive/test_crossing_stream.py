@@ -15,14 +15,22 @@ from fusion.passive.crossing_stream import (
     GridAssumptionBroken,
     StreamingGrid,
     detect_crossings_streamed,
+    scan_long_gaps,
 )
 from fusion.passive.crossing_summary import BearingStats
 from fusion.simulate.bearings import simulate_bearings
 
 
-def _streamed_grid(tid, tt, bb, *, K, gap, rows_per_chunk):
+def _chunks(tid, tt, bb, n):
+    return [(tid[s:s + n], tt[s:s + n], bb[s:s + n]) for s in range(0, tid.size, n)]
+
+
+def _streamed_grid(tid, tt, bb, *, K, gap, rows_per_chunk, scan=False):
     known = tid >= 0
-    grid = StreamingGrid(period_s=K, origin_s=float(tt[known].min()), max_gap_s=gap)
+    t0 = float(tt[known].min())
+    gaps = (scan_long_gaps(_chunks(tid, tt, bb, rows_per_chunk), period_s=K, origin_s=t0,
+                           max_gap_s=gap) if scan else None)
+    grid = StreamingGrid(period_s=K, origin_s=t0, max_gap_s=gap, next_knots=gaps)
     parts = [grid.push(tid[s:s + rows_per_chunk], tt[s:s + rows_per_chunk],
                        bb[s:s + rows_per_chunk]) for s in range(0, tid.size, rows_per_chunk)]
     parts.append(grid.finish())
@@ -76,14 +84,16 @@ def test_streaming_grid_equals_resample_bearings(table, K, gap, rows_per_chunk):
     if got is not None:
         for a, b in zip(got, (ref.track_id, ref.time, ref.bearing_deg), strict=True):
             np.testing.assert_array_equal(a, b)
-    # read at once, nothing is assumed: always equal
-    whole = _streamed_grid(tid, tt, bb, K=K, gap=gap, rows_per_chunk=tid.size)
-    for a, b in zip(whole, (ref.track_id, ref.time, ref.bearing_deg), strict=True):
-        np.testing.assert_array_equal(a, b)
+    # read at once, or after a pass for the long gaps, nothing is assumed: always equal
+    for got in (_streamed_grid(tid, tt, bb, K=K, gap=gap, rows_per_chunk=tid.size),
+                _streamed_grid(tid, tt, bb, K=K, gap=gap, rows_per_chunk=rows_per_chunk,
+                               scan=True)):
+        for a, b in zip(got, (ref.track_id, ref.time, ref.bearing_deg), strict=True):
+            np.testing.assert_array_equal(a, b)
 
 
 def test_track_resuming_after_an_assumed_end_is_signalled():
-    """A track silent a hair before a grid point and resuming after the look-ahead: fallback."""
+    """A track silent a hair before a grid point, resuming late: signalled; exact after a scan."""
     K = 1.0
     t0 = np.arange(0.0, 60.0)  # track 0 keeps the grid going
     t1 = np.array([0.0, 1.0, 2.0, 3.0 - 1e-10, 55.0, 56.0])  # grid point 3 just after 3 - 1e-10
@@ -95,8 +105,9 @@ def test_track_resuming_after_an_assumed_end_is_signalled():
     with pytest.raises(GridAssumptionBroken, match="track 1 resumed"):
         _streamed_grid(tid, tt, bb, K=K, gap=None, rows_per_chunk=5)
     ref = resample_bearings(tid, tt, bb, period_s=K)
-    got = _streamed_grid(tid, tt, bb, K=K, gap=None, rows_per_chunk=tid.size)
-    np.testing.assert_array_equal(got[2], ref.bearing_deg)
+    for got in (_streamed_grid(tid, tt, bb, K=K, gap=None, rows_per_chunk=tid.size),
+                _streamed_grid(tid, tt, bb, K=K, gap=None, rows_per_chunk=5, scan=True)):
+        np.testing.assert_array_equal(got[2], ref.bearing_deg)
     # the value at the grid point after the pause is interpolated towards t = 55, not held
     at3 = (ref.track_id == 1) & (ref.time == 3.0)
     assert ref.bearing_deg[at3][0] != 20.0 - 0.2 * (3.0 - 1e-10)
