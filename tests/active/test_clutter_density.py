@@ -126,3 +126,89 @@ def test_intensity_kernel_known_answer():
     lam = ci.intensity([[0.0, 0.0], [1000.0, 0.0]])
     assert_allclose(lam[0], 1.0 / (2 * np.pi * 1e6), rtol=0.05)
     assert_allclose(lam[1] / lam[0], np.exp(-0.5), rtol=0.05)
+
+
+def _mixed_pings(seed, n_pings):
+    """Pings of three still features, a target at 2 m/s and uniform clutter, each echo with a
+    bistatic-like ellipse (60-250 m), 60 s apart: (time, positions, covariances) per ping."""
+    rng = np.random.default_rng(seed)
+    feats = rng.uniform(-3000, 3000, (3, 2))
+    for k in range(n_pings):
+        t = 60.0 * k
+        truth = np.concatenate([feats, [[-2000.0 + 2.0 * t, 500.0]],
+                                rng.uniform(-4000, 4000, (rng.integers(2, 6), 2))])
+        covs = np.stack([_ellipse(rng.uniform(80, 250), rng.uniform(60, 90), rng.uniform(0, 3))
+                         for _ in truth])
+        xy = np.stack([rng.multivariate_normal(p, c) for p, c in zip(truth, covs, strict=True)])
+        yield t, xy, covs
+
+
+def test_running_drift_sums_match_a_brute_force_window():
+    """With pings forgotten (memory 6 of 25), after every ping each stored detection's
+    neighbourhood, recurrence, drift-fit sums and drift verdict equal a brute-force
+    recomputation over the remembered window (all pairs tested, fit by motion_statistic)."""
+    cmap = DensityClutterMap(min_pings=3, memory_pings=6)
+    g2 = cmap._g2
+    F = np.eye(2) * cmap.feature_sigma_m**2
+    window, verdicts = [], set()
+    for k, (t, xy, covs) in enumerate(_mixed_pings(11, 25)):
+        cmap.update(xy, t, cov=covs)
+        window = (window + [(k, t, xy, covs)])[-6:]
+        ping = np.concatenate([np.full(len(w[2]), w[0]) for w in window])
+        tt = np.concatenate([np.full(len(w[2]), w[1]) for w in window])
+        p = np.concatenate([w[2] for w in window])
+        R = np.concatenate([w[3] for w in window])
+        n = p.shape[0]
+        assert_allclose(cmap._xy, p)
+        linked = np.zeros((n, n), bool)
+        for a in range(n):
+            for b in range(n):
+                if ping[a] != ping[b]:
+                    d = p[a] - p[b]
+                    linked[a, b] = d @ np.linalg.solve(R[a] + R[b] + 2 * F, d) <= g2
+        rec = np.array([np.unique(np.append(ping[linked[a]], ping[a])).size for a in range(n)])
+        assert np.array_equal(cmap.recurrence(), rec)
+        assert np.array_equal(cmap._deg, linked.sum(axis=1))
+        moving = cmap._drifting(np.arange(n))
+        for a in range(n):
+            member = np.append(a, np.flatnonzero(linked[a]))
+            W = np.linalg.inv(R[member] + F)
+            dt = tt[member] - tt[a]
+            sums = np.concatenate([W.sum(0).ravel(), np.einsum("n,nij->ij", dt, W).ravel(),
+                                   np.einsum("n,nij->ij", dt * dt, W).ravel(),
+                                   np.einsum("nij,nj->i", W, p[member]),
+                                   np.einsum("n,nij,nj->i", dt, W, p[member])])
+            assert_allclose(cmap._mom[a], sums, rtol=1e-9, atol=1e-12)
+            if member.size >= 3:
+                q = motion_statistic(tt[member], p[member], cov=R[member] + F)
+                if abs(q - cmap._drift_gate) > 1e-6 * cmap._drift_gate:
+                    assert moving[a] == (q > cmap._drift_gate), (k, a, q)
+                verdicts.add(bool(moving[a]))
+            else:
+                assert not moving[a]
+    assert verdicts == {False, True}
+
+
+class _RefitMap(DensityClutterMap):
+    """The density map with every drift verdict refitted from scratch (no running sums)."""
+
+    def _drifting(self, cand):
+        return self._drifting_refit(cand)
+
+
+def test_hotspots_equal_those_of_a_full_refit_every_ping():
+    """Hotspots from the running drift sums are identical (exact equality) to those of the map
+    that refits every neighbourhood from scratch, ping after ping, with and without memory."""
+    for memory in (None, 5):
+        fast = DensityClutterMap(min_pings=3, memory_pings=memory)
+        slow = _RefitMap(min_pings=3, memory_pings=memory)
+        n_spots = 0
+        for t, xy, covs in _mixed_pings(12, 30):
+            fast.update(xy, t, cov=covs)
+            slow.update(xy, t, cov=covs)
+            a, b = fast.hotspots(), slow.hotspots()
+            assert np.array_equal(a.positions, b.positions)
+            assert np.array_equal(a.covariances, b.covariances)
+            assert np.array_equal(a.visits, b.visits) and np.array_equal(a.cells, b.cells)
+            n_spots = max(n_spots, len(a))
+        assert n_spots >= 2, memory

@@ -36,6 +36,13 @@ Compared with the grid, nothing depends on where cell borders fall or on a cell 
 error level, and a feature seen by a far receiver (long ellipses) and a near one (short ellipses)
 is one hotspot. The cost is a search of earlier detections near each new one (a k-d tree over
 the stored positions).
+
+The drift fit is kept up to date as pings come and go: each stored detection carries the sums of
+its normal equations (its weight ``(R + F)^-1`` is inverted once), a new link adds the other
+end's terms to both ends and a forgotten detection's terms are taken off its neighbours', so a
+ping costs its own links and those of the ping forgotten, not the whole remembered history. A
+detection whose statistic lies within ``1e-6`` (relative) of the gate is refitted from its
+neighbourhood in the original order of summation, so the verdicts do not depend on rounding.
 """
 
 from __future__ import annotations
@@ -54,6 +61,30 @@ from fusion.active.clutter.base import ClutterMapBase, Hotspots, floor_covarianc
 __all__ = ["DensityClutterMap"]
 
 logger = logging.getLogger(__name__)
+
+
+#: Relative distance to the drift gate under which the running sums are not trusted (refit).
+_REFIT_MARGIN = 1e-6
+
+
+def _moments(W: NDArray[np.float64], p: NDArray[np.float64],
+             dt: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Terms of the drift fit's normal equations, one row of 16 per echo.
+
+    ``W`` (m, 2, 2) weights, ``p`` (m, 2) positions, m, ``dt`` (m,) times relative to the fitted
+    detection, s; columns ``W, W dt, W dt^2`` (4 each, row-major) and ``W p, W p dt`` (2 each).
+    """
+    Wf = W.reshape(-1, 4)
+    Wp = np.einsum("nij,nj->ni", W, p)
+    return np.column_stack([Wf, Wf * dt[:, None], Wf * (dt * dt)[:, None], Wp, Wp * dt[:, None]])
+
+
+def _add_rows(acc: NDArray[np.float64], owner: NDArray[np.int64],
+              rows: NDArray[np.float64]) -> None:
+    """``acc[owner[k]] += rows[k]`` for every k (repeated owners summed)."""
+    if owner.size:
+        for col in range(acc.shape[1]):
+            acc[:, col] += np.bincount(owner, weights=rows[:, col], minlength=acc.shape[0])
 
 
 def _mahalanobis2(d: NDArray[np.float64], S: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -160,6 +191,9 @@ class DensityClutterMap(ClutterMapBase):
         self._first = 0                         # ping number of column 0 of _seen
         self._edges = np.zeros((0, 2), np.int64)
         self._lam_stored = 0.0                  # largest error variance of a stored detection
+        self._W = np.zeros((0, 2, 2))           # (R + F)^-1 of each stored detection
+        self._mom = np.zeros((0, 16))           # drift-fit sums over each neighbourhood
+        self._deg = np.zeros(0, np.int64)       # links of each stored detection
         self._cache: Hotspots | None = None
 
     def empty_copy(self) -> DensityClutterMap:
@@ -222,6 +256,10 @@ class DensityClutterMap(ClutterMapBase):
         seen_new = np.zeros((n_new, self._seen.shape[1]), dtype=bool)
         seen_new[:, k - self._first] = True
         edges = np.zeros((0, 2), np.int64)
+        t_rel = t - self._t0
+        W = np.linalg.inv(c + self._F)
+        mom = np.concatenate([self._mom, _moments(W, pts, np.zeros(n_new))])
+        deg = np.concatenate([self._deg, np.zeros(n_new, np.int64)])
         if n_old and n_new:
             i, j = self._candidates(pts, c)
             if i.size:
@@ -231,12 +269,18 @@ class DensityClutterMap(ClutterMapBase):
                 self._seen[j, k - self._first] = True
                 seen_new[i, self._ping[j] - self._first] = True
                 edges = np.column_stack([i + n_old, j])
+                dt = self._t[j] - t_rel
+                _add_rows(mom, i + n_old, _moments(self._W[j], self._xy[j], dt))
+                _add_rows(mom, j, _moments(W[i], pts[i], -dt))
+                deg += np.bincount(edges.ravel(), minlength=deg.size)
+        self._mom, self._deg = mom, deg
+        self._W = np.concatenate([self._W, W])
         self._xy = np.concatenate([self._xy, pts])
         self._cov = np.concatenate([self._cov, c])
         if n_new:
             self._lam_stored = max(self._lam_stored, float(np.max(np.linalg.eigvalsh(c)[:, -1])))
         self._ping = np.concatenate([self._ping, np.full(n_new, k, np.int64)])
-        self._t = np.concatenate([self._t, np.full(n_new, t - self._t0)])
+        self._t = np.concatenate([self._t, np.full(n_new, t_rel)])
         self._seen = np.concatenate([self._seen, seen_new])
         self._edges = np.concatenate([self._edges, edges])
         if self.memory_pings is not None and self.n_pings - self._first > self.memory_pings:
@@ -256,8 +300,18 @@ class DensityClutterMap(ClutterMapBase):
         new_index = np.cumsum(keep) - 1
         e = self._edges
         e_keep = keep[e[:, 0]] & keep[e[:, 1]] if e.size else np.zeros(0, bool)
+        if e.size:
+            # Links with one end forgotten: take that end's terms off the other's sums.
+            cut = e[~e_keep & (keep[e[:, 0]] | keep[e[:, 1]])]
+            first_kept = keep[cut[:, 0]]
+            owner = np.where(first_kept, cut[:, 0], cut[:, 1])
+            gone = np.where(first_kept, cut[:, 1], cut[:, 0])
+            _add_rows(self._mom, owner, -_moments(self._W[gone], self._xy[gone],
+                                                  self._t[gone] - self._t[owner]))
+            self._deg -= np.bincount(owner, minlength=self._deg.size)
         self._edges = new_index[e[e_keep]] if e.size else e
         self._seen = self._seen[keep][:, first - self._first:]
+        self._W, self._mom, self._deg = self._W[keep], self._mom[keep], self._deg[keep]
         self._xy, self._cov = self._xy[keep], self._cov[keep]
         self._ping, self._t = self._ping[keep], self._t[keep]
         self._first = first
@@ -327,6 +381,42 @@ class DensityClutterMap(ClutterMapBase):
 
     def _drifting(self, cand: NDArray[np.int64]) -> NDArray[np.bool_]:
         """Which candidate detections sit among echoes that move (see the module docstring).
+
+        The fit of :meth:`_drifting_refit` from the running sums of each neighbourhood; the
+        candidates whose statistic falls within ``_REFIT_MARGIN`` of the gate (or whose normal
+        matrix is nearly singular) are refitted by :meth:`_drifting_refit`.
+        """
+        m = self._mom[cand]
+        A = np.zeros((cand.size, 4, 4))
+        A[:, :2, :2] = m[:, 0:4].reshape(-1, 2, 2)
+        A[:, :2, 2:] = m[:, 4:8].reshape(-1, 2, 2)
+        A[:, 2:, 2:] = m[:, 8:12].reshape(-1, 2, 2)
+        A[:, 2:, :2] = A[:, :2, 2:]
+        b = m[:, 12:16]
+        moving = np.zeros(cand.size, dtype=bool)
+        fit = self._deg[cand] + 1 >= 3
+        if not fit.any():
+            return moving
+        Af = A[fit]
+        det = np.linalg.det(Af)
+        scale = np.prod(np.diagonal(Af, axis1=1, axis2=2), axis=1)
+        sound = np.abs(det) > 1e-10 * np.abs(scale)
+        q = np.full(Af.shape[0], np.nan)
+        if sound.any():
+            As = Af[sound]
+            theta = np.linalg.solve(As, b[fit][sound][..., None])[..., 0]
+            cov_v = np.linalg.inv(As)[:, 2:, 2:]
+            q[sound] = np.einsum("ni,ni->n", theta[:, 2:],
+                                 np.linalg.solve(cov_v, theta[:, 2:][..., None])[..., 0])
+        moving[fit] = q > self._drift_gate
+        doubt = np.flatnonzero(fit)[~(np.abs(q - self._drift_gate)
+                                      > _REFIT_MARGIN * self._drift_gate)]
+        if doubt.size:
+            moving[doubt] = self._drifting_refit(cand[doubt])
+        return moving
+
+    def _drifting_refit(self, cand: NDArray[np.int64]) -> NDArray[np.bool_]:
+        """Which candidate detections sit among echoes that move, fitted from scratch.
 
         For each candidate ``j``, the echoes of its place (``j`` and every stored detection
         linked to it) are fitted with ``p_i = p_0 + v (t_i - t_j) + e_i``,
