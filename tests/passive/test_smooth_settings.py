@@ -130,6 +130,37 @@ def test_lag_diffusion_follows_curvature_of_long_tracks():
     assert rms < 1.05 * sigma
 
 
+def test_fit_raises_q_for_long_curving_tracks():
+    """Labelled 5.5 h curving tracks: the fitted q is the lag fit, far above the block rates'."""
+    rng = np.random.default_rng(12)
+    t = np.arange(2000) * 10.0
+    ids, times, z = [], [], []
+    for k, (r, v) in enumerate(((3000.0, 5.0), (4000.0, 4.0), (5000.0, 6.0))):
+        ids.append(np.full(t.size, k))
+        times.append(t)
+        z.append(np.arctan2(v * (t - t.mean()), r) + rng.normal(0.0, np.radians(0.5), t.size))
+    st = fit_smooth_settings(np.concatenate(ids), np.concatenate(times), np.concatenate(z))
+    groups = [(t, zk) for zk in z]
+    sigma = np.radians(st.sigma_bearing_deg)
+    q_lags, _ = lag_diffusion(groups, sigma=sigma)
+    q_rates, _ = rate_diffusion(groups, sigma=sigma, block_s=100.0)
+    assert_allclose(st.q_deg2_per_s3, q_lags / np.radians(1.0) ** 2, rtol=1e-9)
+    assert q_lags > 4 * max(q_rates, 3e-6 * sigma**2 / 10.0**3)
+
+
+def test_fit_keeps_block_q_when_the_lags_agree():
+    """White-acceleration tracks: the lags agree with the block rates, whose q is kept."""
+    deg2 = np.radians(1.0) ** 2
+    groups = _white_acceleration_tracks(5, q=1e-5 * deg2, sigma=np.radians(0.5), n_tracks=4,
+                                        n=800, p_detect=1.0)
+    ids = np.concatenate([np.full(t.size, k) for k, (t, _) in enumerate(groups)])
+    st = fit_smooth_settings(ids, np.concatenate([t for t, _ in groups]),
+                             np.concatenate([z for _, z in groups]))
+    q_rates, _ = rate_diffusion(groups, sigma=np.radians(st.sigma_bearing_deg), block_s=100.0)
+    assert_allclose(st.q_deg2_per_s3 * deg2, q_rates, rtol=1e-9)
+    assert 1e-5 / 2 < st.q_deg2_per_s3 < 1e-5 * 2
+
+
 def test_lag_diffusion_without_long_tracks_is_nan():
     """Tracks shorter than three lag windows give no estimate (nan), not a guess."""
     t = np.arange(30.0)

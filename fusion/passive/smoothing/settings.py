@@ -13,10 +13,10 @@ Estimators, one function each:
   a uniform floor for the rest, fitted by expectation-maximisation);
 - :func:`second_difference_sigma` -- bearing noise of labelled tracks from second differences;
 - :func:`lag_diffusion` -- bearing acceleration PSD (and noise) from the growth of second
-  differences along tracks with the lag, fitted by least squares over lags;
-- :func:`rate_diffusion` -- the block-wise fitted bearing rates along tracks (the rate spread of
-  new tracks) and, where tracks are too short for the lags, the acceleration PSD from their
-  changes;
+  differences along tracks with the lag, fitted by least squares over lags (long tracks);
+- :func:`rate_diffusion` -- bearing acceleration PSD from the changes of block-wise fitted
+  bearing rates along tracks, less what the fits' own noise explains (checked against
+  :func:`lag_diffusion`);
 - :func:`fit_smooth_settings` -- all of them, the user's values kept where given.
 """
 
@@ -53,6 +53,10 @@ WINDOW_SCANS = 20
 #: Largest probability that a track of the estimated detection probability misses as many scans
 #: in a row as end it (sets ``max_misses``).
 MISS_RUN_PROBABILITY = 0.01
+#: Factor by which the lag fit's acceleration PSD must exceed the block rates' one to replace it
+#: (beyond the two estimators' spread on short tracks with correlated camera noise, 2.5 at most
+#: on the Autoferry scenarios).
+LAG_CONSISTENCY = 4.0
 
 
 @dataclass(frozen=True)
@@ -291,9 +295,35 @@ def rate_diffusion(
     return max(q, 0.0), np.asarray(rates)
 
 
+def _lag_moments(
+    t: FloatArray, u: FloatArray, *, noise: float | None, max_signal_to_noise: float,
+    min_triplets: int,
+) -> tuple[FloatArray, FloatArray]:
+    """Per lag: the coefficients ``(a, b)`` of ``(q, sigma^2)`` and the robust mean of ``D^2``."""
+    n = t.size
+    rows, ys = [], []
+    for lag in np.unique(np.round(np.geomspace(1, max(n // 4, 1), 40)).astype(int)):
+        i = np.arange(lag, n - lag)
+        h1 = t[i] - t[i - lag]
+        h2 = t[i + lag] - t[i]
+        ok = (h1 > 0) & (h2 > 0)  # equal times (one scan) give no slope
+        if ok.sum() < min_triplets:
+            break
+        h1, h2, i = h1[ok], h2[ok], i[ok]
+        d = (u[i + lag] - u[i]) / h2 - (u[i] - u[i - lag]) / h1  # change of slope, rad/s
+        rows.append((float(np.median((h1 + h2) / 3.0)),
+                     float(np.median(1 / h1**2 + 1 / h2**2 + (1 / h1 + 1 / h2) ** 2))))
+        ys.append(float(np.median(d * d) / 0.4549))  # median of chi-square(1) = 0.4549
+        if noise is None:
+            noise = ys[0] / rows[0][1]  # the shortest lag: about the noise alone
+        elif ys[-1] > (1.0 + max_signal_to_noise) * noise * rows[-1][1]:
+            break  # the motion shows: longer lags see curvature the smoother need not follow
+    return np.asarray(rows).reshape(-1, 2), np.asarray(ys)
+
+
 def lag_diffusion(
-    groups: list[tuple[FloatArray, FloatArray]], *, max_signal_to_noise: float = 4.0,
-    min_triplets: int = 20, iterations: int = 5,
+    groups: list[tuple[FloatArray, FloatArray]], *, sigma: float | None = None,
+    max_signal_to_noise: float = 4.0, min_triplets: int = 20, iterations: int = 5,
 ) -> tuple[float, float]:
     """Bearing acceleration PSD and noise from second differences across lags along tracks.
 
@@ -301,11 +331,14 @@ def lag_diffusion(
     ----------
     groups : list of (times, bearings)
         Per track, time-ordered times (s) and bearings (rad) of its detections.
+    sigma : float, optional, keyword-only
+        Bearing noise standard deviation, rad, if known (then only ``q`` is fitted, consistent
+        with this noise); default: fitted with ``q``.
     max_signal_to_noise : float, keyword-only
         Lags are taken up to the first one whose motion part exceeds this many times the noise
         part (the time scale on which the motion shows above the noise).
     min_triplets : int, keyword-only
-        Fewest second differences of a lag (and fewest detections / 3 of a track).
+        Fewest second differences of a lag (a track needs ``3 min_triplets`` detections).
     iterations : int, keyword-only
         Reweighting passes of the least-squares fit.
 
@@ -316,7 +349,7 @@ def lag_diffusion(
         track; one value serves every track, and a PSD too small for the more manoeuvring
         sources biases their bearings while one too large costs little precision).
     sigma : float
-        Bearing noise standard deviation, rad: the median over tracks.
+        Bearing noise standard deviation, rad: the median over tracks (`sigma` if given).
 
     Notes
     -----
@@ -326,56 +359,33 @@ def lag_diffusion(
     ``E D^2 = q (h1 + h2) / 3 + sigma^2 (1/h1^2 + 1/h2^2 + (1/h1 + 1/h2)^2)`` (the slopes are
     the mean rates over abutting intervals; at equal gaps ``h = L K`` this is ``(2/3) q L^3 K^3
     + 6 sigma^2`` for the second difference ``h^2 D``). Per track and lag ``L`` (about
-    geometric, 1, 2, 3, 4, 6, ...), the robust mean square is ``median(D^2) / 0.4549`` (the
-    median of chi-square with one degree of freedom), with the median coefficients. ``q`` and
-    ``sigma^2`` are fitted by non-negative least squares over the lags, each lag weighted by
-    the inverse of its fitted value (relative errors), reweighted a few times. Short lags tell
-    the noise, long lags the motion; the lags stop once the motion is ``max_signal_to_noise``
-    times the noise, so a deterministic curvature (which grows as ``L^4`` rather than ``L^3``)
-    is fitted at the time scale where the smoother has to follow it. Consecutive-scan
-    differences alone see mostly noise and give ``q`` far too small for long tracks.
+    geometric, 1, 2, 3, 4, 6, ..., up to a quarter of the track), the robust mean square is
+    ``median(D^2) / 0.4549`` with the median coefficients. ``q`` (and ``sigma^2``) are fitted
+    by non-negative least squares over the lags, each lag weighted by the inverse of its fitted
+    value (relative errors), reweighted a few times. Short lags tell the noise, long lags the
+    motion; the lags stop once the motion is ``max_signal_to_noise`` times the noise, so a
+    deterministic curvature (growing as ``L^4`` rather than ``L^3``) is fitted at the time
+    scale where the smoother has to follow it. Differences of consecutive scans alone see
+    mostly noise and give a ``q`` far too small for long tracks.
     """
+    noise = None if sigma is None else float(sigma) ** 2
     qs, s2s = [], []
     for t, z in groups:
-        n = t.size
-        if n < 3 * min_triplets:
+        if t.size < 3 * min_triplets:
             continue
-        u = np.unwrap(z)
-        lags = np.unique(np.round(np.geomspace(1, max(n // 4, 1), 40)).astype(int))
-        rows, ys = [], []
-        noise1 = np.nan
-        for lag in lags:
-            i = np.arange(lag, n - lag)
-            if i.size < min_triplets:
-                break
-            h1 = t[i] - t[i - lag]
-            h2 = t[i + lag] - t[i]
-            ok = (h1 > 0) & (h2 > 0)
-            if ok.sum() < min_triplets:
-                continue
-            h1, h2, i = h1[ok], h2[ok], i[ok]
-            d = (u[i + lag] - u[i]) / h2 - (u[i] - u[i - lag]) / h1
-            a = float(np.median((h1 + h2) / 3.0))
-            b = float(np.median(1 / h1**2 + 1 / h2**2 + (1 / h1 + 1 / h2) ** 2))
-            y = float(np.median(d * d) / 0.4549)
-            rows.append((a, b))
-            ys.append(y)
-            if not np.isfinite(noise1):
-                noise1 = y / b  # the shortest lag: about the noise alone
-            elif y > (1.0 + max_signal_to_noise) * noise1 * b:
-                break
-        if len(ys) < 3:
+        m, y = _lag_moments(t, np.unwrap(z), noise=noise,
+                            max_signal_to_noise=max_signal_to_noise, min_triplets=min_triplets)
+        if y.size < 3:
             continue
-        m = np.asarray(rows)
-        y = np.asarray(ys)
+        # known noise: fit y - sigma^2 b = q a; weights 1 / (fitted E D^2) either way
+        a, rhs, fixed = (m, y, 0.0) if noise is None else (m[:, :1], y - noise * m[:, 1],
+                                                             noise * m[:, 1])
         w = 1.0 / y
-        x = np.zeros(2)
         for _ in range(iterations):
-            x = nnls(m * w[:, None], y * w)[0]
-            fit = m @ x
-            w = 1.0 / np.maximum(fit, 1e-6 * y)
+            x = nnls(a * w[:, None], rhs * w)[0]
+            w = 1.0 / np.maximum(a @ x + fixed, 1e-6 * y)
         qs.append(x[0])
-        s2s.append(x[1])
+        s2s.append(x[1] if noise is None else noise)
     if not qs:
         return float("nan"), float("nan")
     return float(np.quantile(qs, 0.75)), float(np.sqrt(np.median(s2s)))
@@ -425,10 +435,12 @@ max_misses, max_gap_scans, min_length : optional, keyword-only
     pass of :class:`~fusion.passive.smoothing.nearest_neighbour.NearestNeighbourTracker` with a
     generous acceleration PSD (the rate may change by ``sigma / (10 K)`` per scan) gives tracks
     whose hit fraction is ``P_D`` (lower quartile over tracks: the weaker sources must
-    survive), whose second differences across lags (:func:`lag_diffusion`) give ``q``, and
-    whose block rates (:func:`rate_diffusion`, blocks of ``J/2`` scans) give the rate spread of
-    new tracks (and ``q`` where no track is long enough for the lags); labelled tracks give
-    both directly. ``max_misses`` is the shortest run of misses
+    survive) and whose block rates (:func:`rate_diffusion`, blocks of ``J/2`` scans: the scale
+    of the crossing test) give ``q`` and the rate spread of new tracks; labelled tracks give
+    both directly. ``q`` is then checked against the second differences across lags
+    (:func:`lag_diffusion`, the noise held at the fitted sigma): where the lags need more than
+    ``LAG_CONSISTENCY`` times the block estimate (long, slowly curving tracks whose blocks see
+    only noise), the lag estimate is taken. ``max_misses`` is the shortest run of misses
     that a track of detection probability ``P_D`` has with probability below 1 %, and at least
     `max_miss_s`; a link may
     bridge 4 such runs (at least 40 scans); a track needs ``P_D J`` detections (at least 5).
@@ -479,9 +491,12 @@ max_misses, max_gap_scans, min_length : optional, keyword-only
             p_est = float(np.quantile(hits, 0.25))  # the weaker sources set the track rules
     block = WINDOW_SCANS / 2 * period
     q_rates, rates = rate_diffusion(groups, sigma=sigma, block_s=block)
-    q_est, _ = lag_diffusion(groups)
-    if not np.isfinite(q_est):  # no track long enough for the lags
-        q_est = q_rates
+    q_est = q_rates
+    q_lags, _ = lag_diffusion(groups, sigma=sigma)
+    if np.isfinite(q_lags) and not q_lags <= LAG_CONSISTENCY * q_rates:
+        # the tracks move far more over their lags than the block rates say (long, slowly
+        # curving tracks whose blocks see only noise): the block estimate is inconsistent
+        q_est = q_lags
     if q_deg2_per_s3 is None:
         # floor: the motion factor over one scan no stiffer than 1e-6 of a bearing factor's
         # variance (q K^3 / 3 >= 1e-6 sigma^2), else the chain is too ill-conditioned to solve
