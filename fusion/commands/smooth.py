@@ -48,7 +48,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "the scatter of the detections)")
     p.add_argument("--q-deg2-per-s3", type=number(float, gt=0), default=None,
                    help="bearing acceleration PSD, deg^2/s^3 (default: estimated from the "
-                        "changes of the bearing rate along tracks)")
+                        "changes of the bearing rate along tracks, checked against the "
+                        "growth of second differences with the lag)")
     p.add_argument("--robust", choices=("none", "huber", "cauchy"), default="huber",
                    help="loss on the bearing factors of labelled tracks (default huber)")
     p.add_argument("--clutter-density", type=number(float, gt=0), default=None,
