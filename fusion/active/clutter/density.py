@@ -295,22 +295,25 @@ class DensityClutterMap(ClutterMapBase):
         return pairs["i"].astype(np.int64), pairs["j"].astype(np.int64)
 
     def _forget(self, first: int) -> None:
-        """Drop detections of pings before `first` and the columns of those pings."""
-        keep = self._ping >= first
-        new_index = np.cumsum(keep) - 1
+        """Drop detections of pings before `first` and the columns of those pings.
+
+        Detections are stored in ping order, so the forgotten ones are the first ``n_drop``;
+        a link's second end is the older one (it was stored when the first came).
+        """
+        n_drop = int(np.searchsorted(self._ping, first))
         e = self._edges
-        e_keep = keep[e[:, 0]] & keep[e[:, 1]] if e.size else np.zeros(0, bool)
         if e.size:
+            gone = e[:, 1] < n_drop
+            cut = e[gone]
+            cut = cut[cut[:, 0] >= n_drop]
             # Links with one end forgotten: take that end's terms off the other's sums.
-            cut = e[~e_keep & (keep[e[:, 0]] | keep[e[:, 1]])]
-            first_kept = keep[cut[:, 0]]
-            owner = np.where(first_kept, cut[:, 0], cut[:, 1])
-            gone = np.where(first_kept, cut[:, 1], cut[:, 0])
-            _add_rows(self._mom, owner, -_moments(self._W[gone], self._xy[gone],
-                                                  self._t[gone] - self._t[owner]))
+            owner, lost = cut[:, 0], cut[:, 1]
+            _add_rows(self._mom, owner, -_moments(self._W[lost], self._xy[lost],
+                                                  self._t[lost] - self._t[owner]))
             self._deg -= np.bincount(owner, minlength=self._deg.size)
-        self._edges = new_index[e[e_keep]] if e.size else e
-        self._seen = self._seen[keep][:, first - self._first:]
+            self._edges = e[~gone] - n_drop
+        keep = slice(n_drop, None)
+        self._seen = self._seen[keep, first - self._first:]
         self._W, self._mom, self._deg = self._W[keep], self._mom[keep], self._deg[keep]
         self._xy, self._cov = self._xy[keep], self._cov[keep]
         self._ping, self._t = self._ping[keep], self._t[keep]
@@ -344,10 +347,11 @@ class DensityClutterMap(ClutterMapBase):
             return self._cache
         pos = np.full(self._xy.shape[0], -1, np.int64)
         pos[hot] = np.arange(hot.size)
-        e = self._edges
-        e = e[(pos[e[:, 0]] >= 0) & (pos[e[:, 1]] >= 0)] if e.size else e
-        graph = coo_matrix((np.ones(e.shape[0]), (pos[e[:, 0]], pos[e[:, 1]])),
+        pe = pos[self._edges]
+        pe = pe[(pe >= 0).all(axis=1)]
+        graph = coo_matrix((np.ones(pe.shape[0]), (pe[:, 0], pe[:, 1])),
                            shape=(hot.size, hot.size))
+        graph.has_canonical_format = True  # links are distinct pairs: nothing to sum or sort
         n_spots, label = connected_components(graph, directed=False)
         # A hotspot's own echoes must recur: its cluster spans at least min_pings pings (the
         # newest echo of a slow target, whose neighbourhood is too short to show its drift,
