@@ -29,6 +29,8 @@ Modules, one role each:
   tracks that follow one source side by side.
 - :mod:`~fusion.passive.smoothing.settings` -- :func:`~fusion.passive.smoothing.settings.
   fit_smooth_settings`, the scales of ``fusion smooth`` estimated from its input.
+- :mod:`~fusion.passive.smoothing.diffusion` -- the bearing acceleration PSD of tracks from
+  their block-wise rate changes and from their second differences across lags.
 - :mod:`~fusion.passive.smoothing.table` -- :func:`smooth_bearings`, the rows of a bearing table
   (labelled tracks alone, unknown-origin rows jointly).
 
