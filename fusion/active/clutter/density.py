@@ -189,7 +189,7 @@ class DensityClutterMap(ClutterMapBase):
         self._t = np.zeros(0)                   # ping time relative to the first ping, s
         self._seen = np.zeros((0, 0), dtype=bool)  # (detections, remembered pings)
         self._first = 0                         # ping number of column 0 of _seen
-        self._edges = np.zeros((0, 2), np.int64)
+        self._edges = np.zeros((0, 2), np.int32)  # stored-index pairs, newer end first
         self._lam_stored = 0.0                  # largest error variance of a stored detection
         self._W = np.zeros((0, 2, 2))           # (R + F)^-1 of each stored detection
         self._mom = np.zeros((0, 16))           # drift-fit sums over each neighbourhood
@@ -255,7 +255,7 @@ class DensityClutterMap(ClutterMapBase):
         n_old, n_new = self._xy.shape[0], pts.shape[0]
         seen_new = np.zeros((n_new, self._seen.shape[1]), dtype=bool)
         seen_new[:, k - self._first] = True
-        edges = np.zeros((0, 2), np.int64)
+        edges = np.zeros((0, 2), np.int32)
         t_rel = t - self._t0
         W = np.linalg.inv(c + self._F)
         mom = np.concatenate([self._mom, _moments(W, pts, np.zeros(n_new))])
@@ -268,7 +268,7 @@ class DensityClutterMap(ClutterMapBase):
                 i, j = i[ok], j[ok]
                 self._seen[j, k - self._first] = True
                 seen_new[i, self._ping[j] - self._first] = True
-                edges = np.column_stack([i + n_old, j])
+                edges = np.column_stack([i + n_old, j]).astype(np.int32)
                 dt = self._t[j] - t_rel
                 _add_rows(mom, i + n_old, _moments(self._W[j], self._xy[j], dt))
                 _add_rows(mom, j, _moments(W[i], pts[i], -dt))
@@ -345,7 +345,7 @@ class DensityClutterMap(ClutterMapBase):
             self._cache = Hotspots(np.zeros((0, 2)), np.zeros((0, 2, 2)), self._gate,
                                    np.zeros(0, np.int64), np.zeros(0, np.int64), self.n_pings)
             return self._cache
-        pos = np.full(self._xy.shape[0], -1, np.int64)
+        pos = np.full(self._xy.shape[0], -1, np.int32)
         pos[hot] = np.arange(hot.size)
         pe = pos[self._edges]
         pe = pe[(pe >= 0).all(axis=1)]
