@@ -30,12 +30,12 @@ import json
 import logging
 import os
 import shutil
-import sys
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import Any, TypeVar
 
 from fusion._output import TMP_MARK, atomic_output
+from fusion._progress import progress
 
 __all__ = ["PartStore", "dask_client", "file_identity", "fingerprint", "progress", "run_tasks"]
 
@@ -189,26 +189,6 @@ def _client(Client: Any, LocalCluster: Any, workers: int | None,
             yield client
     finally:
         cluster.close()
-
-
-def progress(total: int, *, quiet: bool = False, desc: str = "", unit: str = "it",
-             initial: int = 0) -> Any:
-    """A tqdm progress bar on stderr when it is a terminal and not `quiet`, else a stand-in."""
-    if quiet or not sys.stderr.isatty():
-        return _NoBar()
-    from tqdm import tqdm
-
-    return tqdm(total=total, initial=initial, desc=desc, unit=unit)
-
-
-class _NoBar:
-    """What :func:`progress` returns when no bar is shown."""
-
-    def update(self, n: int = 1) -> None:
-        """Nothing to show."""
-
-    def close(self) -> None:
-        """Nothing to close."""
 
 
 def run_tasks(

@@ -21,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
+from fusion._progress import track_progress
 from fusion.cli import emit, number
 from fusion.geometry import wrap_deg
 from fusion.io import RowOrderError, iter_bearings, read_bearings, write_table
@@ -100,6 +101,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "overlap, are one event (default: the window)")
     p.add_argument("--max-gap", type=number(float, gt=0), default=None, metavar="S",
                    help="a gap longer than S s splits a track (default 3*K)")
+    p.add_argument("--quiet", action="store_true",
+                   help="no progress bar (none either when standard error is not a terminal)")
     p.set_defaults(handler=run, inputs=("bearings",))
 
 
@@ -145,8 +148,10 @@ def _check_spans(args: argparse.Namespace, st: CrossingSettings, spans_s: np.nda
 def _streamed(args: argparse.Namespace) -> tuple[list[CrossingAlert], CrossingSettings]:
     """Two passes over the file in chunks: the settings, then the detector as rows arrive."""
     stats = BearingStats()
+    n_rows = 0
     for c in iter_bearings(args.bearings):
         stats.add(c.table["track_id"], c.table["time"])
+        n_rows += len(c.table["time"])
     summary: BearingSummary = stats.summary()
     if not summary.time_ordered:
         raise _NotInTimeOrder(f"{args.bearings}: tracks are not interleaved in time order")
@@ -162,7 +167,9 @@ def _streamed(args: argparse.Namespace) -> tuple[list[CrossingAlert], CrossingSe
     if summary.n_unknown:
         logger.info("ignoring %d detection(s) of unknown origin (track_id -1)", summary.n_unknown)
     def rows() -> Iterator[tuple[np.ndarray, np.ndarray, np.ndarray]]:
-        for c in iter_bearings(args.bearings):
+        for c in track_progress(iter_bearings(args.bearings), quiet=args.quiet,
+                                desc="crossings", unit="row", total=n_rows,
+                                weight=lambda c: len(c.table["time"])):
             yield c.table["track_id"], c.table["time"], c.table["bearing_deg"]
 
     options = {"origin_s": summary.t_min_s, "merge_window_s": args.merge_window,

@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+from fusion._progress import track_progress
 from fusion.cli import number
 from fusion.io import (
     RowOrderError,
@@ -73,6 +74,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="gain of the recursive residual smoother, (0, 1] (0.1)")
     p.add_argument("--diagnostics", action="store_true",
                    help="also write sllr0, sllr1, smoothed_residual, err_max columns")
+    p.add_argument("--quiet", action="store_true",
+                   help="no progress bar (none either when standard error is not a terminal)")
     p.set_defaults(handler=run, inputs=("amplitudes",))
 
 
@@ -88,7 +91,9 @@ def run(args: argparse.Namespace) -> int:
     tqi = _indicator(args)
     streamed = _StreamedTQI(tqi, diagnostics=args.diagnostics)
     try:
-        write_table_chunks(args.out, map(streamed.columns, iter_amplitudes(args.amplitudes)),
+        chunks = track_progress(iter_amplitudes(args.amplitudes), quiet=args.quiet, desc="tqi",
+                                unit="row", weight=lambda c: len(c.table["time"]))
+        write_table_chunks(args.out, map(streamed.columns, chunks),
                            header=_header(args.diagnostics))
         n_tracks, n_rows = streamed.n_tracks, streamed.n_rows
     except RowOrderError as e:  # rows out of order or repeated: the whole-file reader decides

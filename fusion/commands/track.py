@@ -39,6 +39,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from fusion._output import STDOUT
+from fusion._progress import track_progress
 from fusion.cli import emit, number
 from fusion.io import (
     RowOrderError,
@@ -195,6 +196,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--smooth", action="store_true",
                    help="refine each confirmed track with all of its detections on a factor graph "
                         "(fixed-interval smoother) and append sigma_x, sigma_y (m) to every row")
+    p.add_argument("--quiet", action="store_true",
+                   help="no progress bar (none either when standard error is not a terminal)")
     p.set_defaults(handler=run, inputs=("detections", "rules"))
 
 
@@ -318,7 +321,8 @@ def _streamed(args: argparse.Namespace, system: object | None,
 
     def chunks() -> Iterator[dict]:
         results = []
-        for p in itertools.chain(prefix, pings):
+        for p in track_progress(itertools.chain(prefix, pings), quiet=args.quiet,
+                                desc="track", unit="ping"):
             r = tracker.step(p)
             summary.add(p.n, r)
             results.append(r)
@@ -339,7 +343,8 @@ def _whole(args: argparse.Namespace, system: object | None, summary: _Summary) -
     st, tracker = _build(args, pings[:args.fit_pings], system)
     tracker.reset()
     results = []
-    for p in pings:
+    for p in track_progress(pings, quiet=args.quiet, desc="track", unit="ping",
+                            total=len(pings)):
         results.append(tracker.step(p))
         summary.add(p.n, results[-1])
     result = TrackingResult(tuple(results))

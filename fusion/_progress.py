@@ -1,0 +1,69 @@
+"""The progress bar of the project's long commands.
+
+A tqdm bar on standard error while it is a terminal; nothing when the command is given
+``--quiet`` or its standard error is a file or a pipe (archives processed by scripts keep clean
+logs). tqdm is imported only when a bar is shown, so short commands pay nothing for it.
+"""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Iterable, Iterator
+from typing import Any, TypeVar
+
+__all__ = ["progress", "track_progress"]
+
+T = TypeVar("T")
+
+
+def progress(total: int | None, *, quiet: bool = False, desc: str = "", unit: str = "it",
+             initial: int = 0) -> Any:
+    """A tqdm progress bar on stderr when it is a terminal and not `quiet`, else a stand-in.
+
+    Parameters
+    ----------
+    total : int or None
+        Units of work in all; None when unknown (the bar then counts and shows the rate).
+    quiet : bool
+        No bar whatever the terminal.
+    desc, unit : str
+        The bar's label and the name of one unit.
+    initial : int
+        Units already done (a resumed run).
+
+    Returns
+    -------
+    tqdm or stand-in
+        Has ``update(n)`` and ``close()`` either way.
+    """
+    if quiet or not sys.stderr.isatty():
+        return _NoBar()
+    from tqdm import tqdm
+
+    return tqdm(total=total, initial=initial, desc=desc, unit=unit, file=sys.stderr)
+
+
+def track_progress(items: Iterable[T], *, quiet: bool = False, desc: str = "",
+                   unit: str = "it", total: int | None = None,
+                   weight: Any = None) -> Iterator[T]:
+    """Yield `items` while a bar (see :func:`progress`) counts them; closed when they end.
+
+    `weight(item)` gives the units one item stands for (e.g. the rows of a chunk); 1 when None.
+    """
+    bar = progress(total, quiet=quiet, desc=desc, unit=unit)
+    try:
+        for item in items:
+            yield item
+            bar.update(1 if weight is None else int(weight(item)))
+    finally:
+        bar.close()
+
+
+class _NoBar:
+    """What :func:`progress` returns when no bar is shown."""
+
+    def update(self, n: int = 1) -> None:
+        """Nothing to show."""
+
+    def close(self) -> None:
+        """Nothing to close."""
