@@ -83,6 +83,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     g.add_argument("--normalize", action="store_true",
                    help="normalise the cubes to unit noise mean first (split-window median over "
                         "frequency, pooled over 60 scans); default: cubes are already normalised")
+    p.add_argument("--quiet", action="store_true",
+                   help="no progress bar (none either when standard error is not a terminal)")
     p.set_defaults(handler=run, inputs=("cube", "clicks"), out_is_dir=True)
 
 
@@ -109,6 +111,7 @@ def _normalized(cube: Cube) -> Cube:
 
 def run(args: argparse.Namespace) -> int:
     """Read the cubes and clicks, run the pipeline, write the tracks and alerts."""
+    from fusion._progress import progress
     from fusion.passive.acquisition import Acquisition
     from fusion.passive.crossing import CrossingDetector
     from fusion.passive.quality import TrackQualityIndicator
@@ -135,7 +138,11 @@ def run(args: argparse.Namespace) -> int:
         starter=LineStarter() if args.auto else None,
         acquisition_scans=args.acq_scans,
     )
-    res = pipe.run(cubes, clicks)
+    bar = progress(n_scans, quiet=args.quiet, desc="passive", unit="scan")
+    try:
+        res = pipe.run(cubes, clicks, on_scan=bar.update)
+    finally:
+        bar.close()
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     write_table(out / "tracks.csv", res.track_columns())

@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from fusion._output import STDOUT
+from fusion._progress import progress
 from fusion.cli import emit, number
 from fusion.io import read_bearings, write_json, write_table
 from fusion.passive.smoothing import BearingSmoother, MultiTrackSmoother, smooth_bearings
@@ -80,6 +81,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--min-length", type=number(int, ge=2), default=None,
                    help="fewest detections of a track formed from unknown-origin rows, >= 2 "
                         "(default: from the detection probability)")
+    p.add_argument("--quiet", action="store_true",
+                   help="no progress bar (none either when standard error is not a terminal)")
     p.set_defaults(handler=run, inputs=("bearings",))
 
 
@@ -129,14 +132,18 @@ def run(args: argparse.Namespace) -> int:
                                init_sigma_rate=np.radians(st.init_sigma_rate_deg_per_s),
                                max_misses=st.max_misses, max_gap_scans=st.max_gap_scans)
     bearing_deg = table["bearing_deg"]
+    bar = progress(len(bearing_deg), quiet=args.quiet, desc="smooth", unit="row")
     try:
         tracks = smooth_bearings(table["track_id"], table["time"], np.radians(bearing_deg),
                                  single=single, multi=multi, merge_within=merge,
-                                 twin_within=float(np.radians(args.twin_deg)))
+                                 twin_within=float(np.radians(args.twin_deg)),
+                                 on_rows=bar.update)
     except RuntimeError as e:  # gtsam: an ill-posed graph
+        bar.close()
         first = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
         raise ValueError(f"{args.bearings}: the smoothing graph is ill-conditioned ({first}); "
                          "a larger --q-deg2-per-s3 or --sigma-bearing-deg may help") from None
+    bar.close()
     to_360 = bool(np.all(bearing_deg >= 0))
     cols: dict[str, list[np.ndarray]] = {k: [] for k in (
         "track_id", "time", "bearing_deg", "bearing_rate_deg_per_min", "sigma_bearing_deg")}

@@ -35,7 +35,7 @@ from __future__ import annotations
 import logging
 import math
 from collections import deque
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -454,7 +454,8 @@ class PassivePipeline:
         return PassiveResult(tracks=tuple(tracks), alerts=tuple(self._alerts),
                              resolutions=tuple(self._resolutions), n_scans=self._n_scans)
 
-    def run(self, cubes: Cube | Sequence[Cube], clicks: Sequence[Click] = ()) -> PassiveResult:
+    def run(self, cubes: Cube | Sequence[Cube], clicks: Sequence[Click] = (), *,
+            on_scan: Callable[[int], None] | None = None) -> PassiveResult:
         """Process whole cubes (consecutive cubes of one recording) from a fresh start.
 
         Parameters
@@ -464,6 +465,8 @@ class PassivePipeline:
             scans_of`: scan ``k`` at ``k * scan_period``).
         clicks : sequence of Click
             Operator clicks, given at the first scan; each waits for its time.
+        on_scan : callable, keyword-only
+            ``on_scan(1)`` after each scan (a progress bar's ``update``); None: not called.
 
         Returns
         -------
@@ -472,4 +475,6 @@ class PassivePipeline:
         self.reset()
         for i, scan in enumerate(scans_of(cubes)):
             self.step(scan, clicks=clicks if i == 0 else ())
+            if on_scan is not None:
+                on_scan(1)
         return self.result()

@@ -7,6 +7,8 @@ smoothing.batch.BearingSmoother` track by track, rows of unknown origin (track i
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 from numpy.typing import ArrayLike
 
@@ -28,6 +30,7 @@ def smooth_bearings(
     multi: MultiTrackSmoother,
     merge_within: float = 0.0,
     twin_within: float = 0.0,
+    on_rows: Callable[[int], None] | None = None,
 ) -> tuple[SmoothedTrack, ...]:
     """Smooth a bearing file's rows: labelled tracks alone, unknown-origin rows jointly.
 
@@ -52,6 +55,9 @@ def smooth_bearings(
         of their common time are one source (:func:`~fusion.passive.smoothing.twins.
         twin_groups`): their detections are smoothed together by `single` (Gaussian loss
         replaced by its robust one), rad (0: none).
+    on_rows : callable, keyword-only
+        ``on_rows(n)`` after each piece of work, with the rows it covered (a labelled track,
+        then all unknown-origin rows at once): a progress bar's ``update``. None: not called.
 
     Returns
     -------
@@ -68,6 +74,8 @@ def smooth_bearings(
         sel = np.flatnonzero(ids == tid)
         sel = sel[np.argsort(t[sel], kind="stable")]
         out.append(single.smooth(t[sel], z[sel], track_id=int(tid)))
+        if on_rows is not None:
+            on_rows(sel.size)
     unk = np.flatnonzero(ids < 0)
     if unk.size:
         unk = unk[np.argsort(t[unk], kind="stable")]
@@ -86,4 +94,6 @@ def smooth_bearings(
                 tr = single.smooth(tu[own], zu[own], track_id=new_id)
             out.append(SmoothedTrack(new_id + offset, tr.times, tr.bearing, tr.rate,
                                      tr.sigma_bearing, tr.sigma_rate))
+        if on_rows is not None:
+            on_rows(unk.size)
     return tuple(out)
