@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from fusion._progress import track_progress
 from fusion.demos.summary import write_summary
 from fusion.io import write_json
 
@@ -63,7 +64,7 @@ def _load(target: str) -> Callable[..., dict[str, Any]]:
 
 
 def run_demo(
-    out_dir: Path, *, seed: int = 0, parts: Sequence[str] | None = None
+    out_dir: Path, *, seed: int = 0, parts: Sequence[str] | None = None, quiet: bool = False
 ) -> list[PartResult]:
     """Run the demo parts and write the summary.
 
@@ -75,6 +76,8 @@ def run_demo(
         Seed of every simulated scenario.
     parts : sequence of str, optional
         Names of the parts to run (default: all).
+    quiet : bool, optional
+        No progress bar (there is none either when standard error is not a terminal).
 
     Returns
     -------
@@ -91,9 +94,9 @@ def run_demo(
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     results = []
-    for name, target in PARTS:
-        if name not in chosen:
-            continue
+    todo = [(name, target) for name, target in PARTS if name in chosen]
+    for name, target in track_progress(todo, quiet=quiet, desc="demo", unit="part",
+                                       total=len(todo)):
         t0 = time.perf_counter()
         part_dir = out_dir / name
         part_dir.mkdir(parents=True, exist_ok=True)

@@ -19,12 +19,14 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", type=Path, default=Path("fusion-demo"), help="output folder")
     p.add_argument("--seed", type=number(int, ge=0), default=0, help="scenario seed (default 0)")
     p.add_argument("--part", action="append", default=None, help="run only this part (repeatable)")
+    p.add_argument("--quiet", action="store_true",
+                   help="no progress bar (none either when standard error is not a terminal)")
     p.set_defaults(handler=run, inputs=(), out_is_dir=True)
 
 
 def run(args: argparse.Namespace) -> int:
     """Run the demo; print one line per part; exit 1 if a part failed."""
-    results = run_demo(args.out, seed=args.seed, parts=args.part)
+    results = run_demo(args.out, seed=args.seed, parts=args.part, quiet=args.quiet)
     for r in results:
         status = "ok" if r.ok else "FAILED"
         nums = ", ".join(f"{k}={v}" for k, v in r.summary.items())
