@@ -20,6 +20,7 @@ from __future__ import annotations
 import argparse
 import logging
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -160,21 +161,9 @@ class _StreamedTQI:
     def columns(self, chunk: TableChunk) -> dict[str, np.ndarray]:
         """Output columns (input columns, ``tqi``, diagnostics) of one chunk of rows."""
         table = chunk.table
-        tracks, col = np.unique(table["track_id"], return_inverse=True)
+        tracks, row_k, col, amp, res, valid = _update_grid(table)
         slots = self._slots(tracks)
-        # update index of each row within its track in this chunk
-        order = np.argsort(col, kind="stable")
-        counts = np.bincount(col, minlength=tracks.size)
-        starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
-        row_k = np.empty(len(table), dtype=np.int64)
-        row_k[order] = np.arange(len(table)) - np.repeat(starts, counts)
-        shape = (int(counts.max()), tracks.size)
-        amp = np.full(shape, np.nan)
-        res = np.full(shape, np.nan)
-        valid = np.zeros(shape, dtype=bool)
-        amp[row_k, col] = table["amplitude"]
-        res[row_k, col] = table["residual"]
-        valid[row_k, col] = True
+        shape = amp.shape
         fields = list(TQIMemory.__dataclass_fields__)
         mem = TQIMemory(**{f: getattr(self.memory, f)[slots] for f in fields})
         state = np.empty(shape, dtype=np.int8)
@@ -195,12 +184,14 @@ class _StreamedTQI:
         return out
 
 
-def _whole_file(args: argparse.Namespace, tqi: TrackQualityIndicator) -> tuple[int, int]:
-    """The TQI of the whole table at once (rows sorted by the reader if they were out of order)."""
-    table = read_amplitudes(args.amplitudes)
-    ids = table["track_id"]
-    tracks, col = np.unique(ids, return_inverse=True)
-    # update index of each row within its track (rows of a track are in time order)
+def _update_grid(table: Any) -> tuple[np.ndarray, ...]:
+    """Rows laid out as (update, track): the k-th row of a track is its k-th update.
+
+    Returns ``tracks`` (sorted ids), ``row_k`` and ``col`` (each row's update and track index)
+    and the ``amp``, ``res`` and ``valid`` grids of shape (most updates of a track, tracks).
+    Rows of a track must be in time order (checked by the readers).
+    """
+    tracks, col = np.unique(table["track_id"], return_inverse=True)
     order = np.argsort(col, kind="stable")
     counts = np.bincount(col, minlength=tracks.size)
     starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
@@ -213,6 +204,13 @@ def _whole_file(args: argparse.Namespace, tqi: TrackQualityIndicator) -> tuple[i
     amp[row_k, col] = table["amplitude"]
     res[row_k, col] = table["residual"]
     valid[row_k, col] = True
+    return tracks, row_k, col, amp, res, valid
+
+
+def _whole_file(args: argparse.Namespace, tqi: TrackQualityIndicator) -> tuple[int, int]:
+    """The TQI of the whole table at once (rows sorted by the reader if they were out of order)."""
+    table = read_amplitudes(args.amplitudes)
+    tracks, row_k, col, amp, res, valid = _update_grid(table)
     hist = tqi.run(amp, res, valid=valid)
     columns = {name: table[name] for name in ("track_id", "time", "amplitude", "residual")}
     columns["tqi"] = hist.labels()[row_k, col]
