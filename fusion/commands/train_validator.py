@@ -22,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
+from fusion._progress import track_progress
 from fusion.cli import emit, number
 
 logger = logging.getLogger(__name__)
@@ -57,6 +58,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--seed", type=number(int, ge=0), default=0, help="fitting seed (default 0)")
     p.add_argument("--window", type=number(float, gt=0), default=12.0, help="window, s")
     p.add_argument("--hop", type=number(float, gt=0), default=2.0, help="update period, s")
+    p.add_argument("--quiet", action="store_true",
+                   help="no progress bar (none either when standard error is not a terminal)")
     p.set_defaults(handler=run, inputs=("recording", "audio", "array", "labels"),
                    out_stdout=False)
 
@@ -98,7 +101,9 @@ def run(args: argparse.Namespace) -> int:
     front = ClickFrontEnd(validator=False, refiner=False, hop_s=args.hop,
                           correlator=ClickMapCorrelator(config=ScmConfig(window_s=args.window)))
     zs, ys, ss, replica_parts = [], [], [], []
-    for k, (audio_p, array_p, labels_p) in enumerate(_recordings(args)):
+    recordings = _recordings(args)
+    for k, (audio_p, array_p, labels_p) in enumerate(track_progress(
+            recordings, quiet=args.quiet, desc="recordings", unit="rec", total=len(recordings))):
         array = read_array(array_p)
         table = read_table(labels_p, required=("time", "i", "j", "tau"), optional=("source",),
                            integer=("i", "j", "source"))
@@ -119,7 +124,9 @@ def run(args: argparse.Namespace) -> int:
         emit(f"{audio_p}: {sum(len(w.tdoas) for w in windows)} candidate TDOAs, "
              f"{int(sum(y.sum() for y in ys))} valid so far", err=True)
     if args.simulated:
-        sim = simulated_training_set(range(args.simulated), front_end=front,
+        seeds = track_progress(range(args.simulated), quiet=args.quiet, desc="simulated",
+                               unit="rec", total=args.simulated)
+        sim = simulated_training_set(seeds, front_end=front,
                                      tol_s=args.tolerance)
         zs.append(sim.z)
         ys.append(sim.valid)
