@@ -265,3 +265,21 @@ def test_kind_needs_every_required_column(tmp_path, columns, keep):
     else:
         with pytest.raises(ValueError, match="not a result the report knows"):
             detect_result(p)
+
+
+def test_clutter_map_scales_come_from_the_track_settings(outputs, tmp_path):
+    """The report's hotspots use the scales fusion track wrote beside its output, else defaults."""
+    import json
+
+    from fusion.report.positions import track_map_settings
+
+    tracks = outputs["dir"] / "tracks.csv"
+    written = json.loads(tracks.with_name("tracks.settings.json").read_text())["settings"]
+    got = track_map_settings(tracks)
+    assert got == {"position_sigma_m": pytest.approx(written["position_sigma_m"]),
+                   "feature_sigma_m": pytest.approx(written["feature_sigma_m"])}
+    lone = tmp_path / "t.csv"
+    lone.write_bytes(tracks.read_bytes())
+    assert track_map_settings(lone) == {}  # no settings file: the map's defaults
+    (tmp_path / "t.settings.json").write_text('{"settings": {"position_sigma_m": "nan"}}')
+    assert track_map_settings(lone) == {}  # unusable values are not passed on

@@ -194,11 +194,12 @@ def _alerts(res: DetectedResult, extra: ReportInputs, out: FigureWriter) -> None
 
 def _tracks(res: DetectedResult, extra: ReportInputs, out: FigureWriter) -> None:
     from fusion.io import read_detections, read_table, read_tracks
-    from fusion.report.positions import track_sigma_figure, tracks_figure
+    from fusion.report.positions import track_map_settings, track_sigma_figure, tracks_figure
 
     tracks = read_tracks(res.path)
     det = read_detections(extra.detections) if extra.detections else None
-    out.save(tracks_figure(tracks, detections=det, title=f"fusion track: {res.path.name}"),
+    out.save(tracks_figure(tracks, detections=det, title=f"fusion track: {res.path.name}",
+                           map_settings=track_map_settings(res.path)),
              "tracks.png")
     try:
         sig = read_table(res.path, required=("sigma_x", "sigma_y"), max_abs=None)

@@ -4,12 +4,14 @@ Positions are x east, y north in metres. The clutter map drawn behind ``fusion t
 computed from the detections the tracker read: the fraction of pings with a detection in each
 cell (the recurrence the clutter map of "Target tracking using fuzzy logic association",
 Section 2.4, thresholds), and the hotspots of :class:`fusion.active.clutter.density.
-DensityClutterMap` with its default settings, fed ping by ping.
+DensityClutterMap` with the scales ``fusion track`` chose (its ``T.settings.json``), fed
+ping by ping.
 """
 
 from __future__ import annotations
 
 from collections.abc import Iterator
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -71,11 +73,31 @@ def clutter_recurrence(detections: Table, *, cell_m: float = CELL_M
             counts / n_pings)
 
 
-def _hotspots(detections: Table) -> Any:
+#: Settings of ``fusion track`` (``T.settings.json``) that shape its density clutter map.
+MAP_SETTINGS = ("position_sigma_m", "feature_sigma_m")
+
+
+def track_map_settings(tracks_path: Path) -> dict[str, float]:
+    """The clutter-map scales ``fusion track`` chose for `tracks_path` (from ``T.settings.json``).
+
+    Empty when the file is absent or does not hold them (the map's defaults are then used).
+    """
+    from fusion.io import read_json
+
+    side = tracks_path.with_name(tracks_path.stem + ".settings.json")
+    try:
+        settings = read_json(side)["settings"]
+        found = {k: float(settings[k]) for k in MAP_SETTINGS if k in settings}
+    except (OSError, ValueError, KeyError, TypeError):
+        return {}
+    return {k: v for k, v in found.items() if np.isfinite(v) and v > 0}
+
+
+def _hotspots(detections: Table, map_settings: dict[str, float] | None = None) -> Any:
     """Hotspots of the density clutter map fed with the detections ping by ping."""
     from fusion.active.clutter.density import DensityClutterMap
 
-    cmap = DensityClutterMap()
+    cmap = DensityClutterMap(**(map_settings or {}))
     ev = detections["event"]
     for e in np.unique(ev):
         r = ev == e
@@ -83,7 +105,8 @@ def _hotspots(detections: Table) -> Any:
     return cmap.hotspots()
 
 
-def tracks_figure(tracks: Table, *, detections: Table | None = None, title: str) -> Any:
+def tracks_figure(tracks: Table, *, detections: Table | None = None, title: str,
+                  map_settings: dict[str, float] | None = None) -> Any:
     """Multistatic tracks in plan view, over the clutter map of the detections when given.
 
     Parameters
@@ -95,6 +118,10 @@ def tracks_figure(tracks: Table, *, detections: Table | None = None, title: str)
         drawn as grey dots over the recurrence map, with the hotspot regions and the source
         and receivers.
     title : str, keyword-only
+    map_settings : dict, optional, keyword-only
+        Scales of the density clutter map whose hotspots are drawn (``position_sigma_m``,
+        ``feature_sigma_m``: those ``fusion track`` chose, :func:`track_map_settings`); the
+        map's defaults when None.
 
     Returns
     -------
@@ -109,7 +136,7 @@ def tracks_figure(tracks: Table, *, detections: Table | None = None, title: str)
         fig.colorbar(im, ax=ax, label="fraction of pings with a detection in the cell",
                      shrink=0.7)
         ax.plot(detections["x"], detections["y"], ".", color="0.55", ms=1.5, label="detections")
-        hot = _hotspots(detections)
+        hot = _hotspots(detections, map_settings)
         for k in range(len(hot)):
             covariance_ellipse(ax, hot.positions[k], hot.covariances[k], n_sigma=hot.gate,
                                color="tab:red", lw=1.0, ls="--")
