@@ -29,8 +29,8 @@ PARTS: list[tuple[str, str]] = [
     ("clicks-scenario", "fusion.demos.clicks:run_demo"),
     ("tma", "fusion.demos.tma:run_demo"),
     ("tqi", "fusion.demos.tqi:run_demo"),
-    ("crossings", "fusion.commands.crossings:run_demo"),
-    ("active", "fusion.simulate.multistatic:run_demo"),
+    ("crossings", "fusion.demos.crossings:run_demo"),
+    ("active", "fusion.demos.active:run_demo"),
     ("smoothing", "fusion.demos.smoothing:run_demo"),
     ("passive", "fusion.demos.passive:run_demo"),
 ]

@@ -481,7 +481,7 @@ def test_cli_bad_input_exit_2_one_line(tmp_path, capsys, content, extra, match):
 
 def test_demo_part_colours_tracks_by_quality(tmp_path):
     """The crossings demo writes alerts and a TQI per bearing row; the faded-out track ends lost."""
-    from fusion.commands.crossings import run_demo
+    from fusion.demos.crossings import run_demo
 
     summary = run_demo(tmp_path, seed=3)
     q = read_table(tmp_path / "tqi.csv", required=("track_id", "time", "tqi"), integer=("track_id",),
