@@ -115,6 +115,9 @@ class ClutterMapBase(ABC):
     content (a tracker's reset).
     """
 
+    #: Default position-error standard deviation of a detection, m (set by each subclass).
+    position_sigma_m: float
+
     @abstractmethod
     def update(
         self, xy: ArrayLike, time: float | None = None, *, cov: ArrayLike | None = None
@@ -130,6 +133,23 @@ class ClutterMapBase(ABC):
         cov : array_like, shape (n, 2, 2), optional
             Position-error covariance of each detection, m^2.
         """
+
+    def _checked(self, xy: ArrayLike, cov: ArrayLike | None) -> tuple[NDArray, NDArray]:
+        """A ping's positions (n, 2) and covariances (n, 2, 2), checked; the covariances default
+        to ``position_sigma_m**2 I`` (the subclass's option). Both are fresh arrays."""
+        pts = np.asarray(xy, dtype=float).reshape(-1, 2) if np.size(xy) else np.zeros((0, 2))
+        if not np.all(np.isfinite(pts)):
+            raise ValueError("clutter map: detection positions must be finite")
+        if cov is None:
+            c = np.broadcast_to(np.eye(2) * self.position_sigma_m**2, (pts.shape[0], 2, 2)).copy()
+        else:
+            c = np.array(cov, dtype=float)
+            if c.shape != (pts.shape[0], 2, 2) or not np.all(np.isfinite(c)):
+                raise ValueError(f"clutter map: cov must be finite, shape ({pts.shape[0]}, 2, 2), "
+                                 f"got shape {c.shape}")
+            if np.any(c[:, 0, 0] <= 0) or np.any(c[:, 0, 0] * c[:, 1, 1] - c[:, 0, 1] ** 2 <= 0):
+                raise ValueError("clutter map: cov must be positive definite")
+        return pts, c
 
     @abstractmethod
     def hotspots(self) -> Hotspots:

@@ -205,21 +205,6 @@ class DensityClutterMap(ClutterMapBase):
             drift_probability=self.drift_probability, max_sigma_m=self.max_sigma_m,
             memory_pings=self.memory_pings)
 
-    def _checked(self, xy: ArrayLike, cov: ArrayLike | None) -> tuple[NDArray, NDArray]:
-        pts = np.asarray(xy, dtype=float).reshape(-1, 2) if np.size(xy) else np.zeros((0, 2))
-        if not np.all(np.isfinite(pts)):
-            raise ValueError("clutter map: detection positions must be finite")
-        if cov is None:
-            c = np.broadcast_to(np.eye(2) * self.position_sigma_m**2, (pts.shape[0], 2, 2)).copy()
-        else:
-            c = np.array(cov, dtype=float)
-            if c.shape != (pts.shape[0], 2, 2) or not np.all(np.isfinite(c)):
-                raise ValueError(f"clutter map: cov must be finite, shape ({pts.shape[0]}, 2, 2), "
-                                 f"got shape {c.shape}")
-            if np.any(c[:, 0, 0] <= 0) or np.any(c[:, 0, 0] * c[:, 1, 1] - c[:, 0, 1] ** 2 <= 0):
-                raise ValueError("clutter map: cov must be positive definite")
-        return pts, c
-
     def update(
         self, xy: ArrayLike, time: float | None = None, *, cov: ArrayLike | None = None
     ) -> None:

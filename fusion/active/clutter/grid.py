@@ -204,18 +204,7 @@ class ClutterMap(ClutterMapBase):
         ValueError
             Wrong shape or non-finite values.
         """
-        pts = np.asarray(xy, dtype=float).reshape(-1, 2) if np.size(xy) else np.zeros((0, 2))
-        if not np.all(np.isfinite(pts)):
-            raise ValueError("clutter map: detection positions must be finite")
-        if cov is None:
-            c = np.broadcast_to(np.eye(2) * self.position_sigma_m**2, (pts.shape[0], 2, 2))
-        else:
-            c = np.asarray(cov, dtype=float)
-            if c.shape != (pts.shape[0], 2, 2) or not np.all(np.isfinite(c)):
-                raise ValueError(f"clutter map: cov must be finite, shape ({pts.shape[0]}, 2, 2), "
-                                 f"got shape {c.shape}")
-            if np.any(c[:, 0, 0] <= 0) or np.any(c[:, 0, 0] * c[:, 1, 1] - c[:, 0, 1] ** 2 <= 0):
-                raise ValueError("clutter map: cov must be positive definite")
+        pts, c = self._checked(xy, cov)
         t = float(self.n_pings if time is None else time)
         if not np.isfinite(t):
             raise ValueError("clutter map: ping time must be finite")
