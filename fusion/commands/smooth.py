@@ -18,15 +18,13 @@ from __future__ import annotations
 
 import argparse
 import logging
-import os
 from pathlib import Path
 
 import numpy as np
 
-from fusion._output import STDOUT
 from fusion._progress import progress
 from fusion.cli import emit, number
-from fusion.io import read_bearings, write_json, write_table
+from fusion.io import read_bearings, write_settings, write_table
 from fusion.passive.smoothing import BearingSmoother, MultiTrackSmoother, smooth_bearings
 from fusion.passive.smoothing.merge import merge_scan_detections
 from fusion.passive.smoothing.settings import fit_smooth_settings
@@ -86,20 +84,6 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(handler=run, inputs=("bearings",))
 
 
-def settings_path(out: Path) -> Path:
-    """Where the settings of a run go: ``S.csv`` -> ``S.settings.json`` beside it."""
-    out = Path(out)
-    return out.with_name(out.stem + ".settings.json") if out.suffix else out.with_name(
-        out.name + ".settings.json")
-
-
-def _is_input(path: Path, source: Path) -> bool:
-    try:
-        return os.path.samefile(path, source)
-    except OSError:
-        return False
-
-
 def run(args: argparse.Namespace) -> int:
     """Read, smooth, write."""
     table = read_bearings(args.bearings)
@@ -156,10 +140,8 @@ def run(args: argparse.Namespace) -> int:
         cols["sigma_bearing_deg"].append(np.degrees(tr.sigma_bearing))
     out = {k: (np.concatenate(v) if v else np.zeros(0)) for k, v in cols.items()}
     write_table(args.out, out)
-    side = settings_path(args.out)
-    if str(args.out) != STDOUT and not _is_input(side, args.bearings):
-        write_json(settings_path(args.out), {"command": "smooth", "tracks": len(tracks),
-                                             "settings": st.as_dict()})
+    write_settings(args.out, {"command": "smooth", "tracks": len(tracks), "settings": st.as_dict()},
+                   inputs=(args.bearings,))
     emit(f"fusion smooth: {st.describe()}: {len(tracks)} track(s) -> {args.out}")
     logger.info("wrote %d tracks to %s", len(tracks), args.out)
     return 0

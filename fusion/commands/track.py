@@ -31,21 +31,19 @@ from __future__ import annotations
 import argparse
 import itertools
 import logging
-import os
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 
-from fusion._output import STDOUT
 from fusion._progress import track_progress
 from fusion.cli import emit, number
 from fusion.io import (
     RowOrderError,
     iter_detections,
     read_detections,
-    write_json,
+    write_settings,
     write_table,
     write_table_chunks,
 )
@@ -362,23 +360,6 @@ def _whole(args: argparse.Namespace, system: object | None, summary: _Summary) -
     return st
 
 
-def settings_path(out: Path) -> Path:
-    """Where the settings of a run go: ``T.csv`` -> ``T.settings.json`` beside it."""
-    out = Path(out)
-    return out.with_name(out.stem + ".settings.json") if out.suffix else out.with_name(
-        out.name + ".settings.json")
-
-
-def _same_file(a: Path, b: Iterable[Path | None]) -> bool:
-    for p in b:
-        try:
-            if p is not None and os.path.samefile(a, p):
-                return True
-        except OSError:
-            continue
-    return False
-
-
 def run(args: argparse.Namespace) -> int:
     """Track the detections and write the tracks, the settings and one line of summary."""
     if args.confirm[0] > args.confirm[1]:
@@ -401,12 +382,11 @@ def run(args: argparse.Namespace) -> int:
     if not streamed:
         st = _whole(args, system, summary)
     why = summary.why_none(args, st)
-    side = settings_path(args.out)
-    if str(args.out) != STDOUT and not _same_file(side, (args.detections, args.rules)):
-        write_json(side, {"command": "track", "settings": st.metadata(),
-                          "pings": summary.pings, "detections": summary.detections,
-                          "tracks": len(summary.hits),
-                          "confirmed_tracks": len(summary.confirmed), "no_track_reason": why})
+    write_settings(args.out, {"command": "track", "settings": st.metadata(),
+                              "pings": summary.pings, "detections": summary.detections,
+                              "tracks": len(summary.hits),
+                              "confirmed_tracks": len(summary.confirmed), "no_track_reason": why},
+                   inputs=(args.detections, args.rules))
     emit(f"fusion track: {st.describe()}: {len(summary.confirmed)} confirmed track(s) of "
          f"{len(summary.hits)} -> {args.out}", err=True)
     if why is not None:

@@ -59,7 +59,7 @@ from fusion.io._files import (
 from fusion.io.arrays import MIN_SENSOR_SEPARATION_M, read_array, write_array
 from fusion.io.audio import iter_audio_blocks, read_audio, write_audio
 from fusion.io.cubes import read_cube, write_cube
-from fusion.io.json_files import read_json, write_json
+from fusion.io.json_files import read_json, settings_path, write_json, write_settings
 from fusion.io.results import (
     LocalizationResult,
     LocalizationWindow,
@@ -137,7 +137,9 @@ __all__ = [
     "write_array",
     "write_audio",
     "write_cube",
+    "settings_path",
     "write_json",
+    "write_settings",
     "write_table",
     # also importable, as before the split into modules
     "ALERT_KINDS",

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import json
+import os
+from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
@@ -11,7 +13,7 @@ import numpy as np
 from fusion._output import atomic_output
 from fusion.io._files import MAX_JSON_BYTES, PathLike, _check_file
 
-__all__ = ["read_json", "write_json"]
+__all__ = ["read_json", "settings_path", "write_json", "write_settings"]
 
 
 def _json_default(o: Any) -> Any:
@@ -55,3 +57,28 @@ def write_json(path: PathLike, obj: Any, *, indent: int | None = 1) -> Path:
     with atomic_output(path) as tmp:
         tmp.write_text(text + "\n", encoding="utf-8")
     return Path(path)
+
+
+def settings_path(out: PathLike) -> Path:
+    """Where a command writes the settings it chose: ``T.csv`` -> ``T.settings.json`` beside it."""
+    out = Path(out)
+    return out.with_name(out.stem + ".settings.json")
+
+
+def write_settings(out: PathLike, document: Any, *,
+                   inputs: Iterable[PathLike | None] = ()) -> Path | None:
+    """Write `document` to :func:`settings_path` of `out`, atomically.
+
+    Nothing is written (None) when `out` is standard output (``-``) or when that path is one
+    of `inputs` (by any link or path): a side file never replaces an input.
+    """
+    if str(out) == "-":
+        return None
+    side = settings_path(out)
+    for p in inputs:
+        try:
+            if p is not None and os.path.samefile(side, p):
+                return None
+        except OSError:
+            continue
+    return write_json(side, document)

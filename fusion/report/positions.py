@@ -82,11 +82,10 @@ def track_map_settings(tracks_path: Path) -> dict[str, float]:
 
     Empty when the file is absent or does not hold them (the map's defaults are then used).
     """
-    from fusion.io import read_json
+    from fusion.io import read_json, settings_path
 
-    side = tracks_path.with_name(tracks_path.stem + ".settings.json")
     try:
-        settings = read_json(side)["settings"]
+        settings = read_json(settings_path(tracks_path))["settings"]
         found = {k: float(settings[k]) for k in MAP_SETTINGS if k in settings}
     except (OSError, ValueError, KeyError, TypeError):
         return {}
