@@ -117,6 +117,10 @@ class ClutterMapBase(ABC):
 
     #: Default position-error standard deviation of a detection, m (set by each subclass).
     position_sigma_m: float
+    #: Pings seen, time of the first ping (s) and the cached hotspots (set by each subclass).
+    n_pings: int
+    _t0: float | None
+    _cache: object
 
     @abstractmethod
     def update(
@@ -150,6 +154,20 @@ class ClutterMapBase(ABC):
             if np.any(c[:, 0, 0] <= 0) or np.any(c[:, 0, 0] * c[:, 1, 1] - c[:, 0, 1] ** 2 <= 0):
                 raise ValueError("clutter map: cov must be positive definite")
         return pts, c
+
+    def _next_ping(self, time: float | None) -> float:
+        """Count a new ping and return its time from the first ping's, s (checked finite).
+
+        `time` None stands for the ping's index. Clears the subclass's hotspot cache.
+        """
+        t = float(self.n_pings if time is None else time)
+        if not np.isfinite(t):
+            raise ValueError("clutter map: ping time must be finite")
+        if self._t0 is None:
+            self._t0 = t
+        self.n_pings += 1
+        self._cache = None
+        return t - self._t0
 
     @abstractmethod
     def hotspots(self) -> Hotspots:

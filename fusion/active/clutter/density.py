@@ -228,20 +228,13 @@ class DensityClutterMap(ClutterMapBase):
         pts, c = self._checked(xy, cov)
         small = np.linalg.eigvalsh(c)[:, -1] <= self.max_sigma_m**2
         pts, c = pts[small], c[small]
-        t = float(self.n_pings if time is None else time)
-        if not np.isfinite(t):
-            raise ValueError("clutter map: ping time must be finite")
-        if self._t0 is None:
-            self._t0 = t
         k = self.n_pings
-        self.n_pings += 1
-        self._cache = None
+        t_rel = self._next_ping(time)
         self._seen = np.concatenate([self._seen, np.zeros((self._seen.shape[0], 1), bool)], axis=1)
         n_old, n_new = self._xy.shape[0], pts.shape[0]
         seen_new = np.zeros((n_new, self._seen.shape[1]), dtype=bool)
         seen_new[:, k - self._first] = True
         edges = np.zeros((0, 2), np.int32)
-        t_rel = t - self._t0
         W = np.linalg.inv(c + self._F)
         mom = np.concatenate([self._mom, _moments(W, pts, np.zeros(n_new))])
         deg = np.concatenate([self._deg, np.zeros(n_new, np.int64)])

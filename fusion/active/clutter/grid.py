@@ -205,14 +205,7 @@ class ClutterMap(ClutterMapBase):
             Wrong shape or non-finite values.
         """
         pts, c = self._checked(xy, cov)
-        t = float(self.n_pings if time is None else time)
-        if not np.isfinite(t):
-            raise ValueError("clutter map: ping time must be finite")
-        if self._t0 is None:
-            self._t0 = t
-        t -= self._t0
-        self.n_pings += 1
-        self._cache = None
+        t = self._next_ping(time)
         if pts.shape[0] == 0:
             return
         cells = self._cells(pts)
