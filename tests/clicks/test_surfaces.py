@@ -128,12 +128,12 @@ def test_plane_at_assumed_depth_peaks_at_source():
 
 
 def test_chunking_does_not_change_the_volume():
-    """Evaluating in chunks of 7 points gives the same volume as one pass."""
+    """Evaluating in chunks of 7 points gives the same volume as one pass (to rounding)."""
     t = window(RING, [[300.0, 200.0, -800.0]], sigma=1e-3)
     grid = SearchGrid(np.linspace(-500, 500, 5), np.linspace(-500, 500, 6), np.linspace(-900, -700, 3))
     a = intensity_volume(t, grid, equation=18, chunk_points=7)
     b = intensity_volume(t, grid, equation=18, chunk_points=10_000)
-    assert_allclose(a.values, b.values, rtol=0, atol=0)
+    assert_allclose(a.values, b.values, rtol=1e-12, atol=1e-300)
 
 
 def test_region_follows_the_array_size():
