@@ -362,7 +362,7 @@ def test_smoothed_and_tma_outputs(tmp_path):
 def _localization():
     w = LocalizationWindow(
         0.0, 12.0,
-        (TdoaRecord((0, 1), 0.4012, True, 5.2), TdoaRecord((1, 2), -0.1, False, -3.0)),
+        (TdoaRecord((0, 1), 0.4012, True, 5.2, 6.31, 1.2e-4), TdoaRecord((1, 2), -0.1, False, -3.0)),
         (SourceEstimate(10.0, -20.0, -900.0, ((1.0, 0.0, 0.0), (0.0, 2.0, 0.0), (0.0, 0.0, 3.0)), 7),),
     )
     return LocalizationResult((w,), ((0, ((6.0, 10.0, -20.0, -900.0),)),))
@@ -371,7 +371,12 @@ def _localization():
 def test_localization_round_trip(tmp_path):
     """A localization result survives write and read unchanged."""
     r = _localization()
-    assert read_localization(write_localization(tmp_path / "r.json", r)) == r
+    back = read_localization(write_localization(tmp_path / "r.json", r))
+    assert back == r
+    d = back.windows[0].tdoas[0]
+    assert (d.t, d.rate) == (6.31, 1.2e-4)
+    assert d.tau_at(8.31) == pytest.approx(0.4012 + 2.4e-4)
+    assert np.isnan(back.windows[0].tdoas[1].t)  # a file without the fields (older results)
 
 
 def test_localization_bad_input(tmp_path):

@@ -36,12 +36,23 @@ class TdoaRecord:
         Whether validation accepted it.
     llr : float
         Validation log-likelihood ratio.
+    t : float
+        Arrival time at sensor i at which `tau` holds, s from the start of the audio (NaN in a
+        file written before the field existed).
+    rate : float
+        ``d tau / dt`` at `t`, s/s (NaN when the file has none).
     """
 
     pair: tuple[int, int]
     tau: float
     valid: bool
     llr: float
+    t: float = math.nan
+    rate: float = math.nan
+
+    def tau_at(self, t_s: float) -> float:
+        """The delay at another arrival time ``t_s`` on sensor i, to first order, s."""
+        return self.tau + self.rate * (t_s - self.t)
 
 
 @dataclass(frozen=True)
@@ -81,7 +92,9 @@ def write_localization(path: PathLike, result: LocalizationResult) -> Path:
                 "t_start": w.t_start,
                 "t_end": w.t_end,
                 "tdoas": [
-                    {"pair": list(d.pair), "tau": d.tau, "valid": d.valid, "llr": d.llr}
+                    {"pair": list(d.pair), "tau": d.tau,
+                     **({"t": d.t, "rate": d.rate} if math.isfinite(d.t) else {}),
+                     "valid": d.valid, "llr": d.llr}
                     for d in w.tdoas
                 ],
                 "sources": [
@@ -137,8 +150,11 @@ def read_localization(path: PathLike) -> LocalizationResult:
                 if not isinstance(d["valid"], bool) or len(d["pair"]) != 2:
                     raise ValueError(f"{where}: a TDOA needs a 2-element 'pair' and a true/false "
                                      "'valid'")
+                timing = ((_num(d["t"], where), _num(d["rate"], where)) if "t" in d
+                          else (math.nan, math.nan))
                 tdoas.append(TdoaRecord((_int(d["pair"][0], where), _int(d["pair"][1], where)),
-                                        _num(d["tau"], where), d["valid"], _num(d["llr"], where)))
+                                        _num(d["tau"], where), d["valid"], _num(d["llr"], where),
+                                        *timing))
             sources = tuple(
                 SourceEstimate(_num(s["x"], where), _num(s["y"], where), _num(s["z"], where),
                                _cov3(s["cov"], where), _int(s["tdoas_used"], where))

@@ -120,6 +120,9 @@ class WindowTdoa:
         Source click times at sensor ``i``, s from the start of the audio: the clicks the
         refinement matched along the delay's drift through the window where it succeeded,
         else the SCM2's (used by the association, eq. 12-13).
+    t_s : float
+        Arrival time at sensor ``i`` at which `tau_s` holds, s from the start of the audio (the
+        window centre; ``tau_s + rate (t - t_s)`` follows the delay through the window).
     """
 
     pair: tuple[int, int]
@@ -137,6 +140,7 @@ class WindowTdoa:
     confirmed: bool = False
     consistent: bool = True
     click_times_s: NDArray[np.float64] = field(default_factory=lambda: frozen_array([]))
+    t_s: float = math.nan
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "features", frozen_array(self.features))
@@ -343,7 +347,7 @@ class ClickFrontEnd:
                 sigma_s=float(sigma), crb_s=float(crb), snr_db=float(snr), rate=float(rate),
                 scm_peak=float(peak.value),
                 n_clicks=int(s2.click_times_s.size), features=z[k], llr=float(llr[k]),
-                passes=bool(passes[k]), click_times_s=times))
+                passes=bool(passes[k]), click_times_s=times, t_s=t0_s + 0.5 * self.window_s))
         return out
 
     def _finish(self, window: ClickWindow, linked_next: NDArray[np.bool_]) -> ClickWindow:

@@ -371,7 +371,8 @@ def result_document(windows: Iterable[LocalizedWindow], *, tracks: Iterable[Trac
     for lw in windows:
         w = lw.window
         tdoas = [
-            {"pair": [int(d.pair[0]), int(d.pair[1])], "tau": float(d.tau_s), "valid": d.valid,
+            {"pair": [int(d.pair[0]), int(d.pair[1])], "tau": float(d.tau_s),
+             "t": float(d.t_s), "rate": float(d.rate), "valid": d.valid,
              "llr": _f(d.llr) if np.isfinite(d.llr) else 0.0, "sigma": float(d.sigma_s),
              "crb": _f(d.crb_s), "n_clicks": int(d.n_clicks), "passes": d.passes,
              "confirmed": d.confirmed, "consistent": d.consistent}
