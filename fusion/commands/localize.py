@@ -271,7 +271,6 @@ def run(args: argparse.Namespace) -> int:
         bar.close()
         for (_, out), plan in zip(recordings, plans, strict=True):
             summary = write_document(out, (store.read(name(t)) for t in plan))
-            emit(f"{summary.n_windows} windows, {summary.n_valid_tdoas} valid TDOAs, "
-                 f"{summary.n_sources} sources -> {out}", err=True)
+            emit(f"{summary.line()} -> {out}", err=True)
         store.remove()
     return 0

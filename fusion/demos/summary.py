@@ -30,11 +30,13 @@ FIGURES: dict[str, tuple[str, tuple[str, ...]]] = {
         ("valid_tdoas", "valid_true_fraction", "tdoa_abs_error_median_us", "tdoa_crb_median_us")),
     "clicks-scenario/clicks_surfaces.png": (
         "intensity surfaces of one window with the localized and the true sources",
-        ("surface_window_s", "sources", "source_error_median_m")),
+        ("surface_window_s", "sources", "sources_flagged", "source_error_median_m")),
     "clicks-scenario/clicks_sources.png": (
-        "localized sources against the true positions", ("sources", "source_error_median_m")),
+        "localized sources against the true positions", ("sources", "sources_flagged",
+                                                          "source_error_median_m")),
     "clicks-scenario/clicks_tracks.png": (
-        "whale tracks in plan view and depth", ("tracks", "sources", "source_error_median_m")),
+        "whale tracks in plan view and depth",
+        ("tracks", "sources", "sources_flagged", "source_error_median_m")),
     "tma/tma.png": (
         "plan view: own-ship, true target and the TMA estimate with 2-sigma ellipses",
         ("final_range_error_pct", "final_position_error_m", "nees_4dof", "observable")),

@@ -53,8 +53,8 @@ from fusion.geometry import SensorArray
 from fusion.pipelines.click_stream import stream_start, window_starts_count
 from fusion.pipelines.localization import ClickLocalization, LocalizedWindow, result_document
 
-__all__ = ["AudioSource", "ChunkTask", "DocumentSummary", "localize_chunk", "open_audio",
-           "plan_chunks", "write_document"]
+__all__ = ["FEW_TDOAS", "AudioSource", "ChunkTask", "DocumentSummary", "localize_chunk",
+           "open_audio", "plan_chunks", "source_flags", "write_document"]
 
 logger = logging.getLogger(__name__)
 
@@ -267,11 +267,40 @@ def localize_chunk(shared: tuple[ClickLocalization, SensorArray], task: ChunkTas
 
 @dataclass(frozen=True)
 class DocumentSummary:
-    """What :func:`write_document` wrote: windows, valid TDOAs and sources in all."""
+    """What :func:`write_document` wrote: windows, valid TDOAs and sources in all.
+
+    Of the sources, `n_unobservable` are flagged unobservable, `n_mirror` mirror-ambiguous and
+    `n_few_tdoas` rest on :data:`FEW_TDOAS` TDOAs or fewer (no redundancy to check the fix);
+    a source may carry more than one flag, `n_flagged` counts each once.
+    """
 
     n_windows: int
     n_valid_tdoas: int
     n_sources: int
+    n_unobservable: int = 0
+    n_mirror: int = 0
+    n_few_tdoas: int = 0
+    n_flagged: int = 0
+
+    def line(self) -> str:
+        """The one-line summary ``fusion localize`` prints."""
+        flags = [f"{n} {what}" for n, what in ((self.n_unobservable, "unobservable"),
+                                               (self.n_mirror, "mirror-ambiguous"),
+                                               (self.n_few_tdoas, f"on <= {FEW_TDOAS} TDOAs"))
+                 if n]
+        flagged = f" ({self.n_flagged} flagged: {', '.join(flags)})" if self.n_flagged else ""
+        return (f"{self.n_windows} windows, {self.n_valid_tdoas} valid TDOAs, "
+                f"{self.n_sources} sources{flagged}")
+
+
+#: A source fixed by this many TDOAs or fewer has no redundancy (three fix a point in 3-D).
+FEW_TDOAS = 3
+
+
+def source_flags(src: dict) -> tuple[bool, bool, bool]:
+    """``(unobservable, mirror-ambiguous, few TDOAs)`` of a written source entry."""
+    return (not src.get("observable", True), bool(src.get("mirror_ambiguous", False)),
+            int(src["tdoas_used"]) <= FEW_TDOAS)
 
 
 def write_document(path: str | Path, parts: Iterable[str]) -> DocumentSummary:
@@ -294,6 +323,7 @@ def write_document(path: str | Path, parts: Iterable[str]) -> DocumentSummary:
         Counts of what was written.
     """
     n = n_valid = n_src = 0
+    flag_counts = np.zeros(4, dtype=int)  # unobservable, mirror, few TDOAs, any
     sources_of: list[tuple[float, list[dict]]] = []  # per window: centre, sources (small)
     with atomic_output(path) as tmp, open(tmp, "w", encoding="utf-8") as f:
         f.write('{\n "windows": [')
@@ -304,11 +334,14 @@ def write_document(path: str | Path, parts: Iterable[str]) -> DocumentSummary:
                 n += 1
                 n_valid += sum(1 for d in w["tdoas"] if d["valid"])
                 n_src += len(w["sources"])
+                for src in w["sources"]:
+                    flags = source_flags(src)
+                    flag_counts += np.array([*flags, any(flags)], dtype=int)
                 sources_of.append((0.5 * (w["t_start"] + w["t_end"]), w["sources"]))
         tracks = [t.to_dict() for t in track_document_sources(sources_of)]
         body = json.dumps(tracks, indent=1, allow_nan=False).replace("\n", "\n ")
         f.write(("\n ]" if n else "]") + ',\n "tracks": ' + body + "\n}\n")
-    return DocumentSummary(n, n_valid, n_src)
+    return DocumentSummary(n, n_valid, n_src, *(int(v) for v in flag_counts))
 
 
 def track_document_sources(windows: Sequence[tuple[float, Sequence[dict]]]) -> tuple:

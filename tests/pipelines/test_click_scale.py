@@ -261,3 +261,24 @@ def test_audio_blocks_on_a_grid_from_any_start(recording):
     got = list(src.blocks(block=96000, start=start))
     assert [t for t, _ in got][:2] == [start / src.fs, (start + 96000) / src.fs]
     np.testing.assert_array_equal(np.concatenate([x for _, x in got]), whole[start:])
+
+
+def test_document_summary_counts_flagged_sources_apart(tmp_path):
+    """write_document counts sources flagged unobservable, mirror-ambiguous or on <= 3 TDOAs."""
+    import json
+
+    from fusion.pipelines.click_chunks import write_document
+
+    def src(used, observable=True, mirror=False):
+        return {"x": 0.0, "y": 0.0, "z": -900.0, "cov": np.eye(3).tolist(), "tdoas_used": used,
+                "observable": observable, "mirror_ambiguous": mirror}
+
+    w1 = {"t_start": 0.0, "t_end": 12.0, "tdoas": [{"valid": True}, {"valid": False}],
+          "sources": [src(7), src(3), src(6, observable=False)]}
+    w2 = {"t_start": 2.0, "t_end": 14.0, "tdoas": [{"valid": True}],
+          "sources": [src(3, mirror=True), src(9)]}
+    s = write_document(tmp_path / "r.json", [json.dumps([w1]), json.dumps([w2])])
+    assert (s.n_windows, s.n_valid_tdoas, s.n_sources) == (2, 2, 5)
+    assert (s.n_unobservable, s.n_mirror, s.n_few_tdoas, s.n_flagged) == (1, 1, 2, 3)
+    assert s.line() == ("2 windows, 2 valid TDOAs, 5 sources (3 flagged: 1 unobservable, "
+                        "1 mirror-ambiguous, 2 on <= 3 TDOAs)")
