@@ -8,8 +8,10 @@ position for a window is its position at the emission whose arrivals are centred
 (window centre minus the mean travel time).
 
 Seeds: tuning 0-99 was used while building, seeds 0-4 (three whales) and 0-9 (one whale) for
-reading the TDOAs along surface-reflected paths and its settings (``whale_localizer``); report
-seeds 7000-7009, each configuration run once on them.
+reading the TDOAs along surface-reflected paths and its settings (``whale_localizer``); seeds
+7000-7009 were the report seeds, but they were run three times across the surface-path design
+change (commits 94aaf9a, 44ca8ef, 22c5c48), so they are retired as report seeds (see
+``benchmarks/RESULTS.md``); new reports draw new seeds.
 
 The localizer is that of ``fusion localize``'s defaults
 (:class:`fusion.pipelines.localization.LocalizerSettings`, i.e.
