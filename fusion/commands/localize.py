@@ -33,10 +33,12 @@ A folder of recordings: ``--audio DIR --out OUTDIR`` localizes every multichanne
 the chunks of all the files form one run (on Dask, the files are processed side by side), with
 its parts in ``OUTDIR/localize.parts/`` (keyed by every file of the folder).
 
-Sources (:class:`fusion.pipelines.localization.LocalizerSettings`): every TDOA is read along
-direct and surface-reflected paths (the sea surface at z = 0, z up as in the file formats) when
-every sensor is below the surface, else along direct paths with one logged line
-(``--surface-paths`` / ``--direct-only`` decide instead); ``--sea-floor-z`` bounds the search
+Sources (:class:`fusion.pipelines.localization.LocalizerSettings`): each window is solved
+along direct paths; when every sensor is below the sea surface (z = 0, z up as in the file
+formats) and the direct sources leave more than a fifth of the window's valid TDOAs unexplained,
+it is solved again reading every TDOA along direct and surface-reflected paths, and that
+solution is kept if it explains more (``--surface-paths`` / ``--direct-only`` decide for every
+window instead); ``--sea-floor-z`` bounds the search
 below, ``--candidates`` and ``--min-source-tdoas`` set the candidates per window and the weight
 a source needs (by default those of the path reading).
 
@@ -68,9 +70,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                "serially in this process by default, on Dask with --workers or --scheduler (the "
                "output is the same byte for byte). Finished chunks are kept in OUT.parts/ "
                "beside the output; after an interruption, run the same command again to resume. "
-               "The folder is removed when the output is written. TDOAs are read along "
-               "surface-reflected paths too when every sensor is below the sea surface z = 0 "
-               "(z up), else along direct paths (logged).",
+               "The folder is removed when the output is written. Each window is solved "
+               "along direct paths, and along surface-reflected paths too (sensors below the "
+               "sea surface z = 0, z up) where the direct sources leave its TDOAs "
+               "unexplained.",
     )
     p.add_argument("--audio", type=Path, nargs="+", required=True, action=_AudioPaths,
                    help="one multichannel WAV/FLAC, or one mono file per sensor in array order, "
@@ -104,19 +107,20 @@ def register(sub: argparse._SubParsersAction) -> None:
     paths = p.add_mutually_exclusive_group()
     paths.add_argument("--surface-paths", dest="surface_paths", action="store_const", const=True,
                        default=None,
-                       help="read every TDOA along direct and surface-reflected paths (the sea "
-                            "surface at z = 0, z up); default when every sensor is below z = 0")
+                       help="read every TDOA of every window along direct and "
+                            "surface-reflected paths (the sea surface at z = 0, z up); default: "
+                            "decided per window from the data")
     paths.add_argument("--direct-only", dest="surface_paths", action="store_const", const=False,
-                       help="read TDOAs along direct paths only; default (with one logged line) "
-                            "when a sensor is not below z = 0")
+                       help="read TDOAs along direct paths only (always so, with one logged "
+                            "line, when a sensor is not below z = 0)")
     p.add_argument("--sea-floor-z", type=number(float), default=None, metavar="Z",
                    help="height of the sea floor, m (z up, e.g. -1700; at or below every sensor): "
                         "sources are searched between it and the surface (default: unknown)")
     p.add_argument("--candidates", type=number(int, ge=1), default=None, metavar="N",
-                   help="candidates per window (default 16 with surface paths, 8 direct only)")
+                   help="candidates per window (default 16 reading surface paths, 8 direct)")
     p.add_argument("--min-source-tdoas", type=number(float, gt=0), default=None, metavar="W",
-                   help="smallest total TDOA weight of a source (default 5.5 with surface "
-                        "paths, 3.5 direct only)")
+                   help="smallest total TDOA weight of a source (default 5.5 reading surface "
+                        "paths, 3.5 direct)")
     p.add_argument("--events", type=Path, default=None,
                    help="CSV t_start,t_end[,f_low,f_high] of events found by another detector: "
                         "localize each event from band-passed waveform cross-correlation "
@@ -236,9 +240,11 @@ def run(args: argparse.Namespace) -> int:
         detector=ClickDetector(**det_opts),
         correlator=ClickMapCorrelator(config=ScmConfig(window_s=args.window)),
         validator=validator, refiner=not args.no_refine, hop_s=args.hop)
-    # resolved once for the array (surface paths or direct, logged when it falls back)
-    localizer = (None if args.method == "none"
-                 else settings_from_args(args).localizer(array.positions))
+    # checked (and the direct-path fallback logged) once for the array; the pipeline resolves
+    # the localizers, with the surface-path reading decided per window from the data
+    localizer = None if args.method == "none" else settings_from_args(args)
+    if localizer is not None:
+        localizer.localizers(array.positions)
     pipe = ClickLocalization(front_end=front, localizer=localizer)
     plans = [plan_chunks(source, pipe, chunk_s=args.chunk) for source, _ in recordings]
     tasks = [t for plan in plans for t in plan]

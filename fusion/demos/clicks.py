@@ -70,14 +70,15 @@ def _draw_surfaces(plt, path: Path, done, pipe, array, sc) -> float | None:
     if best is None:
         return None
     tdoas = _window_tdoas(best, pipe, array)
-    surface_z = pipe.localizer.surface_z
+    localizer = pipe.localizer_for(array)  # the direct-path reading every window starts with
+    surface_z = localizer.surface_z
     groups = None
     if surface_z is not None:  # as the localizer reads them: direct and surface-reflected paths
         paths = surface_paths(tdoas, surface_z)
         tdoas, groups = paths.tdoas, paths.measured
     srcs = np.array([s.position for s in best.output.sources])
     z = float(srcs[0, 2])
-    region = pipe.localizer.region
+    region = localizer.region
     grid = SearchRegion(extent_factor=region.extent_factor, water_column=region.water_column,
                         max_points=220 * 220).plane(array.positions, z)
     truth = _truth_at(sc, 0.5 * (best.window.t_start + best.window.t_end))
@@ -182,9 +183,9 @@ def run_demo(out_dir: Path, *, seed: int) -> dict[str, Any]:
     from fusion.pipelines.click_training import label_windows, scenario_labels
     from fusion.pipelines.localization import (
         ClickLocalization,
+        LocalizerSettings,
         result_document,
         track_windows,
-        whale_localizer,
     )
     from fusion.simulate.clicks import simulate_clicks, write_click_scenario
 
@@ -194,9 +195,10 @@ def run_demo(out_dir: Path, *, seed: int) -> dict[str, Any]:
     array = read_array(out / "scenario" / "array.json")
     audio, fs = read_audio(out / "scenario" / "audio.flac", n_channels=array.n_sensors)
 
-    # bottom-mounted hydrophones: the sea floor at the deepest one, the surface at z = 0
+    # bottom-mounted hydrophones: the sea floor at the deepest one, the surface at z = 0;
+    # otherwise fusion localize's defaults (paths decided per window from the data)
     bottom = float(array.positions[:, 2].min())
-    pipe = ClickLocalization(localizer=whale_localizer(bottom_z=bottom))
+    pipe = ClickLocalization(localizer=LocalizerSettings(sea_floor_z=bottom))
     step = int(round(pipe.front_end.hop_s * fs))
     blocks = ((a / fs, audio[a:a + step]) for a in range(0, audio.shape[0], step))
     done = list(pipe.iter_windows(blocks, fs=fs, sensors=array, duration_s=audio.shape[0] / fs))

@@ -29,8 +29,9 @@ from fusion.clicks.tracks import SourceTracker, Track, WindowSources
 from fusion.geometry import SensorArray
 from fusion.pipelines.clicks import ClickFrontEnd, ClickWindow
 
-__all__ = ["ClickLocalization", "LocalizedWindow", "LocalizerSettings", "result_document",
-           "settings_from_args", "track_windows", "whale_localizer"]
+__all__ = ["AUTO_EXPLAINED", "ClickLocalization", "LocalizedWindow", "LocalizerSettings",
+           "explained_fraction", "result_document", "settings_from_args", "track_windows",
+           "whale_localizer"]
 
 logger = logging.getLogger(__name__)
 
@@ -60,6 +61,10 @@ WHALE_MIN_TDOAS = 5.5
 
 #: Height of the sea surface in the project's convention (z up, formats section 2), m.
 SEA_SURFACE_Z = 0.0
+
+#: With the paths decided from the data, a window whose direct-path sources explain (own with
+#: weight > 1/2) at least this fraction of its valid TDOAs is not read along surface paths.
+AUTO_EXPLAINED = 0.8
 
 
 def whale_localizer(
@@ -119,9 +124,12 @@ class LocalizerSettings:
         One of :data:`fusion.clicks.localize.METHODS` (default ``"competition"``).
     surface_paths : bool or None
         Read every TDOA along direct and surface-reflected paths, the surface at z = 0
-        (True), along direct paths only (False), or decide from the array (None, default):
-        surface paths when every sensor is below the surface (z < 0, z up as in the file
-        formats), else direct paths with one logged line.
+        (True), along direct paths only (False), or decide from the data (None, default):
+        when every sensor is below the surface (z < 0, z up as in the file formats), each
+        window is solved along direct paths first and read along surface paths too only when
+        the direct sources leave more than ``1 - AUTO_EXPLAINED`` of its valid TDOAs
+        unexplained and the surface reading explains more of them
+        (:meth:`ClickLocalization.localize`); else direct paths with one logged line.
     sea_floor_z : float or None
         Height of the sea floor, m (z up; at or below every sensor); the search then stays in
         the water column between it and the surface. Default None: unknown.
@@ -172,8 +180,26 @@ class LocalizerSettings:
                            "TDOAs read along direct paths only", z.max())
         return below if self.surface_paths is None else bool(self.surface_paths)
 
+    def localizers(self, sensors: ArrayLike
+                   ) -> tuple[MultiSourceLocalizer, MultiSourceLocalizer | None]:
+        """The localizer for an array of sensors (n, 3), m, and the surface-path fallback.
+
+        The fallback is None unless the paths are decided from the data (``surface_paths``
+        None) for sensors all below the surface: then the first is the direct-path localizer
+        and the second the surface-path one (:meth:`ClickLocalization.localize`).
+        """
+        below = bool(np.all(np.asarray(sensors, dtype=float)[:, 2] < SEA_SURFACE_Z))
+        if self.surface_paths is None and below:
+            return (dataclasses.replace(self, surface_paths=False).localizer(sensors),
+                    dataclasses.replace(self, surface_paths=True).localizer(sensors))
+        return self.localizer(sensors), None
+
     def localizer(self, sensors: ArrayLike) -> MultiSourceLocalizer:
-        """The localizer of these settings for an array of sensors (n, 3), m."""
+        """The localizer of these settings for an array of sensors (n, 3), m.
+
+        With the paths decided from the data (``surface_paths`` None), the surface-path
+        localizer of sensors below the surface (see :meth:`localizers` for the pair used).
+        """
         if self.reads_surface_paths(sensors):
             return whale_localizer(
                 self.method, surface_z=SEA_SURFACE_Z, bottom_z=self.sea_floor_z,
@@ -212,9 +238,10 @@ class ClickLocalization:
         Default: the method's parameters and the shipped validator.
     localizer : MultiSourceLocalizer, LocalizerSettings or None, optional
         Default ``LocalizerSettings()``, as ``fusion localize`` runs it: candidates competing
-        for the TDOAs (eq. 19-22), read along direct and surface-reflected paths when every
-        sensor is below the surface z = 0, else along direct paths. Settings are turned into a
-        localizer for each array met (:meth:`LocalizerSettings.localizer`). ``None`` skips
+        for the TDOAs (eq. 19-22), read along direct paths and, when every sensor is below the
+        surface z = 0, along surface-reflected paths too in the windows whose direct sources
+        leave TDOAs unexplained (see :meth:`localize`). Settings are turned into localizers
+        for each array met (:meth:`LocalizerSettings.localizers`). ``None`` skips
         localization (TDOAs only).
     min_tdoas : int, optional
         Fewest valid TDOAs a window needs to be localized (default 3, a 3-D fix).
@@ -236,18 +263,26 @@ class ClickLocalization:
             localizer = LocalizerSettings()
         self.settings = localizer if isinstance(localizer, LocalizerSettings) else None
         self.localizer = None if self.settings is not None else (localizer or None)
-        self._resolved: tuple[bytes, MultiSourceLocalizer] | None = None
+        self._resolved: tuple[bytes, tuple] | None = None
         self.min_tdoas = int(min_tdoas)
         self.sigma_floor_s = float(sigma_floor_s)
 
-    def localizer_for(self, sensors: SensorArray) -> MultiSourceLocalizer | None:
-        """The localizer used for this array (settings resolved once per array)."""
+    def localizers_for(self, sensors: SensorArray
+                       ) -> tuple[MultiSourceLocalizer | None, MultiSourceLocalizer | None]:
+        """The localizer used for this array and its surface-path fallback (or None).
+
+        Settings are resolved once per array (:meth:`LocalizerSettings.localizers`).
+        """
         if self.settings is None:
-            return self.localizer
+            return self.localizer, None
         key = np.asarray(sensors.positions, dtype=float).tobytes()
         if self._resolved is None or self._resolved[0] != key:
-            self._resolved = (key, self.settings.localizer(sensors.positions))
+            self._resolved = (key, self.settings.localizers(sensors.positions))
         return self._resolved[1]
+
+    def localizer_for(self, sensors: SensorArray) -> MultiSourceLocalizer | None:
+        """The localizer used first for this array (settings resolved once per array)."""
+        return self.localizers_for(sensors)[0]
 
     def localize(self, window: ClickWindow, sensors: SensorArray) -> LocalizedWindow:
         """Localize the sources of one front-end window from its valid TDOAs.
@@ -264,11 +299,27 @@ class ClickLocalization:
         reads the TDOA on) and the window is solved again with the measured sigmas (plus the
         floor). With surface-reflected paths (the localizer's ``surface_z``) pass (2) runs
         twice: the paths found by the first retimed solve retime the echoes.
+
+        Paths decided from the data (settings with ``surface_paths`` None, sensors below the
+        surface): the window is solved along direct paths; when its sources explain less
+        than :data:`AUTO_EXPLAINED` of the valid TDOAs (a TDOA is explained when one source
+        owns it with weight > 1/2) it is solved again reading surface-reflected paths too,
+        and that solution is kept if it explains more of them.
         """
         idx = np.array([k for k, d in enumerate(window.tdoas) if d.valid], dtype=int)
-        localizer = self.localizer_for(sensors)
+        localizer, fallback = self.localizers_for(sensors)
         if localizer is None or idx.size < self.min_tdoas:
             return LocalizedWindow(window, idx, None)
+        out = self._solve(localizer, window, idx, sensors)
+        if fallback is not None and explained_fraction(out) < AUTO_EXPLAINED:
+            other = self._solve(fallback, window, idx, sensors)
+            if explained_fraction(other) > explained_fraction(out):
+                out = other
+        return LocalizedWindow(window, idx, out)
+
+    def _solve(self, localizer: MultiSourceLocalizer, window: ClickWindow, idx: np.ndarray,
+               sensors: SensorArray) -> LocalizationOutput | None:
+        """The window's valid TDOAs (indices `idx`) solved by one localizer (the passes above)."""
         d = [window.tdoas[k] for k in idx]
         pos = sensors.positions
         c = sensors.sound_speed
@@ -294,7 +345,7 @@ class ClickLocalization:
         except ValueError as e:  # e.g. too few independent pairs: no fix in this window
             logger.info("window %.1f s: not localized (%s)", window.t_start, e)
             out = None
-        return LocalizedWindow(window, idx, out)
+        return out
 
     def iter_windows(
         self, blocks: Iterable, *, fs: float, sensors: SensorArray, duration_s: float | None = None
@@ -303,6 +354,14 @@ class ClickLocalization:
         for w in self.front_end.iter_windows(blocks, fs=fs, sensors=sensors,
                                              duration_s=duration_s):
             yield self.localize(w, sensors)
+
+
+def explained_fraction(out: LocalizationOutput | None) -> float:
+    """Fraction of a solution's TDOAs owned by one of its sources with weight > 1/2."""
+    if out is None or not out.sources:
+        return 0.0
+    w = np.stack([s.weights for s in out.sources])
+    return float(np.mean(w.max(axis=0) > 0.5)) if w.size else 0.0
 
 
 def _retime(out: LocalizationOutput, taus: np.ndarray, rate: np.ndarray, pairs: np.ndarray,

@@ -79,21 +79,76 @@ def _same(a, b) -> bool:
             and a.competition == b.competition)
 
 
-def test_settings_default_reads_surface_paths_below_the_surface(caplog):
-    """Default settings: sensors below z = 0 get whale_localizer, no log line."""
-    loc = LocalizerSettings().localizer(_BELOW)
-    assert _same(loc, whale_localizer()) and loc.surface_z == 0.0
-    assert loc.finder.max_candidates == 16 and loc.min_tdoas == 5.5
-    floor = LocalizerSettings(sea_floor_z=-1700.0).localizer(_BELOW)
-    assert _same(floor, whale_localizer(bottom_z=-1700.0))
+def test_settings_default_decides_the_paths_below_the_surface(caplog):
+    """Default settings, sensors below z = 0: direct paths first, whale_localizer as the
+    surface-path fallback; no log line."""
+    first, fallback = LocalizerSettings().localizers(_BELOW)
+    assert _same(first, whale_localizer(surface_z=None)) and first.surface_z is None
+    assert _same(fallback, whale_localizer()) and fallback.surface_z == 0.0
+    assert fallback.finder.max_candidates == 16 and fallback.min_tdoas == 5.5
+    first, fallback = LocalizerSettings(sea_floor_z=-1700.0).localizers(_BELOW)
+    assert _same(first, whale_localizer(surface_z=None, bottom_z=-1700.0))
+    assert _same(fallback, whale_localizer(bottom_z=-1700.0))
+    for forced in (True, False):  # --surface-paths / --direct-only: no fallback
+        assert LocalizerSettings(surface_paths=forced).localizers(_BELOW)[1] is None
     assert not [r for r in caplog.records if r.levelname == "WARNING"]
+
+
+_FIVE = np.vstack([_BELOW, [[700.0, 800.0, -1680.0]]])
+
+
+def _synthetic_window(source, with_echoes: bool):
+    """A front-end window of exact valid TDOAs of one source on `_FIVE`: the direct-path delays
+    of every pair, plus (with echoes) those between its surface echoes (image at -z)."""
+    from fusion.pipelines.clicks import ClickWindow, WindowTdoa
+
+    c = 1500.0
+    pairs = [(i, j) for i in range(5) for j in range(i + 1, 5)]
+    points = [source] + ([source * [1.0, 1.0, -1.0]] if with_echoes else [])
+    tdoas = []
+    for p in points:
+        r = np.linalg.norm(_FIVE - p, axis=1) / c
+        for i, j in pairs:
+            tdoas.append(WindowTdoa(
+                pair=(i, j), tau_s=r[i] - r[j], tau_coarse_s=r[i] - r[j], sigma_s=2e-6,
+                crb_s=2e-6, snr_db=20.0, rate=0.0, scm_peak=20.0, n_clicks=20,
+                features=np.zeros(4), llr=10.0, passes=True, confirmed=True))
+    # cross-pair association of TDOAs sharing one sensor, at the size of 20 matched clicks
+    shares = 20.0 * np.array([[len({*a.pair} & {*b.pair}) == 1 for b in tdoas] for a in tdoas])
+    return ClickWindow(0.0, 12.0, (), tuple(tdoas), shares)
+
+
+def test_surface_paths_are_read_only_where_direct_sources_leave_tdoas_unexplained():
+    """Direct delays alone: the default solves along direct paths only (same as --direct-only).
+    Echo delays too: direct sources explain half, the surface reading all of them -> kept."""
+    from fusion.geometry import SensorArray
+    from fusion.pipelines.localization import explained_fraction
+
+    sensors = SensorArray(_FIVE, 1500.0)
+    source = np.array([300.0, 500.0, -900.0])
+    auto = ClickLocalization(localizer=LocalizerSettings(sea_floor_z=-1700.0))
+    direct = ClickLocalization(localizer=LocalizerSettings(surface_paths=False,
+                                                           sea_floor_z=-1700.0))
+    clean = _synthetic_window(source, with_echoes=False)
+    a, d = auto.localize(clean, sensors), direct.localize(clean, sensors)
+    assert explained_fraction(d.output) == 1.0
+    assert [f.position.tolist() for f in a.output.sources] == [
+        f.position.tolist() for f in d.output.sources]
+    assert np.linalg.norm(a.output.sources[0].position - source) < 1.0
+
+    echoes = _synthetic_window(source, with_echoes=True)
+    a, d = auto.localize(echoes, sensors), direct.localize(echoes, sensors)
+    assert explained_fraction(d.output) <= 0.6
+    assert explained_fraction(a.output) > 0.9
+    assert min(np.linalg.norm(f.position - source) for f in a.output.sources) < 1.0
 
 
 def test_settings_fall_back_to_direct_paths_with_one_line(caplog):
     """A sensor not below z = 0 (a tank array): direct paths, the localizer's own defaults,
     one logged line; surface paths or a sea floor asked for there are refused."""
-    loc = LocalizerSettings().localizer(_TANK)
+    loc, fallback = LocalizerSettings().localizers(_TANK)
     assert loc.surface_z is None and loc.finder.max_candidates == 8 and loc.min_tdoas == 3.5
+    assert fallback is None
     assert len([r for r in caplog.records if "direct paths only" in r.message]) == 1
     with pytest.raises(ValueError, match="below the sea surface"):
         LocalizerSettings(surface_paths=True).localizer(_TANK)
