@@ -67,7 +67,7 @@ from fusion.clicks._click_peaks import local_maxima, not_ringing
 from fusion.clicks._detect_statistic import all_finite, centre_frequency, chunked_statistic
 from fusion.clicks._frames import gather_frames, interp_nodes, segment_medians
 from fusion.clicks._kernels import DetectorKernels
-from fusion.clicks.replica import Replica, load_replica
+from fusion.clicks.replica import Replica, ReplicaEstimate, estimate_replica, load_replica
 from fusion.clicks.types import ChannelClicks
 
 __all__ = ["ClickDetector", "DEFAULT_THRESHOLD"]
@@ -249,6 +249,52 @@ class ClickDetector:
             band.
         """
         return self._run(samples, fs, t0=t0, timings=None, span_s=span_s)
+
+    def with_recording_replica(
+        self, samples: ArrayLike, fs: float, *, max_clicks: int = 300, min_clicks: int = 20,
+    ) -> tuple[ClickDetector, ReplicaEstimate | None]:
+        """This detector with its replica estimated from a recording (step 32).
+
+        The clicks this detector finds in `samples` are ranked by band power; the strongest
+        `max_clicks` of all channels are aligned on their correlation with the current replica
+        and averaged, repeatedly (:func:`fusion.clicks.replica.estimate_replica`, starting from
+        this detector's replica), for at most six passes or until a pass changes it by
+        less than 0.03 (unit-energy replicas).
+
+        Parameters
+        ----------
+        samples : array_like, shape (n,) or (n, n_channels)
+            Audio, e.g. the first minute of a recording.
+        fs : float
+            Sample rate, Hz.
+        max_clicks, min_clicks : int, optional
+            Strongest clicks averaged; fewest clicks worth an estimate.
+
+        Returns
+        -------
+        detector : ClickDetector
+            A new detector with the estimated replica (this one when there were too few clicks
+            or the estimate did not converge).
+        estimate : ReplicaEstimate or None
+            The estimate (None when fewer than `min_clicks` clicks were found).
+        """
+        x = np.asarray(samples, dtype=float)
+        clicks = self.detect(x, fs)
+        power = np.concatenate([c.power for c in clicks])
+        if power.size < min_clicks:
+            return self, None
+        channel = np.concatenate([np.full(c.times_s.size, k) for k, c in enumerate(clicks)])
+        times = np.concatenate([c.times_s for c in clicks])
+        top = np.argsort(-power, kind="stable")[:max_clicks]
+        per_channel = [np.sort(times[top][channel[top] == k]) for k in range(len(clicks))]
+        est = estimate_replica(x, fs, per_channel if x.ndim == 2 else per_channel[0],
+                               initial=self.replica, n_iter=6, tol=0.03)
+        if not est.converged:
+            return self, est
+        new = ClickDetector.__new__(ClickDetector)
+        new.__dict__.update(self.__dict__)
+        new.replica, new._kernels = est.replica, {}
+        return new, est
 
     def detect_blocks(
         self, blocks: Iterable[tuple], fs: float

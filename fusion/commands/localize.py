@@ -94,8 +94,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "detector's)")
     p.add_argument("--validator", type=Path, default=None,
                    help="validator model .npz (default: the one shipped; see train-validator)")
-    p.add_argument("--replica", type=Path, default=None,
-                   help="replica .npz (default: the generic replica shipped)")
+    p.add_argument("--replica", default=None, metavar="NPZ|generic",
+                   help="click replica: a .npz file, or 'generic' for the one shipped (default: "
+                        f"estimated from the strongest clicks of the first {REPLICA_SPAN_S:g} s "
+                        "of the recording, starting from the shipped one)")
     p.add_argument("--llr-threshold", type=float, default=None,
                    help="validation threshold on the log-likelihood ratio (default: the model's)")
     p.add_argument("--no-refine", action="store_true",
@@ -142,6 +144,42 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(handler=run, inputs=("audio", "array", "events"))
 
 
+#: Audio read to estimate the replica from the recording (the first seconds of the first file).
+REPLICA_SPAN_S = 60.0
+
+
+def _detector(args: argparse.Namespace, det_opts: dict, source) -> tuple:
+    """The click detector: its replica from ``--replica`` or estimated from the recording.
+
+    Returns the detector, a one-line note of the replica used, and its record for the
+    settings file.
+    """
+    from fusion.clicks.detect import ClickDetector
+    from fusion.clicks.replica import load_replica
+
+    if args.replica not in (None, "generic"):
+        det = ClickDetector(**det_opts, replica=load_replica(Path(args.replica)))
+        return det, f"replica: {args.replica}", {"source": str(args.replica)}
+    det = ClickDetector(**det_opts)
+    if args.replica == "generic":
+        return det, "replica: the generic one shipped", {"source": "generic"}
+    n = min(source.frames, int(round(REPLICA_SPAN_S * source.fs)))
+    _, x = next(source.blocks(block=n))
+    new, est = det.with_recording_replica(x, source.fs)
+    span = f"the first {n / source.fs:.3g} s of {Path(source.paths[0]).name}"
+    if new is det:
+        why = ("fewer than 20 clicks" if est is None else
+               f"the estimate did not settle (change {est.change:.3g} after "
+               f"{est.n_iterations} passes)")
+        return det, f"replica: the generic one shipped ({why} in {span})", {
+            "source": "generic", "reason": why}
+    note = (f"replica: estimated from {est.n_clicks} clicks of {span} ({est.n_iterations} "
+            f"passes, last change {est.change:.2g}; --replica generic to skip)")
+    return new, note, {"source": f"estimated from {span}", "clicks": est.n_clicks,
+                       "passes": est.n_iterations, "change": est.change, "fs": est.replica.fs,
+                       "samples": [float(v) for v in est.replica.samples]}
+
+
 class _AudioPaths(argparse.Action):
     """``--audio``: the paths; one folder makes ``--out`` a folder too."""
 
@@ -183,7 +221,9 @@ def _run_key(args: argparse.Namespace, audio: list) -> str:
         "audio": [file_identity(p) for p in audio],
         "array": file_identity(args.array, content=True),
         "validator": file_identity(args.validator or shipped_validator, content=True),
-        "replica": file_identity(args.replica or GENERIC_PATH, content=True),
+        "replica": (args.replica or "estimated") if args.replica in (None, "generic")
+        else file_identity(args.replica, content=True),
+        "generic_replica": file_identity(GENERIC_PATH, content=True),
         "options": {k: getattr(args, k) for k in (
             "window", "hop", "band", "min_centre_freq", "detect_threshold", "llr_threshold",
             "no_refine", "method", "chunk", "surface_paths", "sea_floor_z", "candidates",
@@ -201,11 +241,9 @@ def run(args: argparse.Namespace) -> int:
 
         return run_events(args)
     from fusion._output import STDOUT
-    from fusion.clicks.detect import ClickDetector
-    from fusion.clicks.replica import load_replica
     from fusion.clicks.scm import ClickMapCorrelator, ScmConfig
     from fusion.clicks.validate import TdoaValidator
-    from fusion.io import read_array
+    from fusion.io import read_array, write_settings
     from fusion.pipelines.click_chunks import (
         ChunkTask,
         localize_chunk,
@@ -230,14 +268,13 @@ def run(args: argparse.Namespace) -> int:
     det_opts = {"band_hz": (lo, hi), "min_centre_freq_hz": args.min_centre_freq}
     if args.detect_threshold is not None:
         det_opts["threshold"] = args.detect_threshold
-    if args.replica is not None:
-        det_opts["replica"] = load_replica(args.replica)
     validator = (TdoaValidator.load(args.validator) if args.validator is not None
                  else default_validator())
     if args.llr_threshold is not None:
         validator = dataclasses.replace(validator, threshold=args.llr_threshold)
+    detector, replica_note, replica_record = _detector(args, det_opts, recordings[0][0])
     front = ClickFrontEnd(
-        detector=ClickDetector(**det_opts),
+        detector=detector,
         correlator=ClickMapCorrelator(config=ScmConfig(window_s=args.window)),
         validator=validator, refiner=not args.no_refine, hop_s=args.hop)
     # checked (and the direct-path fallback logged) once for the array; the pipeline resolves
@@ -279,4 +316,10 @@ def run(args: argparse.Namespace) -> int:
             summary = write_document(out, (store.read(name(t)) for t in plan))
             emit(f"{summary.line()} -> {out}", err=True)
         store.remove()
+        side = (Path(args.out) / "localize" if getattr(args, "out_is_dir", False)
+                else args.out)
+        write_settings(side, {"command": "localize", "replica": replica_record,
+                              "localization": None if localizer is None else localizer.to_dict()},
+                       inputs=[*audio, args.array, args.events, args.validator])
+    emit(replica_note, err=True)
     return 0

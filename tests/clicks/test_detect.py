@@ -249,3 +249,35 @@ def test_constructor_rejects_bad_options(kwargs, match):
     """Each bad option raises ValueError naming it."""
     with pytest.raises(ValueError, match=match):
         ClickDetector(**kwargs)
+
+
+def test_recording_replica_matches_the_clicks_better_than_the_generic_one():
+    """A 20-32 kHz, 380 us click (not the generic 25-45 kHz shape): the replica estimated from
+    the recording's strongest clicks correlates with the true click better than the generic
+    one, and the detector built on it finds more of the direct-path clicks."""
+    from fusion.clicks.replica import load_replica
+    from fusion.simulate.clicks import ClickWaveform, simulate_clicks
+
+    click = ClickWaveform(f_start_hz=20_000.0, f_end_hz=32_000.0, duration_s=380e-6)
+    sc = simulate_clicks(seed=5, n_sensors=3, n_sources=1, duration_s=20.0, snr_db=24.0,
+                         click=click, surface_reflection=0.0)
+    det = ClickDetector()
+    new, est = det.with_recording_replica(sc.audio, sc.fs)
+    assert new is not det and est is not None and est.converged and est.n_clicks >= 20
+
+    def match(r):  # peak normalised cross-correlation with the true click
+        true = click.replica(sc.fs)
+        c = np.correlate(np.pad(r, true.size), true, mode="valid")
+        return float(np.max(np.abs(c)) / np.linalg.norm(r) / np.linalg.norm(true))
+
+    assert match(est.replica.at(sc.fs)) > match(load_replica().at(sc.fs)) + 0.1
+    truth = sc.sources[0].arrival_times
+
+    def found(d):
+        hits = 0
+        for ch, c in enumerate(d.detect(sc.audio, sc.fs)):
+            t = truth[:, ch][(truth[:, ch] > 0.5) & (truth[:, ch] < 19.5)]
+            hits += int(np.sum(np.min(np.abs(c.times_s[:, None] - t[None]), axis=0) < 1e-4))
+        return hits
+
+    assert found(new) > found(det)  # 68 against 63 of 168 arrivals

@@ -116,9 +116,18 @@ def test_serial_run_equals_one_pass(recording, serial_bytes, tmp_path):
             yield start / fs, x
             start += x.shape[0]
 
+    # the command's default replica: estimated from the first 60 s (here all) of the recording
+    from fusion.clicks.detect import ClickDetector
+    from fusion.pipelines.clicks import ClickFrontEnd
+
+    first, _ = sf.read(str(recording / "audio.flac"), frames=int(60 * fs), dtype="float32",
+                       always_2d=True)
+    detector, est = ClickDetector().with_recording_replica(first, fs)
+    assert est is not None and detector is not None
+    pipe = ClickLocalization(front_end=ClickFrontEnd(detector=detector))
     with threadpool_limits(1):  # as the chunk tasks (one BLAS thread, as on a Dask worker)
-        windows = list(ClickLocalization().iter_windows(blocks(), fs=fs, sensors=sensors,
-                                                        duration_s=info.frames / fs))
+        windows = list(pipe.iter_windows(blocks(), fs=fs, sensors=sensors,
+                                         duration_s=info.frames / fs))
     doc = result_document(windows)
     doc["tracks"] = [t.to_dict() for t in track_document_sources(
         [(0.5 * (w["t_start"] + w["t_end"]), w["sources"]) for w in doc["windows"]])]
@@ -161,7 +170,8 @@ def test_folder_of_recordings_on_dask(recording, serial_bytes, cluster, tmp_path
             "--out", str(out), "--chunk", "60", "--quiet", "--scheduler",
             cluster.scheduler.address]
     assert main(argv) == 0
-    assert sorted(p.name for p in out.iterdir()) == ["a.json", "b.json"]
+    assert sorted(p.name for p in out.iterdir()) == ["a.json", "b.json",
+                                                     "localize.settings.json"]
     assert (out / "a.json").read_bytes() == serial_bytes == (out / "b.json").read_bytes()
 
 
