@@ -27,6 +27,8 @@ logger = logging.getLogger(__name__)
 
 #: Peak level the written FLAC file is scaled to (headroom below the 24-bit full scale of 1).
 FILE_PEAK = 0.5
+#: Most channels a FLAC stream holds; more sensors are written as 24-bit WAV (``audio.wav``).
+FLAC_MAX_CHANNELS = 8
 
 
 def truth_document(scenario: ClickScenario, *, audio_scale: float = 1.0,
@@ -155,9 +157,12 @@ def write_click_scenario(out_dir: Path | str, scenario: ClickScenario, *,
 
     Notes
     -----
-    ``tdoa_labels.csv`` (``time,i,j,tau,source``) holds the direct-path TDOA of every click and
-    sensor pair, the labels ``fusion train-validator`` takes: ``time`` is the click's arrival at
-    sensor ``i``, ``tau`` its arrival at ``i`` minus at ``j``, s. FLAC holds 24-bit integers in
+    FLAC holds at most 8 channels: a scenario with 9 or 10 sensors writes ``audio.wav``
+    (24-bit PCM) instead of ``audio.flac``. ``tdoa_labels.csv`` (``time,i,j,tau,source``)
+    holds the direct-path TDOA of every click and sensor pair, the labels
+    ``fusion train-validator`` takes: ``time`` is the click's arrival at sensor ``i``, ``tau``
+    its arrival at ``i`` minus at ``j``, s (true geometry and propagation). FLAC holds 24-bit
+    integers in
     ``[-1, 1)``: the audio is scaled so its largest magnitude is :data:`FILE_PEAK` and the
     factor is stored as ``truth.json["audio_scale"]`` (file sample = ``audio_scale`` x scenario
     value). Every file is written atomically.
@@ -168,7 +173,8 @@ def write_click_scenario(out_dir: Path | str, scenario: ClickScenario, *,
     out.mkdir(parents=True, exist_ok=True)
     peak = float(np.max(np.abs(scenario.audio))) if scenario.audio.size else 0.0
     scale = FILE_PEAK / peak if peak > 0 else 1.0
-    audio_path = write_audio(out / "audio.flac", scenario.audio * np.float32(scale), scenario.fs)
+    name = "audio.flac" if scenario.n_sensors <= FLAC_MAX_CHANNELS else "audio.wav"
+    audio_path = write_audio(out / name, scenario.audio * np.float32(scale), scenario.fs)
     array_path = write_array(out / "array.json", scenario.sensors)
     truth_path = write_json(out / "truth.json", truth_document(scenario, audio_scale=scale,
                                                                      parameters=parameters))
