@@ -28,7 +28,7 @@ def simulate_whales(
     rng2: np.random.Generator | None,
     opts: dict[str, Any],
     n_sources: int,
-    centre: NDArray[np.float64],
+    centre: NDArray[np.float64],  # (2,) or (m, 2)
     radius: float,
     floor: FloorPlane | None,
     propagate: Callable[[NDArray[np.float64]], dict[str, tuple[NDArray, NDArray]]],
@@ -47,7 +47,8 @@ def simulate_whales(
     """Draw, propagate and render the whales (see :func:`~fusion.simulate.clicks.simulate_clicks`
     for the meaning of each option); `rng2` is None for the default scenario.
 
-    Each whale starts within ``0.6 radius`` of `centre` (above the floor when there is one),
+    Each whale starts within ``0.6 radius`` of `centre` (shape (2,)) or of one of the points
+    `centre` (shape (m, 2)) chosen at random with `rng2` (above the floor when there is one),
     moves on an arc, clicks with gamma-distributed intervals; every path of `propagate` is
     rendered whose coefficient in `coef` is not zero.
     """
@@ -58,9 +59,10 @@ def simulate_whales(
     source_level_spread_db = opts["source_level_spread_db"]
     tracks: list[WhaleTrack] = []
     for k in range(n_sources):
+        start = centre if centre.ndim == 1 else centre[int(rng2.integers(centre.shape[0]))]
         rad = 0.6 * radius * np.sqrt(rng.uniform())
         phi = rng.uniform(0.0, 2.0 * np.pi)
-        xy0 = centre + rad * np.array([np.cos(phi), np.sin(phi)])
+        xy0 = start + rad * np.array([np.cos(phi), np.sin(phi)])
         lo, hi = depth_range_m
         if floor is not None:  # keep the whole track above the floor
             margin = 30.0 + 0.2 * duration_s + np.tan(np.radians(floor.slope_deg)) * \

@@ -25,7 +25,6 @@ RANGE_DEFAULTS: dict[str, Any] = {
     "floor_depth_m": 1600.0,
     "floor_slope_deg": 0.0,
     "height_above_floor_m": (1.0, 20.0),
-    "sensor_spacing_m": 2000.0,
     "bottom_reflection_db": (-15.0, -3.0),
     "bottom_reflection_sign": "positive",
     "close_pair_distance_m": (20.0, 100.0),
@@ -265,10 +264,11 @@ def world_geometry(
     """Floor, true and surveyed hydrophone positions and per-sensor reflection coefficients.
 
     With a floor (any of ``echo``, ``floor_*``, ``height_above_floor_m``, ``sensor_spacing_m``
-    given) the hydrophones stand ``height_above_floor_m`` above a plane floor over a
-    :func:`grid_layout` of spacing ``sensor_spacing_m`` (missing options from
-    :data:`RANGE_DEFAULTS`; the slope azimuth uniform when not given); otherwise on the default
-    ring (drawn from `rng` as in the default scenario). Surveyed = true + N(0,
+    given) the hydrophones stand ``height_above_floor_m`` above a plane floor (missing options
+    from :data:`RANGE_DEFAULTS`; the slope azimuth uniform when not given) over a
+    :func:`grid_layout` of spacing ``sensor_spacing_m``, or without a spacing over the default
+    ring's horizontal positions; without a floor they are on the default ring (both rings drawn
+    from `rng` as in the default scenario). Surveyed = true + N(0,
     ``position_error_m``) per axis. Surface coefficients: ``-U(surface_reflection_range)`` per
     sensor, else `surface_reflection`; floor coefficients: ``10^(U(bottom_reflection_db)/20)``
     per sensor, sign positive or (``bottom_reflection_sign="random"``) random.
@@ -284,7 +284,10 @@ def world_geometry(
     dict
         ``floor, sensors_true, surveyed, surface, bottom`` (the last None without a floor),
         ``profile, nominal_sound_speed, echo, coef`` (per path: the coefficients rendered,
-        zero for echoes not rendered), ``centre, radius`` (the whales' start area).
+        zero for echoes not rendered), ``centre, radius`` (array centre and horizontal
+        extent), ``whale_centres, whale_radius`` (where whales start: within ``0.6
+        whale_radius`` of a random one of the centres; with a spacing the centroids of each
+        sensor and its two nearest neighbours, ``0.6 whale_radius`` = half the spacing).
     """
     from fusion.simulate._click_synthesis import _layout
 
@@ -300,7 +303,10 @@ def world_geometry(
         if opts.get("floor_azimuth_deg") is not None:
             azimuth = float(opts["floor_azimuth_deg"])
         floor = FloorPlane(float(opt("floor_depth_m")), float(opt("floor_slope_deg")), azimuth)
-        xy = grid_layout(n_sensors, float(opt("sensor_spacing_m")), rng2)
+        if opts.get("sensor_spacing_m") is None:  # the default ring, as drawn by default
+            xy = _layout(n_sensors, rng, radius_m=array_radius_m)[:, :2]
+        else:
+            xy = grid_layout(n_sensors, float(opts["sensor_spacing_m"]), rng2)
         heights = rng2.uniform(*opt("height_above_floor_m"), n_sensors)
         true = bottom_sensors(xy, floor, heights)
     else:
@@ -339,8 +345,16 @@ def world_geometry(
     if floor is not None:
         coef["bottom"] = bottom * (echo in ("bottom", "both"))
     centre = true[:, :2].mean(axis=0)
-    radius = float(np.linalg.norm(true[:, :2] - centre, axis=1).max()) if floor is not None \
-        else float(array_radius_m)
+    radius, whale_centres, whale_radius = float(array_radius_m), centre, float(array_radius_m)
+    if floor is not None:
+        radius = float(np.linalg.norm(true[:, :2] - centre, axis=1).max())
+    if opts.get("sensor_spacing_m") is not None:  # whales start near a sensor triplet
+        d = np.linalg.norm(true[:, None, :2] - true[None, :, :2], axis=2)
+        near = np.argsort(d, axis=1)[:, :3]  # each sensor and its two nearest neighbours
+        whale_centres = true[near, :2].mean(axis=1)
+        np.fill_diagonal(d, np.inf)
+        whale_radius = float(np.median(d.min(axis=1))) / 1.2
     return {"floor": floor, "sensors_true": true, "surveyed": surveyed, "surface": surface,
             "bottom": bottom, "profile": profile, "nominal_sound_speed": c_nominal,
-            "echo": echo, "coef": coef, "centre": centre, "radius": radius}
+            "echo": echo, "coef": coef, "centre": centre, "radius": radius,
+            "whale_centres": whale_centres, "whale_radius": whale_radius}

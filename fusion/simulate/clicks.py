@@ -166,10 +166,12 @@ def simulate_clicks(
     n_sensors : int, optional
         Hydrophones, 3 to 10. By default they lie on a jittered ring of radius
         `array_radius_m` (with one near the centre when ``n_sensors >= 5``) at depths
-        1500–1700 m (z negative); with a floor (range options) on a grid above it.
+        1500–1700 m (z negative); with a floor (range options) above it.
     n_sources : int, optional
-        Whales, 1 to 5. Each starts within 0.6 times the array radius of the array centre at a
-        depth drawn from `depth_range_m` (above the floor when there is one), moves at a speed
+        Whales, 1 to 5. Each starts within 0.6 times the array radius of the array centre (with
+        a `sensor_spacing_m`: within half the spacing of the centroid of a random hydrophone
+        and its two nearest neighbours, where three can hear it) at a depth drawn from `depth_range_m`
+        (above the floor when there is one), moves at a speed
         drawn from `speed_range_mps` on an arc turning at most `max_turn_rate_deg_s`, and
         drifts vertically by at most 0.2 m/s.
     duration_s : float, optional
@@ -216,7 +218,8 @@ def simulate_clicks(
     height_above_floor_m : (float, float), optional
         Range of the hydrophone heights above the floor, drawn per sensor (default 1-20 m).
     sensor_spacing_m : float, optional
-        Median nearest-neighbour distance of the hydrophone grid (default 2000 m).
+        Median nearest-neighbour distance of a jittered triangular hydrophone grid (default:
+        no grid, the horizontal positions of the default ring).
     sound_speed_profile : SoundSpeedProfile or dict, optional
         Depth-dependent sound speed (``{"kind": ..., **params}``, see
         :class:`~fusion.simulate._click_propagation.SoundSpeedProfile`); travel times integrate
@@ -305,7 +308,7 @@ def simulate_clicks(
         pos_s, floor, profile, coef = (world[k] for k in ("sensors_true", "floor", "profile",
                                                           "coef"))
         sensors = SensorArray(world["surveyed"], world["nominal_sound_speed"])
-        centre, radius = world["centre"], world["radius"]
+        centre, radius = world["whale_centres"], world["whale_radius"]
     else:
         sensors = SensorArray(_layout(n_sensors, rng, radius_m=array_radius_m), c)
         pos_s, floor, profile = sensors.positions, None, None
@@ -339,7 +342,7 @@ def simulate_clicks(
             opts={k: RANGE_DEFAULTS[k] if opts[k] is None else opts[k]
                   for k in ("interferer_ici_s", "interferer_duration_s", "interferer_level_db",
                             "interferer_freq_hz")},
-            sensors=pos_s, radius_m=radius, floor=floor, propagate=propagate, loss=loss,
+            sensors=pos_s, radius_m=world["radius"], floor=floor, propagate=propagate, loss=loss,
             coefficients=coef, duration_s=duration_s, fs=fs,
         )
         range_world = RangeWorld(
