@@ -1,4 +1,9 @@
-"""``fusion simulate KIND --seed S --out DIR``: write a seeded scenario and its ground truth."""
+"""``fusion simulate KIND --seed S --out DIR``: write a seeded scenario and its ground truth.
+
+Kind ``clicks`` takes more options: ``--duration-s``, ``--whales``, ``--sensors``, ``--snr-db``
+and ``--echo`` (see :func:`fusion.simulate.clicks.write_scenario`); given for another kind they
+are an error. Options given override the ones ``--vary`` draws.
+"""
 
 from __future__ import annotations
 
@@ -8,6 +13,15 @@ from pathlib import Path
 
 from fusion.cli import emit, number
 from fusion.simulate import SIMULATORS, get_writer
+
+#: Options of ``fusion simulate clicks`` only: dest -> (option as written, keyword of the writer).
+CLICK_OPTIONS = {
+    "duration_s": ("--duration-s", "duration_s"),
+    "whales": ("--whales", "n_sources"),
+    "sensors": ("--sensors", "n_sensors"),
+    "snr_db": ("--snr-db", "snr_db"),
+    "echo": ("--echo", "echo"),
+}
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -22,6 +36,21 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", type=Path, required=True, help="output folder")
     p.add_argument("--vary", action="store_true",
                    help="draw the physical assumptions from the simulator's documented ranges")
+    g = p.add_argument_group("clicks only", "options of `fusion simulate clicks`; they override "
+                             "the default (or, with --vary, drawn) values")
+    g.add_argument("--duration-s", dest="duration_s", type=number(float, gt=0), default=None,
+                   metavar="SECONDS", help="audio length, s (default 30)")
+    g.add_argument("--duration", dest="duration_s", type=number(float, gt=0), default=None,
+                   help=argparse.SUPPRESS)
+    g.add_argument("--whales", type=number(int, ge=1), default=None, metavar="N",
+                   help="number of whales, 1-5 (default 2)")
+    g.add_argument("--sensors", type=number(int, ge=1), default=None, metavar="N",
+                   help="number of hydrophones, 3-10 (default 5)")
+    g.add_argument("--snr-db", dest="snr_db", type=number(float), default=None, metavar="DB",
+                   help="SNR of a nominal click at 1 km over the in-band noise (default 30)")
+    g.add_argument("--echo", choices=("none", "surface", "bottom", "both"), default=None,
+                   help="echoes rendered; puts the hydrophones above a sea floor (default: "
+                        "today's surface echo, or both with --vary)")
     p.set_defaults(handler=run, inputs=(), out_is_dir=True)
 
 
@@ -30,7 +59,13 @@ def run(args: argparse.Namespace) -> int:
     writer = get_writer(args.kind)
     if args.vary and "vary" not in inspect.signature(writer).parameters:
         raise ValueError(f"scenario kind {args.kind!r} has no --vary")
-    paths = writer(args.out, seed=args.seed, **({"vary": True} if args.vary else {}))
+    extra = {kw: getattr(args, dest) for dest, (_, kw) in CLICK_OPTIONS.items()
+             if getattr(args, dest, None) is not None}
+    if args.kind != "clicks":
+        for dest, (option, _) in CLICK_OPTIONS.items():
+            if getattr(args, dest, None) is not None:
+                raise ValueError(f"{option} applies to `fusion simulate clicks` only")
+    paths = writer(args.out, seed=args.seed, **({"vary": True} if args.vary else {}), **extra)
     for path in paths:
         emit(str(path))
     return 0

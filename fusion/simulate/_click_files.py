@@ -27,9 +27,12 @@ logger = logging.getLogger(__name__)
 
 #: Peak level the written FLAC file is scaled to (headroom below the 24-bit full scale of 1).
 FILE_PEAK = 0.5
+#: Most channels a FLAC stream holds; more sensors are written as 24-bit WAV (``audio.wav``).
+FLAC_MAX_CHANNELS = 8
 
 
-def truth_document(scenario: ClickScenario, *, audio_scale: float = 1.0) -> dict[str, Any]:
+def truth_document(scenario: ClickScenario, *, audio_scale: float = 1.0,
+                   parameters: dict[str, Any] | None = None) -> dict[str, Any]:
     """The ground truth of a scenario as a JSON-serialisable dict (the ``truth.json`` layout).
 
     Parameters
@@ -38,6 +41,9 @@ def truth_document(scenario: ClickScenario, *, audio_scale: float = 1.0) -> dict
         The scenario.
     audio_scale : float, optional
         Factor from scenario units to the samples of the written audio file.
+    parameters : dict, optional
+        Settings the scenario was drawn with (``fusion simulate clicks --vary``), written as
+        ``parameters`` (then the range options as used go to ``range_options``).
 
     Returns
     -------
@@ -50,6 +56,15 @@ def truth_document(scenario: ClickScenario, *, audio_scale: float = 1.0) -> dict
         ``t_i - t_j`` for each pair of ``pairs``, direct path). Amplitudes are in scenario
         units; multiply by ``audio_scale`` for file units. ``snr_db`` is ``null`` for
         noise-free audio.
+
+        A scenario with a range world (:class:`~fusion.simulate._click_world.RangeWorld`) adds
+        its keys (``echo, nominal_sound_speed, sensors_true, position_error_m, floor,
+        sensor_heights_m, surface_reflection_coefficients, bottom_reflection_coefficients,
+        sound_speed_profile, interferers, parameters``) and per source ``click``,
+        ``source_level_db``, ``bottom_echo_arrival_times``/``bottom_echo_amplitudes`` and
+        ``effective_speeds`` (per path, length over travel time). ``sound_speed`` is then the
+        nominal speed of ``array.json``; ``tdoas`` and arrival times are those of the true
+        positions and propagation. The default scenario's document has none of these keys.
     """
     pairs = scenario.pairs()
     sources = []
@@ -72,7 +87,16 @@ def truth_document(scenario: ClickScenario, *, audio_scale: float = 1.0) -> dict
             "echo_amplitudes": s.echo_amplitudes,
             "tdoas": s.tdoas(pairs),
         })
-    return {
+        if scenario.world is not None:
+            sources[-1] |= {
+                "click": {"f_start_hz": s.click.f_start_hz, "f_end_hz": s.click.f_end_hz,
+                          "duration_s": s.click.duration_s},
+                "source_level_db": s.source_level_db,
+                "bottom_echo_arrival_times": s.bottom_echo_arrival_times,
+                "bottom_echo_amplitudes": s.bottom_echo_amplitudes,
+                "effective_speeds": s.effective_speeds,
+            }
+    doc = {
         "kind": "clicks",
         "seed": scenario.seed,
         "fs": scenario.fs,
@@ -102,9 +126,18 @@ def truth_document(scenario: ClickScenario, *, audio_scale: float = 1.0) -> dict
             )
         ],
     }
+    if scenario.world is not None:
+        world = scenario.world.to_dict()
+        if parameters is not None:
+            world["range_options"] = world.pop("parameters")
+        doc |= world
+    if parameters is not None:
+        doc["parameters"] = parameters
+    return doc
 
 
-def write_click_scenario(out_dir: Path | str, scenario: ClickScenario) -> list[Path]:
+def write_click_scenario(out_dir: Path | str, scenario: ClickScenario, *,
+                         parameters: dict[str, Any] | None = None) -> list[Path]:
     """Write a scenario as ``audio.flac``, ``array.json``, ``truth.json`` and ``tdoa_labels.csv``.
 
     Parameters
@@ -113,6 +146,9 @@ def write_click_scenario(out_dir: Path | str, scenario: ClickScenario) -> list[P
         Output folder (created if missing).
     scenario : ClickScenario
         The scenario.
+    parameters : dict, optional
+        Settings the scenario was drawn with, written into ``truth.json`` (see
+        :func:`truth_document`).
 
     Returns
     -------
@@ -121,9 +157,12 @@ def write_click_scenario(out_dir: Path | str, scenario: ClickScenario) -> list[P
 
     Notes
     -----
-    ``tdoa_labels.csv`` (``time,i,j,tau,source``) holds the direct-path TDOA of every click and
-    sensor pair, the labels ``fusion train-validator`` takes: ``time`` is the click's arrival at
-    sensor ``i``, ``tau`` its arrival at ``i`` minus at ``j``, s. FLAC holds 24-bit integers in
+    FLAC holds at most 8 channels: a scenario with 9 or 10 sensors writes ``audio.wav``
+    (24-bit PCM) instead of ``audio.flac``. ``tdoa_labels.csv`` (``time,i,j,tau,source``)
+    holds the direct-path TDOA of every click and sensor pair, the labels
+    ``fusion train-validator`` takes: ``time`` is the click's arrival at sensor ``i``, ``tau``
+    its arrival at ``i`` minus at ``j``, s (true geometry and propagation). FLAC holds 24-bit
+    integers in
     ``[-1, 1)``: the audio is scaled so its largest magnitude is :data:`FILE_PEAK` and the
     factor is stored as ``truth.json["audio_scale"]`` (file sample = ``audio_scale`` x scenario
     value). Every file is written atomically.
@@ -134,9 +173,11 @@ def write_click_scenario(out_dir: Path | str, scenario: ClickScenario) -> list[P
     out.mkdir(parents=True, exist_ok=True)
     peak = float(np.max(np.abs(scenario.audio))) if scenario.audio.size else 0.0
     scale = FILE_PEAK / peak if peak > 0 else 1.0
-    audio_path = write_audio(out / "audio.flac", scenario.audio * np.float32(scale), scenario.fs)
+    name = "audio.flac" if scenario.n_sensors <= FLAC_MAX_CHANNELS else "audio.wav"
+    audio_path = write_audio(out / name, scenario.audio * np.float32(scale), scenario.fs)
     array_path = write_array(out / "array.json", scenario.sensors)
-    truth_path = write_json(out / "truth.json", truth_document(scenario, audio_scale=scale))
+    truth_path = write_json(out / "truth.json", truth_document(scenario, audio_scale=scale,
+                                                                     parameters=parameters))
     cols: dict[str, list[NDArray]] = {"time": [], "i": [], "j": [], "tau": [], "source": []}
     for src in scenario.sources:
         arr = src.arrival_times

@@ -24,7 +24,6 @@ def _frozen(a: ArrayLike, dtype: Any = float) -> NDArray[Any]:
     return out
 
 
-
 @dataclass(frozen=True)
 class ClickWaveform:
     """A Hann-tapered linear FM upsweep, the model of one beaked-whale click.
@@ -146,6 +145,16 @@ class WhaleTrack:
         Arrival time of the surface-reflected path (image source at ``(x, y, -z)``), s.
     echo_amplitudes : ndarray, shape (n_clicks, n_sensors)
         Signed peak amplitude of each surface echo (negative: phase inverted).
+    bottom_echo_arrival_times, bottom_echo_amplitudes : ndarray, shape (n_clicks, n_sensors)
+        The sea-floor echo (range world with a floor only; None otherwise).
+    click : ClickWaveform or None
+        This whale's click (None: the scenario's click).
+    source_level_db : float
+        This whale's level offset from the nominal source level, dB (included in
+        `source_amplitudes`).
+    effective_speeds : dict or None
+        ``{"direct"|"surface"|"bottom": (n_clicks, n_sensors)}``: path length over travel time,
+        m/s (range world only).
     """
 
     source_id: int
@@ -163,13 +172,20 @@ class WhaleTrack:
     arrival_amplitudes: NDArray[np.float64]
     echo_arrival_times: NDArray[np.float64]
     echo_amplitudes: NDArray[np.float64]
+    bottom_echo_arrival_times: NDArray[np.float64] | None = None
+    bottom_echo_amplitudes: NDArray[np.float64] | None = None
+    click: ClickWaveform | None = None
+    source_level_db: float = 0.0
+    effective_speeds: dict[str, NDArray[np.float64]] | None = None
 
     def __post_init__(self) -> None:
         for name in (
             "start_position", "emission_times", "positions", "source_amplitudes",
             "arrival_times", "arrival_amplitudes", "echo_arrival_times", "echo_amplitudes",
+            "bottom_echo_arrival_times", "bottom_echo_amplitudes",
         ):
-            object.__setattr__(self, name, _frozen(getattr(self, name)))
+            if getattr(self, name) is not None:
+                object.__setattr__(self, name, _frozen(getattr(self, name)))
         n = self.emission_times.shape[0]
         if self.positions.shape != (n, 3) or self.arrival_times.shape[0] != n:
             raise ValueError("WhaleTrack arrays disagree on the number of clicks")
@@ -257,6 +273,11 @@ class ClickScenario:
         Peak amplitude of each transient (scenario units).
     transient_freqs_hz : ndarray, shape (n_transients,)
         Ringing frequency of each transient, Hz.
+    world : RangeWorld or None
+        The bottom-mounted-range physics (floor, profile, true sensor positions, reflection
+        coefficients, interferers) when any range option was given; None for the default
+        scenario. With a world, `sensors` holds the *surveyed* positions and the nominal speed
+        (what ``array.json`` says), ``world.sensors_true`` the true ones.
     """
 
     seed: int
@@ -277,6 +298,7 @@ class ClickScenario:
     transient_channels: NDArray[np.int64] = field(default_factory=lambda: _frozen([], int))
     transient_amplitudes: NDArray[np.float64] = field(default_factory=lambda: _frozen([]))
     transient_freqs_hz: NDArray[np.float64] = field(default_factory=lambda: _frozen([]))
+    world: Any = None
 
     def __post_init__(self) -> None:
         audio = np.asarray(self.audio)

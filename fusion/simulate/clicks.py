@@ -5,7 +5,7 @@ The scenario is the one the click pipeline (``fusion localize``) is built for �
 [0028]–[0036]): hydrophones kilometres apart on the sea floor sampled at 96 kHz, Blainville's
 beaked whales emitting short FM upswept clicks at an inter-click interval (ICI) near 0.37 s.
 
-Physics (every choice explicit, see :func:`simulate_clicks`):
+Default physics (the localizer's own model; every choice explicit, see :func:`simulate_clicks`):
 
 * straight-line propagation at the array's constant sound speed; each click leaves the source
   at its emission time from the source's position at that time;
@@ -15,12 +15,33 @@ Physics (every choice explicit, see :func:`simulate_clicks`):
 * white ambient noise, band-limited to ``noise_band_hz``, at a stated in-band SNR;
 * optional impulsive false transients (damped sinusoids) on single channels.
 
+The world of a real range (the *range options* of :func:`simulate_clicks`, all off by default
+and all drawn by ``fusion simulate clicks --vary``, ranges in
+:data:`fusion.simulate._click_varied.VARIED_RANGES`) adds what the localizer does not model:
+
+* hydrophones 1-20 m above a plane sea floor (depth 500-2,000 m under the array centre,
+  slope 0-5 deg), 3-10 of them on a jittered triangular grid of spacing 0.5-6 km;
+* a sea-floor echo per sensor from the image of the source across the floor plane (0.2-10 ms
+  after the direct path for typical geometry, coefficient -3 to -15 dB, sign positive or
+  random) and a rough-surface echo (inverted, magnitude 0.5-0.95 per sensor); ``echo`` chooses
+  ``none``, ``surface``, ``bottom`` or ``both``;
+* a depth-dependent sound speed (Munk or thermocline profile) with straight-ray travel times
+  ``L / (d2 - d1) * integral dd / c`` (:mod:`fusion.simulate._click_propagation`), while
+  ``array.json`` states one nominal speed (the profile's water-column mean): path speeds differ
+  from it by up to about 1 %;
+* per-whale FM upsweeps (20-50 kHz, 150-400 us), source levels (±6 dB) and ICIs (0.2-1 s);
+  1-5 whales, some starting 20-100 m from another; interfering broadband clicks (20-80 us) of
+  0-2 other sources, recorded apart from the whales;
+* survey errors: ``array.json`` holds surveyed positions (true + N(0, 1-3 m) per axis), the
+  truth the true ones, and the truth TDOAs are those of the true geometry and propagation.
+
 Each click is synthesised analytically at its exact (continuous) arrival time, so the sampled
 audio carries arrival times exact to well under a sample.
 
 This module holds the simulator; its data classes (:mod:`fusion.simulate._click_types`), building
-blocks (:mod:`fusion.simulate._click_synthesis`) and file writers
-(:mod:`fusion.simulate._click_files`) are importable from here.
+blocks (:mod:`fusion.simulate._click_synthesis`, :mod:`fusion.simulate._click_world`,
+:mod:`fusion.simulate._click_propagation`) and file writers (:mod:`fusion.simulate._click_files`)
+are importable from here.
 
 Examples
 --------
@@ -32,6 +53,7 @@ Examples
 from __future__ import annotations
 
 import logging
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -44,19 +66,28 @@ from fusion.simulate._click_files import (  # FILE_PEAK re-exported: benchmarks 
     truth_document,
     write_click_scenario,
 )
+from fusion.simulate._click_propagation import SoundSpeedProfile, path_times
+from fusion.simulate._click_sources import jsonable, simulate_whales
 from fusion.simulate._click_synthesis import (
     _add_band_noise,
     _layout,
-    _positions,
     _render,
     _transient_shape,
     draw_emission_times,
 )
 from fusion.simulate._click_types import ClickScenario, ClickWaveform, WhaleTrack
+from fusion.simulate._click_validate import validate_options, validate_range_options
+from fusion.simulate._click_world import (
+    RANGE_DEFAULTS,
+    RangeWorld,
+    simulate_interferers,
+    world_geometry,
+)
 
 __all__ = [
     "ClickScenario",
     "ClickWaveform",
+    "SoundSpeedProfile",
     "WhaleTrack",
     "draw_emission_times",
     "simulate_clicks",
@@ -66,6 +97,16 @@ __all__ = [
 ]
 
 logger = logging.getLogger(__name__)
+
+#: The range options of :func:`simulate_clicks` (None: off, the default scenario).
+RANGE_OPTIONS = (
+    "echo", "floor_depth_m", "floor_slope_deg", "floor_azimuth_deg", "height_above_floor_m",
+    "sensor_spacing_m", "sound_speed_profile", "nominal_sound_speed", "position_error_m",
+    "surface_reflection_range", "bottom_reflection_db", "bottom_reflection_sign", "whale_clicks",
+    "click_band_hz", "click_duration_s", "source_level_spread_db", "ici_range_s",
+    "close_pair_probability", "close_pair_distance_m", "n_interferers", "interferer_ici_s",
+    "interferer_duration_s", "interferer_level_db", "interferer_freq_hz",
+)
 
 
 def simulate_clicks(
@@ -77,7 +118,7 @@ def simulate_clicks(
     fs: float = 96_000.0,
     snr_db: float = 30.0,
     n_transients: int = 8,
-    sound_speed: float = 1500.0,
+    sound_speed: float | None = None,
     array_radius_m: float = 1500.0,
     reference_range_m: float = 1000.0,
     absorption_db_per_km: float = 8.0,
@@ -91,6 +132,30 @@ def simulate_clicks(
     max_turn_rate_deg_s: float = 0.5,
     depth_range_m: tuple[float, float] = (500.0, 1200.0),
     transient_amplitude_range: tuple[float, float] = (0.3, 3.0),
+    echo: str | None = None,
+    floor_depth_m: float | None = None,
+    floor_slope_deg: float | None = None,
+    floor_azimuth_deg: float | None = None,
+    height_above_floor_m: tuple[float, float] | None = None,
+    sensor_spacing_m: float | None = None,
+    sound_speed_profile: SoundSpeedProfile | dict[str, Any] | None = None,
+    nominal_sound_speed: float | None = None,
+    position_error_m: float | None = None,
+    surface_reflection_range: tuple[float, float] | None = None,
+    bottom_reflection_db: tuple[float, float] | None = None,
+    bottom_reflection_sign: str | None = None,
+    whale_clicks: Sequence[ClickWaveform] | None = None,
+    click_band_hz: tuple[float, float] | None = None,
+    click_duration_s: tuple[float, float] | None = None,
+    source_level_spread_db: float | None = None,
+    ici_range_s: tuple[float, float] | None = None,
+    close_pair_probability: float | None = None,
+    close_pair_distance_m: tuple[float, float] | None = None,
+    n_interferers: int | None = None,
+    interferer_ici_s: tuple[float, float] | None = None,
+    interferer_duration_s: tuple[float, float] | None = None,
+    interferer_level_db: tuple[float, float] | None = None,
+    interferer_freq_hz: tuple[float, float] | None = None,
 ) -> ClickScenario:
     """Simulate beaked-whale-like click trains received on bottom-mounted hydrophones.
 
@@ -99,12 +164,16 @@ def simulate_clicks(
     seed : int
         Seed of every random draw (same seed and options -> identical scenario and audio).
     n_sensors : int, optional
-        Hydrophones, 3 to 8. They lie on a jittered ring of radius `array_radius_m` (with one
-        near the centre when ``n_sensors >= 5``) at depths 1500–1700 m (z negative).
+        Hydrophones, 3 to 10. By default they lie on a jittered ring of radius
+        `array_radius_m` (with one near the centre when ``n_sensors >= 5``) at depths
+        1500–1700 m (z negative); with a floor (range options) above it.
     n_sources : int, optional
-        Whales, 1 to 3. Each starts within ``0.6 * array_radius_m`` of the array centre at a
-        depth drawn from `depth_range_m`, moves at a speed drawn from `speed_range_mps` on an arc
-        turning at most `max_turn_rate_deg_s`, and drifts vertically by at most 0.2 m/s.
+        Whales, 1 to 5. Each starts within 0.6 times the array radius of the array centre (with
+        a `sensor_spacing_m`: within half the spacing of the centroid of a random hydrophone
+        and its two nearest neighbours, where three can hear it) at a depth drawn from `depth_range_m`
+        (above the floor when there is one), moves at a speed
+        drawn from `speed_range_mps` on an arc turning at most `max_turn_rate_deg_s`, and
+        drifts vertically by at most 0.2 m/s.
     duration_s : float, optional
         Audio length, s.
     fs : float, optional
@@ -112,15 +181,15 @@ def simulate_clicks(
     snr_db : float, optional
         ``20 log10(A_ref / sigma_band)``: the peak amplitude ``A_ref`` of a nominal
         direct-path click received at `reference_range_m` over the standard deviation
-        ``sigma_band`` of the ambient noise within the click band. A click at range ``r`` has
-        peak ``(r_ref / r) 10^(-a (r - r_ref) / 20000)`` with ``a`` = `absorption_db_per_km`,
-        times the per-click level jitter. ``inf`` gives noise-free audio.
+        ``sigma_band`` of the ambient noise within the click band (of `click`). A click at
+        range ``r`` has peak ``(r_ref / r) 10^(-a (r - r_ref) / 20000)`` with ``a`` =
+        `absorption_db_per_km`, times the per-click level jitter. ``inf``: noise-free audio.
     n_transients : int, optional
         Impulsive false transients, each on one random channel at a uniform random time.
     sound_speed : float, optional
-        Constant sound speed, m/s.
+        Constant sound speed, m/s (default 1500); not with `sound_speed_profile`.
     array_radius_m : float, optional
-        Radius of the hydrophone ring, m.
+        Radius of the default hydrophone ring, m.
     reference_range_m : float, optional
         Range of the SNR definition, m.
     absorption_db_per_km : float, optional
@@ -139,10 +208,55 @@ def simulate_clicks(
         Source motion limits (see `n_sources`).
     transient_amplitude_range : (float, float), optional
         Peak amplitude range of the transients (log-uniform), relative to ``A_ref``.
+    echo : {"none", "surface", "bottom", "both"}, optional
+        Rendered echoes. Giving it puts the hydrophones on a floor (below); the same seed
+        gives the same world for every choice, only the rendered echoes differ. Default with a
+        world: ``both`` with a floor, else ``surface``.
+    floor_depth_m, floor_slope_deg, floor_azimuth_deg : float, optional
+        Plane sea floor: depth under the array centre (default 1600 m), slope (default 0) and
+        downslope direction (default uniform), deg counter-clockwise from +x.
+    height_above_floor_m : (float, float), optional
+        Range of the hydrophone heights above the floor, drawn per sensor (default 1-20 m).
+    sensor_spacing_m : float, optional
+        Median nearest-neighbour distance of a jittered triangular hydrophone grid (default:
+        no grid, the horizontal positions of the default ring).
+    sound_speed_profile : SoundSpeedProfile or dict, optional
+        Depth-dependent sound speed (``{"kind": ..., **params}``, see
+        :class:`~fusion.simulate._click_propagation.SoundSpeedProfile`); travel times integrate
+        ``1/c`` along straight rays. None: constant `sound_speed`.
+    nominal_sound_speed : float, optional
+        Speed written into ``array.json`` (default: `sound_speed`, or the profile's mean over
+        the water column rounded to 0.1 m/s).
+    position_error_m : float, optional
+        Survey error, standard deviation per axis, m: ``array.json`` gets true + error.
+    surface_reflection_range : (float, float), optional
+        Range of the surface coefficient magnitude drawn per sensor (sign inverted).
+    bottom_reflection_db, bottom_reflection_sign : optional
+        Floor coefficient per sensor: level uniform in the range (default -15 to -3 dB), sign
+        ``"positive"`` (default) or ``"random"``.
+    whale_clicks : sequence of ClickWaveform, optional
+        One click per whale.
+    click_band_hz, click_duration_s : (float, float), optional
+        Draw each whale's upsweep: start in ``[lo, hi - 5 kHz]``, end in ``[start + 5 kHz,
+        hi]``, duration in `click_duration_s`.
+    source_level_spread_db : float, optional
+        Each whale's level offset is uniform in ``±spread`` dB.
+    ici_range_s : (float, float), optional
+        Each whale's mean ICI is uniform in this range (replaces `ici_s`).
+    close_pair_probability, close_pair_distance_m : optional
+        Each whale after the first starts, with this probability, at a distance drawn from
+        the range (default 20-100 m) from an earlier whale, heading with it.
+    n_interferers : int, optional
+        Broadband click trains of other species, 0 to 5, at fixed positions in the water
+        column (``ClickScenario.world.interferers``), with ``interferer_ici_s`` (log-uniform,
+        default 0.05-1 s), ``interferer_duration_s`` (20-80 us), ``interferer_level_db``
+        (±6 dB re a nominal whale click) and ``interferer_freq_hz`` (carrier, 15-40 kHz).
 
     Returns
     -------
     ClickScenario
+        With ``world`` (a :class:`~fusion.simulate._click_world.RangeWorld`) when any range
+        option is given; then ``sensors`` holds the surveyed positions and the nominal speed.
 
     Raises
     ------
@@ -151,11 +265,14 @@ def simulate_clicks(
 
     Notes
     -----
-    Emission ``k`` of a source at position ``p_k`` reaches sensor ``s_i`` at
-    ``t_e + |p_k - s_i| / c`` (direct path) and at ``t_e + |p_k' - s_i| / c`` with
+    Emission ``k`` of a source at position ``p_k`` reaches sensor ``s_i`` along each path at
+    ``t_e + T(path)``: by default ``T = |p_k - s_i| / c`` (direct) and ``|p_k' - s_i| / c`` with
     ``p_k' = (x, y, -z)`` the image source (surface echo, amplitude scaled by the reflection
-    coefficient). The click train starts before the audio so that arrivals are present from
-    ``t = 0``; emissions none of whose arrivals fall inside ``[0, duration_s)`` are dropped.
+    coefficient); with a floor also the image across the floor plane; with a profile ``T`` is
+    the straight-ray integral of ``1/c`` over the path's segments. The click train starts
+    before the audio so that arrivals are present from ``t = 0``; emissions none of whose
+    arrivals fall inside ``[0, duration_s)`` are dropped. The range options draw from a second
+    generator (``default_rng([seed, 1])``), so the default scenario is unchanged.
 
     Examples
     --------
@@ -164,7 +281,7 @@ def simulate_clicks(
     (4, 4)
     """
     click = ClickWaveform() if click is None else click
-    _validate(
+    validate_options(
         n_sensors=n_sensors, n_sources=n_sources, duration_s=duration_s, fs=fs, snr_db=snr_db,
         n_transients=n_transients, sound_speed=sound_speed, array_radius_m=array_radius_m,
         reference_range_m=reference_range_m, absorption_db_per_km=absorption_db_per_km,
@@ -173,11 +290,34 @@ def simulate_clicks(
         speed_range_mps=speed_range_mps, max_turn_rate_deg_s=max_turn_rate_deg_s,
         depth_range_m=depth_range_m, transient_amplitude_range=transient_amplitude_range,
     )
+    local = locals()
+    opts = {name: local[name] for name in RANGE_OPTIONS}
+    validate_range_options(opts, fs=fs, n_sources=n_sources)
+    if sound_speed is not None and sound_speed_profile is not None:
+        raise ValueError("give sound_speed (constant) or sound_speed_profile, not both "
+                         "(nominal_sound_speed sets the speed array.json states)")
     rng = np.random.default_rng(seed)
-    c = float(sound_speed)
-    sensors = SensorArray(_layout(n_sensors, rng, radius_m=array_radius_m), c)
-    pos_s = sensors.positions
-    centre = pos_s[:, :2].mean(axis=0)
+    c = 1500.0 if sound_speed is None else float(sound_speed)
+    world_on = any(v is not None for v in opts.values())
+    world: dict[str, Any] = {}
+    rng2 = np.random.default_rng([int(seed), 1]) if world_on else None  # the range physics
+    if rng2 is not None:
+        world = world_geometry(opts, n_sensors=n_sensors, rng=rng, rng2=rng2,
+                               array_radius_m=array_radius_m, sound_speed=c,
+                               surface_reflection=surface_reflection)
+        pos_s, floor, profile, coef = (world[k] for k in ("sensors_true", "floor", "profile",
+                                                          "coef"))
+        sensors = SensorArray(world["surveyed"], world["nominal_sound_speed"])
+        centre, radius = world["whale_centres"], world["whale_radius"]
+    else:
+        sensors = SensorArray(_layout(n_sensors, rng, radius_m=array_radius_m), c)
+        pos_s, floor, profile = sensors.positions, None, None
+        centre, radius = pos_s[:, :2].mean(axis=0), array_radius_m
+        coef = {"direct": 1.0, "surface": surface_reflection}
+
+    def propagate(src: NDArray[np.float64]) -> dict[str, tuple[NDArray, NDArray]]:
+        return path_times(src, pos_s, profile=profile, sound_speed=c, floor=floor)
+
     n_samples = int(round(duration_s * fs))
     audio = np.zeros((n_samples, n_sensors), dtype=np.float32)
 
@@ -187,53 +327,30 @@ def simulate_clicks(
             -absorption_db_per_km * (r - reference_range_m) / 20_000.0
         )
 
-    tracks = []
-    for k in range(n_sources):
-        rad = 0.6 * array_radius_m * np.sqrt(rng.uniform())
-        phi = rng.uniform(0.0, 2.0 * np.pi)
-        p0 = np.array([
-            centre[0] + rad * np.cos(phi), centre[1] + rad * np.sin(phi),
-            -rng.uniform(*depth_range_m),
-        ])
-        speed = rng.uniform(*speed_range_mps)
-        heading = rng.uniform(0.0, 2.0 * np.pi)
-        turn = np.radians(rng.uniform(-max_turn_rate_deg_s, max_turn_rate_deg_s))
-        vz = rng.uniform(-0.2, 0.2)
-        # start the train early enough that the slowest path at t = 0 is already arriving
-        img0 = p0 * np.array([1.0, 1.0, -1.0])
-        head_start_s = float(np.linalg.norm(img0 - pos_s, axis=1).max()) / c + click.duration_s
-        t_em = draw_emission_times(
-            ici_mean_s=ici_s, ici_jitter_s=ici_jitter_s, t_start_s=-head_start_s - ici_s,
-            t_end_s=duration_s, rng=rng,
+    tracks = simulate_whales(
+        audio, rng=rng, rng2=rng2, opts=opts, n_sources=n_sources,
+        centre=centre, radius=radius, floor=floor, propagate=propagate, loss=loss, coef=coef,
+        click=click, duration_s=duration_s, fs=fs, depth_range_m=depth_range_m,
+        speed_range_mps=speed_range_mps, max_turn_rate_deg_s=max_turn_rate_deg_s, ici_s=ici_s,
+        ici_jitter_s=ici_jitter_s, level_jitter_db=level_jitter_db,
+    )
+
+    range_world = None
+    if rng2 is not None:
+        interferers = simulate_interferers(
+            audio, rng2, n=int(n_interferers or 0),
+            opts={k: RANGE_DEFAULTS[k] if opts[k] is None else opts[k]
+                  for k in ("interferer_ici_s", "interferer_duration_s", "interferer_level_db",
+                            "interferer_freq_hz")},
+            sensors=pos_s, radius_m=world["radius"], floor=floor, propagate=propagate, loss=loss,
+            coefficients=coef, duration_s=duration_s, fs=fs,
         )
-        pos = _positions(t_em, p0, speed, heading, turn, vz)
-        img = pos * np.array([1.0, 1.0, -1.0])  # image source across the surface z = 0
-        r_dir = np.linalg.norm(pos[:, None, :] - pos_s[None, :, :], axis=2)  # (n_clicks, n_sens)
-        r_img = np.linalg.norm(img[:, None, :] - pos_s[None, :, :], axis=2)
-        t_dir = t_em[:, None] + r_dir / c
-        t_img = t_em[:, None] + r_img / c
-        # keep emissions with any arrival overlapping the audio
-        first = np.minimum(t_dir.min(axis=1), t_img.min(axis=1) if surface_reflection else np.inf)
-        last = np.maximum(t_dir.max(axis=1), t_img.max(axis=1) if surface_reflection else -np.inf)
-        half = 0.5 * click.duration_s
-        keep = (last + half > 0.0) & (first - half < duration_s)
-        t_em, pos, r_dir, r_img, t_dir, t_img = (
-            a[keep] for a in (t_em, pos, r_dir, r_img, t_dir, t_img)
+        range_world = RangeWorld(
+            echo=world["echo"], nominal_sound_speed=sensors.sound_speed, sensors_true=pos_s,
+            position_error_m=float(position_error_m or 0.0), surface_coefficients=world["surface"],
+            floor=floor, bottom_coefficients=world["bottom"], profile=profile,
+            interferers=interferers, parameters=jsonable(opts),
         )
-        src_amp = 10.0 ** (level_jitter_db * rng.standard_normal(t_em.size) / 20.0)
-        a_dir = src_amp[:, None] * loss(r_dir)
-        a_img = surface_reflection * src_amp[:, None] * loss(r_img)
-        tracks.append(WhaleTrack(
-            source_id=k, start_position=p0, speed_mps=float(speed), heading_rad=float(heading),
-            turn_rate_rad_s=float(turn), vertical_rate_mps=float(vz), ici_mean_s=float(ici_s),
-            ici_jitter_s=float(ici_jitter_s), emission_times=t_em, positions=pos,
-            source_amplitudes=src_amp, arrival_times=t_dir, arrival_amplitudes=a_dir,
-            echo_arrival_times=t_img, echo_amplitudes=a_img,
-        ))
-        ch = np.broadcast_to(np.arange(n_sensors), t_dir.shape).ravel()
-        _render(audio, t_dir.ravel(), ch, a_dir.ravel(), click.evaluate, half, half, fs)
-        if surface_reflection:
-            _render(audio, t_img.ravel(), ch, a_img.ravel(), click.evaluate, half, half, fs)
 
     # impulsive false transients, one channel each
     tr_t = rng.uniform(0.0, duration_s, n_transients)
@@ -267,55 +384,22 @@ def simulate_clicks(
         absorption_db_per_km=float(absorption_db_per_km),
         surface_reflection=float(surface_reflection), transient_times=tr_t,
         transient_channels=tr_ch, transient_amplitudes=tr_a, transient_freqs_hz=tr_f,
+        world=range_world,
     )
 
 
-def _validate(**o: Any) -> None:
-    def finite_pos(name: str) -> None:
-        v = o[name]
-        if isinstance(v, bool) or not np.isfinite(v) or v <= 0:
-            raise ValueError(f"{name} must be a positive number, got {v!r}")
-
-    def rng_pair(name: str, lo_min: float = 0.0) -> None:
-        v = o[name]
-        if len(v) != 2 or not all(np.isfinite(x) for x in v) or not lo_min <= v[0] <= v[1]:
-            raise ValueError(f"{name} must be (low, high) with {lo_min} <= low <= high, got {v!r}")
-
-    for name, lo, hi in (("n_sensors", 3, 8), ("n_sources", 1, 3)):
-        v = o[name]
-        if isinstance(v, bool) or int(v) != v or not lo <= v <= hi:
-            raise ValueError(f"{name} must be an integer from {lo} to {hi}, got {v!r}")
-    n_tr = o["n_transients"]
-    if isinstance(n_tr, bool) or int(n_tr) != n_tr or n_tr < 0:
-        raise ValueError(f"n_transients must be a non-negative integer, got {n_tr!r}")
-    for name in ("duration_s", "fs", "sound_speed", "array_radius_m", "reference_range_m",
-                 "ici_s"):
-        finite_pos(name)
-    if np.isnan(o["snr_db"]) or o["snr_db"] == -np.inf:
-        raise ValueError(f"snr_db must be a number or +inf, got {o['snr_db']!r}")
-    for name in ("absorption_db_per_km", "ici_jitter_s", "level_jitter_db", "max_turn_rate_deg_s"):
-        v = o[name]
-        if not np.isfinite(v) or v < 0:
-            raise ValueError(f"{name} must be >= 0, got {v!r}")
-    if not np.isfinite(o["surface_reflection"]) or abs(o["surface_reflection"]) > 1:
-        raise ValueError(f"surface_reflection must be in [-1, 1], got {o['surface_reflection']!r}")
-    for name in ("noise_band_hz", "speed_range_mps", "depth_range_m"):
-        rng_pair(name)
-    rng_pair("transient_amplitude_range", 1e-12)
-    click: ClickWaveform = o["click"]
-    f_lo, f_hi = o["noise_band_hz"]
-    nyq = 0.5 * o["fs"]
-    if click.f_end_hz >= nyq or f_hi >= nyq:
-        raise ValueError(
-            f"fs={o['fs']} Hz is too low: the click band ends at {click.f_end_hz} Hz and the "
-            f"noise band at {f_hi} Hz, both must stay below fs/2"
-        )
-    if min(f_hi, click.f_end_hz) - max(f_lo, click.f_start_hz) <= 0:
-        raise ValueError(f"noise_band_hz {o['noise_band_hz']} does not overlap the click band")
-
-
-def write_scenario(out_dir: Path, *, seed: int) -> list[Path]:
-    """``fusion simulate clicks``: the default scenario (:func:`simulate_clicks`) written out.
+def write_scenario(
+    out_dir: Path,
+    *,
+    seed: int,
+    vary: bool = False,
+    duration_s: float | None = None,
+    n_sources: int | None = None,
+    n_sensors: int | None = None,
+    snr_db: float | None = None,
+    echo: str | None = None,
+) -> list[Path]:
+    """``fusion simulate clicks``: a click scenario (:func:`simulate_clicks`) written out.
 
     Parameters
     ----------
@@ -323,13 +407,34 @@ def write_scenario(out_dir: Path, *, seed: int) -> list[Path]:
         Output folder.
     seed : int
         Scenario seed.
+    vary : bool, optional
+        Draw the physics of a real bottom-mounted range from
+        :data:`fusion.simulate._click_varied.VARIED_RANGES` (floor, profile, echoes, survey
+        errors, click shapes, interferers, counts, ...); ``truth.json`` records the drawn
+        settings under ``parameters`` (the world's resolved values beside them).
+    duration_s, n_sources, n_sensors, snr_db, echo : optional
+        Explicit values; they override the varied (or default) ones. Without any of them and
+        without `vary` the files are those of the default scenario, byte for byte.
 
     Returns
     -------
     list of pathlib.Path
-        ``audio.flac`` (96 kHz, channel i = sensor i), ``array.json``, ``truth.json``.
+        ``audio.flac`` (96 kHz, channel i = sensor i), ``array.json``, ``truth.json``,
+        ``tdoa_labels.csv``.
     """
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise ValueError(f"{out}: output path exists and is not a folder")
-    return write_click_scenario(out, simulate_clicks(seed=seed))
+    given = {k: v for k, v in (("duration_s", duration_s), ("n_sources", n_sources),
+                               ("n_sensors", n_sensors), ("snr_db", snr_db), ("echo", echo))
+             if v is not None}
+    settings: dict[str, Any] = {"seed": seed}
+    if vary:
+        from fusion.simulate._click_varied import varied_settings
+
+        settings = varied_settings(seed)
+    settings |= given
+    scenario = simulate_clicks(**settings)
+    if not vary:
+        return write_click_scenario(out, scenario)
+    return write_click_scenario(out, scenario, parameters=settings)

@@ -337,9 +337,9 @@ def test_results_are_read_only(clean):
     ("options", "match"),
     [
         ({"n_sensors": 2}, "n_sensors"),
-        ({"n_sensors": 9}, "n_sensors"),
+        ({"n_sensors": 11}, "n_sensors"),
         ({"n_sources": 0}, "n_sources"),
-        ({"n_sources": 4}, "n_sources"),
+        ({"n_sources": 6}, "n_sources"),
         ({"duration_s": -1.0}, "duration_s"),
         ({"fs": 48_000.0}, "fs=48000"),
         ({"snr_db": float("nan")}, "snr_db"),
