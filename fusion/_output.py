@@ -30,7 +30,8 @@ import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 
-__all__ = ["STDOUT", "TMP_MARK", "atomic_output", "output_destination", "special_file_kind"]
+__all__ = ["STDOUT", "TMP_MARK", "atomic_output", "atomic_outputs", "output_destination",
+           "special_file_kind"]
 
 logger = logging.getLogger(__name__)
 
@@ -185,3 +186,19 @@ def atomic_output(path: PathLike, *, suffix: str | None = None) -> Iterator[Path
         with contextlib.suppress(FileNotFoundError):
             tmp.unlink()
         raise
+
+
+@contextlib.contextmanager
+def atomic_outputs(*paths: PathLike, suffixes: tuple[str | None, ...] = ()) -> Iterator[list[Path]]:
+    """Several outputs written together: temporaries, renamed onto their paths only at the end.
+
+    Like :func:`atomic_output` for each of `paths` (`suffixes`: theirs, one per path, default
+    each path's own): if writing any of them fails, none is replaced -- no result is left half
+    written beside a missing other half.
+    """
+    if len(suffixes) > len(paths):
+        raise ValueError(f"{len(suffixes)} suffixes for {len(paths)} paths")
+    sfx = list(suffixes) + [None] * (len(paths) - len(suffixes))
+    with contextlib.ExitStack() as stack:
+        yield [stack.enter_context(atomic_output(p, suffix=s))
+               for p, s in zip(paths, sfx, strict=True)]

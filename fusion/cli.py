@@ -199,12 +199,63 @@ def _same_file(a: Path, b: Path) -> bool:
         return False
 
 
+def _inputs(args: argparse.Namespace, names: dict[str, str]) -> Iterator[tuple[str, Path]]:
+    """(how the user named it, path) of every file the command may read.
+
+    Declared inputs (``args.inputs``), any other path-typed option, and inside a folder input
+    the files the command reads there (``args.input_files``: dest -> file names).
+    """
+    declared = tuple(getattr(args, "inputs", ()))
+    outs = {"out", *getattr(args, "more_outputs", ())}
+    others = [d for d, v in vars(args).items() if d not in declared and isinstance(v, os.PathLike)]
+    inside = dict(getattr(args, "input_files", {}))
+    for dest in (*declared, *others):
+        if dest in outs:
+            continue
+        for p in _paths(getattr(args, dest, None)):
+            yield f"{names.get(dest, dest)} {p}", p
+            for name in inside.get(dest, ()):
+                yield f"{names.get(dest, dest)} {p} (its {name})", p / name
+
+
+def _outputs(args: argparse.Namespace, names: dict[str, str]) -> list[tuple[str, Path]]:
+    """(how the user named it, path) of every file the command writes (``--out - `` excluded).
+
+    ``--out`` itself, or for a folder output each file it writes there (``args.out_files``);
+    and every other output option (``args.more_outputs``: dests), each checked writable.
+    """
+    out = getattr(args, "out", None)
+    found = []
+    if out is not None and os.fspath(out) != STDOUT:
+        if getattr(args, "out_is_dir", False):
+            found += [(f"--out {out} (its {name})", Path(out) / name)
+                      for name in getattr(args, "out_files", ())]
+        else:
+            found.append((f"--out {out}", Path(out)))
+    for dest in getattr(args, "more_outputs", ()):
+        if os.fspath(getattr(args, dest, None) or "") == STDOUT:
+            raise ValueError(f"{names.get(dest, dest)} -: this output cannot go to standard "
+                             "output; name a file (./- for a file called '-')")
+        for p in _paths(getattr(args, dest, None)):
+            check_output(p, option=names.get(dest, dest))
+            found.append((f"{names.get(dest, dest)} {p}", p))
+    return found
+
+
+def _destination(p: Path) -> str:
+    """The absolute file an output to `p` replaces (links resolved), to compare outputs."""
+    return os.path.realpath(output_destination(p))
+
+
 def check_paths(args: argparse.Namespace, names: dict[str, str]) -> bool:
-    """Check inputs and output before any work; return whether the output goes to stdout.
+    """Check inputs and outputs before any work; return whether the output goes to stdout.
 
     Declared inputs (``args.inputs``) must exist. ``--out`` must be writable
-    (:func:`check_output`) and must not be the same file as any input -- declared, or any other
-    path-typed option (a rules file, ...). ``--out -`` is accepted for one-file outputs.
+    (:func:`check_output`), and so must every other output (``args.more_outputs``). No output
+    -- ``--out``, each file written inside an ``--out`` folder (``args.out_files``), another
+    output option -- may be the same file as any input (declared, any other path-typed option,
+    or a file read inside a folder input: ``args.input_files``), nor the same file as another
+    output. ``--out -`` is accepted for one-file outputs.
 
     Raises
     ------
@@ -213,30 +264,33 @@ def check_paths(args: argparse.Namespace, names: dict[str, str]) -> bool:
     """
     out = getattr(args, "out", None)
     is_dir = bool(getattr(args, "out_is_dir", False))
-    declared = tuple(getattr(args, "inputs", ()))
-    for dest in declared:
+    for dest in getattr(args, "inputs", ()):
         for p in _paths(getattr(args, dest, None)):
             if not os.path.exists(p):
                 raise ValueError(f"{names.get(dest, dest)} {p}: no such file")
-    if out is None:
-        return False
-    if os.fspath(out) == STDOUT:
+    to_stdout = out is not None and os.fspath(out) == STDOUT
+    if to_stdout:
         if is_dir:
             raise ValueError("--out -: this command writes a folder, not one file; name a folder "
                              "(./- for a folder called '-')")
         if not getattr(args, "out_stdout", True):
             raise ValueError("--out -: this command's output cannot go to standard output")
-        return True
-    check_output(out, is_dir=is_dir)
-    others = [d for d, v in vars(args).items() if d not in declared and isinstance(v, os.PathLike)]
-    for dest in (*declared, *others):
-        if dest == "out":
-            continue
-        for p in _paths(getattr(args, dest, None)):
-            if _same_file(Path(out), p):
-                raise ValueError(f"--out {out} is the same file as the input {names.get(dest, dest)} "
-                                 f"{p}; refusing to overwrite an input")
-    return False
+    elif out is not None:
+        check_output(out, is_dir=is_dir)
+    outputs = _outputs(args, names)
+    inputs = list(_inputs(args, names))
+    seen: dict[str, str] = {}
+    for what, p in outputs:
+        for source, q in inputs:
+            if _same_file(p, q):
+                raise ValueError(f"{what} is the same file as the input {source}; refusing to "
+                                 "overwrite an input")
+        dest = _destination(p)
+        if dest in seen:
+            raise ValueError(f"{what} is the same file as {seen[dest]}; name two different "
+                             "files")
+        seen[dest] = what
+    return to_stdout
 
 
 # --------------------------------------------------------------------------------------------
