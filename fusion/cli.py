@@ -44,6 +44,7 @@ from types import ModuleType
 
 from fusion import __version__
 from fusion._output import STDOUT, output_destination
+from fusion._validation import GridTooLarge
 
 #: The subcommands, in the order of ``fusion --help``: name -> (module, one-line help).
 #: A module is imported only when its command is chosen. To add a command, add one line.
@@ -396,6 +397,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 1
     except (ValueError, OSError) as e:  # FileNotFoundError is an OSError
         text = _os_error_message(e) if isinstance(e, OSError) else str(e)
+        if isinstance(e, GridTooLarge):  # sized by the data of the (first) input file
+            first = next(_paths(getattr(args, next(iter(getattr(args, "inputs", ())), ""), None)),
+                         None)
+            text = text if first is None else f"{first}: {text}"
         msg = " ".join(text.split()) or type(e).__name__
         print(f"fusion {args.command}: error: {msg}", file=sys.stderr)
         return EXIT_BAD_INPUT
