@@ -43,7 +43,7 @@ from pathlib import Path
 from types import ModuleType
 
 from fusion import __version__
-from fusion._output import STDOUT, output_destination
+from fusion._output import STDOUT, Terminated, output_destination, termination_as_interrupt
 from fusion._validation import GridTooLarge
 
 #: The subcommands, in the order of ``fusion --help``: name -> (module, one-line help).
@@ -390,8 +390,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     logging.basicConfig(level=logging.WARNING - 10 * min(args.verbose, 2), handlers=[handler])
     sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
     try:
-        _data_on_stdout = check_paths(args, _option_names(sub.choices[args.command]))
-        return int(args.handler(args) or 0)
+        with termination_as_interrupt():  # SIGTERM, SIGHUP: like Ctrl-C
+            _data_on_stdout = check_paths(args, _option_names(sub.choices[args.command]))
+            return int(args.handler(args) or 0)
     except BrokenPipeError:  # `fusion ... --out - | head`: the reader left; not an error of ours
         _silence_stdout()
         return 1
@@ -404,9 +405,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         msg = " ".join(text.split()) or type(e).__name__
         print(f"fusion {args.command}: error: {msg}", file=sys.stderr)
         return EXIT_BAD_INPUT
-    except KeyboardInterrupt:
-        print("fusion: interrupted", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as e:  # Ctrl-C, or SIGTERM/SIGHUP (Terminated)
+        signum = e.signum if isinstance(e, Terminated) else 2
+        print("fusion: interrupted" if signum == 2 else f"fusion: terminated (signal {signum})",
+              file=sys.stderr)
+        return 128 + signum
     finally:
         _data_on_stdout = False
 
