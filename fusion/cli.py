@@ -43,6 +43,7 @@ from pathlib import Path
 from types import ModuleType
 
 from fusion import __version__
+from fusion._notes import held_notes
 from fusion._output import STDOUT, Terminated, output_destination, termination_as_interrupt
 from fusion._validation import GridTooLarge
 
@@ -390,7 +391,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     logging.basicConfig(level=logging.WARNING - 10 * min(args.verbose, 2), handlers=[handler])
     sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
     try:
-        with termination_as_interrupt():  # SIGTERM, SIGHUP: like Ctrl-C
+        with termination_as_interrupt(), held_notes(handler):  # SIGTERM, SIGHUP: like Ctrl-C
             _data_on_stdout = check_paths(args, _option_names(sub.choices[args.command]))
             return int(args.handler(args) or 0)
     except BrokenPipeError:  # `fusion ... --out - | head`: the reader left; not an error of ours

@@ -116,3 +116,35 @@ def test_event_id_far_past_the_others_is_refused(run_cli, tmp_path, event):
     _one_line_exit_2(run_cli, "track", "--detections", src, "--out", tmp_path / "t.csv",
                      words=("d.csv", f"event {event} after event 19", "more than 100,000"))
     assert not (tmp_path / "t.csv").exists()
+
+
+def test_failing_run_prints_only_its_error_line(run_cli, tmp_path):
+    """The sort note of out-of-order rows is dropped when the run then fails."""
+    b = tmp_path / "b.csv"
+    b.write_text("time,bearing_deg\n10,30\n0,31\n20,32\n30,33\n40,34\n")
+    own = tmp_path / "o.csv"
+    own.write_text("time,x,y\n0,0,0\n5,1,1\n")
+    err = _one_line_exit_2(run_cli, "tma", "--bearings", b, "--ownship", own, "--out",
+                           tmp_path / "t.csv", words=("own-ship",))
+    assert "sorted" not in err
+
+
+def test_numpy_warning_of_a_successful_run_is_one_line(run_cli, tmp_path):
+    src = tmp_path / "a.csv"
+    src.write_text("track_id,time,amplitude,residual\n0,0,1,0.1\n0,1,2,0.2\n0,2,1,0.1\n")
+    code, _, err = run_cli("tqi", "--amplitudes", src, "--out", tmp_path / "t.csv",
+                           "--snr0-db", "1e300", "--snr1-db", "1e301")
+    assert code == 0, err
+    lines = err.strip().splitlines()
+    assert lines and all(ln.startswith("fusion tqi: warning: ") for ln in lines), err
+    assert any("RuntimeWarning" in ln for ln in lines)
+
+
+def test_huge_sensor_coordinate_is_refused_without_a_numpy_warning(tmp_path, recwarn):
+    from fusion.io import read_array
+
+    p = _array(tmp_path / "a.json", 1500.0)
+    p.write_text(p.read_text().replace('"x": 0,', '"x": 1e308,', 1))
+    with pytest.raises(ValueError, match=r"sensor 0: 'x' = 1e\+308 is beyond"):
+        read_array(p)
+    assert not [w for w in recwarn if issubclass(w.category, RuntimeWarning)]

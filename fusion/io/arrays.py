@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from fusion.geometry import SensorArray
-from fusion.io._files import SOUND_SPEED_RANGE, PathLike, _check_range
+from fusion.io._files import MAX_ABS_VALUE, SOUND_SPEED_RANGE, PathLike, _check_range
 from fusion.io.json_files import read_json, write_json
 
 __all__ = ["MIN_SENSOR_SEPARATION_M", "read_array", "write_array"]
@@ -45,6 +45,9 @@ def read_array(path: PathLike) -> SensorArray:
             v = s[axis]
             if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
                 raise ValueError(f"{p}: sensor {k}: {axis!r} = {v!r} is not a finite number")
+            if abs(v) > MAX_ABS_VALUE:
+                raise ValueError(f"{p}: sensor {k}: {axis!r} = {v!r} is beyond "
+                                 f"+-{MAX_ABS_VALUE:g} m, implausible (check units)")
             row.append(float(v))
         pos.append(row)
         ids.append(str(s.get("id", f"H{k + 1}")))
