@@ -230,6 +230,7 @@ def _outputs(args: argparse.Namespace, names: dict[str, str]) -> list[tuple[str,
     found = []
     if out is not None and os.fspath(out) != STDOUT:
         if getattr(args, "out_is_dir", False):
+            found += [(f"--out {out}", Path(out))]  # the folder itself is no input either
             found += [(f"--out {out} (its {name})", Path(out) / name)
                       for name in getattr(args, "out_files", ())]
         else:
@@ -246,7 +247,7 @@ def _outputs(args: argparse.Namespace, names: dict[str, str]) -> list[tuple[str,
 
 def _destination(p: Path) -> str:
     """The absolute file an output to `p` replaces (links resolved), to compare outputs."""
-    return os.path.realpath(output_destination(p))
+    return os.path.realpath(p if os.path.isdir(p) else output_destination(p))
 
 
 def check_paths(args: argparse.Namespace, names: dict[str, str]) -> bool:
