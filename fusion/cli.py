@@ -8,11 +8,15 @@ Bad input (a missing file, a malformed CSV, NaN values, a wrong channel count, d
 geometry, an option out of range, an output path that cannot be written, ...) is reported as one
 line on stderr with exit code 2, never as a traceback, and leaves no output behind. Usage errors
 found by the argument parser are one line too (``fusion CMD: error: ...``); ``--help`` prints the
-full usage. Notes and warnings are lines ``fusion CMD: warning: ...`` on stderr.
+full usage. Notes and warnings are lines ``fusion CMD: warning: ...`` on stderr, held until the
+command ends (:mod:`fusion._notes`): a failing run prints its error line only. SIGTERM and SIGHUP
+end a run like Ctrl-C (temporaries removed, exit 128 + signal).
 
 Outputs never destroy anything. Before any work, ``--out`` is checked against the command's
 inputs and the file system:
 
+- no output (``--out``, each file written inside an ``--out`` folder, ``--replica-out``, ...)
+  may be an input (also a file read inside an input folder) or another output;
 - ``--out`` naming an input (the same file, also through another path, a symbolic link or a hard
   link) is refused;
 - a symbolic link is written through: its target is replaced, the link stays a link;
