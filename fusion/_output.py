@@ -30,7 +30,8 @@ import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 
-__all__ = ["STDOUT", "TMP_MARK", "atomic_output", "output_destination", "special_file_kind"]
+__all__ = ["STDOUT", "TMP_MARK", "Terminated", "atomic_output", "atomic_outputs", "output_lock",
+           "output_destination", "private_folder", "special_file_kind", "termination_as_interrupt"]
 
 logger = logging.getLogger(__name__)
 
@@ -165,8 +166,8 @@ def atomic_output(path: PathLike, *, suffix: str | None = None) -> Iterator[Path
     sfx_default = Path(os.fspath(path)).suffix
     sfx = sfx_default if suffix is None else suffix
     if os.fspath(path) == STDOUT:
-        with tempfile.TemporaryDirectory(prefix="fusion-stdout-") as folder:
-            tmp = Path(folder) / f"stdout{sfx}"
+        with private_folder("fusion-stdout-") as folder:
+            tmp = folder / f"stdout{sfx}"
             yield tmp
             _copy_to_stdout(tmp)
         return
@@ -185,3 +186,139 @@ def atomic_output(path: PathLike, *, suffix: str | None = None) -> Iterator[Path
         with contextlib.suppress(FileNotFoundError):
             tmp.unlink()
         raise
+
+
+@contextlib.contextmanager
+def atomic_outputs(*paths: PathLike, suffixes: tuple[str | None, ...] = ()) -> Iterator[list[Path]]:
+    """Several outputs written together: temporaries, renamed onto their paths only at the end.
+
+    Like :func:`atomic_output` for each of `paths` (`suffixes`: theirs, one per path, default
+    each path's own): if writing any of them fails, none is replaced -- no result is left half
+    written beside a missing other half.
+    """
+    if len(suffixes) > len(paths):
+        raise ValueError(f"{len(suffixes)} suffixes for {len(paths)} paths")
+    sfx = list(suffixes) + [None] * (len(paths) - len(suffixes))
+    with contextlib.ExitStack() as stack:
+        yield [stack.enter_context(atomic_output(p, suffix=s))
+               for p, s in zip(paths, sfx, strict=True)]
+
+
+# --------------------------------------------------------------------------------------------
+# private temporary folders, one writer per output, termination signals
+# --------------------------------------------------------------------------------------------
+def _remove_stale_folders(prefix: str) -> None:
+    """Delete ``{tmp}/{prefix}{pid}-*`` folders whose process ``pid`` is gone (killed runs)."""
+    root = Path(tempfile.gettempdir())
+    try:
+        names = [e.name for e in os.scandir(root) if e.name.startswith(prefix) and e.is_dir()]
+    except OSError:
+        return
+    for name in names:
+        pid_text = name[len(prefix):].partition("-")[0]
+        if pid_text.isdigit() and int(pid_text) != os.getpid() and not _pid_alive(int(pid_text)):
+            shutil.rmtree(root / name, ignore_errors=True)
+            logger.info("removed the temporary folder %s of a run that was killed", root / name)
+
+
+@contextlib.contextmanager
+def private_folder(prefix: str) -> Iterator[Path]:
+    """A private temporary folder ``{tmp}/{prefix}{pid}-XXXX``, removed at the end.
+
+    A run killed by SIGKILL cannot remove its folder; the next run of any command using the
+    same `prefix` removes the folders whose process is gone (never those of live runs).
+    """
+    _remove_stale_folders(prefix)
+    with tempfile.TemporaryDirectory(prefix=f"{prefix}{os.getpid()}-") as folder:
+        yield Path(folder)
+
+
+def lock_path(path: PathLike) -> Path:
+    """The lock file of an output: ``.{name}.fusion-lock`` beside it."""
+    dest = output_destination(path) if not os.path.isdir(path) else Path(path)
+    dest = Path(os.path.abspath(dest))
+    return dest.parent / f".{dest.name}.fusion-lock"
+
+
+@contextlib.contextmanager
+def output_lock(path: PathLike) -> Iterator[None]:
+    """Hold the lock of output `path` (nothing for ``"-"``): one run writes an output at a time.
+
+    The lock file ``.{name}.fusion-lock`` beside the output holds the writer's process id and
+    an exclusive ``flock``. The system releases a lock when its process ends, however it ends,
+    so the lock of a killed run (even by SIGKILL) is taken over by the next run.
+
+    Raises
+    ------
+    ValueError
+        Another live run holds the lock: ``out.json: another fusion run (process 123) is
+        writing this output; wait for it to finish or stop it``.
+    """
+    try:
+        import fcntl
+    except ImportError:  # no flock (Windows): no lock
+        fcntl = None
+    if os.fspath(path) == STDOUT or fcntl is None:
+        yield
+        return
+    lock = lock_path(path)
+    lock.parent.mkdir(parents=True, exist_ok=True)
+    while True:
+        fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o666)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            owner = os.read(fd, 32).decode("ascii", "replace").strip() or "unknown"
+            os.close(fd)
+            raise ValueError(f"{path}: another fusion run (process {owner}) is writing this "
+                             f"output; wait for it to finish or stop it (lock {lock})") from None
+        try:  # the file may have been removed by its last holder between open and flock
+            same = os.path.samestat(os.fstat(fd), os.stat(lock))
+        except FileNotFoundError:
+            same = False
+        if same:
+            break
+        os.close(fd)
+    try:
+        os.ftruncate(fd, 0)
+        os.write(fd, f"{os.getpid()}\n".encode())
+        yield
+    finally:
+        with contextlib.suppress(OSError):
+            os.unlink(lock)
+        os.close(fd)  # releases the flock
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM or SIGHUP: handled like Ctrl-C (temporaries removed, exit 128 + signal)."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signum)
+        self.signum = signum
+
+
+def _raise_terminated(signum: int, frame: object) -> None:
+    raise Terminated(signum)
+
+
+@contextlib.contextmanager
+def termination_as_interrupt() -> Iterator[None]:
+    """Within the block, SIGTERM and SIGHUP raise :class:`Terminated` (a KeyboardInterrupt).
+
+    Every ``finally`` and context manager then runs as on Ctrl-C: temporaries of
+    :func:`atomic_output` and :func:`private_folder` are removed. Only in the main thread;
+    handlers are restored after the block.
+    """
+    import signal
+    import threading
+
+    wanted = [getattr(signal, n) for n in ("SIGTERM", "SIGHUP") if hasattr(signal, n)]
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    old = {s: signal.signal(s, _raise_terminated) for s in wanted}
+    try:
+        yield
+    finally:
+        for s, h in old.items():
+            signal.signal(s, h)

@@ -8,11 +8,15 @@ Bad input (a missing file, a malformed CSV, NaN values, a wrong channel count, d
 geometry, an option out of range, an output path that cannot be written, ...) is reported as one
 line on stderr with exit code 2, never as a traceback, and leaves no output behind. Usage errors
 found by the argument parser are one line too (``fusion CMD: error: ...``); ``--help`` prints the
-full usage. Notes and warnings are lines ``fusion CMD: warning: ...`` on stderr.
+full usage. Notes and warnings are lines ``fusion CMD: warning: ...`` on stderr, held until the
+command ends (:mod:`fusion._notes`): a failing run prints its error line only. SIGTERM and SIGHUP
+end a run like Ctrl-C (temporaries removed, exit 128 + signal).
 
 Outputs never destroy anything. Before any work, ``--out`` is checked against the command's
 inputs and the file system:
 
+- no output (``--out``, each file written inside an ``--out`` folder, ``--replica-out``, ...)
+  may be an input (also a file read inside an input folder) or another output;
 - ``--out`` naming an input (the same file, also through another path, a symbolic link or a hard
   link) is refused;
 - a symbolic link is written through: its target is replaced, the link stays a link;
@@ -43,7 +47,9 @@ from pathlib import Path
 from types import ModuleType
 
 from fusion import __version__
-from fusion._output import STDOUT, output_destination
+from fusion._notes import held_notes
+from fusion._output import STDOUT, Terminated, output_destination, termination_as_interrupt
+from fusion._validation import GridTooLarge
 
 #: The subcommands, in the order of ``fusion --help``: name -> (module, one-line help).
 #: A module is imported only when its command is chosen. To add a command, add one line.
@@ -199,12 +205,64 @@ def _same_file(a: Path, b: Path) -> bool:
         return False
 
 
+def _inputs(args: argparse.Namespace, names: dict[str, str]) -> Iterator[tuple[str, Path]]:
+    """(how the user named it, path) of every file the command may read.
+
+    Declared inputs (``args.inputs``), any other path-typed option, and inside a folder input
+    the files the command reads there (``args.input_files``: dest -> file names).
+    """
+    declared = tuple(getattr(args, "inputs", ()))
+    outs = {"out", *getattr(args, "more_outputs", ())}
+    others = [d for d, v in vars(args).items() if d not in declared and isinstance(v, os.PathLike)]
+    inside = dict(getattr(args, "input_files", {}))
+    for dest in (*declared, *others):
+        if dest in outs:
+            continue
+        for p in _paths(getattr(args, dest, None)):
+            yield f"{names.get(dest, dest)} {p}", p
+            for name in inside.get(dest, ()):
+                yield f"{names.get(dest, dest)} {p} (its {name})", p / name
+
+
+def _outputs(args: argparse.Namespace, names: dict[str, str]) -> list[tuple[str, Path]]:
+    """(how the user named it, path) of every file the command writes (``--out - `` excluded).
+
+    ``--out`` itself, or for a folder output each file it writes there (``args.out_files``);
+    and every other output option (``args.more_outputs``: dests), each checked writable.
+    """
+    out = getattr(args, "out", None)
+    found = []
+    if out is not None and os.fspath(out) != STDOUT:
+        if getattr(args, "out_is_dir", False):
+            found += [(f"--out {out}", Path(out))]  # the folder itself is no input either
+            found += [(f"--out {out} (its {name})", Path(out) / name)
+                      for name in getattr(args, "out_files", ())]
+        else:
+            found.append((f"--out {out}", Path(out)))
+    for dest in getattr(args, "more_outputs", ()):
+        if os.fspath(getattr(args, dest, None) or "") == STDOUT:
+            raise ValueError(f"{names.get(dest, dest)} -: this output cannot go to standard "
+                             "output; name a file (./- for a file called '-')")
+        for p in _paths(getattr(args, dest, None)):
+            check_output(p, option=names.get(dest, dest))
+            found.append((f"{names.get(dest, dest)} {p}", p))
+    return found
+
+
+def _destination(p: Path) -> str:
+    """The absolute file an output to `p` replaces (links resolved), to compare outputs."""
+    return os.path.realpath(p if os.path.isdir(p) else output_destination(p))
+
+
 def check_paths(args: argparse.Namespace, names: dict[str, str]) -> bool:
-    """Check inputs and output before any work; return whether the output goes to stdout.
+    """Check inputs and outputs before any work; return whether the output goes to stdout.
 
     Declared inputs (``args.inputs``) must exist. ``--out`` must be writable
-    (:func:`check_output`) and must not be the same file as any input -- declared, or any other
-    path-typed option (a rules file, ...). ``--out -`` is accepted for one-file outputs.
+    (:func:`check_output`), and so must every other output (``args.more_outputs``). No output
+    -- ``--out``, each file written inside an ``--out`` folder (``args.out_files``), another
+    output option -- may be the same file as any input (declared, any other path-typed option,
+    or a file read inside a folder input: ``args.input_files``), nor the same file as another
+    output. ``--out -`` is accepted for one-file outputs.
 
     Raises
     ------
@@ -213,30 +271,33 @@ def check_paths(args: argparse.Namespace, names: dict[str, str]) -> bool:
     """
     out = getattr(args, "out", None)
     is_dir = bool(getattr(args, "out_is_dir", False))
-    declared = tuple(getattr(args, "inputs", ()))
-    for dest in declared:
+    for dest in getattr(args, "inputs", ()):
         for p in _paths(getattr(args, dest, None)):
             if not os.path.exists(p):
                 raise ValueError(f"{names.get(dest, dest)} {p}: no such file")
-    if out is None:
-        return False
-    if os.fspath(out) == STDOUT:
+    to_stdout = out is not None and os.fspath(out) == STDOUT
+    if to_stdout:
         if is_dir:
             raise ValueError("--out -: this command writes a folder, not one file; name a folder "
                              "(./- for a folder called '-')")
         if not getattr(args, "out_stdout", True):
             raise ValueError("--out -: this command's output cannot go to standard output")
-        return True
-    check_output(out, is_dir=is_dir)
-    others = [d for d, v in vars(args).items() if d not in declared and isinstance(v, os.PathLike)]
-    for dest in (*declared, *others):
-        if dest == "out":
-            continue
-        for p in _paths(getattr(args, dest, None)):
-            if _same_file(Path(out), p):
-                raise ValueError(f"--out {out} is the same file as the input {names.get(dest, dest)} "
-                                 f"{p}; refusing to overwrite an input")
-    return False
+    elif out is not None:
+        check_output(out, is_dir=is_dir)
+    outputs = _outputs(args, names)
+    inputs = list(_inputs(args, names))
+    seen: dict[str, str] = {}
+    for what, p in outputs:
+        for source, q in inputs:
+            if _same_file(p, q):
+                raise ValueError(f"{what} is the same file as the input {source}; refusing to "
+                                 "overwrite an input")
+        dest = _destination(p)
+        if dest in seen:
+            raise ValueError(f"{what} is the same file as {seen[dest]}; name two different "
+                             "files")
+        seen[dest] = what
+    return to_stdout
 
 
 # --------------------------------------------------------------------------------------------
@@ -335,19 +396,26 @@ def main(argv: Sequence[str] | None = None) -> int:
     logging.basicConfig(level=logging.WARNING - 10 * min(args.verbose, 2), handlers=[handler])
     sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
     try:
-        _data_on_stdout = check_paths(args, _option_names(sub.choices[args.command]))
-        return int(args.handler(args) or 0)
+        with termination_as_interrupt(), held_notes(handler):  # SIGTERM, SIGHUP: like Ctrl-C
+            _data_on_stdout = check_paths(args, _option_names(sub.choices[args.command]))
+            return int(args.handler(args) or 0)
     except BrokenPipeError:  # `fusion ... --out - | head`: the reader left; not an error of ours
         _silence_stdout()
         return 1
     except (ValueError, OSError) as e:  # FileNotFoundError is an OSError
         text = _os_error_message(e) if isinstance(e, OSError) else str(e)
+        if isinstance(e, GridTooLarge):  # sized by the data of the (first) input file
+            first = next(_paths(getattr(args, next(iter(getattr(args, "inputs", ())), ""), None)),
+                         None)
+            text = text if first is None else f"{first}: {text}"
         msg = " ".join(text.split()) or type(e).__name__
         print(f"fusion {args.command}: error: {msg}", file=sys.stderr)
         return EXIT_BAD_INPUT
-    except KeyboardInterrupt:
-        print("fusion: interrupted", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as e:  # Ctrl-C, or SIGTERM/SIGHUP (Terminated)
+        signum = e.signum if isinstance(e, Terminated) else 2
+        print("fusion: interrupted" if signum == 2 else f"fusion: terminated (signal {signum})",
+              file=sys.stderr)
+        return 128 + signum
     finally:
         _data_on_stdout = False
 

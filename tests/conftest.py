@@ -34,3 +34,15 @@ def run_cli(capsys):
         return code, out.out, out.err
 
     return _run
+
+
+# Hypothesis: deterministic in CI (derandomize), a few hundred examples per property by default;
+# FUSION_HYPOTHESIS_EXAMPLES=2000 for a long run, HYPOTHESIS_PROFILE=random for fresh examples.
+from hypothesis import HealthCheck, settings  # noqa: E402
+
+_EXAMPLES = int(os.environ.get("FUSION_HYPOTHESIS_EXAMPLES", "200"))
+_COMMON = {"max_examples": _EXAMPLES, "deadline": None,
+           "suppress_health_check": [HealthCheck.too_slow, HealthCheck.data_too_large]}
+settings.register_profile("ci", derandomize=True, database=None, **_COMMON)
+settings.register_profile("random", **_COMMON)
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))

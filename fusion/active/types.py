@@ -15,6 +15,8 @@ from typing import Protocol
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from fusion._validation import MAX_EMPTY_PINGS, check_grid
+
 __all__ = [
     "CLUE_COLUMNS",
     "POSITION_CLUES",
@@ -173,6 +175,8 @@ def iter_pings(chunks: Iterable[Columns | Mapping[str, ArrayLike]]) -> Iterator[
         nonlocal last
         e, t = int(rows["event"][0]), float(rows["time"][0])
         if last is not None and e > last[0] + 1:
+            check_grid(e - last[0] - 1, f"event {e} after event {last[0]}: pings without "
+                       "detections", limit=MAX_EMPTY_PINGS)
             gap = np.arange(last[0] + 1, e)
             for g, tg in zip(gap, np.interp(gap, [last[0], e], [last[1], t]), strict=True):
                 yield Ping(int(g), float(tg), np.zeros((0, 2)),

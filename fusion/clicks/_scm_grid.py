@@ -20,11 +20,16 @@ from numpy.typing import ArrayLike, NDArray
 from fusion._validation import check_positive
 from fusion.clicks.types import ChannelClicks
 
-__all__ = ["ScmConfig", "scm1", "scm1_spectrum", "window_weight"]
+__all__ = ["MAX_SCM_SAMPLES", "ScmConfig", "scm1", "scm1_spectrum", "window_weight"]
 
 #: Relative size of the aliasing and truncation terms of the Gaussian gridding (see
 #: :func:`scm1_spectrum`); the spectra agree with the literal sum of eq. 3 to about this.
 _GRID_EPS_LOG = 32.0  # exp(-32) ~ 1.3e-14
+
+#: Most synthetic samples ``N`` of a window (2**21: 699 s at the method's 3 kHz, 58 times its
+#: 12 s). The maps of a window take a few ``N``-sample complex arrays per sensor pair, so a
+#: longer window (``--window 1e9``) would ask for terabytes; it is refused instead.
+MAX_SCM_SAMPLES = 1 << 21
 
 
 @dataclass(frozen=True)
@@ -54,6 +59,11 @@ class ScmConfig:
             raise ValueError(f"shading_width must be <= 0.5, got {self.shading_width!r}")
         if self.n_samples < 64:
             raise ValueError(f"window_s * fs_hz must give >= 64 samples, got {self.n_samples}")
+        if self.window_s * self.fs_hz > MAX_SCM_SAMPLES:
+            raise ValueError(f"a window of {self.window_s:g} s is longer than the "
+                             f"{MAX_SCM_SAMPLES / self.fs_hz:.0f} s a smoothed click map may span "
+                             f"at {self.fs_hz:g} Hz ({MAX_SCM_SAMPLES:,} samples); use a shorter "
+                             "window")
 
     @property
     def n_samples(self) -> int:

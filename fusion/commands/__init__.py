@@ -9,7 +9,13 @@ when its command is chosen, so it may import what it needs at the top. Each modu
 - ``inputs=("opt", ...)``: the dests of the options naming files the command reads (checked to
   exist, and never to be the ``--out`` file, before any work);
 - ``out_is_dir=True`` when ``--out`` is a folder (``--out -`` is then refused);
-- ``out_stdout=False`` when a one-file output cannot go to standard output.
+- ``out_stdout=False`` when a one-file output cannot go to standard output;
+- ``out_files=("a.csv", ...)``: the files a folder ``--out`` receives;
+- ``more_outputs=("opt", ...)``: the dests of other options naming files the command writes;
+- ``input_files={"opt": ("a.json", ...)}``: the files read inside a folder input.
+
+No output may be an input or another output (by any path or link): :func:`fusion.cli.check_paths`
+refuses it before any work.
 
 Errors are ValueError/OSError with a message naming the file or option; ``fusion.cli.main`` prints
 them as one line with exit code 2.

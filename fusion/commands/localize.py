@@ -54,7 +54,6 @@ from __future__ import annotations
 import argparse
 import contextlib
 import dataclasses
-import tempfile
 from pathlib import Path
 
 from fusion.cli import emit, number
@@ -240,7 +239,7 @@ def run(args: argparse.Namespace) -> int:
             raise ValueError("--events localizes one recording: give its file(s), not a folder")
 
         return run_events(args)
-    from fusion._output import STDOUT
+    from fusion._output import STDOUT, output_lock, private_folder
     from fusion.clicks.scm import ClickMapCorrelator, ScmConfig
     from fusion.clicks.validate import TdoaValidator
     from fusion.io import read_array, write_settings
@@ -294,9 +293,9 @@ def run(args: argparse.Namespace) -> int:
         def name(t: ChunkTask) -> str:
             return f"{number_of[t.source]:05d}-{t.name}"
     with contextlib.ExitStack() as stack:
+        stack.enter_context(output_lock(args.out))  # one run per output (none for stdout)
         if str(args.out) == STDOUT:  # no resume: parts in a private temporary folder
-            tmp = stack.enter_context(tempfile.TemporaryDirectory(prefix="fusion-localize-"))
-            root = Path(tmp) / "parts"
+            root = stack.enter_context(private_folder("fusion-localize-")) / "parts"
         elif len(recordings) > 1 or getattr(args, "out_is_dir", False):
             root = Path(args.out) / "localize.parts"
         else:

@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from fusion._output import atomic_outputs
 from fusion.cli import emit, number
 from fusion.io import Cube, read_cube, read_table, write_table
 
@@ -85,7 +86,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "frequency, pooled over 60 scans); default: cubes are already normalised")
     p.add_argument("--quiet", action="store_true",
                    help="no progress bar (none either when standard error is not a terminal)")
-    p.set_defaults(handler=run, inputs=("cube", "clicks"), out_is_dir=True)
+    p.set_defaults(handler=run, inputs=("cube", "clicks"), out_is_dir=True,
+                   out_files=("tracks.csv", "alerts.csv"))
 
 
 def _read_clicks(path: Path) -> list:
@@ -144,9 +146,9 @@ def run(args: argparse.Namespace) -> int:
     finally:
         bar.close()
     out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    write_table(out / "tracks.csv", res.track_columns())
-    write_table(out / "alerts.csv", res.alert_columns())
+    with atomic_outputs(out / "tracks.csv", out / "alerts.csv") as (tracks, alerts):
+        write_table(tracks, res.track_columns())  # both renamed into place together
+        write_table(alerts, res.alert_columns())
     n_lost = sum(t.end is not None for t in res.tracks)
     n_pred = int(np.sum(res.alert_columns()["kind"] == "predicted"))
     emit(f"{len(res.tracks)} track(s) ({n_lost} ended lost) over {res.n_scans} scans, "

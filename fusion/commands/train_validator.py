@@ -61,7 +61,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--quiet", action="store_true",
                    help="no progress bar (none either when standard error is not a terminal)")
     p.set_defaults(handler=run, inputs=("recording", "audio", "array", "labels"),
-                   out_stdout=False)
+                   out_stdout=False, more_outputs=("replica_out",),
+                   input_files={"recording": RECORDING_FILES})
+
+
+#: The files of a ``--recording`` folder (outputs may be none of them).
+RECORDING_FILES = ("audio.flac", "audio.wav", "array.json", "tdoa_labels.csv")
 
 
 def _recordings(args: argparse.Namespace) -> list[tuple[Path, Path, Path]]:
@@ -81,17 +86,38 @@ def _recordings(args: argparse.Namespace) -> list[tuple[Path, Path, Path]]:
     if not recs and not args.simulated:
         raise ValueError("no recording given (--recording DIR, --audio/--array/--labels, or "
                          "--simulated N)")
+    if args.replica_out is not None and not recs:
+        raise ValueError("--replica-out: the replica is re-estimated from recorded clicks; give "
+                         "a recording (--recording DIR or --audio/--array/--labels)")
     return recs
+
+
+def _checked(recordings: list[tuple[Path, Path, Path]]) -> list:
+    """(audio path, array, labels) of each recording, its array and labels read and checked."""
+    from fusion.io import read_array, read_table
+    from fusion.pipelines.click_training import TdoaLabels
+
+    checked = []
+    for audio_p, array_p, labels_p in recordings:
+        array = read_array(array_p)
+        table = read_table(labels_p, required=("time", "i", "j", "tau"), optional=("source",),
+                           integer=("i", "j", "source"))
+        labels = TdoaLabels.from_columns(table.columns)
+        if labels.i.max(initial=0) >= array.n_sensors or labels.j.max(initial=0) >= array.n_sensors:
+            raise ValueError(f"{labels_p}: sensor index beyond the {array.n_sensors} sensors of "
+                             f"{array_p}")
+        checked.append((audio_p, array, labels))
+    return checked
 
 
 def run(args: argparse.Namespace) -> int:
     """Train the validator (and the replica) on the recordings; write the model(s)."""
+    from fusion._output import atomic_outputs
     from fusion.clicks.replica import estimate_replica, load_replica, write_replica
     from fusion.clicks.scm import ClickMapCorrelator, ScmConfig
-    from fusion.io import read_array, read_audio, read_table
+    from fusion.io import read_audio
     from fusion.pipelines.click_training import (
         CandidateSet,
-        TdoaLabels,
         label_windows,
         simulated_training_set,
         train_from_candidates,
@@ -101,16 +127,9 @@ def run(args: argparse.Namespace) -> int:
     front = ClickFrontEnd(validator=False, refiner=False, hop_s=args.hop,
                           correlator=ClickMapCorrelator(config=ScmConfig(window_s=args.window)))
     zs, ys, ss, replica_parts = [], [], [], []
-    recordings = _recordings(args)
-    for k, (audio_p, array_p, labels_p) in enumerate(track_progress(
+    recordings = _checked(_recordings(args))  # every check before any work
+    for k, (audio_p, array, labels) in enumerate(track_progress(
             recordings, quiet=args.quiet, desc="recordings", unit="rec", total=len(recordings))):
-        array = read_array(array_p)
-        table = read_table(labels_p, required=("time", "i", "j", "tau"), optional=("source",),
-                           integer=("i", "j", "source"))
-        labels = TdoaLabels.from_columns(table.columns)
-        if labels.i.max(initial=0) >= array.n_sensors or labels.j.max(initial=0) >= array.n_sensors:
-            raise ValueError(f"{labels_p}: sensor index beyond the {array.n_sensors} sensors of "
-                             f"{array_p}")
         audio, fs = read_audio(audio_p, n_channels=array.n_sensors)
         windows = front.run_array(audio, fs, array)
         for w, y in zip(windows, label_windows(windows, labels, tol_s=args.tolerance),
@@ -138,15 +157,21 @@ def run(args: argparse.Namespace) -> int:
     data = CandidateSet(np.concatenate(zs), np.concatenate(ys), np.concatenate(ss))
     model = train_from_candidates(data, n_components=args.components, seed=args.seed,
                                   target_far=args.target_far)
-    model.save(args.out)
-    emit(f"validator: {int(data.valid.sum())} valid / {int((~data.valid).sum())} invalid "
-         f"candidates, threshold {model.threshold:.3g} -> {args.out}", err=True)
+    replica = None
     if args.replica_out is not None:
         audio, fs, windows = replica_parts[0]  # the first recording's clicks, every channel
         times = [np.unique(np.concatenate([w.clicks[ch].times_s for w in windows]))
                  for ch in range(audio.shape[1])]
-        est = estimate_replica(audio, fs, times, initial=load_replica())
-        write_replica(args.replica_out, est.replica)
-        emit(f"replica re-estimated from {sum(t.size for t in times)} clicks -> "
-             f"{args.replica_out}", err=True)
+        replica = estimate_replica(audio, fs, times, initial=load_replica()).replica
+        n_clicks = sum(t.size for t in times)
+    # both outputs written together, each under exactly the name given
+    outs = (args.out,) if replica is None else (args.out, args.replica_out)
+    with atomic_outputs(*outs, suffixes=(".npz",) * len(outs)) as tmps:
+        model.save(tmps[0])
+        if replica is not None:
+            write_replica(tmps[1], replica)
+    emit(f"validator: {int(data.valid.sum())} valid / {int((~data.valid).sum())} invalid "
+         f"candidates, threshold {model.threshold:.3g} -> {args.out}", err=True)
+    if replica is not None:
+        emit(f"replica re-estimated from {n_clicks} clicks -> {args.replica_out}", err=True)
     return 0

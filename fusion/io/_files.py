@@ -20,6 +20,14 @@ MAX_JSON_BYTES = 256 << 20
 #: Most samples (all channels) :func:`read_audio` reads at once: 2**29, 4 GiB as float64.
 MAX_AUDIO_SAMPLES = 1 << 29
 
+#: Plausible sound speed in water, m/s (``array.json``, cubes): beyond it is a unit error, and
+#: a value like 1e-12 or 1e308 would size delay grids of the localizers beyond any memory.
+SOUND_SPEED_RANGE = (1000.0, 2000.0)
+#: Plausible time between the scans of a cube, s (1 ms to 1 h).
+SCAN_PERIOD_RANGE = (1e-3, 3600.0)
+#: Plausible acoustic aperture of a cube's array, m (10 cm to 10 km).
+APERTURE_RANGE = (0.1, 1e4)
+
 _ROWS_PER_CHUNK = 1 << 16
 _WHOLE_LIMIT = 2.0**53  # integers beyond are not exact in float64
 
@@ -46,6 +54,14 @@ def _check_file(path: PathLike, *, max_bytes: int | None = None, what: str = "in
         raise ValueError(f"{p}: is {_size(st.st_size)}, larger than the {_size(max_bytes)} limit of "
                          f"{what}")
     return p
+
+
+def _check_range(p: Path, name: str, value: float, bounds: tuple[float, float], unit: str) -> None:
+    """Refuse `value` outside `bounds` (inclusive) with one line naming file, key and limits."""
+    lo, hi = bounds
+    if not lo <= value <= hi:
+        raise ValueError(f"{p}: {name!r} = {value:g} {unit} is outside the plausible range "
+                         f"{lo:g}..{hi:g} {unit} (check units)")
 
 
 def _show(cell: str, width: int = 40) -> str:

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from fusion.geometry import SensorArray
-from fusion.io._files import PathLike
+from fusion.io._files import MAX_ABS_VALUE, SOUND_SPEED_RANGE, PathLike, _check_range
 from fusion.io.json_files import read_json, write_json
 
 __all__ = ["MIN_SENSOR_SEPARATION_M", "read_array", "write_array"]
@@ -25,7 +25,7 @@ def read_array(path: PathLike) -> SensorArray:
     ValueError
         Malformed JSON, missing keys, non-numeric or non-finite coordinates, fewer than 3 sensors,
         two sensors at the same position (closer than :data:`MIN_SENSOR_SEPARATION_M`), all
-        sensors collinear, duplicate ids, non-positive sound speed.
+        sensors collinear, duplicate ids, a sound speed outside :data:`~fusion.io._files.SOUND_SPEED_RANGE`.
     """
     p = Path(path)
     doc = read_json(p)
@@ -45,12 +45,16 @@ def read_array(path: PathLike) -> SensorArray:
             v = s[axis]
             if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
                 raise ValueError(f"{p}: sensor {k}: {axis!r} = {v!r} is not a finite number")
+            if abs(v) > MAX_ABS_VALUE:
+                raise ValueError(f"{p}: sensor {k}: {axis!r} = {v!r} is beyond "
+                                 f"+-{MAX_ABS_VALUE:g} m, implausible (check units)")
             row.append(float(v))
         pos.append(row)
         ids.append(str(s.get("id", f"H{k + 1}")))
     c = doc.get("sound_speed", 1500.0)
     if isinstance(c, bool) or not isinstance(c, int | float) or not math.isfinite(c) or c <= 0:
         raise ValueError(f"{p}: 'sound_speed' = {c!r} is not a positive number")
+    _check_range(p, "sound_speed", float(c), SOUND_SPEED_RANGE, "m/s")
     xyz = np.array(pos)
     gap = np.linalg.norm(xyz[:, None, :] - xyz[None, :, :], axis=-1)
     gap[np.diag_indices(len(pos))] = np.inf

@@ -6,12 +6,20 @@ A cube is a :class:`fusion.types.Cube`; the file holds the arrays ``power``, ``f
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
 
 from fusion._output import atomic_output
-from fusion.io._files import PathLike, _check_file
+from fusion.io._files import (
+    APERTURE_RANGE,
+    SCAN_PERIOD_RANGE,
+    SOUND_SPEED_RANGE,
+    PathLike,
+    _check_file,
+    _check_range,
+)
 from fusion.types import _REAL_KINDS, Cube
 
 __all__ = ["Cube", "read_cube", "write_cube"]
@@ -56,6 +64,12 @@ def read_cube(path: PathLike) -> Cube:
     for k in ("scan_period", "aperture", "sound_speed"):
         if d[k].size != 1:
             raise ValueError(f"{p}: {k!r} must be one number, got shape {d[k].shape}")
+    for k, bounds, unit in (("scan_period", SCAN_PERIOD_RANGE, "s"),
+                            ("aperture", APERTURE_RANGE, "m"),
+                            ("sound_speed", SOUND_SPEED_RANGE, "m/s")):
+        v = float(d[k].reshape(()))
+        if math.isfinite(v) and v > 0:  # NaN, inf and <= 0 are refused by Cube, as before
+            _check_range(p, k, v, bounds, unit)
     try:
         return Cube(
             power=d["power"],

@@ -113,6 +113,26 @@ def _numbers(
     raise AssertionError("a bad cell was expected")  # pragma: no cover
 
 
+def _header(p: Path, row: list[str], line: int) -> list[str]:
+    """The column names of a header row; a name given twice is refused (which one is meant?)."""
+    header = [h.strip() for h in row]
+    first: dict[str, int] = {}
+    for k, name in enumerate(header, start=1):
+        if name and name in first:
+            raise ValueError(f"{p}: line {line}, column {k}: column name {_show(name)} repeats "
+                             f"column {first[name]}; each column needs its own name")
+        first.setdefault(name, k)
+    return header
+
+
+def _ragged(p: Path, line: int, n_fields: int, n_header: int) -> None:
+    """Refuse a row whose field count differs from the header's (its values would shift)."""
+    if n_fields > n_header:
+        raise ValueError(f"{p}: line {line}, column {n_header + 1}: the row has {n_fields} fields, "
+                         f"the header names {n_header}; a field past the last named column")
+    raise ValueError(f"{p}: line {line} has {n_fields} fields, header has {n_header}")
+
+
 @dataclass(frozen=True)
 class TableChunk:
     """Consecutive data rows of a CSV file, as read by :func:`iter_table`.
@@ -212,13 +232,12 @@ def _chunks(
         first = next(rows, None)
         if first is None:
             raise ValueError(f"{p}: file is empty")
-        header = [h.strip() for h in first]
+        header = _header(p, first, reader.line_num)
         missing = [c for c in required if c not in header]
         if missing:
             raise ValueError(f"{p}: missing required column(s) {', '.join(missing)}")
         wanted = list(required) + [c for c in optional if c in header and c not in required]
         index = [header.index(c) for c in wanted]
-        need = max(index) + 1
         cells: list[list[str]] = [[] for _ in wanted]  # per column, the cells of this chunk
         lines: list[int] = []  # line number of each row of this chunk
         n_rows = 0
@@ -239,9 +258,8 @@ def _chunks(
             return out
 
         for row in rows:
-            if len(row) < need:
-                raise ValueError(f"{p}: line {reader.line_num} has {len(row)} fields, header has "
-                                 f"{len(header)}")
+            if len(row) != len(header):
+                _ragged(p, reader.line_num, len(row), len(header))
             lines.append(reader.line_num)
             for k, j in enumerate(index):
                 cells[k].append(row[j])

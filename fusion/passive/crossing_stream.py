@@ -31,6 +31,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
+from fusion._validation import check_grid
 from fusion.passive.crossing_detector import CrossingDetector
 from fusion.passive.crossing_types import CrossingAlert
 
@@ -310,7 +311,10 @@ class StreamingGrid:
     def _interpolate(self, k_id: int, tr: _Track) -> None:
         """Grid points up to the last final knot (two or more knots): the batch interpolation."""
         kt, ky, eps = tr.kt, tr.ky, self.eps
-        ks = np.arange(tr.k_next, self._k_hi(kt[-1]) + 1, dtype=np.int64)
+        k_hi = self._k_hi(kt[-1])
+        check_grid(k_hi + 1 - tr.k_next, f"track {k_id}: a time grid of {self.K:g} s steps from "
+                   f"{self._grid(tr.k_next):g} s to {kt[-1]:g} s")
+        ks = np.arange(tr.k_next, k_hi + 1, dtype=np.int64)
         g = self._grid(ks)
         inside = g <= kt[-1]
         ks, g = ks[inside], g[inside]

@@ -15,6 +15,8 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import nnls
 
+from fusion._validation import check_grid
+
 __all__ = ["lag_diffusion", "rate_diffusion"]
 
 FloatArray = NDArray[np.float64]
@@ -57,6 +59,8 @@ def rate_diffusion(
         if t.size < 2 * min_points:
             continue
         u = np.unwrap(z)
+        check_grid((t[-1] - t[0]) / block_s + 1, f"a track from {t[0]:g} s to {t[-1]:g} s in "
+                   f"rate blocks of {block_s:g} s")
         edges = np.arange(t[0], t[-1] + block_s, block_s)
         blk = np.searchsorted(edges, t, side="right") - 1
         prev = None

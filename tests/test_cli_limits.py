@@ -1,0 +1,150 @@
+"""Plausibility limits where an input value sizes memory or a grid (docs/bad-input.md).
+
+Each is one stderr line naming the file (or the option), exit 2, nothing written -- instead of
+a ZeroDivisionError, an OverflowError, terabytes of allocation or hours of empty pings.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from fusion.cli import EXIT_BAD_INPUT
+
+
+def _one_line_exit_2(run_cli, *argv, words=()) -> str:
+    code, _, err = run_cli(*argv)
+    assert code == EXIT_BAD_INPUT, (code, err)
+    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err, err
+    for w in words:
+        assert w in err, err
+    return err
+
+
+def _array(path: Path, c: float) -> Path:
+    sensors = [{"x": 0, "y": 0, "z": -1}, {"x": 10, "y": 0, "z": -1}, {"x": 0, "y": 10, "z": -1},
+               {"x": 0, "y": 0, "z": -11}]
+    path.write_text(json.dumps({"sound_speed": c, "sensors": sensors}))
+    return path
+
+
+@pytest.mark.parametrize("c", [1e308, 1e-12, 343.0, 999.0, 2001.0])
+def test_implausible_sound_speed_in_array_is_refused(tmp_path, c):
+    from fusion.io import read_array
+
+    with pytest.raises(ValueError, match=r"a\.json: 'sound_speed' = .* outside the plausible "
+                                         r"range 1000\.\.2000 m/s"):
+        read_array(_array(tmp_path / "a.json", c))
+
+
+@pytest.mark.parametrize("c", [1000.0, 1480.0, 2000.0])
+def test_plausible_sound_speed_is_read(tmp_path, c):
+    from fusion.io import read_array
+
+    assert read_array(_array(tmp_path / "a.json", c)).sound_speed == c
+
+
+@pytest.fixture(scope="module")
+def cube(tmp_path_factory) -> dict[str, np.ndarray]:
+    rng = np.random.default_rng(0)
+    return {"power": rng.exponential(size=(80, 16, 8)), "freqs": 100.0 + np.arange(8.0),
+            "scan_period": np.array(1.0), "aperture": np.array(50.0),
+            "sound_speed": np.array(1500.0)}
+
+
+@pytest.mark.parametrize(("key", "value"), [("scan_period", 1e308), ("scan_period", 1e-9),
+                                            ("aperture", 5e-324), ("aperture", 1e9),
+                                            ("sound_speed", 1e308), ("sound_speed", 1e-12)])
+@pytest.mark.parametrize("command", ["acquire", "passive"])
+def test_implausible_cube_scalars_are_refused(run_cli, tmp_path, cube, key, value, command):
+    """scan_period=1e308 was a ZeroDivisionError, aperture=5e-324 an OverflowError."""
+    d = dict(cube)
+    d[key] = np.array(value)
+    p = tmp_path / "c.npz"
+    np.savez(p, **d)
+    argv = (["acquire", "--cube", p, "--beam", 3, "--freq", 102] if command == "acquire" else
+            ["passive", "--cube", p, "--auto", "--out", tmp_path / "o", "--quiet"])
+    _one_line_exit_2(run_cli, *argv, words=("c.npz", key, "plausible range"))
+    assert not (tmp_path / "o").exists()
+
+
+def test_window_beyond_the_click_map_limit_is_refused():
+    from fusion.clicks.scm import ScmConfig
+
+    with pytest.raises(ValueError, match="longer than the 699 s a smoothed click map may span"):
+        ScmConfig(window_s=1e9)
+    assert ScmConfig(window_s=600.0).n_samples == 1_800_000
+
+
+def test_localize_window_1e9_is_refused(run_cli, tmp_path):
+    from fusion.io import write_audio
+
+    audio = write_audio(tmp_path / "a.wav", np.zeros((96000, 4)), 96000.0)
+    _one_line_exit_2(run_cli, "localize", "--audio", audio, "--array",
+                     _array(tmp_path / "a.json", 1500.0), "--out", tmp_path / "l.json",
+                     "--window", "1e9", "--hop", 1, "--quiet", words=("1e+09 s", "shorter window"))
+    assert not (tmp_path / "l.json").exists()
+
+
+def _bearings(path: Path, extra: list[tuple[int, float, float]]) -> Path:
+    rows = [(k, 10.0 * i, b0 + r * i) for i in range(30)
+            for k, (b0, r) in enumerate(((40.0, 1.0), (70.0, -1.0)))]
+    rows = [*extra, *rows] if extra and extra[0][1] < 0 else [*rows, *extra]
+    path.write_text("track_id,time,bearing_deg\n" + "".join(f"{k},{t!r},{b}\n" for k, t, b in rows))
+    return path
+
+
+@pytest.mark.parametrize(("command", "time"), [("crossings", -1e12),
+                                               ("smooth", 9e11), ("smooth", -1e12)])
+def test_time_far_from_the_data_is_refused(run_cli, tmp_path, command, time):
+    src = _bearings(tmp_path / "b.csv", [(0, time, 50.0)])
+    err = _one_line_exit_2(run_cli, command, "--bearings", src, "--out", tmp_path / "o.csv",
+                           words=("b.csv", "more than 10,000,000", "implausible"))
+    assert "track" in err
+    assert not (tmp_path / "o.csv").exists()
+
+
+@pytest.mark.parametrize("event", [1_000_000_000_000, 100_000_000, 200_000])
+def test_event_id_far_past_the_others_is_refused(run_cli, tmp_path, event):
+    rows = [(e, 10.0 * e, 100.0 * k, 50.0 * e) for e in range(20) for k in range(3)]
+    rows.append((event, 10.0 * 21, 0.0, 0.0))
+    src = tmp_path / "d.csv"
+    src.write_text("event,time,x,y\n" + "".join(f"{e},{t},{x},{y}\n" for e, t, x, y in rows))
+    _one_line_exit_2(run_cli, "track", "--detections", src, "--out", tmp_path / "t.csv",
+                     words=("d.csv", f"event {event} after event 19", "more than 100,000"))
+    assert not (tmp_path / "t.csv").exists()
+
+
+def test_failing_run_prints_only_its_error_line(run_cli, tmp_path):
+    """The sort note of out-of-order rows is dropped when the run then fails."""
+    b = tmp_path / "b.csv"
+    b.write_text("time,bearing_deg\n10,30\n0,31\n20,32\n30,33\n40,34\n")
+    own = tmp_path / "o.csv"
+    own.write_text("time,x,y\n0,0,0\n5,1,1\n")
+    err = _one_line_exit_2(run_cli, "tma", "--bearings", b, "--ownship", own, "--out",
+                           tmp_path / "t.csv", words=("own-ship",))
+    assert "sorted" not in err
+
+
+def test_numpy_warning_of_a_successful_run_is_one_line(run_cli, tmp_path):
+    src = tmp_path / "a.csv"
+    src.write_text("track_id,time,amplitude,residual\n0,0,1,0.1\n0,1,2,0.2\n0,2,1,0.1\n")
+    code, _, err = run_cli("tqi", "--amplitudes", src, "--out", tmp_path / "t.csv",
+                           "--snr0-db", "1e300", "--snr1-db", "1e301")
+    assert code == 0, err
+    lines = err.strip().splitlines()
+    assert lines and all(ln.startswith("fusion tqi: warning: ") for ln in lines), err
+    assert any("RuntimeWarning" in ln for ln in lines)
+
+
+def test_huge_sensor_coordinate_is_refused_without_a_numpy_warning(tmp_path, recwarn):
+    from fusion.io import read_array
+
+    p = _array(tmp_path / "a.json", 1500.0)
+    p.write_text(p.read_text().replace('"x": 0,', '"x": 1e308,', 1))
+    with pytest.raises(ValueError, match=r"sensor 0: 'x' = 1e\+308 is beyond"):
+        read_array(p)
+    assert not [w for w in recwarn if issubclass(w.category, RuntimeWarning)]
