@@ -81,8 +81,8 @@ def write_recording(out_dir: Path, seed: int, options: dict) -> None:
     if all(k in accepted for k in options):
         clicks.write_scenario(out_dir, seed=seed, **options)
         return
-    missing = sorted(k for k in options if k not in accepted)
-    if set(options) <= SIMULATE_KEYS:  # the library's simulator takes them: the same files
+    missing = sorted(k for k in options if k not in accepted and k not in SIMULATE_KEYS)
+    if not missing:  # the library's simulator takes them: the same files
         clicks.write_click_scenario(out_dir, clicks.simulate_clicks(seed=seed, **options))
         return
     flags = ", ".join(OPTION_FLAGS.get(k, k) for k in missing)
