@@ -96,9 +96,11 @@ def window_starts(duration_s: float, window_s: float, hop_s: float) -> NDArray[n
 
 def _snippet_delays(y: NDArray, fs: float, ni: NDArray, nj: NDArray, half: int, lag: int,
                     carrier_hz: float) -> tuple[NDArray, NDArray, NDArray]:
-    """Fine delays ``(t_i - t_j)`` of paired clicks at samples `ni`, `nj` and their peak
-    correlation coefficient, and the mask of pairs away from the audio's ends: envelope lobe first, then the waveform cycle within +- half a
-    carrier period, parabolic interpolation."""
+    """Fine delays ``(t_i - t_j)`` of paired clicks at samples `ni`, `nj`, their peak
+    correlation coefficients, and the mask of the pairs away from the audio's ends.
+
+    The envelope of the analytic snippets' correlation picks the lobe; the waveform peak (zero
+    phase) within half a carrier period of it gives the delay (sub-sample)."""
     i_ch, j_ch = y
     n = i_ch.size
     e = 3 * half
