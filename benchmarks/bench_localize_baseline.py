@@ -1,0 +1,267 @@
+"""``fusion localize`` beside a plain baseline localizer on the same simulated recordings.
+
+For each seed a click scenario is written to a temporary folder through the library
+(:func:`fusion.simulate.clicks.write_scenario` with only the options given here; while the
+installed ``write_scenario`` takes the seed alone, the options ``simulate_clicks`` knows —
+whales, sensors, SNR, duration — go through :func:`fusion.simulate.clicks.simulate_clicks` and
+:func:`fusion.simulate.clicks.write_click_scenario`, the same files) and read back as a user
+would: ``audio.flac`` and ``array.json`` go to the estimators, ``truth.json`` only to the
+scores. Methods:
+
+* ``project``: ``fusion localize`` with its defaults, through the library
+  (:class:`fusion.pipelines.localization.ClickLocalization` with the default front end and
+  :class:`~fusion.pipelines.localization.LocalizerSettings`, i.e. no sea floor unless
+  ``--sea-floor deepest``);
+* ``baseline``: :func:`click_baseline.localize_recording` (``benchmarks/click_baseline.py``).
+
+Scores, per window, as ``benchmarks/bench_localize_e2e.py`` counts them: a whale's truth is
+its position at the emission whose arrivals are centred on the window centre (interpolated
+between the emissions of ``truth.json``); a whale is found when a reported source lies within
+10 m of it; a reported source farther than 10 m from every whale is false. Sources the project
+flags unobservable or mirror-ambiguous are counted apart (``flagged``), not as reported.
+CPU seconds per window: ``time.process_time`` of the whole method on the recording (audio to
+sources, one BLAS thread) over its windows. For the project, and the baseline's candidate
+TDOAs, also the median |TDOA error| (us) of the TDOAs (project: valid ones) that lie within
+1 ms of a whale's true direct-path TDOA of the same pair at the window centre (arrival at the
+pair's first sensor), and the fraction that do.
+
+Seeds: 0-9 are the baseline's tuning seeds; report on others (e.g. 7100-7109).
+
+Usage::
+
+    python benchmarks/bench_localize_baseline.py --seeds 7100-7109 --whales 3 \\
+        [--snr-db 20] [--duration-s 30] [--echo both] [--vary] [--methods project,baseline] \\
+        [--sea-floor none|deepest] [--out results.jsonl]
+
+One JSON line per method is printed (and appended to ``--out``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import inspect
+import json
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+from threadpoolctl import threadpool_limits
+
+from fusion.io import read_array, read_audio, read_json
+
+METHODS = ("project", "baseline")
+#: options simulate_clicks takes (the fallback while write_scenario takes the seed alone)
+SIMULATE_KEYS = {"duration_s", "n_sources", "n_sensors", "snr_db"}
+#: write_scenario keyword -> this script's option
+OPTION_FLAGS = {"duration_s": "--duration-s", "n_sources": "--whales", "n_sensors": "--sensors",
+                "snr_db": "--snr-db", "echo": "--echo", "vary": "--vary"}
+GATE_TDOA_S = 1e-3
+WITHIN_M = 10.0
+
+
+def seeds_arg(text: str) -> list[int]:
+    """``A-B`` (inclusive), a comma list, or both (``0-4,9``)."""
+    out: list[int] = []
+    for part in text.split(","):
+        if "-" in part.strip()[1:]:
+            a, b = part.rsplit("-", 1)
+            out.extend(range(int(a), int(b) + 1))
+        else:
+            out.append(int(part))
+    return out
+
+
+def write_recording(out_dir: Path, seed: int, options: dict) -> None:
+    """Write the scenario of `seed` with the user's `options` (only those set) to `out_dir`."""
+    from fusion.simulate import clicks
+
+    accepted = inspect.signature(clicks.write_scenario).parameters
+    if all(k in accepted for k in options):
+        clicks.write_scenario(out_dir, seed=seed, **options)
+        return
+    missing = sorted(k for k in options if k not in accepted and k not in SIMULATE_KEYS)
+    if not missing:  # the library's simulator takes them: the same files
+        clicks.write_click_scenario(out_dir, clicks.simulate_clicks(seed=seed, **options))
+        return
+    flags = ", ".join(OPTION_FLAGS.get(k, k) for k in missing)
+    raise SystemExit(f"error: the installed fusion.simulate.clicks.write_scenario does not "
+                     f"accept {flags} yet (update fusion, or drop {flags})")
+
+
+class Truth:
+    """Whale positions and direct-path TDOAs at a time, from ``truth.json``."""
+
+    def __init__(self, doc: dict) -> None:
+        self.sources = []
+        for s in doc["sources"]:
+            arr = np.asarray(s["arrival_times"], dtype=float)  # (n_clicks, n_sensors)
+            pos = np.asarray(s["positions"], dtype=float)
+            mean = arr.mean(axis=1)
+            order = np.argsort(mean)
+            self.sources.append((arr[order], pos[order], mean[order]))
+
+    def positions(self, t_mid: float) -> np.ndarray:
+        """(n_whales, 3): each whale where it emitted the click whose mean arrival is `t_mid`."""
+        return np.array([[np.interp(t_mid, mean, pos[:, k]) for k in range(3)]
+                         for _, pos, mean in self.sources])
+
+    def tdoas(self, t_mid: float, i: int, j: int) -> np.ndarray:
+        """Each whale's ``t_i - t_j`` with its arrival at sensor i at `t_mid`, s."""
+        out = []
+        for arr, _, _ in self.sources:
+            o = np.argsort(arr[:, i])
+            out.append(np.interp(t_mid, arr[o, i], arr[o, i] - arr[o, j]))
+        return np.array(out)
+
+
+def score_window(truth: np.ndarray, sources: list, st: dict) -> None:
+    """Add one window's counts (bench_localize_e2e.py's definitions) to `st`."""
+    srcs = [np.asarray(p, dtype=float) for p in sources]
+    st["reported"] += len(srcs)
+    st["pairs"] += len(truth)
+    for p in srcs:
+        d = np.linalg.norm(truth - p, axis=1)
+        if d.min() > WITHIN_M:
+            st["false"] += 1
+        if d.min() < 50.0:
+            st["errors"].append(float(d.min()))
+    for q in truth:
+        if any(np.linalg.norm(q - p) < WITHIN_M for p in srcs):
+            st["found"] += 1
+
+
+def score_tdoas(truth: Truth, t_mid: float, tdoas: list[tuple[int, int, float]],
+                st: dict) -> None:
+    """|error| of each TDOA within 1 ms of a whale's true TDOA of its pair."""
+    for i, j, tau in tdoas:
+        e = np.abs(truth.tdoas(t_mid, i, j) - tau)
+        st["tdoas"] += 1
+        if e.min() <= GATE_TDOA_S:
+            st["tdoa_err_us"].append(float(e.min()) * 1e6)
+
+
+def run_project(audio, fs, sensors, sea_floor_z) -> list[tuple[float, float, list, int, list]]:
+    """``fusion localize`` defaults through the library: per window (t_start, t_end, sources,
+    flagged, valid TDOAs)."""
+    from fusion.pipelines.localization import ClickLocalization, LocalizerSettings
+
+    pipe = ClickLocalization(localizer=LocalizerSettings(sea_floor_z=sea_floor_z))
+    out = []
+    for w in pipe.front_end.run_array(audio, fs, sensors):
+        lw = pipe.localize(w, sensors)
+        every = [] if lw.output is None else list(lw.output.sources)
+        srcs = [s.position for s in every if s.observable and not s.mirror_ambiguous]
+        valid = [(int(d.pair[0]), int(d.pair[1]), float(d.tau_s)) for d in w.tdoas if d.valid]
+        out.append((w.t_start, w.t_end, srcs, len(every) - len(srcs), valid))
+    return out
+
+
+def run_baseline(audio, fs, sensors, sea_floor_z) -> list[tuple[float, float, list, int, list]]:
+    """The baseline: per window (t_start, t_end, sources, 0, candidate TDOAs)."""
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from click_baseline import localize_recording
+
+    res = localize_recording(audio, fs, sensors.positions, sensors.sound_speed,
+                             sea_floor_z=sea_floor_z)
+    return [(w["t_start"], w["t_end"], w["sources"], 0,
+             [(i, j, tau) for (i, j), taus in w["tdoas"].items() for tau in taus])
+            for w in res]
+
+
+RUNNERS = {"project": run_project, "baseline": run_baseline}
+
+
+def main(argv: list[str] | None = None) -> list[dict]:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seeds", type=seeds_arg, required=True,
+                    help="seeds, e.g. 7100-7109 or 0,3,5 (0-9: the baseline's tuning seeds)")
+    ap.add_argument("--whales", type=int, default=None, help="whales (default: the simulator's)")
+    ap.add_argument("--sensors", type=int, default=None, help="sensors (default: the simulator's)")
+    ap.add_argument("--snr-db", type=float, default=None, help="SNR (default: the simulator's)")
+    ap.add_argument("--duration-s", type=float, default=None,
+                    help="recording length, s (default: the simulator's)")
+    ap.add_argument("--echo", choices=("none", "surface", "bottom", "both"), default=None,
+                    help="echo paths (default: the simulator's)")
+    ap.add_argument("--vary", action="store_true", help="the simulator's varied scenarios")
+    ap.add_argument("--methods", default="project,baseline",
+                    help="comma list of project, baseline")
+    ap.add_argument("--sea-floor", choices=("none", "deepest"), default="none",
+                    help="sea floor handed to both methods: unknown (default, as fusion "
+                         "localize's default) or at the deepest hydrophone")
+    ap.add_argument("--out", type=Path, default=None, help="JSON lines file to append to")
+    args = ap.parse_args(argv)
+    methods = [m.strip() for m in args.methods.split(",") if m.strip()]
+    bad = [m for m in methods if m not in METHODS]
+    if bad or not methods:
+        ap.error(f"--methods: unknown {bad}; choose from {', '.join(METHODS)}")
+    options = {k: v for k, v in (("duration_s", args.duration_s), ("n_sources", args.whales),
+                                 ("n_sensors", args.sensors), ("snr_db", args.snr_db),
+                                 ("echo", args.echo)) if v is not None}
+    if args.vary:
+        options["vary"] = True
+
+    stats = {m: {"found": 0, "pairs": 0, "reported": 0, "false": 0, "flagged": 0,
+                 "errors": [], "windows": 0, "cpu_s": 0.0, "tdoas": 0, "tdoa_err_us": []}
+             for m in methods}
+    whales, snrs = set(), []
+    for seed in args.seeds:
+        with tempfile.TemporaryDirectory(prefix="bench_baseline_") as tmp:
+            folder = Path(tmp)
+            write_recording(folder, seed, options)
+            sensors = read_array(folder / "array.json")
+            audio, fs = read_audio(folder / "audio.flac", n_channels=sensors.n_sensors)
+            doc = read_json(folder / "truth.json")
+        truth = Truth(doc)
+        whales.add(len(doc["sources"]))
+        snrs.append(doc["snr_db"])
+        floor = (float(np.min(sensors.positions[:, 2])) if args.sea_floor == "deepest"
+                 else None)
+        for m in methods:
+            st = stats[m]
+            with threadpool_limits(1):
+                t0 = time.process_time()
+                windows = RUNNERS[m](audio, fs, sensors, floor)
+                st["cpu_s"] += time.process_time() - t0
+            for t_start, t_end, srcs, flagged, tdoas in windows:
+                t_mid = 0.5 * (t_start + t_end)
+                st["windows"] += 1
+                st["flagged"] += flagged
+                score_window(truth.positions(t_mid), srcs, st)
+                score_tdoas(truth, t_mid, tdoas, st)
+    lines = []
+    seeds = args.seeds
+    seed_text = (f"{seeds[0]}-{seeds[-1]}" if seeds == list(range(seeds[0], seeds[-1] + 1))
+                 else ",".join(map(str, seeds)))
+    snr_set = sorted({s for s in snrs}, key=lambda v: (v is None, v))
+    for m in methods:
+        st = stats[m]
+        line = {
+            "method": m, "seeds": seed_text, "whales": sorted(whales),
+            "snr_db": snr_set[0] if len(snr_set) == 1 else snr_set,
+            "echo": args.echo or "default", "vary": bool(args.vary),
+            "duration_s": args.duration_s, "sea_floor": args.sea_floor,
+            "windows": st["windows"],
+            "within_10m_pct": round(100.0 * st["found"] / max(st["pairs"], 1), 1),
+            "false_sources_pct": round(100.0 * st["false"] / max(st["reported"], 1), 1),
+            "reported": st["reported"], "flagged": st["flagged"],
+            "median_error_m": (round(float(np.median(st["errors"])), 3) if st["errors"]
+                               else None),
+            "cpu_s_per_window": round(st["cpu_s"] / max(st["windows"], 1), 3),
+            "median_tdoa_error_us": (round(float(np.median(st["tdoa_err_us"])), 2)
+                                     if st["tdoa_err_us"] else None),
+            "tdoas_within_1ms": round(len(st["tdoa_err_us"]) / max(st["tdoas"], 1), 3),
+            "tdoas": st["tdoas"],
+        }
+        lines.append(line)
+        text = json.dumps(line)
+        print(text, flush=True)
+        if args.out is not None:
+            with open(args.out, "a", encoding="utf-8") as fh:  # append, never overwrite
+                fh.write(text + "\n")
+    return lines
+
+
+if __name__ == "__main__":
+    main()
