@@ -8,10 +8,9 @@ whales, sensors, SNR, duration — go through :func:`fusion.simulate.clicks.simu
 would: ``audio.flac`` and ``array.json`` go to the estimators, ``truth.json`` only to the
 scores. Methods:
 
-* ``project``: ``fusion localize`` with its defaults, through the library
-  (:class:`fusion.pipelines.localization.ClickLocalization` with the default front end and
-  :class:`~fusion.pipelines.localization.LocalizerSettings`, i.e. no sea floor unless
-  ``--sea-floor deepest``);
+* ``project``: ``fusion localize`` with its defaults, run in this process on the written files
+  exactly as a user runs it (replica estimated from the recording, paths decided per window;
+  no sea floor unless ``--sea-floor deepest``, then ``--sea-floor-z``);
 * ``baseline``: :func:`click_baseline.localize_recording` (``benchmarks/click_baseline.py``).
 
 Scores, per window, as ``benchmarks/bench_localize_e2e.py`` counts them: a whale's truth is
@@ -22,8 +21,9 @@ flags unobservable or mirror-ambiguous are counted apart (``flagged``), not as r
 CPU seconds per window: ``time.process_time`` of the whole method on the recording (audio to
 sources, one BLAS thread) over its windows. For the project, and the baseline's candidate
 TDOAs, also the median |TDOA error| (us) of the TDOAs (project: valid ones) that lie within
-1 ms of a whale's true direct-path TDOA of the same pair at the window centre (arrival at the
-pair's first sensor), and the fraction that do.
+1 ms of a whale's true direct-path TDOA of the same pair at the TDOA's own time ``t`` (the
+arrival at the pair's first sensor that ``fusion localize`` writes with each TDOA; the
+window centre for the baseline), and the fraction that do.
 
 Seeds: 0-9 are the baseline's tuning seeds; report on others (e.g. 7100-7109).
 
@@ -50,6 +50,7 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from fusion.io import read_array, read_audio, read_json
+from fusion.metrics.localization import match_fixes
 
 METHODS = ("project", "baseline")
 #: options simulate_clicks takes (the fallback while write_scenario takes the seed alone)
@@ -117,56 +118,62 @@ class Truth:
 
 
 def score_window(truth: np.ndarray, sources: list, st: dict) -> None:
-    """Add one window's counts (bench_localize_e2e.py's definitions) to `st`."""
-    srcs = [np.asarray(p, dtype=float) for p in sources]
-    st["reported"] += len(srcs)
+    """Add one window's counts (:func:`fusion.metrics.localization.match_fixes`) to `st`."""
+    m = match_fixes(truth, sources, within_m=WITHIN_M)
+    st["reported"] += len(sources)
     st["pairs"] += len(truth)
-    for p in srcs:
-        d = np.linalg.norm(truth - p, axis=1)
-        if d.min() > WITHIN_M:
-            st["false"] += 1
-        if d.min() < 50.0:
-            st["errors"].append(float(d.min()))
-    for q in truth:
-        if any(np.linalg.norm(q - p) < WITHIN_M for p in srcs):
-            st["found"] += 1
+    st["found"] += m.found
+    st["false"] += m.false
+    st["errors"].extend(m.errors_m)
 
 
-def score_tdoas(truth: Truth, t_mid: float, tdoas: list[tuple[int, int, float]],
-                st: dict) -> None:
-    """|error| of each TDOA within 1 ms of a whale's true TDOA of its pair."""
-    for i, j, tau in tdoas:
-        e = np.abs(truth.tdoas(t_mid, i, j) - tau)
+def score_tdoas(truth: Truth, tdoas: list[tuple[int, int, float, float]], st: dict) -> None:
+    """|error| of each TDOA ``(i, j, tau, t)`` at its own time ``t`` (arrival at sensor i),
+    against the true direct-path TDOAs of its pair, when one lies within 1 ms."""
+    for i, j, tau, t in tdoas:
+        e = np.abs(truth.tdoas(t, i, j) - tau)
         st["tdoas"] += 1
         if e.min() <= GATE_TDOA_S:
             st["tdoa_err_us"].append(float(e.min()) * 1e6)
 
 
-def run_project(audio, fs, sensors, sea_floor_z) -> list[tuple[float, float, list, int, list]]:
-    """``fusion localize`` defaults through the library: per window (t_start, t_end, sources,
-    flagged, valid TDOAs)."""
-    from fusion.pipelines.localization import ClickLocalization, LocalizerSettings
+def run_project(folder: Path, audio_path: Path, sensors, sea_floor_z):
+    """``fusion localize`` as a user runs it (its defaults; ``--sea-floor-z`` when given) on
+    the written files: per window (t_start, t_end, sources, flagged, valid TDOAs with t)."""
+    import contextlib
+    import io
 
-    pipe = ClickLocalization(localizer=LocalizerSettings(sea_floor_z=sea_floor_z))
-    out = []
-    for w in pipe.front_end.run_array(audio, fs, sensors):
-        lw = pipe.localize(w, sensors)
-        every = [] if lw.output is None else list(lw.output.sources)
-        srcs = [s.position for s in every if s.observable and not s.mirror_ambiguous]
-        valid = [(int(d.pair[0]), int(d.pair[1]), float(d.tau_s)) for d in w.tdoas if d.valid]
-        out.append((w.t_start, w.t_end, srcs, len(every) - len(srcs), valid))
-    return out
+    from fusion.cli import main as fusion_main
+
+    out = folder / "project.json"
+    argv = ["localize", "--audio", str(audio_path), "--array", str(folder / "array.json"),
+            "--out", str(out), "--quiet"]
+    if sea_floor_z is not None:
+        argv += ["--sea-floor-z", repr(sea_floor_z)]
+    with contextlib.redirect_stderr(io.StringIO()):
+        if fusion_main(argv) != 0:
+            raise SystemExit(f"fusion localize failed on {audio_path}")
+    rows = []
+    for w in read_json(out)["windows"]:
+        every = w["sources"]
+        srcs = [[s["x"], s["y"], s["z"]] for s in every
+                if s.get("observable", True) and not s.get("mirror_ambiguous", False)]
+        valid = [(d["pair"][0], d["pair"][1], d["tau"], d["t"]) for d in w["tdoas"] if d["valid"]]
+        rows.append((w["t_start"], w["t_end"], srcs, len(every) - len(srcs), valid))
+    return rows
 
 
-def run_baseline(audio, fs, sensors, sea_floor_z) -> list[tuple[float, float, list, int, list]]:
-    """The baseline: per window (t_start, t_end, sources, 0, candidate TDOAs)."""
+def run_baseline(folder: Path, audio_path: Path, sensors, sea_floor_z):
+    """The baseline: per window (t_start, t_end, sources, 0, candidate TDOAs at the centre)."""
     sys.path.insert(0, str(Path(__file__).resolve().parent))
     from click_baseline import localize_recording
 
+    audio, fs = read_audio(audio_path, n_channels=sensors.n_sensors)
     res = localize_recording(audio, fs, sensors.positions, sensors.sound_speed,
                              sea_floor_z=sea_floor_z)
     return [(w["t_start"], w["t_end"], w["sources"], 0,
-             [(i, j, tau) for (i, j), taus in w["tdoas"].items() for tau in taus])
+             [(i, j, tau, 0.5 * (w["t_start"] + w["t_end"]))
+              for (i, j), taus in w["tdoas"].items() for tau in taus])
             for w in res]
 
 
@@ -211,25 +218,26 @@ def main(argv: list[str] | None = None) -> list[dict]:
             folder = Path(tmp)
             write_recording(folder, seed, options)
             sensors = read_array(folder / "array.json")
-            audio, fs = read_audio(folder / "audio.flac", n_channels=sensors.n_sensors)
+            audio_path = next(folder / n for n in ("audio.flac", "audio.wav")
+                              if (folder / n).exists())  # > 8 channels: WAV
             doc = read_json(folder / "truth.json")
-        truth = Truth(doc)
-        whales.add(len(doc["sources"]))
-        snrs.append(doc["snr_db"])
-        floor = (float(np.min(sensors.positions[:, 2])) if args.sea_floor == "deepest"
-                 else None)
-        for m in methods:
-            st = stats[m]
-            with threadpool_limits(1):
-                t0 = time.process_time()
-                windows = RUNNERS[m](audio, fs, sensors, floor)
-                st["cpu_s"] += time.process_time() - t0
-            for t_start, t_end, srcs, flagged, tdoas in windows:
-                t_mid = 0.5 * (t_start + t_end)
-                st["windows"] += 1
-                st["flagged"] += flagged
-                score_window(truth.positions(t_mid), srcs, st)
-                score_tdoas(truth, t_mid, tdoas, st)
+            truth = Truth(doc)
+            whales.add(len(doc["sources"]))
+            snrs.append(doc["snr_db"])
+            floor = (float(np.min(sensors.positions[:, 2])) if args.sea_floor == "deepest"
+                     else None)
+            for m in methods:
+                st = stats[m]
+                with threadpool_limits(1):
+                    t0 = time.process_time()
+                    windows = RUNNERS[m](folder, audio_path, sensors, floor)
+                    st["cpu_s"] += time.process_time() - t0
+                for t_start, t_end, srcs, flagged, tdoas in windows:
+                    t_mid = 0.5 * (t_start + t_end)
+                    st["windows"] += 1
+                    st["flagged"] += flagged
+                    score_window(truth.positions(t_mid), srcs, st)
+                    score_tdoas(truth, tdoas, st)
     lines = []
     seeds = args.seeds
     seed_text = (f"{seeds[0]}-{seeds[-1]}" if seeds == list(range(seeds[0], seeds[-1] + 1))

@@ -7,7 +7,8 @@ One module per kind of result, used by tests, benchmarks, examples and the demo:
 - :mod:`~fusion.metrics.tracks` -- passive bearing tracks against a scenario's truth (RMSE,
   identities, end delays; :func:`~fusion.metrics.tracks.score_tracks`).
 - :mod:`~fusion.metrics.tqi` -- track quality indicator outputs (declaration lag, state changes).
-- :mod:`~fusion.metrics.localization` -- estimates with covariances (NEES and its interval).
+- :mod:`~fusion.metrics.localization` -- fixes matched to true sources per window
+  (:func:`~fusion.metrics.localization.match_fixes`) and estimates with covariances (NEES).
 - :mod:`~fusion.metrics.detections` -- click detections against true click times.
 
 Importing this package imports none of them; import the module you need.

@@ -1,4 +1,8 @@
-"""Scores of position estimates with covariances: normalised estimation error squared (NEES).
+"""Scores of position estimates: fixes matched to true sources, and the NEES of covariances.
+
+:func:`match_fixes` counts, for one processing window, the true sources with a reported fix
+within a distance and the reported fixes farther than that from every true source (false); the
+localization benchmarks sum them over windows.
 
 A consistent estimator's NEES ``e^T P^-1 e`` is chi-square distributed with as many degrees of
 freedom as the state has components; :func:`nees_interval` gives the two-sided interval that a
@@ -7,11 +11,54 @@ consistent estimator's NEES (or its mean over runs) falls in with the stated pro
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.stats import chi2
 
-__all__ = ["nees", "nees_interval"]
+__all__ = ["FixMatch", "match_fixes", "nees", "nees_interval"]
+
+
+class FixMatch(NamedTuple):
+    """One window's fixes against its true sources (:func:`match_fixes`)."""
+
+    found: int
+    """True sources with a fix within the distance."""
+    false: int
+    """Fixes farther than the distance from every true source."""
+    errors_m: tuple[float, ...]
+    """Distance of each fix to its nearest true source, for fixes nearer than `near_m`."""
+
+
+def match_fixes(truth: ArrayLike, fixes: ArrayLike, *, within_m: float = 10.0,
+                near_m: float = 50.0) -> FixMatch:
+    """Match a window's reported fixes to its true source positions.
+
+    Parameters
+    ----------
+    truth : array_like, shape (n, 3)
+        True positions, m.
+    fixes : array_like, shape (k, 3)
+        Reported positions, m (k may be 0).
+    within_m : float, optional
+        A true source is found, and a fix is not false, within this distance.
+    near_m : float, optional
+        Fixes nearer than this to a true source give an error.
+
+    Examples
+    --------
+    >>> match_fixes([[0, 0, -900], [100, 0, -900]], [[3, 4, -900], [500, 0, -900]])
+    FixMatch(found=1, false=1, errors_m=(5.0,))
+    """
+    t = np.asarray(truth, dtype=float).reshape(-1, 3)
+    f = np.asarray(fixes, dtype=float).reshape(-1, 3)
+    if not t.size or not f.size:
+        return FixMatch(0, int(f.shape[0]) if not t.size else 0, ())
+    d = np.linalg.norm(t[:, None, :] - f[None, :, :], axis=2)  # (n, k)
+    nearest = d.min(axis=0)
+    return FixMatch(int(np.sum(d.min(axis=1) < within_m)), int(np.sum(nearest > within_m)),
+                    tuple(float(v) for v in nearest[nearest < near_m]))
 
 
 def nees(error: ArrayLike, covariance: ArrayLike) -> NDArray[np.float64] | float:
