@@ -147,7 +147,14 @@ def register(sub: argparse._SubParsersAction) -> None:
 REPLICA_SPAN_S = 60.0
 
 
-def _detector(args: argparse.Namespace, det_opts: dict, source) -> tuple:
+def _first_audio(source):
+    """The first :data:`REPLICA_SPAN_S` seconds of a recording (all channels) and their span."""
+    n = min(source.frames, int(round(REPLICA_SPAN_S * source.fs)))
+    _, x = next(source.blocks(block=n))
+    return x, f"the first {n / source.fs:.3g} s of {Path(source.paths[0]).name}"
+
+
+def _detector(args: argparse.Namespace, det_opts: dict, source, first) -> tuple:
     """The click detector: its replica from ``--replica`` or estimated from the recording.
 
     Returns the detector, a one-line note of the replica used, and its record for the
@@ -162,10 +169,8 @@ def _detector(args: argparse.Namespace, det_opts: dict, source) -> tuple:
     det = ClickDetector(**det_opts)
     if args.replica == "generic":
         return det, "replica: the generic one shipped", {"source": "generic"}
-    n = min(source.frames, int(round(REPLICA_SPAN_S * source.fs)))
-    _, x = next(source.blocks(block=n))
+    x, span = first
     new, est = det.with_recording_replica(x, source.fs)
-    span = f"the first {n / source.fs:.3g} s of {Path(source.paths[0]).name}"
     if new is det:
         why = ("fewer than 20 clicks" if est is None else
                f"the estimate did not settle (change {est.change:.3g} after "
@@ -177,6 +182,40 @@ def _detector(args: argparse.Namespace, det_opts: dict, source) -> tuple:
     return new, note, {"source": f"estimated from {span}", "clicks": est.n_clicks,
                        "passes": est.n_iterations, "change": est.change, "fs": est.replica.fs,
                        "samples": [float(v) for v in est.replica.samples]}
+
+
+def _sea_floor(args: argparse.Namespace, settings, detector, source, first, array) -> tuple:
+    """The localizer settings with the sea floor decided from bottom echoes when not given.
+
+    Without ``--sea-floor-z``, for sensors all below the surface: when at least half of them
+    hear the clicks followed by a bottom echo (:func:`fusion.clicks.echoes.bottom_echoes`)
+    they stand near the floor, and sources are searched above the deepest sensor minus
+    :data:`fusion.clicks.echoes.FLOOR_MARGIN_M`. Returns the settings, a note (or None) and
+    the record for the settings file.
+    """
+    import numpy as np
+
+    from fusion.clicks.echoes import FLOOR_MARGIN_M, bottom_echoes
+
+    if (settings is None or args.sea_floor_z is not None
+            or not bool((array.positions[:, 2] < 0.0).all())):
+        return settings, None, {"source": "given" if args.sea_floor_z is not None else "none",
+                                "sea_floor_z": args.sea_floor_z}
+    x, span = first
+    echoes = bottom_echoes(x, source.fs, detector.detect(x, source.fs),
+                           band_hz=detector.band_hz)
+    record = {"bottom_echo_z": [None if not np.isfinite(v) else round(float(v), 2)
+                                for v in echoes.z],
+              "bottom_echo_lag_s": [None if not np.isfinite(v) else float(v)
+                                    for v in echoes.lag_s],
+              "near_floor": echoes.near_floor}
+    if not echoes.near_floor:
+        return settings, None, {"source": "none", "sea_floor_z": None, **record}
+    floor = float(array.positions[:, 2].min()) - FLOOR_MARGIN_M
+    note = (f"sea floor: {echoes.describe()} in {span}: sources searched above z = {floor:g} m "
+            "(--sea-floor-z to set it)")
+    return (dataclasses.replace(settings, sea_floor_z=floor), note,
+            {"source": "bottom echoes", "sea_floor_z": floor, **record})
 
 
 class _AudioPaths(argparse.Action):
@@ -271,7 +310,8 @@ def run(args: argparse.Namespace) -> int:
                  else default_validator())
     if args.llr_threshold is not None:
         validator = dataclasses.replace(validator, threshold=args.llr_threshold)
-    detector, replica_note, replica_record = _detector(args, det_opts, recordings[0][0])
+    first = _first_audio(recordings[0][0])
+    detector, replica_note, replica_record = _detector(args, det_opts, recordings[0][0], first)
     front = ClickFrontEnd(
         detector=detector,
         correlator=ClickMapCorrelator(config=ScmConfig(window_s=args.window)),
@@ -281,6 +321,8 @@ def run(args: argparse.Namespace) -> int:
     localizer = None if args.method == "none" else settings_from_args(args)
     if localizer is not None:
         localizer.localizers(array.positions)
+    localizer, floor_note, floor_record = _sea_floor(args, localizer, detector,
+                                                     recordings[0][0], first, array)
     pipe = ClickLocalization(front_end=front, localizer=localizer)
     plans = [plan_chunks(source, pipe, chunk_s=args.chunk) for source, _ in recordings]
     tasks = [t for plan in plans for t in plan]
@@ -318,7 +360,10 @@ def run(args: argparse.Namespace) -> int:
         side = (Path(args.out) / "localize" if getattr(args, "out_is_dir", False)
                 else args.out)
         write_settings(side, {"command": "localize", "replica": replica_record,
+                              "sea_floor": floor_record,
                               "localization": None if localizer is None else localizer.to_dict()},
                        inputs=[*audio, args.array, args.events, args.validator])
     emit(replica_note, err=True)
+    if floor_note:
+        emit(floor_note, err=True)
     return 0

@@ -1,0 +1,98 @@
+"""Bottom echoes decided from the data: known lags and levels, controls, the localize default."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from fusion.clicks.echoes import FLOOR_MARGIN_M, bottom_echoes
+from fusion.clicks.types import ChannelClicks
+
+FS = 96_000.0
+
+
+def _click(n=33, f=30_000.0):
+    t = (np.arange(n) - n // 2) / FS
+    return np.hanning(n) * np.cos(2 * np.pi * f * t)
+
+
+def _audio(echo_lag_s=None, echo_db=-10.0, *, seed=0, n_ch=4, other_train=False):
+    """Clicks every ~0.4 s on each channel, each followed by an echo at a fixed lag."""
+    rng = np.random.default_rng(seed)
+    x = rng.normal(0.0, 0.02, (int(30 * FS), n_ch))
+    clicks = []
+    for ch in range(n_ch):
+        times = np.cumsum(rng.uniform(0.35, 0.45, 70)) + 0.1
+        times = times[times < 29.8]
+        for t in times:
+            i = int(round(t * FS))
+            x[i - 16:i + 17, ch] += _click()
+            if echo_lag_s is not None:
+                j = i + int(round(echo_lag_s[ch] * FS))
+                x[j - 16:j + 17, ch] += 10 ** (echo_db / 20) * _click()
+            if other_train:  # a second source's clicks at random lags on either side
+                k = i + int(rng.uniform(-0.03, 0.03) * FS)
+                x[k - 16:k + 17, ch] += 0.5 * _click()
+        clicks.append(ChannelClicks(ch, times, np.ones(times.size), np.full(times.size, 3e4)))
+    return x, clicks
+
+
+def test_known_lags_and_level_are_measured():
+    """Echoes 1.5-12 ms after every click at -10 dB: lags to 0.05 ms, level to 1 dB."""
+    lags = np.array([1.5e-3, 4.0e-3, 8.25e-3, 12.0e-3])
+    x, clicks = _audio(lags)
+    e = bottom_echoes(x, FS, clicks)
+    assert e.near_floor and e.present.all()
+    assert np.allclose(e.lag_s, lags, atol=5e-5)
+    assert np.allclose(e.level_db, -10.0, atol=1.0)
+    assert "on 4 of 4 sensors" in e.describe()
+
+
+def test_no_echo_is_no_floor_even_with_other_sources_around():
+    """Without echoes -- alone, or with another source's clicks at random lags -- no channel
+    shows one: the control before the clicks sees the other source as often."""
+    for other in (False, True):
+        x, clicks = _audio(None, other_train=other, seed=3)
+        e = bottom_echoes(x, FS, clicks)
+        assert not e.present.any() and not e.near_floor
+        assert "no bottom echo" in e.describe()
+
+
+def test_half_the_channels_decide_and_few_clicks_abstain():
+    """Two of four channels with an echo: near the floor; a channel with too few clicks is
+    not counted (NaN)."""
+    lags = np.array([3e-3, 5e-3, np.nan, np.nan])
+    x, clicks = _audio(None)
+    y, _ = _audio(np.nan_to_num(lags, nan=0.0))
+    x[:, :2] = y[:, :2]
+    assert bottom_echoes(x, FS, clicks).near_floor
+    clicks[3] = ChannelClicks(3, clicks[3].times_s[:3], np.ones(3), np.full(3, 3e4))
+    e = bottom_echoes(x, FS, clicks)
+    assert np.isnan(e.z[3]) and e.n_clicks[3] == 0
+    with pytest.raises(ValueError, match="lag_range_s"):
+        bottom_echoes(x, FS, clicks, lag_range_s=(0.0, 1e-2))
+
+
+@pytest.mark.parametrize("echo", ["bottom", "none"])
+def test_localize_decides_the_sea_floor_from_the_recording(tmp_path, echo):
+    """`fusion localize` without --sea-floor-z: a recording with bottom echoes gets the floor
+    below the deepest sensor (printed, in the settings file); one without keeps none."""
+    from fusion.cli import main
+
+    assert main(["simulate", "clicks", "--seed", "21", "--out", str(tmp_path / "s"),
+                 "--whales", "1", "--duration-s", "30", "--echo", echo]) == 0
+    array = json.loads((tmp_path / "s" / "array.json").read_text())
+    assert main(["localize", "--audio", str(tmp_path / "s" / "audio.flac"), "--array",
+                 str(tmp_path / "s" / "array.json"), "--out", str(tmp_path / "r.json"),
+                 "--quiet"]) == 0
+    side = json.loads((tmp_path / "r.settings.json").read_text())
+    deepest = min(s["z"] for s in array["sensors"])
+    if echo == "bottom":
+        assert side["sea_floor"]["source"] == "bottom echoes"
+        assert side["sea_floor"]["sea_floor_z"] == pytest.approx(deepest - FLOOR_MARGIN_M)
+        assert side["localization"]["sea_floor_z"] == pytest.approx(deepest - FLOOR_MARGIN_M)
+    else:
+        assert side["sea_floor"]["source"] == "none" and not side["sea_floor"]["near_floor"]
+        assert side["localization"]["sea_floor_z"] is None
