@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["local_maxima", "not_ringing"]
+__all__ = ["local_maxima", "not_echo", "not_ringing"]
 
 
 def local_maxima(s: NDArray[np.float32], threshold: float, distance: int) -> NDArray[np.int64]:
@@ -37,4 +37,17 @@ def not_ringing(
     hi = np.searchsorted(times, times + window_s, side="right")
     for i in np.flatnonzero(hi - lo > 1):
         keep[i] = power[lo[i]:hi[i]].max() < ratio * power[i]
+    return keep
+
+
+def not_echo(times: NDArray[np.float64], power: NDArray[np.float64], lo_s: float,
+             hi_s: float) -> NDArray[np.bool_]:
+    """Mask of clicks with no stronger click ``lo_s`` to ``hi_s`` before them (its echo)."""
+    keep = np.ones(times.size, dtype=bool)
+    if times.size < 2 or hi_s <= 0:
+        return keep
+    a = np.searchsorted(times, times - hi_s, side="left")
+    b = np.searchsorted(times, times - lo_s, side="right")
+    for i in np.flatnonzero(b > a):
+        keep[i] = power[a[i]:b[i]].max() <= power[i]
     return keep

@@ -63,7 +63,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from fusion._validation import check_positive
-from fusion.clicks._click_peaks import local_maxima, not_ringing
+from fusion.clicks._click_peaks import local_maxima, not_echo, not_ringing
 from fusion.clicks._detect_statistic import all_finite, centre_frequency, chunked_statistic
 from fusion.clicks._frames import gather_frames, interp_nodes, segment_medians
 from fusion.clicks._kernels import DetectorKernels
@@ -121,6 +121,11 @@ class ClickDetector:
         Two local maxima closer than this are one click (the larger is kept), s.
     interpolation : {"log", "linear"}, optional
         Parabolic interpolation of the log power (default) or of the power.
+    echo_window_s : (float, float), optional
+        Echo suppression (step 32's threshold time): a click with a stronger click this many
+        seconds before it is taken as that click's echo and removed. Default None: none (set
+        from the recording's bottom echoes by ``fusion localize``,
+        :func:`fusion.clicks.echoes.bottom_echoes`).
 
     Notes
     -----
@@ -153,6 +158,7 @@ class ClickDetector:
         suppress_ratio: float = 10.0,
         min_separation_s: float = 0.25e-3,
         interpolation: Literal["log", "linear"] = "log",
+        echo_window_s: tuple[float, float] | None = None,
     ) -> None:
         if replica is not None and not isinstance(replica, Replica):
             raise ValueError(f"replica must be a Replica, got {type(replica).__name__}")
@@ -186,6 +192,13 @@ class ClickDetector:
             raise ValueError(f"suppress_ratio must exceed 1, got {suppress_ratio!r}")
         self.min_separation_s = check_positive("min_separation_s", min_separation_s)
         self.interpolation = interpolation
+        if echo_window_s is not None:
+            e_lo, e_hi = (float(v) for v in echo_window_s)
+            if not (np.isfinite(e_lo) and np.isfinite(e_hi) and 0 <= e_lo < e_hi <= 1.0):
+                raise ValueError(f"echo_window_s must be (low, high) with 0 <= low < high <= 1 s, "
+                                 f"got {echo_window_s!r}")
+            echo_window_s = (e_lo, e_hi)
+        self.echo_window_s = echo_window_s
         self._kernels: dict[float, DetectorKernels] = {}
 
     # ----------------------------------------------------------------------------------------
@@ -213,7 +226,8 @@ class ClickDetector:
         k = self._bank(fs)
         sep = max(1, int(round(self.min_separation_s * fs / self.hop)))
         samples = 1.5 * self._seg_len(fs) * self.hop + 2 * k.span + self.nfft + (sep + 4) * self.hop
-        return float(samples / fs + self.suppress_s)
+        echo = 0.0 if self.echo_window_s is None else self.echo_window_s[1]
+        return float(samples / fs + self.suppress_s + echo)
 
     # ----------------------------------------------------------------------------------------
     def detect(
@@ -291,10 +305,18 @@ class ClickDetector:
                                initial=self.replica, n_iter=6, tol=0.03)
         if not est.converged:
             return self, est
+        return self._copy(replica=est.replica, _kernels={}), est
+
+    def with_echo_window(self, echo_window_s: tuple[float, float] | None) -> ClickDetector:
+        """This detector with another echo suppression window (see the class parameters)."""
+        probe = ClickDetector(echo_window_s=echo_window_s)  # checks the window
+        return self._copy(echo_window_s=probe.echo_window_s)
+
+    def _copy(self, **changes) -> ClickDetector:
         new = ClickDetector.__new__(ClickDetector)
         new.__dict__.update(self.__dict__)
-        new.replica, new._kernels = est.replica, {}
-        return new, est
+        new.__dict__.update(changes)
+        return new
 
     def detect_blocks(
         self, blocks: Iterable[tuple], fs: float
@@ -415,7 +437,8 @@ class ClickDetector:
         # candidate within the ringing window
         f_lo, f_hi = 0, n_frames
         if span_s is not None and self.method == "stft":  # the envelope's background needs all
-            reach = int(np.ceil(self.suppress_s * fs / hop)) + 2 * sep + 8
+            echo = 0.0 if self.echo_window_s is None else self.echo_window_s[1]
+            reach = int(np.ceil((self.suppress_s + echo) * fs / hop)) + 2 * sep + 8
             lo = (span_s[0] - t0) * fs + s0 - k.centre  # sample offsets of the span's ends
             hi = (span_s[1] - t0) * fs + s0 - k.centre
             f_lo = max(0, int(np.floor(lo / hop)) - reach - j_a)
@@ -476,6 +499,8 @@ class ClickDetector:
             ok = fc >= self.min_centre_freq_hz
             times, power, fc = times[ok], power[ok], fc[ok]
             keep = not_ringing(times, power, self.suppress_s, self.suppress_ratio)
+            if self.echo_window_s is not None:
+                keep &= not_echo(times, power, *self.echo_window_s)
             clicks = ChannelClicks(c, times[keep], power[keep], fc[keep])
             out.append(clicks if span_s is None else clicks.between(*span_s))
         lap("peaks")

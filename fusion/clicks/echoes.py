@@ -17,9 +17,11 @@ peak stands :data:`ECHO_Z` robust standard deviations of the control above the c
 median and :data:`CONTROL_RATIO` times as high as the control's own peak, and the array is
 near the floor when at least half of its channels with enough clicks do.
 
-What the localizer does with it (:func:`fusion.pipelines.localization`, ``fusion localize``):
-sources are searched above the deepest sensor minus :data:`FLOOR_MARGIN_M` when the user gave
-no sea floor, which removes the mirror image of a whale through a near-planar bottom array.
+What ``fusion localize`` does with it: a click that follows a stronger one within
+:func:`echo_window` is taken as its echo and dropped by the detector (the method's echo
+suppression), and, when the user gave no sea floor, sources are searched above the deepest
+sensor minus :data:`FLOOR_MARGIN_M`, which removes the mirror image of a whale through a
+near-planar bottom array.
 
 Examples
 --------
@@ -43,7 +45,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from fusion.clicks.types import ChannelClicks
 
-__all__ = ["CONTROL_RATIO", "ECHO_Z", "FLOOR_MARGIN_M", "BottomEchoes", "bottom_echoes"]
+__all__ = ["CONTROL_RATIO", "ECHO_Z", "FLOOR_MARGIN_M", "BottomEchoes", "bottom_echoes",
+           "echo_window"]
 
 #: A channel shows a bottom echo when the averaged envelope after its clicks peaks this many
 #: robust standard deviations (of the same average before the clicks) above the control's median.
@@ -214,3 +217,17 @@ def _dominant(times: NDArray[np.float64], power: NDArray[np.float64], lo: float,
     out = np.empty_like(keep)
     out[order] = keep
     return out
+
+
+def echo_window(echoes: BottomEchoes, *, floor_s: float = 0.25e-3,
+                cap_s: float = 30e-3) -> tuple[float, float]:
+    """Lags after a click within which a weaker click is taken as its echo, s.
+
+    From `floor_s` (the detector's minimum separation) to twice the longest bottom-echo lag
+    measured on a channel showing one (a moving whale changes the grazing angle, and with it
+    the lag, over a recording), at most `cap_s`.
+    """
+    lags = echoes.lag_s[echoes.present]
+    if not lags.size:
+        raise ValueError("no channel shows a bottom echo")
+    return float(floor_s), float(min(cap_s, max(2.0 * float(lags.max()), 2.0 * floor_s)))

@@ -184,38 +184,44 @@ def _detector(args: argparse.Namespace, det_opts: dict, source, first) -> tuple:
                        "samples": [float(v) for v in est.replica.samples]}
 
 
-def _sea_floor(args: argparse.Namespace, settings, detector, source, first, array) -> tuple:
-    """The localizer settings with the sea floor decided from bottom echoes when not given.
+def _echoes(args: argparse.Namespace, settings, detector, source, first, array) -> tuple:
+    """Bottom echoes measured on the recording: echo suppression and, if needed, the sea floor.
 
-    Without ``--sea-floor-z``, for sensors all below the surface: when at least half of them
-    hear the clicks followed by a bottom echo (:func:`fusion.clicks.echoes.bottom_echoes`)
-    they stand near the floor, and sources are searched above the deepest sensor minus
-    :data:`fusion.clicks.echoes.FLOOR_MARGIN_M`. Returns the settings, a note (or None) and
-    the record for the settings file.
+    When at least half of the sensors hear their clicks followed by a bottom echo
+    (:func:`fusion.clicks.echoes.bottom_echoes`), they stand near the floor: the detector drops
+    a click that follows a stronger one within the measured echo lags
+    (:func:`fusion.clicks.echoes.echo_window`), and, without ``--sea-floor-z`` for sensors all
+    below the surface, sources are searched above the deepest sensor minus
+    :data:`fusion.clicks.echoes.FLOOR_MARGIN_M`. Returns the settings, the detector, a note
+    (or None) and the record for the settings file.
     """
     import numpy as np
 
-    from fusion.clicks.echoes import FLOOR_MARGIN_M, bottom_echoes
+    from fusion.clicks.echoes import FLOOR_MARGIN_M, bottom_echoes, echo_window
 
-    if (settings is None or args.sea_floor_z is not None
-            or not bool((array.positions[:, 2] < 0.0).all())):
-        return settings, None, {"source": "given" if args.sea_floor_z is not None else "none",
-                                "sea_floor_z": args.sea_floor_z}
     x, span = first
     echoes = bottom_echoes(x, source.fs, detector.detect(x, source.fs),
                            band_hz=detector.band_hz)
-    record = {"bottom_echo_z": [None if not np.isfinite(v) else round(float(v), 2)
+    record = {"source": "given" if args.sea_floor_z is not None else "none",
+              "sea_floor_z": args.sea_floor_z, "near_floor": echoes.near_floor,
+              "bottom_echo_z": [None if not np.isfinite(v) else round(float(v), 2)
                                 for v in echoes.z],
               "bottom_echo_lag_s": [None if not np.isfinite(v) else float(v)
-                                    for v in echoes.lag_s],
-              "near_floor": echoes.near_floor}
+                                    for v in echoes.lag_s]}
     if not echoes.near_floor:
-        return settings, None, {"source": "none", "sea_floor_z": None, **record}
-    floor = float(array.positions[:, 2].min()) - FLOOR_MARGIN_M
-    note = (f"sea floor: {echoes.describe()} in {span}: sources searched above z = {floor:g} m "
-            "(--sea-floor-z to set it)")
-    return (dataclasses.replace(settings, sea_floor_z=floor), note,
-            {"source": "bottom echoes", "sea_floor_z": floor, **record})
+        return settings, detector, None, record
+    window = echo_window(echoes)
+    record["echo_window_s"] = list(window)
+    note = (f"{echoes.describe()} in {span}: a click "
+            f"{window[0] * 1e3:.2g}-{window[1] * 1e3:.2g} ms after a stronger one is taken as "
+            "its echo")
+    if (settings is not None and args.sea_floor_z is None
+            and bool((array.positions[:, 2] < 0.0).all())):
+        floor = float(array.positions[:, 2].min()) - FLOOR_MARGIN_M
+        settings = dataclasses.replace(settings, sea_floor_z=floor)
+        record.update(source="bottom echoes", sea_floor_z=floor)
+        note += f"; the sensors stand near the sea floor: sources searched above z = {floor:g} m"
+    return settings, detector.with_echo_window(window), note, record
 
 
 class _AudioPaths(argparse.Action):
@@ -312,17 +318,17 @@ def run(args: argparse.Namespace) -> int:
         validator = dataclasses.replace(validator, threshold=args.llr_threshold)
     first = _first_audio(recordings[0][0])
     detector, replica_note, replica_record = _detector(args, det_opts, recordings[0][0], first)
-    front = ClickFrontEnd(
-        detector=detector,
-        correlator=ClickMapCorrelator(config=ScmConfig(window_s=args.window)),
-        validator=validator, refiner=not args.no_refine, hop_s=args.hop)
     # checked (and the direct-path fallback logged) once for the array; the pipeline resolves
     # the localizers, with the surface-path reading decided per window from the data
     localizer = None if args.method == "none" else settings_from_args(args)
     if localizer is not None:
         localizer.localizers(array.positions)
-    localizer, floor_note, floor_record = _sea_floor(args, localizer, detector,
-                                                     recordings[0][0], first, array)
+    localizer, detector, floor_note, floor_record = _echoes(args, localizer, detector,
+                                                           recordings[0][0], first, array)
+    front = ClickFrontEnd(
+        detector=detector,
+        correlator=ClickMapCorrelator(config=ScmConfig(window_s=args.window)),
+        validator=validator, refiner=not args.no_refine, hop_s=args.hop)
     pipe = ClickLocalization(front_end=front, localizer=localizer)
     plans = [plan_chunks(source, pipe, chunk_s=args.chunk) for source, _ in recordings]
     tasks = [t for plan in plans for t in plan]

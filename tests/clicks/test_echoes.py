@@ -96,3 +96,29 @@ def test_localize_decides_the_sea_floor_from_the_recording(tmp_path, echo):
     else:
         assert side["sea_floor"]["source"] == "none" and not side["sea_floor"]["near_floor"]
         assert side["localization"]["sea_floor_z"] is None
+
+
+def test_echo_window_drops_the_echoes_and_keeps_the_clicks():
+    """A detector with the echo window measured from the recording keeps every direct click
+    and drops the detected echoes 4 ms after them; without it, the echoes are clicks too."""
+    from fusion.clicks.detect import ClickDetector
+    from fusion.clicks.echoes import echo_window
+
+    x, clicks = _audio(np.full(4, 4e-3), echo_db=-3.0)
+    e = bottom_echoes(x, FS, clicks)
+    window = echo_window(e)
+    assert window == pytest.approx((0.25e-3, 8e-3), abs=1e-4)
+    plain = ClickDetector().detect(x, FS)
+    suppressed = ClickDetector(echo_window_s=window).detect(x, FS)
+    assert ClickDetector().with_echo_window(window).echo_window_s == window
+    for c, p, s in zip(clicks, plain, suppressed, strict=True):
+        near = np.min(np.abs(s.times_s[:, None] - c.times_s[None]), axis=0)
+        assert np.all(near < 1e-4)  # every direct click kept
+        def echoes(d):  # detections 3.9-4.1 ms after a direct click
+            lag = d.times_s[:, None] - c.times_s[None]
+            return int(np.sum(np.any((lag > 3.9e-3) & (lag < 4.1e-3), axis=1)))
+
+        assert echoes(s) == 0
+        assert echoes(p) >= 0.9 * c.times_s.size  # without the window: detected as clicks
+    with pytest.raises(ValueError, match="echo_window_s"):
+        ClickDetector(echo_window_s=(0.01, 0.001))
