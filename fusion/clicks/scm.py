@@ -67,11 +67,14 @@ from fusion.clicks.types import ChannelClicks, frozen_array
 from fusion.geometry import SensorArray
 
 __all__ = [
+    "MAX_TDOA_RATE",
+    "TDOA_RATE_STEP",
     "ClickMapCorrelator",
     "Scm2",
     "ScmConfig",
     "ScmCorrelation",
     "TdoaPeak",
+    "drift_grid",
     "scm1",
     "scm1_spectrum",
     "scm2",
@@ -80,6 +83,23 @@ __all__ = [
 ]
 
 logger = logging.getLogger(__name__)
+
+#: Largest delay drift compensated by default, s/s: a whale at 1-2 m/s drifts a delay by up to
+#: ``2 v / c``, about 1.3-2.7e-3 s/s (the correlation pulse, 2.7 ms to its first zero, holds a
+#: drift of only ~4e-4 s/s over a 12 s window).
+MAX_TDOA_RATE = 1.6e-3
+
+#: Spacing of the drift grid, s/s: a delay half a step off drifts +-1.2 ms over 12 s, under half
+#: the correlation pulse.
+TDOA_RATE_STEP = 4e-4
+
+
+def drift_grid(max_rate: float = MAX_TDOA_RATE, step: float = TDOA_RATE_STEP) -> tuple:
+    """The drifts ``-max_rate .. max_rate`` in steps of at most `step` (0 alone for 0), s/s."""
+    if not (np.isfinite(max_rate) and 0 <= max_rate < 0.1 and np.isfinite(step) and step > 0):
+        raise ValueError(f"max_rate must be in [0, 0.1) and step > 0, got {max_rate}, {step}")
+    k = int(np.ceil(max_rate / step - 1e-9))
+    return tuple(float(v) for v in np.linspace(-max_rate, max_rate, 2 * k + 1)) if k else (0.0,)
 
 
 class ClickMapCorrelator:
@@ -101,6 +121,12 @@ class ClickMapCorrelator:
         over the window. A single click pair (<= 1) never qualifies.
     max_peaks : int, optional
         At most this many candidates per pair (the strongest), default 3.
+    rates : sequence of float, optional
+        Delay drifts ``d tau / dt`` (s/s) to correlate under (drift compensation, added): for
+        each rate ``r`` sensor ``j``'s clicks are moved to ``t + r (t - t_c)`` (``t_c`` the
+        window centre) so that a delay drifting at ``r`` lines up at its centre value; the
+        correlation of a pair is the largest over the rates at each lag, and each peak keeps
+        its rate. Default ``(0.0,)``: none, the method text's correlation.
 
     Notes
     -----
@@ -119,6 +145,7 @@ class ClickMapCorrelator:
         delay_guard_s: float = 0.002,
         min_peak: float = 1.5,
         max_peaks: int = 3,
+        rates: Sequence[float] = (0.0,),
     ) -> None:
         self.config = ScmConfig() if config is None else config
         self.delay_margin = check_positive("delay_margin", delay_margin, allow_zero=True)
@@ -127,6 +154,10 @@ class ClickMapCorrelator:
         if isinstance(max_peaks, bool) or int(max_peaks) != max_peaks or max_peaks < 1:
             raise ValueError(f"max_peaks must be an integer >= 1, got {max_peaks!r}")
         self.max_peaks = int(max_peaks)
+        r = np.asarray(rates, dtype=float).ravel()
+        if r.size == 0 or not np.all(np.isfinite(r)) or np.any(np.abs(r) >= 0.1):
+            raise ValueError(f"rates must be finite drifts |r| < 0.1 s/s, got {rates!r}")
+        self.rates = tuple(float(v) for v in sorted(set(r.tolist()), key=lambda v: (v != 0, v)))
 
     def correlate(
         self,
@@ -199,22 +230,40 @@ class ClickMapCorrelator:
         used = np.unique(pr)
         row = np.full(len(tl), -1, dtype=np.int64)
         row[used] = np.arange(used.size)
-        # plain SCM1 (eq. 3) and windowed SCM1 (eq. 5) of each channel used, kept for the SCM2s
-        maps = window_maps([tl[ch] for ch in used], t0_s=t0_s, config=cfg, windowed=True)
-        # eq. 6: c(m) = (1/N) sum_k Xw_i(k) conj(X_j(k)) e^{j 2 pi k m / N}, peak at m = (t_i - t_j) fs
-        cross = maps.windowed[row[pr[:, 0]]] * np.conj(maps.plain[row[pr[:, 1]]])
-        corr = scipy.fft.irfft(cross, n, axis=-1)
         q = n // 4  # |tau| <= T/4: no wrap-around
         lags = np.arange(-q, q + 1)
-        values = np.concatenate([corr[:, n - q:], corr[:, : q + 1]], axis=1)
+        # plain SCM1 (eq. 3) and windowed SCM1 (eq. 5) of each channel used
+        base = window_maps([tl[ch] for ch in used], t0_s=t0_s, config=cfg, windowed=True)
+        windowed_i = base.windowed[row[pr[:, 0]]]
+        t_c = t0_s + 0.5 * cfg.window_s
+        values = rate_of = None
+        for rate in self.rates:
+            if rate:  # sensor j's clicks moved along the drift (sensor i as measured)
+                plain = window_maps([tl[ch] + rate * (tl[ch] - t_c) for ch in used], t0_s=t0_s,
+                                    config=cfg).plain
+            else:
+                plain = base.plain
+            # eq. 6: c(m) = (1/N) sum_k Xw_i(k) conj(X_j(k)) e^{j 2 pi k m / N}, peak at
+            # m = (t_i - t_j) fs
+            corr = scipy.fft.irfft(windowed_i * np.conj(plain[row[pr[:, 1]]]), n, axis=-1)
+            v = np.concatenate([corr[:, n - q:], corr[:, : q + 1]], axis=1)
+            if values is None:
+                values, rate_of = v, np.full(v.shape, rate)
+            else:
+                better = v > values
+                values = np.where(better, v, values)
+                rate_of = np.where(better, rate, rate_of)
+        if len(self.rates) > 1:  # the measured maps cached again for the window's SCM2s
+            window_maps([tl[ch] for ch in used], t0_s=t0_s, config=cfg, windowed=True)
         limit = np.minimum(max_delay, q / cfg.fs_hz)
-        peaks = self._peaks(values, lags, limit, pr)
+        peaks = self._peaks(values, lags, limit, pr, rate_of)
         return ScmCorrelation(
             t0_s=float(t0_s), pairs=frozen_array(pr, np.int64), lags_s=frozen_array(lags / cfg.fs_hz),
             values=frozen_array(values), max_delay_s=frozen_array(limit), peaks=peaks,
         )
 
-    def _peaks(self, values: NDArray, lags: NDArray, limit: NDArray, pairs: NDArray) -> tuple:
+    def _peaks(self, values: NDArray, lags: NDArray, limit: NDArray, pairs: NDArray,
+               rate_of: NDArray | None = None) -> tuple:
         fs = self.config.fs_hz
         q = lags.size // 2  # lags[q] = 0
         out: list[TdoaPeak] = []
@@ -232,5 +281,9 @@ class ClickMapCorrelator:
             d, v = parabolic(values[p, idx - 1], values[p, idx], values[p, idx + 1])
             pair = (int(pairs[p, 0]), int(pairs[p, 1]))
             order = np.argsort(v)[::-1]
-            out += [TdoaPeak(pair, float((lags[idx[k]] + d[k]) / fs), float(v[k])) for k in order]
+            rate = np.zeros(idx.size) if rate_of is None else rate_of[p, idx]
+            # moved along rate r, sensor j's clicks line up at tau_c (1 + r) (tau_c: the delay
+            # at the window centre)
+            out += [TdoaPeak(pair, float((lags[idx[k]] + d[k]) / fs / (1.0 + rate[k])),
+                             float(v[k]), float(rate[k])) for k in order]
         return tuple(out)

@@ -26,11 +26,15 @@ class TdoaPeak:
         Delay ``t_i - t_j`` of the peak (parabolic-interpolated on the synthetic grid), s.
     value : float
         Interpolated correlation value: about the window-weighted number of matched clicks.
+    rate : float
+        Drift ``d tau / dt`` (s/s) under which sensor ``j``'s clicks were correlated (0 without
+        drift compensation): `tau_s` holds at the window centre.
     """
 
     pair: tuple[int, int]
     tau_s: float
     value: float
+    rate: float = 0.0
 
 
 @dataclass(frozen=True)

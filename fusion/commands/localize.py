@@ -58,6 +58,10 @@ from pathlib import Path
 
 from fusion.cli import emit, number
 
+#: Default of --max-tdoa-rate (fusion.clicks.scm.MAX_TDOA_RATE, not imported here: --help stays
+#: light).
+MAX_TDOA_RATE = 1.6e-3
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add the ``localize`` subcommand."""
@@ -99,6 +103,11 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "of the recording, starting from the shipped one)")
     p.add_argument("--llr-threshold", type=float, default=None,
                    help="validation threshold on the log-likelihood ratio (default: the model's)")
+    p.add_argument("--max-tdoa-rate", type=number(float, ge=0, le=0.05), default=MAX_TDOA_RATE,
+                   metavar="S_PER_S",
+                   help="largest delay drift d tau/dt the click-map correlation compensates, s/s "
+                        f"(default {MAX_TDOA_RATE:g}: whales up to ~2.4 m/s; 0: none, the method "
+                        "text's correlation)")
     p.add_argument("--no-refine", action="store_true",
                    help="keep TDOAs on the smoothed-click-map grid (no waveform refinement)")
     p.add_argument("--method", choices=("competition", "eq18", "eq17", "lsq", "none"),
@@ -270,8 +279,8 @@ def _run_key(args: argparse.Namespace, audio: list) -> str:
         "generic_replica": file_identity(GENERIC_PATH, content=True),
         "options": {k: getattr(args, k) for k in (
             "window", "hop", "band", "min_centre_freq", "detect_threshold", "llr_threshold",
-            "no_refine", "method", "chunk", "surface_paths", "sea_floor_z", "candidates",
-            "min_source_tdoas")},
+            "no_refine", "max_tdoa_rate", "method", "chunk", "surface_paths", "sea_floor_z",
+            "candidates", "min_source_tdoas")},
     })
 
 
@@ -285,7 +294,7 @@ def run(args: argparse.Namespace) -> int:
 
         return run_events(args)
     from fusion._output import STDOUT, output_lock, private_folder
-    from fusion.clicks.scm import ClickMapCorrelator, ScmConfig
+    from fusion.clicks.scm import ClickMapCorrelator, ScmConfig, drift_grid
     from fusion.clicks.validate import TdoaValidator
     from fusion.io import read_array, write_settings
     from fusion.pipelines.click_chunks import (
@@ -327,7 +336,8 @@ def run(args: argparse.Namespace) -> int:
                                                            recordings[0][0], first, array)
     front = ClickFrontEnd(
         detector=detector,
-        correlator=ClickMapCorrelator(config=ScmConfig(window_s=args.window)),
+        correlator=ClickMapCorrelator(config=ScmConfig(window_s=args.window),
+                                      rates=drift_grid(args.max_tdoa_rate)),
         validator=validator, refiner=not args.no_refine, hop_s=args.hop)
     pipe = ClickLocalization(front_end=front, localizer=localizer)
     plans = [plan_chunks(source, pipe, chunk_s=args.chunk) for source, _ in recordings]

@@ -62,7 +62,7 @@ from fusion.clicks.associate import (
 )
 from fusion.clicks.delaytrack import match_along_track
 from fusion.clicks.detect import ClickDetector
-from fusion.clicks.scm import ClickMapCorrelator, ScmConfig, scm2_many
+from fusion.clicks.scm import ClickMapCorrelator, ScmConfig, drift_grid, scm2_many
 from fusion.clicks.tdoa import TdoaRefiner
 from fusion.clicks.types import ChannelClicks, frozen_array
 from fusion.clicks.validate import TdoaValidator, scm2_features
@@ -206,7 +206,8 @@ class ClickFrontEnd:
         Click detection (default: the method's parameters).
     correlator : ClickMapCorrelator, optional
         Smoothed click maps and their correlation; its ``config.window_s`` is the processing
-        window (default 12 s, 3 kHz synthetic rate).
+        window (default 12 s, 3 kHz synthetic rate, delay drifts up to
+        :data:`fusion.clicks.scm.MAX_TDOA_RATE` compensated: :func:`fusion.clicks.scm.drift_grid`).
     validator : TdoaValidator or False, optional
         The GMM validator (default: the model shipped with the package). ``False`` computes
         the features only (``llr`` NaN, every TDOA passes): the mode of training.
@@ -244,7 +245,8 @@ class ClickFrontEnd:
         check_positive("hop_s", hop_s)
         check_positive("sigma_t_s", sigma_t_s)
         self.detector = detector if detector is not None else ClickDetector()
-        self.correlator = correlator if correlator is not None else ClickMapCorrelator()
+        self.correlator = (correlator if correlator is not None
+                           else ClickMapCorrelator(rates=drift_grid()))
         self.config: ScmConfig = self.correlator.config
         if hop_s > self.config.window_s:
             raise ValueError(f"hop_s {hop_s} is longer than the window {self.config.window_s} s")
@@ -311,8 +313,7 @@ class ClickFrontEnd:
             return []
         refiner = (self._make_refiner(fs) if (self._make_refiner is not None and audio is not None
                                               and fs is not None) else None)
-        maps = scm2_many(inside, [p.pair for p in corr.peaks], [p.tau_s for p in corr.peaks],
-                         t0_s=t0_s, config=self.config, level=self.scm_level)
+        maps = self._scm2s(inside, corr.peaks, t0_s)
         z = scm2_features(np.stack([m.series for m in maps]), self.config.fs_hz, T=self.window_s,
                           decimate=self.feature_decimation)
         if self.validator is None:  # features only (training)
@@ -325,7 +326,7 @@ class ClickFrontEnd:
         for k, (peak, s2) in enumerate(zip(corr.peaks, maps, strict=True)):
             i, j = peak.pair
             tau, sigma, crb, snr, rate = (peak.tau_s, self.config.pulse_halfwidth_s, math.nan,
-                                          math.nan, 0.0)
+                                          math.nan, peak.rate)
             times = s2.click_times_s
             # refine only what passed validation: the rest is dropped downstream anyway
             if refiner is not None and passes[k] and s2.index_i.size:
@@ -348,6 +349,25 @@ class ClickFrontEnd:
                 scm_peak=float(peak.value),
                 n_clicks=int(s2.click_times_s.size), features=z[k], llr=float(llr[k]),
                 passes=bool(passes[k]), click_times_s=times, t_s=t0_s + 0.5 * self.window_s))
+        return out
+
+    def _scm2s(self, inside: list[ChannelClicks], peaks, t0_s: float) -> list:
+        """The SCM2 of each candidate peak, sensor j's clicks moved along the peak's drift."""
+        out: list = [None] * len(peaks)
+        n = len(inside)
+        t_c = t0_s + 0.5 * self.window_s
+        times = [c.times_s for c in inside]
+        for rate in sorted({p.rate for p in peaks}, key=lambda r: (r != 0, r)):
+            ks = [k for k, p in enumerate(peaks) if p.rate == rate]
+            if rate:  # channels n.. hold the moved clicks; pairs (i, n + j)
+                chans = times + [t + rate * (t - t_c) for t in times]
+                pairs = [(peaks[k].pair[0], n + peaks[k].pair[1]) for k in ks]
+            else:
+                chans, pairs = inside, [peaks[k].pair for k in ks]
+            maps = scm2_many(chans, pairs, [peaks[k].tau_s * (1.0 + rate) for k in ks],
+                             t0_s=t0_s, config=self.config, level=self.scm_level)
+            for k, m in zip(ks, maps, strict=True):
+                out[k] = m
         return out
 
     def _finish(self, window: ClickWindow, linked_next: NDArray[np.bool_]) -> ClickWindow:
