@@ -19,7 +19,7 @@ from scipy.optimize import linear_sum_assignment
 from factors.motion import transition_matrix, wna_covariance
 from fusion._validation import check_positive
 from fusion.geometry import wrap_angle
-from fusion.passive.crossing_time import crossing_time
+from fusion.passive.crossing.timing import crossing_time
 from fusion.passive.smoothing.graph import (
     _check_detections,
     _check_loss,

@@ -14,7 +14,7 @@ from numpy.typing import NDArray
 
 from fusion.passive.crossing import CrossingAlert
 from fusion.passive.quality import LABELS
-from fusion.pipelines.passive_crossing import CrossingResolution
+from fusion.pipelines.passive.crossing import CrossingResolution
 from fusion.types import Cube
 
 __all__ = [
@@ -155,7 +155,7 @@ class SmootherSettings:
         Process-noise scale of a step whose TQI is ``uncertain``.
     block : int
         Scans of states that leave the lag together (see `block_s` of
-        :class:`~fusion.pipelines.passive_tracks.FixedLagBearingTrack`).
+        :class:`~fusion.pipelines.passive.tracks.FixedLagBearingTrack`).
     context_scans : int
         Own bearings of each track, from before a crossing episode, given to the multi-track
         graph to tell the tracks apart.
