@@ -19,8 +19,8 @@ Choices where the paper is silent
   its echoes into one clutter-map neighbourhood on its first pings and looks like a hotspot there;
   the test keeps its track alive once it has moved significantly. The high confidence (0.999)
   dates from isotropic errors, when far-geometry hotspot echoes scattered by more than
-  ``position_sigma_m`` and inflated the statistic of a stationary track; with geometric errors 0.99 was tried and confirmed more false
-  tracks on the validation seeds, so 0.999 stays.
+  ``position_sigma_m`` and inflated the statistic of a stationary track; with geometric errors
+  0.99 was tried and confirmed more false tracks on the validation seeds, so 0.999 stays.
 - Confirmation of stationary tracks (:func:`next_lifecycle` with ``held``). The clutter map flags
   a feature once a 3 x 3 cell neighbourhood has been visited on ``min_pings`` (3) pings; a feature
   seen by one or two receivers in far geometry scatters its echoes over more than one
