@@ -8,7 +8,7 @@ acquires over that window (:class:`fusion.passive.acquisition.Acquisition`) and 
 whose first state carries
 
 - the acquisition's bearing and bearing rate, with the prior of
-  :class:`fusion.pipelines.passive_tracks.AcquisitionPrior`, or
+  :class:`fusion.pipelines.passive.tracks.AcquisitionPrior`, or
 - the default start: the clicked beam's bearing and bearing rate 0 (half a beamwidth, 10 deg/min),
 
 then tracks it through the next ``--track-scans`` scans on its fixed-lag graph while the track
@@ -50,8 +50,8 @@ from fusion.passive.crossing import CrossingDetector
 from fusion.passive.quality import TrackQualityIndicator
 from fusion.passive.smoothing import TrackPrior
 from fusion.pipelines.passive import PassivePipeline
-from fusion.pipelines.passive_tracks import AcquisitionPrior
-from fusion.pipelines.passive_types import Click
+from fusion.pipelines.passive.tracks import AcquisitionPrior
+from fusion.pipelines.passive.types import Click
 from fusion.simulate.cube import simulate_cube
 
 #: Seeds the design was looked at with; the report uses another.

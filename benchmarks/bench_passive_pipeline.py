@@ -12,7 +12,7 @@ clicks (every line, at scan 59):
   filter) from the click scan on, the TQI run on its outputs and the track ended at the TQI's
   first ``lost``; no graph, no crossing handling.
 
-Metrics (:func:`fusion.pipelines.passive_scoring.score_tracks`):
+Metrics (:func:`fusion.metrics.tracks.score_tracks`):
 
 - identity outcome of every true crossing: ``kept``, ``swap``, ``lost`` (scored 25-65 s on each
   side of the crossing);
@@ -48,13 +48,13 @@ import time
 import numpy as np
 
 from fusion.io import Cube
+from fusion.metrics.tracks import PassiveScore, ScoredTrack, score_tracks
 from fusion.passive.acquisition import Acquisition
 from fusion.passive.crossing import CrossingDetector
 from fusion.passive.quality import TrackQuality, TrackQualityIndicator
 from fusion.passive.tracker import BearingTracker
 from fusion.pipelines.passive import PassivePipeline, SmootherSettings
-from fusion.pipelines.passive_scoring import PassiveScore, ScoredTrack, score_tracks
-from fusion.pipelines.passive_types import Click, scans_of
+from fusion.pipelines.passive.types import Click, scans_of
 from fusion.simulate.passive import PassiveScenario, random_targets, simulate_passive
 
 CLICK_SCAN = 59

@@ -13,13 +13,11 @@ from __future__ import annotations
 import argparse
 import math
 
+from fusion.metrics.tracks import ScoredTrack, score_tracks
 from fusion.passive.acquisition import Acquisition
 from fusion.passive.crossing import CrossingDetector
 from fusion.passive.quality import TrackQualityIndicator
-from fusion.pipelines.passive import PassivePipeline
-from fusion.pipelines.passive_measure import LineStarter
-from fusion.pipelines.passive_scoring import ScoredTrack, score_tracks
-from fusion.pipelines.passive_types import Click
+from fusion.pipelines.passive import Click, LineStarter, PassivePipeline
 from fusion.simulate.passive import simulate_passive
 
 

@@ -19,6 +19,7 @@ from factors.tdoa_model import (
     check_speed,
     predicted_tdoas,  # noqa: F401  (the examples use it)
 )
+from factors.weighted import sqrt_weights
 
 __all__ = ["tdoa_factor", "tdoa_vector_factor", "weighted_tdoa_vector_factor"]
 
@@ -298,7 +299,7 @@ def weighted_tdoa_vector_factor(
     ) -> np.ndarray:
         r, blocks = evaluate(this, values, jacobians is not None)
         e = r * inv_sigma  # whitened residual r_k/sigma_k
-        scale = np.sqrt(np.maximum(weights, 0.0))  # sqrt(max(w_k, 0)), read live
+        scale = sqrt_weights(weights)  # sqrt(max(w_k, 0)), read live
         if robust is None:
             row = scale * inv_sigma  # d(sqrt(w) e)/dr
         else:

@@ -28,8 +28,31 @@ from collections.abc import Sequence
 
 import gtsam
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
-__all__ = ["weighted_factor"]
+__all__ = ["sqrt_weights", "weighted_factor"]
+
+
+def sqrt_weights(weights: ArrayLike) -> NDArray[np.float64]:
+    """Scale of an association-weighted error: ``sqrt(max(w, 0))`` per weight.
+
+    Parameters
+    ----------
+    weights : array_like, shape (m,) or ()
+        Association weights ``w`` (probabilities; a negative weight counts as 0).
+
+    Returns
+    -------
+    ndarray, same shape
+        ``sqrt(max(w, 0))``, the factor of the whitened error and Jacobian, so that the cost is
+        ``w`` times the inner cost.
+
+    Examples
+    --------
+    >>> sqrt_weights([0.25, 1.0, -0.5])
+    array([0.5, 1. , 0. ])
+    """
+    return np.sqrt(np.maximum(weights, 0.0))  # e = sqrt(w) e_w, cost w |e_w|^2
 
 
 def _key_dims(linear: gtsam.GaussianFactor, keys: list[int], n_cols: int) -> list[int]:
@@ -113,7 +136,7 @@ def weighted_factor(
     def error_func(
         this: gtsam.CustomFactor, values: gtsam.Values, jacobians: list[np.ndarray] | None
     ) -> np.ndarray:
-        scale = np.sqrt(np.maximum(weights[idx], 0.0))  # sqrt(w), one or one per row
+        scale = sqrt_weights(weights[idx])  # sqrt(w), one or one per row
         if jacobians is None and has_error:
             return scale * factor.whitenedError(values)  # e = sqrt(w) e_w
         linear = factor.linearize(values)

@@ -1,4 +1,5 @@
-"""Data types shared by the file readers and the algorithms: :class:`Table` and :class:`Cube`.
+"""Data types shared by the file readers and the algorithms: :class:`Table`, :class:`Cube`, and
+:func:`frozen_array`, the one helper for read-only array fields of frozen dataclasses.
 
 The algorithms take these (or their own types), never anything of :mod:`fusion.io`; the readers
 of :mod:`fusion.io` return them.
@@ -14,7 +15,33 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ["Cube", "Table"]
+__all__ = ["Cube", "Table", "frozen_array"]
+
+
+def frozen_array(a: ArrayLike, dtype: Any = float) -> NDArray[Any]:
+    """A read-only copy of `a`: the field of a frozen dataclass that nobody can change in place.
+
+    Parameters
+    ----------
+    a : array_like
+        Values (any shape).
+    dtype : data-type, optional
+        Element type of the copy (default float).
+
+    Returns
+    -------
+    ndarray
+        A new array with ``flags.writeable`` False; `a` itself is left as it was.
+
+    Examples
+    --------
+    >>> x = frozen_array([1, 2])
+    >>> x, x.flags.writeable
+    (array([1., 2.]), False)
+    """
+    out = np.array(a, dtype=dtype)
+    out.setflags(write=False)
+    return out
 
 _REAL_KINDS = "fiu"  # numpy dtype kinds of real numbers (no bool, complex, text or objects)
 

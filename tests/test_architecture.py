@@ -186,6 +186,27 @@ def test_old_import_paths_still_work():
     assert Cube is Cube2
 
 
+#: Import paths examples/ showed before the passive families became packages -> where the name
+#: lives now. They work for one release, with a DeprecationWarning.
+DEPRECATED_PATHS = {
+    ("fusion.pipelines.passive_measure", "LineStarter"): "fusion.pipelines.passive",
+    ("fusion.pipelines.passive_types", "Click"): "fusion.pipelines.passive",
+    ("fusion.pipelines.passive_scoring", "ScoredTrack"): "fusion.metrics.tracks",
+    ("fusion.pipelines.passive_scoring", "score_tracks"): "fusion.metrics.tracks",
+}
+
+
+@pytest.mark.parametrize(("old", "name"), sorted(DEPRECATED_PATHS))
+def test_deprecated_paths_warn_and_forward(old, name):
+    """An old import path shown by examples/ gives the same object, with a DeprecationWarning."""
+    module = importlib.import_module(old)
+    with pytest.warns(DeprecationWarning, match=rf"{old}\.{name} moved to"):
+        obj = getattr(module, name)
+    assert obj is getattr(importlib.import_module(DEPRECATED_PATHS[old, name]), name)
+    with pytest.raises(AttributeError, match="no attribute"):
+        module.not_a_moved_name  # noqa: B018
+
+
 #: Names moved out of a module when it was split by role -> (old module, new module).
 MOVED_NAMES = {
     "ClickWaveform": ("fusion.simulate.clicks", "fusion.simulate._click_types"),
@@ -196,17 +217,17 @@ MOVED_NAMES = {
     "FILE_PEAK": ("fusion.simulate.clicks", "fusion.simulate._click_files"),
     "truth_document": ("fusion.simulate.clicks", "fusion.simulate._click_files"),
     "write_click_scenario": ("fusion.simulate.clicks", "fusion.simulate._click_files"),
-    "TrackQuality": ("fusion.passive.quality", "fusion.passive.quality_types"),
-    "LABELS": ("fusion.passive.quality", "fusion.passive.quality_types"),
-    "START": ("fusion.passive.quality", "fusion.passive.quality_types"),
-    "TQIMemory": ("fusion.passive.quality", "fusion.passive.quality_types"),
-    "TQIHistory": ("fusion.passive.quality", "fusion.passive.quality_types"),
-    "tqi_transition": ("fusion.passive.quality", "fusion.passive.quality_flow"),
-    "design_statistics": ("fusion.passive.quality", "fusion.passive.quality_flow"),
-    "omega_for_beamwidth": ("fusion.passive.quality", "fusion.passive.quality_flow"),
-    "CrossingDetector": ("fusion.passive.crossing", "fusion.passive.crossing_detector"),
-    "crossing_time_interval": ("fusion.passive.crossing_pairs", "fusion.passive.crossing_interval"),
-    "t_quantile": ("fusion.passive.crossing_pairs", "fusion.passive.crossing_interval"),
+    "TrackQuality": ("fusion.passive.quality", "fusion.passive.quality.types"),
+    "LABELS": ("fusion.passive.quality", "fusion.passive.quality.types"),
+    "START": ("fusion.passive.quality", "fusion.passive.quality.types"),
+    "TQIMemory": ("fusion.passive.quality", "fusion.passive.quality.types"),
+    "TQIHistory": ("fusion.passive.quality", "fusion.passive.quality.types"),
+    "tqi_transition": ("fusion.passive.quality", "fusion.passive.quality.flow"),
+    "design_statistics": ("fusion.passive.quality", "fusion.passive.quality.flow"),
+    "omega_for_beamwidth": ("fusion.passive.quality", "fusion.passive.quality.flow"),
+    "CrossingDetector": ("fusion.passive.crossing", "fusion.passive.crossing.detector"),
+    "crossing_time_interval": ("fusion.passive.crossing.pairs", "fusion.passive.crossing.interval"),
+    "t_quantile": ("fusion.passive.crossing.pairs", "fusion.passive.crossing.interval"),
     "RefinedTdoa": ("fusion.clicks.tdoa", "fusion.clicks.tdoa_types"),
     "scm2_features": ("fusion.clicks.validate", "fusion.clicks.validate_features"),
     "default_freqs_hz": ("fusion.clicks.validate", "fusion.clicks.validate_features"),
@@ -248,3 +269,121 @@ def test_modules_stay_small():
             for p in _py("fusion", "factors")}
     over = {p: n for p, n in long.items() if n > MAX_MODULE_LINES and p not in LONG_MODULES}
     assert over == {}
+
+
+def _module_name(path: Path) -> str:
+    """Dotted name of a file of fusion/ or factors/ (a package by its ``__init__``)."""
+    parts = list(path.relative_to(ROOT).with_suffix("").parts)
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def _is_module(dotted: str) -> bool:
+    base = ROOT.joinpath(*dotted.split("."))
+    return base.with_suffix(".py").is_file() or (base / "__init__.py").is_file()
+
+
+def _imported_modules(path: Path) -> set[str]:
+    """First-party modules `path` imports, at module level or inside functions.
+
+    ``from package import name`` counts as importing ``package.name`` when that is a module, else
+    ``package``; relative imports are resolved.
+    """
+    me = _module_name(path)
+    package = me if path.name == "__init__.py" else me.rpartition(".")[0]
+    out: set[str] = set()
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.Import):
+            targets = [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                up = package.split(".")[: len(package.split(".")) - node.level + 1]
+                base = ".".join(up + ([base] if base else []))
+            targets = [f"{base}.{a.name}" if _is_module(f"{base}.{a.name}") else base
+                       for a in node.names]
+        else:
+            continue
+        for name in targets:
+            while name and not _is_module(name):
+                name = name.rpartition(".")[0]
+            if name and name != me and name.split(".")[0] in ("fusion", "factors"):
+                out.add(name)
+    return out
+
+
+def _import_circles() -> list[list[str]]:
+    """Strongly connected groups of more than one module in the import graph of fusion/, factors/."""
+    graph = {_module_name(p): _imported_modules(p) for p in _py("fusion", "factors")}
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    circles: list[list[str]] = []
+
+    def visit(v: str) -> None:  # Tarjan's algorithm
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        for w in graph.get(v, ()):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            group = []
+            while True:
+                w = stack.pop()
+                group.append(w)
+                if w == v:
+                    break
+            if len(group) > 1:
+                circles.append(sorted(group))
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    return circles
+
+
+#: Import circles waiting for their rewrite (the click chain); nothing may join this list.
+KNOWN_CIRCLES = [
+    ["fusion.clicks.competition", "fusion.clicks.ownership"],
+    ["fusion.pipelines.click_stream", "fusion.pipelines.clicks"],
+]
+
+
+def test_no_import_circles():
+    """No two modules of fusion/ or factors/ import each other, directly or round a loop.
+
+    Function-level imports count: they hide a circle from the interpreter, not from the reader.
+    """
+    assert [c for c in _import_circles() if c not in KNOWN_CIRCLES] == []
+
+
+def test_import_circle_finder_sees_function_level_imports(tmp_path, monkeypatch):
+    """The circle finder resolves relative and function-level imports (it can fail)."""
+    pkg = tmp_path / "fusion" / "demo_pkg"
+    pkg.mkdir(parents=True)
+    (tmp_path / "fusion" / "__init__.py").write_text("")
+    (pkg / "__init__.py").write_text("")
+    (pkg / "a.py").write_text("from . import b\n")
+    (pkg / "b.py").write_text("def f():\n    from fusion.demo_pkg.a import g\n")
+    monkeypatch.setattr(sys.modules[__name__], "ROOT", tmp_path)
+    assert _import_circles() == [["fusion.demo_pkg.a", "fusion.demo_pkg.b"]]
+
+
+def test_private_modules_stay_in_their_package():
+    """A ``_private`` module of fusion/ or factors/ is imported only from inside its own package
+    (by the library, examples and benchmarks; tests may open it to test it)."""
+    offenders = []
+    for path in _py("fusion", "factors", "examples", "benchmarks"):
+        me = _module_name(path) if path.is_relative_to(ROOT / "fusion") or path.is_relative_to(
+            ROOT / "factors") else ""
+        for name in _imported_modules(path):
+            parts = name.split(".")
+            for i, part in enumerate(parts):
+                if part.startswith("_") and not part.startswith("__"):
+                    owner = ".".join(parts[:i])
+                    if not f"{me}.".startswith(f"{owner}."):
+                        offenders.append(f"{path.relative_to(ROOT)} imports {name}")
+                    break
+    assert offenders == []

@@ -9,7 +9,8 @@ One module per role, bottom up:
 - :mod:`~fusion.active.bistatic`: a detection's error ellipse and equivalent aspect angle;
 - :mod:`~fusion.active.clutter`: the online clutter map (hotspots);
 - :mod:`~fusion.active.association`: fuzzy rank of gated pairs, rank threshold, assignment;
-- :mod:`~fusion.active.lifecycle`: M-of-N confirmation, deletion, the motion test;
+- :mod:`~fusion.active.lifecycle`: M-of-N confirmation, deletion, hotspot drop, stationary hold;
+- :mod:`~fusion.active.motion`: the motion test (do a track's own detections move?);
 - :mod:`~fusion.active.ping_scan`: one ping's work state, score gate, new tracks, the result;
 - :mod:`~fusion.active.tracker`: the tracker, composed of the above;
 - :mod:`~fusion.active.smoothing`: confirmed tracks refined on a GTSAM factor graph.

@@ -5,22 +5,22 @@ Section 2.5 of "Target tracking using fuzzy logic association" ("Tracker"): a te
 tracks are "at least three detections long") and deleted when that can no longer happen; a
 confirmed track is deleted after ``max_misses`` consecutive misses (:func:`advance_status`). A
 tentative track that comes within reach of a clutter-map hotspot is dropped, since it is the
-hotspot, unless its own detections show that it moves (:class:`MotionTest`: a hotspot stands
-still, a submarine does not).
+hotspot, unless its own detections show that it moves (:class:`~fusion.active.motion.MotionTest`:
+a hotspot stands still, a submarine does not).
 
 Choices where the paper is silent
 ---------------------------------
 - Motion test of a tentative track: the generalised least-squares velocity of its own associated
   detections (constant velocity, no process noise, each detection with its own position
   covariance) against zero, chi-square with 2 degrees of freedom at ``probability`` (default
-  0.999), from its third detection on (:func:`motion_statistic`). The Kalman velocity is not used
-  for this: its covariance carries the process noise and stays too wide for a slow target to ever
-  look significant. A slow target seen by several receivers piles its echoes into one clutter-map
-  neighbourhood on its first pings and looks like a hotspot there; the test keeps its track alive
-  once it has moved significantly. The high confidence (0.999) dates from isotropic errors, when
-  far-geometry hotspot echoes scattered by more than ``position_sigma_m`` and inflated the
-  statistic of a stationary track; with geometric errors 0.99 was tried and confirmed more false
-  tracks on the validation seeds, so 0.999 stays.
+  0.999), from its third detection on (:func:`~fusion.active.motion.motion_statistic`). The
+  Kalman velocity is not used for this: its covariance carries the process noise and stays too
+  wide for a slow target to ever look significant. A slow target seen by several receivers piles
+  its echoes into one clutter-map neighbourhood on its first pings and looks like a hotspot there;
+  the test keeps its track alive once it has moved significantly. The high confidence (0.999)
+  dates from isotropic errors, when far-geometry hotspot echoes scattered by more than
+  ``position_sigma_m`` and inflated the statistic of a stationary track; with geometric errors
+  0.99 was tried and confirmed more false tracks on the validation seeds, so 0.999 stays.
 - Confirmation of stationary tracks (:func:`next_lifecycle` with ``held``). The clutter map flags
   a feature once a 3 x 3 cell neighbourhood has been visited on ``min_pings`` (3) pings; a feature
   seen by one or two receivers in far geometry scatters its echoes over more than one
@@ -45,27 +45,21 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
-from scipy.stats import chi2
+from numpy.typing import NDArray
+
+from fusion.active.motion import MotionTest
 
 if TYPE_CHECKING:
     from fusion.active.platform import PlatformTest
 
 __all__ = [
-    "MOTION_MIN_DETECTIONS",
     "Lifecycle",
-    "MotionTest",
     "advance_status",
     "hotspot_drop",
-    "motion_statistic",
     "next_lifecycle",
     "stationary_hold",
     "track_status",
 ]
-
-#: Detections a tentative track needs before its motion test may decide (with two, the
-#: least-squares velocity has no residual and one bad association decides).
-MOTION_MIN_DETECTIONS = 3
 
 
 @dataclass(frozen=True)
@@ -180,134 +174,6 @@ def next_lifecycle(
                          state.age + 1, state.hits, misses)
     return advance_status(state, hit, m=m, n=n if window else max(n, state.age + 2),
                           max_misses=max_misses)
-
-
-def motion_statistic(
-    times: ArrayLike, xy: ArrayLike, sigma_m: float | None = None, *, cov: ArrayLike | None = None,
-    min_speed_mps: float = 0.0,
-) -> float:
-    """Chi-square statistic of "the detections move": least-squares velocity against zero.
-
-    Parameters
-    ----------
-    times : array_like, shape (k,)
-        Detection times, s.
-    xy : array_like, shape (k, 2)
-        Detection positions, m.
-    sigma_m : float, optional
-        Position error per axis, the same for every detection, m (> 0).
-    cov : array_like, shape (k, 2, 2), optional
-        Position covariance of each detection, m^2 (instead of ``sigma_m``), e.g. from
-        :func:`bistatic_covariance`.
-    min_speed_mps : float, optional
-        Speeds up to this count as standing still, m/s (>= 0, default 0): the estimated
-        velocity is first shrunk towards zero by this much,
-        ``v <- v max(0, 1 - min_speed_mps / |v|)``, so the statistic measures how far it lies
-        beyond the disc of such speeds.
-
-    Returns
-    -------
-    float
-        ``v^T Cov(v)^-1 v`` for the generalised least-squares fit ``p_i = p_0 + v t_i + e_i``,
-        ``e_i ~ N(0, C_i)``: chi-square with 2 degrees of freedom for a stationary object.
-        With one ``sigma_m`` for all, ``|v|^2 S_tt / sigma^2`` with
-        ``v = sum (t - t_mean)(p - p_mean) / S_tt`` and ``S_tt = sum (t - t_mean)^2``.
-        0 when all times are equal.
-
-    Examples
-    --------
-    >>> round(motion_statistic([0.0, 90.0, 180.0], [[0, 0], [180, 0], [360, 0]], 100.0), 2)
-    6.48
-    """
-    if (sigma_m is None) == (cov is None):
-        raise ValueError("give exactly one of sigma_m and cov")
-    t = np.asarray(times, dtype=float)
-    p = np.asarray(xy, dtype=float).reshape(-1, 2)
-    tt = t - t.mean()
-    stt = float(tt @ tt)
-    if stt <= 0.0:
-        return 0.0
-
-    def shrink(v: NDArray[np.float64]) -> NDArray[np.float64]:
-        speed = float(np.hypot(*v))
-        return v * max(0.0, 1.0 - min_speed_mps / speed) if speed > 0 else v
-
-    if cov is None:
-        v = shrink(tt @ (p - p.mean(axis=0)) / stt)
-        return float(v @ v) * stt / float(sigma_m) ** 2
-    # Generalised least squares for theta = (p_0, v) with weights W_i = C_i^-1 (times centred).
-    W = np.linalg.inv(np.asarray(cov, dtype=float).reshape(-1, 2, 2))
-    A = np.empty((4, 4))
-    A[:2, :2] = W.sum(axis=0)
-    A[:2, 2:] = A[2:, :2] = np.einsum("i,ijk->jk", tt, W)
-    A[2:, 2:] = np.einsum("i,ijk->jk", tt * tt, W)
-    Wp = np.einsum("ijk,ik->ij", W, p)
-    b = np.concatenate([Wp.sum(axis=0), tt @ Wp])
-    try:
-        theta = np.linalg.solve(A, b)
-        cov_v = np.linalg.inv(A)[2:, 2:]
-        v = shrink(theta[2:])
-        return float(v @ np.linalg.solve(cov_v, v))
-    except np.linalg.LinAlgError:
-        return 0.0
-
-
-class MotionTest:
-    """Do a track's own detections move? :func:`motion_statistic` against a chi-square gate.
-
-    Parameters
-    ----------
-    probability : float, optional
-        Confidence of "moves", in (0, 1) (default 0.999): the statistic must exceed the
-        chi-square quantile with 2 degrees of freedom.
-    min_detections : int, optional
-        Fewest detections for a decision (default :data:`MOTION_MIN_DETECTIONS`).
-    min_speed_mps : float, optional
-        Speeds up to this count as standing still (default 0), m/s; see
-        :func:`motion_statistic`.
-
-    Examples
-    --------
-    >>> rows = [[0.0, 0.0, 0.0, 1e4, 0.0, 1e4], [90.0, 180.0, 0.0, 1e4, 0.0, 1e4],
-    ...         [180.0, 360.0, 0.0, 1e4, 0.0, 1e4]]
-    >>> MotionTest(probability=0.95).moves(rows)
-    True
-    """
-
-    def __init__(self, *, probability: float = 0.999,
-                 min_detections: int = MOTION_MIN_DETECTIONS,
-                 min_speed_mps: float = 0.0) -> None:
-        if not 0.0 < probability < 1.0:
-            raise ValueError(f"motion_probability must lie in (0, 1), got {probability!r}")
-        if min_detections < 2:
-            raise ValueError(f"min_detections must be >= 2, got {min_detections!r}")
-        self.probability = float(probability)
-        if not np.isfinite(min_speed_mps) or min_speed_mps < 0:
-            raise ValueError(f"min_speed_mps must be >= 0, got {min_speed_mps!r}")
-        self.min_detections = int(min_detections)
-        self.min_speed_mps = float(min_speed_mps)
-        self.gate = float(chi2.ppf(self.probability, 2))
-
-    def moves(self, rows: Sequence[Sequence[float]]) -> bool | None:
-        """Decide from a track's detections.
-
-        Parameters
-        ----------
-        rows : sequence of (time, x, y, R_xx, R_xy, R_yy)
-            One per detection: time (s), position (m), position covariance (m^2).
-
-        Returns
-        -------
-        bool or None
-            True when the statistic exceeds the gate, False when it does not, None with fewer
-            than ``min_detections`` detections.
-        """
-        if len(rows) < self.min_detections:
-            return None
-        seen = np.asarray(rows)
-        cov = seen[:, [3, 4, 4, 5]].reshape(-1, 2, 2)
-        return bool(motion_statistic(seen[:, 0], seen[:, 1:3], cov=cov,
-                                     min_speed_mps=self.min_speed_mps) > self.gate)
 
 
 def hotspot_drop(near: NDArray[np.bool_], seen: Sequence[Sequence[Sequence[float]]],

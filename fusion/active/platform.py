@@ -14,7 +14,7 @@ Choices (the method text has a fixed receiver and says nothing of moving sensors
 - The sensor's position at each detection is read from the detections (``rcv_x, rcv_y`` of a
   bistatic detection, else ``own_x, own_y``: :func:`sensor_positions`); its heading is not
   known, so the sensor frame is the world's axes moved to the sensor (translation only).
-- Both statistics are :func:`fusion.active.lifecycle.motion_statistic` on the track's own
+- Both statistics are :func:`fusion.active.motion.motion_statistic` on the track's own
   detections with their own position covariances, at the confidence and with the speed floor
   of the stationary hold: "steady relative to the sensor" is the generalised least-squares
   velocity of ``p_i - s_i`` not significantly beyond ``min_speed_mps``; "the sensor moved" is
@@ -36,7 +36,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.stats import chi2
 
-from fusion.active.lifecycle import MOTION_MIN_DETECTIONS, motion_statistic
+from fusion.active.motion import MOTION_MIN_DETECTIONS, motion_statistic
 from fusion.active.types import Ping
 
 __all__ = ["SENSOR_COLUMNS", "PlatformTest", "sensor_positions"]
@@ -79,10 +79,10 @@ class PlatformTest:
         Confidence of each motion test, in (0, 1) (default 0.999, as the stationary hold).
     min_detections : int, optional
         Fewest detections for a decision (default
-        :data:`fusion.active.lifecycle.MOTION_MIN_DETECTIONS`).
+        :data:`fusion.active.motion.MOTION_MIN_DETECTIONS`).
     min_speed_mps : float, optional
         Relative speeds up to this count as steady (default 0), m/s; the sensor counts as moving
-        only beyond it too (:func:`fusion.active.lifecycle.motion_statistic`).
+        only beyond it too (:func:`fusion.active.motion.motion_statistic`).
 
     Examples
     --------
@@ -120,7 +120,7 @@ class PlatformTest:
         -------
         (float, float)
             ``q_relative``, ``q_sensor``: chi-square (2 degrees of freedom) statistics of
-            :func:`fusion.active.lifecycle.motion_statistic` for ``p_i - s_i`` and for
+            :func:`fusion.active.motion.motion_statistic` for ``p_i - s_i`` and for
             ``s_i``, both with the detections' covariances.
         """
         seen = np.asarray(rows, dtype=float)

@@ -56,7 +56,8 @@ from fusion.active.association import EDGE_LIKELIHOOD, PairRanker, assign_by_pri
 from fusion.active.bistatic import MeasurementModel
 from fusion.active.clutter import ClutterIntensity, ClutterMapBase, DensityClutterMap
 from fusion.active.kalman import cv_model, gate_threshold, kf_predict, kf_update, pair_statistics
-from fusion.active.lifecycle import Lifecycle, MotionTest, hotspot_drop, next_lifecycle, stationary_hold
+from fusion.active.lifecycle import Lifecycle, hotspot_drop, next_lifecycle, stationary_hold
+from fusion.active.motion import MotionTest
 from fusion.active.noise import NoiseEstimator
 from fusion.active.ping_scan import PingScan, birth_states, ping_result, score_gate
 from fusion.active.platform import PlatformTest, sensor_positions
@@ -125,14 +126,14 @@ class Tracker:
         unless its own detections move significantly (default False).
     motion_probability : float, optional
         Confidence of the motion test (stationary hold and hotspot drop), default 0.999, in
-        (0, 1); see :func:`fusion.active.lifecycle.motion_statistic`. Fuzzy mode only.
+        (0, 1); see :func:`fusion.active.motion.motion_statistic`. Fuzzy mode only.
     min_speed_mps : float, optional
         Speeds up to this count as standing still in the motion test, m/s (default 0.5, a
         quarter of the slowest submarine speed of interest): a bottom feature whose echoes
         scatter more than their stated errors does not pass for a slow target.
     hold_stationary : bool, optional
         Fuzzy mode: a track that reaches ``confirm_hits`` hits while its own detections do not
-        move significantly (:func:`fusion.active.lifecycle.motion_statistic` at
+        move significantly (:func:`fusion.active.motion.motion_statistic` at
         ``motion_probability``) stays tentative until they do (default True); such a held
         track is deleted after ``max_misses`` consecutive misses.
     reject_platform_fixed : bool, optional

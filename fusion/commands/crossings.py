@@ -2,12 +2,12 @@
 
 The bearings are read in chunks, twice (:func:`fusion.io.iter_bearings`): a first pass collects
 what the data-fitted settings need of the whole file (the median time step within tracks and the
-median track span, exactly: :class:`~fusion.passive.crossing_summary.BearingStats`); the second
+median track span, exactly: :class:`~fusion.passive.crossing.summary.BearingStats`); the second
 puts the tracks on the grid and runs the detector as the rows arrive
-(:func:`~fusion.passive.crossing_stream.detect_crossings_streamed`), so memory holds a chunk and a
+(:func:`~fusion.passive.crossing.stream.detect_crossings_streamed`), so memory holds a chunk and a
 few cells per track, not the file. The alerts are those of the whole-file path bit for bit. A
 track that resumes after the streaming path took it as ended costs one more pass
-(:func:`~fusion.passive.crossing_stream.scan_long_gaps`) and a fresh start that assumes nothing.
+(:func:`~fusion.passive.crossing.stream.scan_long_gaps`) and a fresh start that assumes nothing.
 Rows out of time order (overall, not only within a track) or repeated times send the command to
 the whole-file path, which sorts (with its warning) or refuses with its usual message.
 """
@@ -24,7 +24,7 @@ from fusion._progress import track_progress
 from fusion.cli import emit, number
 from fusion.io import RowOrderError, iter_bearings, read_bearings, write_table
 from fusion.passive.crossing import CrossingAlert, detect_crossings
-from fusion.passive.crossing_settings import (
+from fusion.passive.crossing.settings import (
     DEFAULT_CONFIRM,
     DEFAULT_HORIZON_S,
     DEFAULT_LEAD_WINDOWS,
@@ -37,12 +37,12 @@ from fusion.passive.crossing_settings import (
     crossing_settings,
     crossing_settings_from_steps,
 )
-from fusion.passive.crossing_stream import (
+from fusion.passive.crossing.stream import (
     GridAssumptionBroken,
     detect_crossings_streamed,
     scan_long_gaps,
 )
-from fusion.passive.crossing_summary import BearingStats, BearingSummary
+from fusion.passive.crossing.summary import BearingStats, BearingSummary
 
 logger = logging.getLogger(__name__)
 

@@ -26,7 +26,7 @@ logger = logging.getLogger(__name__)
 
 def _click(text: str):
     """``BEAM,FREQ`` or ``BEAM,FREQ,TIME`` (an argparse type)."""
-    from fusion.pipelines.passive_types import Click
+    from fusion.pipelines.passive.types import Click
 
     parts = text.split(",")
     try:
@@ -91,7 +91,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _read_clicks(path: Path) -> list:
-    from fusion.pipelines.passive_types import Click
+    from fusion.pipelines.passive.types import Click
 
     table = read_table(path, required=("beam", "freq"), optional=("time",), integer=("beam",))
     times = table["time"] if "time" in table else [None] * len(table)
@@ -118,7 +118,7 @@ def run(args: argparse.Namespace) -> int:
     from fusion.passive.crossing import CrossingDetector
     from fusion.passive.quality import TrackQualityIndicator
     from fusion.pipelines.passive import PassivePipeline, SmootherSettings
-    from fusion.pipelines.passive_measure import LineStarter
+    from fusion.pipelines.passive.measure import LineStarter
 
     if not args.snr1_db > args.snr0_db:
         raise ValueError(f"--snr1-db ({args.snr1_db:g}) must exceed --snr0-db ({args.snr0_db:g})")

@@ -10,7 +10,7 @@ from fusion.commands.crossings import alert_columns
 from fusion.geometry import wrap_deg
 from fusion.io import write_table
 from fusion.passive.crossing import detect_crossings
-from fusion.passive.crossing_settings import crossing_settings
+from fusion.passive.crossing.settings import crossing_settings
 
 
 def run_demo(out_dir: Path, *, seed: int) -> dict:

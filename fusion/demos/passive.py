@@ -46,7 +46,7 @@ def run_demo(out_dir: Path, *, seed: int) -> dict:
     from fusion.passive.crossing import CrossingDetector
     from fusion.passive.quality import TrackQualityIndicator
     from fusion.pipelines.passive import PassivePipeline
-    from fusion.pipelines.passive_types import Click
+    from fusion.pipelines.passive.types import Click
     from fusion.simulate.passive import simulate_passive
 
     out_dir = Path(out_dir)

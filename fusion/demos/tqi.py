@@ -119,7 +119,7 @@ def _demo_cube(out_dir: Path, *, seed: int, plt) -> dict:
     from fusion.passive.crossing import CrossingDetector
     from fusion.passive.quality import TrackQuality
     from fusion.pipelines.passive import PassivePipeline
-    from fusion.pipelines.passive_types import Click, scans_of
+    from fusion.pipelines.passive.types import Click, scans_of
     from fusion.simulate.cube import simulate_cube
 
     window, n_track = 60, 60

@@ -1,8 +1,12 @@
-"""Scoring of passive tracks against truth: moved to :mod:`fusion.metrics.tracks`.
+"""Deprecated import path: use :mod:`fusion.metrics.tracks` instead; this module goes in the next release.
 
-The names are re-exported here so that older imports keep working.
+Why: scoring belongs to fusion.metrics.
 """
 
-from fusion.metrics.tracks import PassiveScore, ScoredTrack, score_tracks
+from fusion._deprecated import moved_names
 
-__all__ = ["PassiveScore", "ScoredTrack", "score_tracks"]
+__all__ = ["PassiveScore", "ScoredTrack", "score_tracks"]  # noqa: F822 (served by __getattr__)
+
+__getattr__ = moved_names(
+    __name__, "fusion.metrics.tracks", __all__, shown="fusion.metrics.tracks"
+)

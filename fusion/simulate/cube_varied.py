@@ -36,6 +36,7 @@ import numpy as np
 
 from fusion.geometry import beam_from_bearing
 from fusion.io import Cube
+from fusion.simulate._cube_model import CubeScenario, beam_pattern, line_spectrum, noisy_power
 
 __all__ = ["simulate_varied_cube"]
 
@@ -76,13 +77,6 @@ def simulate_varied_cube(
         ``click_beam`` and ``click_freq`` are the exact click (nearest beam, nearest bin);
         :attr:`parameters` holds the draws.
     """
-    from fusion.simulate.cube import (
-        CubeScenario,
-        beam_pattern,
-        line_spectrum,
-        noisy_power,
-    )
-
     rng = np.random.default_rng(seed)
     line_freq = float(rng.uniform(150.0, 800.0))
     offset = float(rng.uniform(-0.5, 0.5))

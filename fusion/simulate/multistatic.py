@@ -41,14 +41,15 @@ Truth: the target state at every ping and the origin of each detection
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from fusion.io import Table, write_json, write_table
+from fusion.simulate._multistatic_types import KNOT, MultistaticScenario
 from fusion.simulate.multistatic_scoring import TrackScore, score_tracks
+from fusion.simulate.multistatic_varied import simulate_varied
 
 __all__ = [
     "MultistaticScenario",
@@ -60,9 +61,6 @@ __all__ = [
 ]
 
 logger = logging.getLogger(__name__)
-
-KNOT = 1852.0 / 3600.0
-
 
 def bistatic_position(
     source: ArrayLike, receiver: ArrayLike, range_sum: ArrayLike, bearing: ArrayLike
@@ -98,42 +96,6 @@ def bistatic_position(
     v = r - s
     d = (rho**2 - np.sum(v * v, axis=-1)) / (2.0 * (rho + np.sum(v * u, axis=-1)))
     return r + d[..., None] * u
-
-
-@dataclass(frozen=True)
-class MultistaticScenario:
-    """A simulated multistatic run.
-
-    Attributes
-    ----------
-    detections : Table
-        ``event,time,x,y,snr_db,score,aspect_deg,src_x,src_y,rcv_x,rcv_y`` plus ``origin``
-        (``target``, ``hotspot`` or ``clutter``, str) and ``receiver`` (int index).
-    truth : Table
-        Target state per ping: ``event,time,x,y,vx,vy``.
-    source : ndarray, shape (2,)
-        Source position, m.
-    receivers : ndarray, shape (n_receivers, 2)
-        Receiver positions, m.
-    hotspots : ndarray, shape (n_hotspots, 2)
-        True hotspot positions, m.
-    ping_interval_s : float
-        s.
-    seed : int
-    parameters : dict
-        Scenario parameters drawn from the seed (varied scenarios,
-        :mod:`fusion.simulate.multistatic_varied`; empty for the fixed scenario). Truth, for
-        diagnosis only.
-    """
-
-    detections: Table
-    truth: Table
-    source: NDArray[np.float64]
-    receivers: NDArray[np.float64]
-    hotspots: NDArray[np.float64]
-    ping_interval_s: float
-    seed: int
-    parameters: dict = field(default_factory=dict)
 
 
 def _target_track(
@@ -245,8 +207,6 @@ def simulate_multistatic(
     if n_pings < 2:
         raise ValueError(f"n_pings must be >= 2, got {n_pings}")
     if vary:
-        from fusion.simulate.multistatic_varied import simulate_varied
-
         return simulate_varied(seed, n_pings=n_pings, area_half_width_m=area_half_width_m,
                                detection_threshold_db=detection_threshold_db,
                                blanking_m=blanking_m)

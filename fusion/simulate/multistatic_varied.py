@@ -46,12 +46,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fusion.io import Table
+from fusion.simulate._multistatic_types import KNOT, MultistaticScenario
 
 __all__ = ["simulate_varied"]
 
 logger = logging.getLogger(__name__)
 
-KNOT = 1852.0 / 3600.0
 _COLUMNS = ("event", "time", "x", "y", "snr_db", "score", "aspect_deg", "src_x", "src_y",
             "rcv_x", "rcv_y", "origin", "receiver")
 
@@ -136,8 +136,6 @@ def simulate_varied(seed: int, *, n_pings: int = 22, area_half_width_m: float = 
     fusion.simulate.multistatic.MultistaticScenario
         With :attr:`parameters` holding the drawn scenario parameters.
     """
-    from fusion.simulate.multistatic import MultistaticScenario
-
     if n_pings < 2:
         raise ValueError(f"n_pings must be >= 2, got {n_pings}")
     rng = np.random.default_rng(seed)

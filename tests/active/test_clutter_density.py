@@ -7,7 +7,7 @@ import pytest
 from numpy.testing import assert_allclose
 
 from fusion.active.clutter import ClutterIntensity, DensityClutterMap
-from fusion.active.lifecycle import motion_statistic
+from fusion.active.motion import motion_statistic
 
 
 def _ellipse(sig_long, sig_short, angle):

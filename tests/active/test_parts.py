@@ -8,7 +8,8 @@ from numpy.testing import assert_allclose
 
 from fusion.active.association import PairRanker, assign_by_priority, derived_min_rank
 from fusion.active.bistatic import MeasurementModel, bistatic_covariance
-from fusion.active.lifecycle import Lifecycle, MotionTest, motion_statistic, next_lifecycle
+from fusion.active.lifecycle import Lifecycle, next_lifecycle
+from fusion.active.motion import MotionTest, motion_statistic
 from fusion.active.rulebase import default_association_system
 from fusion.active.types import Ping, pings_from_columns
 from fusion.io import Table

@@ -7,7 +7,8 @@ import pytest
 from numpy.testing import assert_allclose
 from scipy.stats import chi2
 
-from fusion.active.lifecycle import Lifecycle, MotionTest, motion_statistic, stationary_hold
+from fusion.active.lifecycle import Lifecycle, stationary_hold
+from fusion.active.motion import MotionTest, motion_statistic
 from fusion.active.platform import PlatformTest, sensor_positions
 from fusion.active.tracker import Tracker
 from fusion.active.types import Ping, pings_from_columns

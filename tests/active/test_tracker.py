@@ -13,7 +13,8 @@ from scipy.stats import chi2, multivariate_normal
 from fusion.active.association import EDGE_LIKELIHOOD, assign, derived_min_rank, neutral_value
 from fusion.active.bistatic import bistatic_covariance, equivalent_aspect_deg
 from fusion.active.kalman import cv_model, gate_threshold, kf_predict, kf_update, pair_statistics
-from fusion.active.lifecycle import motion_statistic, track_status
+from fusion.active.lifecycle import track_status
+from fusion.active.motion import motion_statistic
 from fusion.active.rulebase import default_association_system, default_variables
 from fusion.active.tracker import Ping, Tracker, pings_from_table
 from fusion.io import Table, read_table, write_table

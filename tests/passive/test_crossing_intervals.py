@@ -15,7 +15,7 @@ from fusion.passive.crossing import (
     detect_crossings,
     score_intervals,
 )
-from fusion.passive.crossing_pairs import crossing_time_interval, pair_intervals, t_quantile
+from fusion.passive.crossing.pairs import crossing_time_interval, pair_intervals, t_quantile
 from fusion.passive.line_fit import SlidingLineFit
 from fusion.simulate.bearings import simulate_bearings, varied_settings
 

@@ -11,13 +11,13 @@ from hypothesis import strategies as st
 
 from fusion.passive.bearing_grid import estimate_period, resample_bearings
 from fusion.passive.crossing import detect_crossings
-from fusion.passive.crossing_stream import (
+from fusion.passive.crossing.stream import (
     GridAssumptionBroken,
     StreamingGrid,
     detect_crossings_streamed,
     scan_long_gaps,
 )
-from fusion.passive.crossing_summary import BearingStats
+from fusion.passive.crossing.summary import BearingStats
 from fusion.simulate.bearings import simulate_bearings
 
 

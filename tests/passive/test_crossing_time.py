@@ -1,11 +1,11 @@
-"""Tests of fusion.passive.crossing_time: equation (2), the one crossing-time equation."""
+"""Tests of fusion.passive.crossing.timing: equation (2), the one crossing-time equation."""
 
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from fusion.passive.crossing_pairs import pairs_in_reach
-from fusion.passive.crossing_time import crossing_time, crossing_time_terms
+from fusion.passive.crossing.pairs import pairs_in_reach
+from fusion.passive.crossing.timing import crossing_time, crossing_time_terms
 
 
 def test_known_answers():

@@ -1,5 +1,6 @@
 """Tests of fusion.passive.smoothing: batch, online, robust and multi-track smoothing."""
 
+import logging
 import subprocess
 import sys
 
@@ -380,3 +381,20 @@ def test_prior_bearing_wraps_regression():
         t, np.unwrap(z), prior=TrackPrior(bearing=np.pi - 0.02, rate=0.0, sigma_bearing=0.05,
                                           sigma_rate=0.01))
     assert_allclose(np.angle(np.exp(1j * (res.bearing - unwrapped.bearing))), 0.0, atol=1e-9)
+
+
+def test_failed_segment_fit_is_reported(monkeypatch, caplog):
+    """A segment whose end fit fails keeps weak covariances and says so with a WARNING (regression:
+    the RuntimeError used to be swallowed silently)."""
+    import fusion.passive.smoothing.multitrack as multitrack
+
+    def fail(*args, **kwargs):
+        raise RuntimeError("Indeterminant linear system")
+
+    monkeypatch.setattr(multitrack, "_solve_cov", fail)
+    t, z, _, _, _ = _crossing_scene(0)
+    ms = MultiTrackSmoother(sigma_bearing=SIG, q=1e-9, clutter_density=0.2 / (2 * np.pi))
+    with caplog.at_level(logging.WARNING, logger="fusion.passive.smoothing.multitrack"):
+        ms.run(t, z)
+    assert any(r.levelno == logging.WARNING and "fit failed (Indeterminant linear system)" in r.message
+               for r in caplog.records)

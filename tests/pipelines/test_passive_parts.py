@@ -14,9 +14,9 @@ from factors.motion import transition_matrix, wna_covariance
 from fusion.geometry import beamwidth_deg, bearing_from_beam
 from fusion.passive.acquisition import Acquisition
 from fusion.passive.smoothing import TrackPrior, rts_reference
-from fusion.pipelines.passive_crossing import CrossingEpisode, CrossingResolver, EpisodeBook
-from fusion.pipelines.passive_measure import LineStarter, PeakMeasurer
-from fusion.pipelines.passive_tracks import AcquisitionPrior, FixedLagBearingTrack
+from fusion.pipelines.passive.crossing import CrossingEpisode, CrossingResolver, EpisodeBook
+from fusion.pipelines.passive.measure import LineStarter, PeakMeasurer
+from fusion.pipelines.passive.tracks import AcquisitionPrior, FixedLagBearingTrack
 from fusion.simulate.cube import simulate_cube
 
 Q = math.radians(2.0 / 3600.0) ** 2  # rad^2/s^3: 2 deg/min^2 per 1 s scan

@@ -44,7 +44,7 @@ feature seen by one receiver that echoes on 70 % of its pings has at most half o
 visited with probability 0.15 after 10 pings and 0.05 after 20 (binomial), and drops off the map
 for those pings, long enough for a track to form on it; at 0.4 these probabilities are 0.05 and
 0.005. The price is that a slow target's first positions stay hot a few pings longer; the
-tracker's motion test (:func:`fusion.active.lifecycle.motion_statistic`) keeps a target's tentative
+tracker's motion test (:func:`fusion.active.motion.motion_statistic`) keeps a target's tentative
 track alive there. The map is sparse (only visited cells are
 stored), unbounded in extent, and updated online, one ping at a time.
 """

@@ -35,14 +35,14 @@ Modules, one role each:
   (labelled tracks alone, unknown-origin rows jointly).
 
 Crossings are predicted with equation (2) of "Target Track Crossing Prediction/Detection"
-(:func:`fusion.passive.crossing_time.crossing_time`, the one copy of that equation, re-exported
+(:func:`fusion.passive.crossing.timing.crossing_time`, the one copy of that equation, re-exported
 here as :func:`crossing_time`). The identity scores :func:`crossing_outcomes` and
 :func:`identity_swaps` live in :mod:`fusion.metrics.crossings` and are re-exported here so that
 older imports keep working.
 """
 
 from fusion.metrics.crossings import CROSSING_OUTCOMES, crossing_outcomes, identity_swaps
-from fusion.passive.crossing_time import crossing_time
+from fusion.passive.crossing.timing import crossing_time
 from fusion.passive.smoothing.batch import BearingSmoother, rts_reference
 from fusion.passive.smoothing.graph import ROBUST_LOSSES
 from fusion.passive.smoothing.multitrack import MultiTrackSmoother

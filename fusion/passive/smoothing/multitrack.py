@@ -19,7 +19,7 @@ from scipy.optimize import linear_sum_assignment
 from factors.motion import transition_matrix, wna_covariance
 from fusion._validation import check_positive
 from fusion.geometry import wrap_angle
-from fusion.passive.crossing_time import crossing_time
+from fusion.passive.crossing.timing import crossing_time
 from fusion.passive.smoothing.graph import (
     _check_detections,
     _check_loss,
@@ -327,7 +327,10 @@ class MultiTrackSmoother:
             try:
                 states, covs = _solve_cov(times_ab, meas, prior, self.model, x0,
                                           (0, b - a))
-            except RuntimeError:  # gtsam: too few bearings for the scans spanned (dense scans)
+            except RuntimeError as err:  # gtsam: too few bearings for the scans spanned
+                # The segment's end keeps its initial line with weak covariances; said, not hidden.
+                logger.warning("segment of scans %d-%d: fit failed (%s); its end states keep the "
+                               "initial line with weak covariances", a, b, err)
                 weak = np.diag([self.model.sigma_bearing**2, self.tracker.init_sigma_rate**2])
                 states, covs = x0, [weak, weak]
             out.append((states, covs))

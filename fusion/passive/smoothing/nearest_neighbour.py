@@ -2,7 +2,7 @@
 
 Alone it is the baseline tracker of unlabeled bearing detections; with ``crossing_aware=True``
 it predicts crossings with equation (2) of "Target Track Crossing Prediction/Detection"
-(:func:`fusion.passive.crossing_time.crossing_time`) and lets both tracks coast through them,
+(:func:`fusion.passive.crossing.timing.crossing_time`) and lets both tracks coast through them,
 leaving the ambiguous detections shared. :class:`fusion.passive.smoothing.multitrack.
 MultiTrackSmoother` starts from its tracks.
 """
@@ -17,7 +17,7 @@ from scipy.optimize import linear_sum_assignment
 from factors.motion import transition_matrix, wna_covariance
 from fusion._validation import check_positive
 from fusion.geometry import wrap_angle
-from fusion.passive.crossing_time import crossing_time
+from fusion.passive.crossing.timing import crossing_time
 from fusion.passive.smoothing.graph import _check_detections
 from fusion.passive.smoothing.types import TrackerResult
 

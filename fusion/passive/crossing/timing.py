@@ -10,8 +10,8 @@ taken on the circle, wrapped to ``[-pi, pi)``, so that tracks on either side of 
 (or 0/360 deg) wrap cross where they meet and tracks on opposite bearings get a distant ``t_c``.
 This module is the one home of that equation: the bearing trackers and smoothers of
 :mod:`fusion.passive.smoothing` use it, and the crossing detector's screening of all pairs at once
-and its intervals (:func:`fusion.passive.crossing_pairs.pairs_in_reach`,
-:func:`~fusion.passive.crossing_pairs.pair_intervals`) evaluate its terms.
+and its intervals (:func:`fusion.passive.crossing.pairs.pairs_in_reach`,
+:func:`~fusion.passive.crossing.pairs.pair_intervals`) evaluate its terms.
 """
 
 from __future__ import annotations

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from fusion.passive.crossing_types import AlertKind, CrossingAlert
+from fusion.passive.crossing.types import AlertKind, CrossingAlert
 
 __all__ = ["CrossingScore", "IntervalScore", "score_alerts", "score_intervals"]
 

@@ -2,7 +2,7 @@
 
 :func:`fusion.passive.crossing.detect_crossings` puts a whole bearing table on the grid
 ``t0 + k K`` (:func:`~fusion.passive.bearing_grid.resample_bearings`) and steps a
-:class:`~fusion.passive.crossing_detector.CrossingDetector` one grid time at a time. The detector
+:class:`~fusion.passive.crossing.detector.CrossingDetector` one grid time at a time. The detector
 is online; the resampling looks ahead only a little (a grid value needs the next cell mean of its
 track, or the knowledge that none comes within ``max_gap_s``). :class:`StreamingGrid` does the
 same resampling on rows arriving in time order, in chunks, and hands out each grid time as soon as
@@ -32,8 +32,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fusion._validation import check_grid
-from fusion.passive.crossing_detector import CrossingDetector
-from fusion.passive.crossing_types import CrossingAlert
+from fusion.passive.crossing.detector import CrossingDetector
+from fusion.passive.crossing.types import CrossingAlert
 
 __all__ = [
     "GridAssumptionBroken",
@@ -450,7 +450,7 @@ max_interval_s, lead_windows, confirm
     *Target Track Crossing Prediction/Detection* takes a bearing of every track every K
     seconds (FIG. 2, block 104A onwards); the grid rows of :class:`StreamingGrid` are those
     samples, and each grid time is one :meth:`CrossingDetector.step
-    <fusion.passive.crossing_detector.CrossingDetector.step>` as in the batch path, so the
+    <fusion.passive.crossing.detector.CrossingDetector.step>` as in the batch path, so the
     equations (2)-(4) and the intervals are evaluated on the same numbers in the same order.
 
     Examples

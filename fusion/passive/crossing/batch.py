@@ -1,27 +1,8 @@
-"""Prediction and detection of bearing-track crossings.
+"""Batch entry point of the crossing detector: a whole bearing table in, its alerts out.
 
-Implements *Target Track Crossing Prediction/Detection* (the method text of that title): every
-K seconds each track's bearing rate ``B'`` and bearing intercept ``B0`` come from a least-squares
-line over its most recent J samples (regression routine 104A); for every pair of tracks the
-crossing time ``t_c`` follows from equation (2); pairs whose ``t_c`` falls outside an accepted
-range are dropped (in-range check 104C); inequality (3) predicts a crossing and inequality (4)
-detects one (104D, 104E), and either raises an alert (output 106).
-
-Beyond the method text, each alert carries a confidence interval of ``t_c`` from the covariance
-of the two window fits (Fieller's interval), an alert is raised only when that interval is
-bounded and no wider than the horizon, and a pair whose bearing-rate difference the J-sample
-window cannot resolve is tried again on windows of 2 J, 4 J, ... samples (``n_windows``).
-
-Pieces:
-
-- :class:`~fusion.passive.line_fit.SlidingLineFit` - recursive least-squares lines over a
-  sliding window for many tracks at once, with their covariance;
-- :func:`~fusion.passive.crossing_pairs.evaluate_pairs` - equation (2), the in-range check and
-  inequalities (3)/(4) for all pairs at once;
-- :class:`~fusion.passive.crossing_detector.CrossingDetector` - the streaming component
-  (``step``), window ladder and alert de-duplication;
-- :func:`detect_crossings` - the batch entry point for a bearing table sampled irregularly, and
-  :func:`crossing_settings` - window, horizon and period in seconds from the data.
+:func:`detect_crossings` resamples an irregularly sampled bearing table onto the detector's grid
+(:func:`~fusion.passive.bearing_grid.resample_bearings`) and feeds it to a
+:class:`~fusion.passive.crossing.detector.CrossingDetector` one grid time at a time.
 """
 
 from __future__ import annotations
@@ -32,58 +13,13 @@ from typing import Any
 
 import numpy as np
 
-from fusion.passive.bearing_grid import ResampledBearings, estimate_period, resample_bearings
-from fusion.passive.crossing_detector import CrossingDetector
-from fusion.passive.crossing_pairs import evaluate_pairs
-from fusion.passive.crossing_score import CrossingScore, IntervalScore, score_alerts, score_intervals
-from fusion.passive.crossing_settings import (
-    DEFAULT_CONFIRM,
-    DEFAULT_HORIZON_S,
-    DEFAULT_LEAD_WINDOWS,
-    DEFAULT_LEVEL,
-    DEFAULT_N_WINDOWS,
-    DEFAULT_WINDOW_S,
-    MAX_SAMPLES_PER_WINDOW,
-    MIN_SAMPLES_PER_WINDOW,
-    CrossingSettings,
-    crossing_settings,
-)
-from fusion.passive.crossing_types import AlertKind, CrossingAlert, PairCheck
-from fusion.passive.line_fit import LineStats, SlidingLineFit
+from fusion.passive.bearing_grid import estimate_period, resample_bearings
+from fusion.passive.crossing.detector import CrossingDetector
+from fusion.passive.crossing.types import CrossingAlert
 
-__all__ = [
-    "DEFAULT_CONFIRM",
-    "DEFAULT_HORIZON_S",
-    "DEFAULT_LEAD_WINDOWS",
-    "DEFAULT_LEVEL",
-    "DEFAULT_N_WINDOWS",
-    "DEFAULT_WINDOW_S",
-    "MAX_SAMPLES_PER_WINDOW",
-    "MIN_SAMPLES_PER_WINDOW",
-    "Alert",
-    "AlertKind",
-    "CrossingAlert",
-    "CrossingDetector",
-    "CrossingScore",
-    "CrossingSettings",
-    "IntervalScore",
-    "LineStats",
-    "PairCheck",
-    "ResampledBearings",
-    "SlidingLineFit",
-    "crossing_settings",
-    "detect_crossings",
-    "estimate_period",
-    "evaluate_pairs",
-    "resample_bearings",
-    "score_alerts",
-    "score_intervals",
-]
+__all__ = ["detect_crossings"]
 
 logger = logging.getLogger(__name__)
-
-#: Short name of :class:`CrossingAlert`.
-Alert = CrossingAlert
 
 
 def detect_crossings(

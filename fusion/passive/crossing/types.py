@@ -1,7 +1,7 @@
 """Data types of crossing prediction/detection: alert kinds, alerts and per-sample pair checks.
 
 Shared by the detector (:mod:`fusion.passive.crossing`), the pair evaluation
-(:mod:`fusion.passive.crossing_pairs`) and the scoring (:mod:`fusion.passive.crossing_score`).
+(:mod:`fusion.passive.crossing.pairs`) and the scoring (:mod:`fusion.passive.crossing.score`).
 """
 
 from __future__ import annotations
@@ -39,7 +39,7 @@ class CrossingAlert:
         inequality 4).
     t_cross_low, t_cross_high : float
         Confidence interval of the crossing time from the covariance of the two window fits
-        (Fieller's interval, see :func:`fusion.passive.crossing_pairs.crossing_time_interval`),
+        (Fieller's interval, see :func:`fusion.passive.crossing.pairs.crossing_time_interval`),
         s; NaN when the detector computes no interval.
     window_s : float
         Span of the least-squares windows the alert comes from, s (NaN if not recorded).
@@ -63,7 +63,7 @@ class PairCheck:
     ----------
     index_a, index_b : ndarray of int64, shape (p,)
         Positions of the two tracks in the arrays given to
-        :func:`~fusion.passive.crossing_pairs.evaluate_pairs`, ``index_a < index_b``.
+        :func:`~fusion.passive.crossing.pairs.evaluate_pairs`, ``index_a < index_b``.
     t_cross : ndarray, shape (p,)
         Crossing times from equation (2), s.
     predicted : ndarray of bool, shape (p,)

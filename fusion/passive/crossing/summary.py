@@ -1,6 +1,6 @@
 """One pass over a bearing table's chunks: what the crossing settings need of the whole table.
 
-:func:`~fusion.passive.crossing_settings.crossing_settings` takes the median time step within
+:func:`~fusion.passive.crossing.settings.crossing_settings` takes the median time step within
 tracks and the median track span from the data. Read in chunks, the table is not held at once;
 :class:`BearingStats` collects, chunk by chunk, exactly the numbers those medians need (first and
 last time per track, the distinct steps with their counts), so the settings of the streamed path

@@ -2,10 +2,10 @@
 
 Equation (2) of *Target Track Crossing Prediction/Detection* (block 104B), the in-range check
 (104C) and inequalities (3) and (4) (104D, 104E), for all pairs of tracks at once on numpy pair
-arrays. Equation (2) itself is :func:`fusion.passive.crossing_time.crossing_time_terms`, the one
+arrays. Equation (2) itself is :func:`fusion.passive.crossing.timing.crossing_time_terms`, the one
 copy in the code base. With the covariance of each track's window fit
 (:class:`fusion.passive.line_fit.LineStats`) each crossing time also gets a confidence interval
-(:func:`~fusion.passive.crossing_interval.crossing_time_interval`, importable from here too).
+(:func:`~fusion.passive.crossing.interval.crossing_time_interval`, importable from here too).
 """
 
 from __future__ import annotations
@@ -13,9 +13,9 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from fusion.passive.crossing_interval import crossing_time_interval, t_quantile, welch_dof
-from fusion.passive.crossing_time import crossing_time_terms
-from fusion.passive.crossing_types import PairCheck
+from fusion.passive.crossing.interval import crossing_time_interval, t_quantile, welch_dof
+from fusion.passive.crossing.timing import crossing_time_terms
+from fusion.passive.crossing.types import PairCheck
 from fusion.passive.line_fit import LineStats
 
 __all__ = [

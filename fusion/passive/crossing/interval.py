@@ -4,7 +4,7 @@ The crossing time of two bearing tracks is the root of the difference of their w
 (*Target Track Crossing Prediction/Detection*, equation (2)); with the lines' covariance
 (:class:`fusion.passive.line_fit.LineStats`) the root gets Fieller's interval at a Student-t
 quantile with Welch-Satterthwaite degrees of freedom. Importable from
-:mod:`fusion.passive.crossing_pairs` too, which applies it to pairs of tracks.
+:mod:`fusion.passive.crossing.pairs` too, which applies it to pairs of tracks.
 """
 
 from __future__ import annotations

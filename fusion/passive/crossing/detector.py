@@ -15,8 +15,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from fusion.passive.crossing_pairs import pair_intervals, pairs_in_reach
-from fusion.passive.crossing_types import AlertKind, CrossingAlert
+from fusion.passive.crossing.pairs import pair_intervals, pairs_in_reach
+from fusion.passive.crossing.types import AlertKind, CrossingAlert
 from fusion.passive.line_fit import LineStats, SlidingLineFit
 
 __all__ = ["CrossingDetector"]
@@ -109,7 +109,7 @@ class CrossingDetector:
     full windows, with the current sample time ``t_i`` in place of ``i K``.
 
     Intervals and the window ladder (not in the method text): the crossing time gets Fieller's
-    interval from the two fits' covariance (:func:`~fusion.passive.crossing_pairs.pair_intervals`;
+    interval from the two fits' covariance (:func:`~fusion.passive.crossing.pairs.pair_intervals`;
     the noise is each window's residual variance, so nothing about the noise needs to be
     known). A pair is *resolved* on a window when its interval is bounded (the bearing-rate
     difference exceeds its uncertainty) and no wider than `max_interval_s`. Each pair is judged

@@ -2,7 +2,7 @@
 
 *Track Quality Indicator with Hysteresis* (W. R. Lane, US patent application 10/241389): the
 state transition of FIGS. 2A-2C (steps 102-132), the amplitude statistics at the design SNRs and the
-error detector's angular centre frequency. The module notes of :mod:`fusion.passive.quality`
+error detector's angular centre frequency. The module notes of :mod:`fusion.passive.quality.indicator`
 give the readings of the method text; these names are importable from there too.
 """
 
@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from fusion.passive.quality_types import TrackQuality
+from fusion.passive.quality.types import TrackQuality
 from fusion.passive.tracker import cell_power_statistics
 
 __all__ = ["design_statistics", "omega_for_beamwidth", "tqi_transition"]
@@ -84,7 +84,7 @@ def tqi_transition(
     ----------
     previous : array_like of int, shape (n,)
         ``TQI(k-1)``: a :class:`TrackQuality` code, or
-        :data:`~fusion.passive.quality_types.START` before the first update.
+        :data:`~fusion.passive.quality.types.START` before the first update.
     sllr0, sllr1 : array_like, shape (n,)
         ``SLLR_0(k)`` and ``SLLR_1(k)``.
     residual_high : array_like of bool, shape (n,)
@@ -107,7 +107,7 @@ def tqi_transition(
     ``SLLR_0 < TU + LH``; step 116/118: after a low-SNR or strong track, uncertain if
     ``SLLR_0 < TU``. Step 122: uncertain if ``|ES| > ERR_max``. Step 124/126/132: strong if
     ``SLLR_1 >= TS - SH`` after a strong track, ``SLLR_1 >= TS + SH`` otherwise; else low SNR.
-    :data:`~fusion.passive.quality_types.START` falls through every "no" branch.
+    :data:`~fusion.passive.quality.types.START` falls through every "no" branch.
     """
     prev = np.asarray(previous)
     s0 = np.asarray(sllr0, dtype=float)

@@ -57,6 +57,7 @@ Decisions where the method text is silent (all exposed as keyword parameters):
 Examples
 --------
 >>> import numpy as np
+>>> from fusion.passive.quality import TrackQuality
 >>> tqi = TrackQualityIndicator(snr0_db=3.0, snr1_db=10.0)
 >>> rng = np.random.default_rng(0)
 >>> amp = 1.0 + 20.0 * np.ones((30, 4))          # 13 dB above the noise in every cell
@@ -72,21 +73,10 @@ import logging
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from fusion.passive.quality_flow import design_statistics, omega_for_beamwidth, tqi_transition
-from fusion.passive.quality_types import LABELS, START, TQIHistory, TQIMemory, TrackQuality
+from fusion.passive.quality.flow import design_statistics, tqi_transition
+from fusion.passive.quality.types import START, TQIHistory, TQIMemory
 
-__all__ = [
-    "LABELS",
-    "SLLR0_CEILING_MARGIN",
-    "START",
-    "TQIHistory",
-    "TQIMemory",
-    "TrackQuality",
-    "TrackQualityIndicator",
-    "design_statistics",
-    "omega_for_beamwidth",
-    "tqi_transition",
-]
+__all__ = ["SLLR0_CEILING_MARGIN", "TrackQualityIndicator"]
 
 logger = logging.getLogger(__name__)
 

@@ -193,7 +193,7 @@ def crossing_settings_from_steps(
     Notes
     -----
     For data read in chunks, where the table is never held at once
-    (:class:`~fusion.passive.crossing_summary.BearingStats` gives both numbers exactly).
+    (:class:`~fusion.passive.crossing.summary.BearingStats` gives both numbers exactly).
     """
     step = float(step_s)
     track_span = float(track_span_s)

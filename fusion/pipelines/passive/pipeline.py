@@ -4,28 +4,28 @@ Per scan (:meth:`PassivePipeline.step`; :meth:`PassivePipeline.run` steps throug
 
 1. **Measure** every live track: predict its state to the scan time from its graph; in the
    track's frequency band read the cell at the predicted beam (amplitude ``A(k)``) and the peak
-   near it (bearing, residual) -- :class:`~fusion.pipelines.passive_measure.PeakMeasurer`.
+   near it (bearing, residual) -- :class:`~fusion.pipelines.passive.measure.PeakMeasurer`.
 2. **Track quality**: one update of the TQI with hysteresis for all live tracks from their
    amplitudes and residuals (:class:`~fusion.passive.quality.TrackQualityIndicator`). ``lost``
    ends the track (after this scan's state); ``uncertain`` widens its process noise for this
    step by ``uncertain_q_factor``.
 3. **Graphs**: each track's (bearing, bearing rate) lives on its own GTSAM fixed-lag smoother of
-   linear factors (:class:`~fusion.pipelines.passive_tracks.FixedLagBearingTrack`): a motion
+   linear factors (:class:`~fusion.pipelines.passive.tracks.FixedLagBearingTrack`): a motion
    factor to the new state, and the measured bearing if it passes the innovation gate and the
    track is not in a crossing episode.
 4. **Crossings**: every ``K`` s the crossing detector (*Target Track Crossing
    Prediction/Detection*, :class:`~fusion.passive.crossing.CrossingDetector`) sees the live
    tracks' bearings. A predicted crossing of two tracks whose bands overlap schedules an episode
-   (:class:`~fusion.pipelines.passive_crossing.EpisodeBook`): around the crossing the pair
+   (:class:`~fusion.pipelines.passive.crossing.EpisodeBook`): around the crossing the pair
    coasts and its peaks are collected without labels; when the episode closes they go through
    the association-weighted multi-track graph (EM,
-   :class:`~fusion.pipelines.passive_crossing.CrossingResolver`) and each track receives the
+   :class:`~fusion.pipelines.passive.crossing.CrossingResolver`) and each track receives the
    bearings assigned to it on the states of their scans.
 5. **Starts**: an operator click (beam, frequency) -- or, with a :class:`~fusion.pipelines.
-   passive_measure.LineStarter`, a line found automatically -- is acquired over the last
+   passive.measure.LineStarter`, a line found automatically -- is acquired over the last
    ``acquisition_scans`` scans (:class:`~fusion.passive.acquisition.Acquisition`) and starts a
    track whose first state carries the acquisition's estimate as a prior with its uncertainty
-   (:class:`~fusion.pipelines.passive_tracks.AcquisitionPrior`).
+   (:class:`~fusion.pipelines.passive.tracks.AcquisitionPrior`).
 
 The pipeline chains these parts and holds no algorithm of its own.
 """
@@ -45,14 +45,14 @@ from fusion.geometry import beam_from_bearing, beam_tolerance, beamwidth_cos, be
 from fusion.passive.acquisition import Acquisition, AcquisitionResult
 from fusion.passive.crossing import AlertKind, CrossingAlert, CrossingDetector
 from fusion.passive.quality import LABELS, TQIMemory, TrackQuality, TrackQualityIndicator
-from fusion.pipelines.passive_crossing import (
+from fusion.pipelines.passive.crossing import (
     CrossingResolution,
     CrossingResolver,
     EpisodeBook,
 )
-from fusion.pipelines.passive_measure import BearingMeasurement, LineStarter, PeakMeasurer
-from fusion.pipelines.passive_tracks import AcquisitionPrior, FixedLagBearingTrack
-from fusion.pipelines.passive_types import (
+from fusion.pipelines.passive.measure import BearingMeasurement, LineStarter, PeakMeasurer
+from fusion.pipelines.passive.tracks import AcquisitionPrior, FixedLagBearingTrack
+from fusion.pipelines.passive.types import (
     Click,
     PassiveResult,
     PassiveTrack,
@@ -461,7 +461,7 @@ class PassivePipeline:
         Parameters
         ----------
         cubes : Cube or sequence of Cube
-            Normalised beam/frequency/time power (:func:`~fusion.pipelines.passive_types.
+            Normalised beam/frequency/time power (:func:`~fusion.pipelines.passive.types.
             scans_of`: scan ``k`` at ``k * scan_period``).
         clicks : sequence of Click
             Operator clicks, given at the first scan; each waits for its time.

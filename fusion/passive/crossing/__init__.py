@@ -1,0 +1,91 @@
+"""Prediction and detection of bearing-track crossings (the crossing stage of the passive chain).
+
+This package takes bearing tracks -- a bearing table, or the live tracks' bearings scan by scan --
+and raises alerts for pairs of tracks that are about to cross or have crossed. It uses only
+:mod:`fusion.geometry`, :mod:`fusion.passive.line_fit` and :mod:`fusion.passive.bearing_grid`
+(no I/O, no pipeline). A user calls :func:`detect_crossings` (batch), :class:`CrossingDetector`
+(streaming, ``step``), :func:`crossing_settings` (windows in seconds from the data) and
+:func:`score_alerts` / :func:`score_intervals` (alerts against true crossings); streaming over
+chunked files lives in :mod:`fusion.passive.crossing.stream`.
+
+Implements *Target Track Crossing Prediction/Detection* (the method text of that title): every
+K seconds each track's bearing rate ``B'`` and bearing intercept ``B0`` come from a least-squares
+line over its most recent J samples (regression routine 104A); for every pair of tracks the
+crossing time ``t_c`` follows from equation (2); pairs whose ``t_c`` falls outside an accepted
+range are dropped (in-range check 104C); inequality (3) predicts a crossing and inequality (4)
+detects one (104D, 104E), and either raises an alert (output 106).
+
+Beyond the method text, each alert carries a confidence interval of ``t_c`` from the covariance
+of the two window fits (Fieller's interval), an alert is raised only when that interval is
+bounded and no wider than the horizon, and a pair whose bearing-rate difference the J-sample
+window cannot resolve is tried again on windows of 2 J, 4 J, ... samples (``n_windows``).
+
+Pieces:
+
+- :class:`~fusion.passive.line_fit.SlidingLineFit` - recursive least-squares lines over a
+  sliding window for many tracks at once, with their covariance;
+- :func:`~fusion.passive.crossing.pairs.evaluate_pairs` - equation (2), the in-range check and
+  inequalities (3)/(4) for all pairs at once;
+- :class:`~fusion.passive.crossing.detector.CrossingDetector` - the streaming component
+  (``step``), window ladder and alert de-duplication;
+- :mod:`~fusion.passive.crossing.interval` and :mod:`~fusion.passive.crossing.timing` - the
+  confidence interval of ``t_c`` and the terms of equation (2);
+- :mod:`~fusion.passive.crossing.stream` and :mod:`~fusion.passive.crossing.summary` - the
+  detector over chunked tables, and per-pair summaries;
+- :func:`~fusion.passive.crossing.batch.detect_crossings` - the batch entry point for a bearing
+  table sampled irregularly, and :func:`~fusion.passive.crossing.settings.crossing_settings` -
+  window, horizon and period in seconds from the data;
+- :mod:`~fusion.passive.crossing.score` - alerts scored against true crossings.
+"""
+
+from fusion.passive.bearing_grid import ResampledBearings, estimate_period, resample_bearings
+from fusion.passive.crossing.batch import detect_crossings
+from fusion.passive.crossing.detector import CrossingDetector
+from fusion.passive.crossing.pairs import evaluate_pairs
+from fusion.passive.crossing.score import CrossingScore, IntervalScore, score_alerts, score_intervals
+from fusion.passive.crossing.settings import (
+    DEFAULT_CONFIRM,
+    DEFAULT_HORIZON_S,
+    DEFAULT_LEAD_WINDOWS,
+    DEFAULT_LEVEL,
+    DEFAULT_N_WINDOWS,
+    DEFAULT_WINDOW_S,
+    MAX_SAMPLES_PER_WINDOW,
+    MIN_SAMPLES_PER_WINDOW,
+    CrossingSettings,
+    crossing_settings,
+)
+from fusion.passive.crossing.types import AlertKind, CrossingAlert, PairCheck
+from fusion.passive.line_fit import LineStats, SlidingLineFit
+
+__all__ = [
+    "DEFAULT_CONFIRM",
+    "DEFAULT_HORIZON_S",
+    "DEFAULT_LEAD_WINDOWS",
+    "DEFAULT_LEVEL",
+    "DEFAULT_N_WINDOWS",
+    "DEFAULT_WINDOW_S",
+    "MAX_SAMPLES_PER_WINDOW",
+    "MIN_SAMPLES_PER_WINDOW",
+    "Alert",
+    "AlertKind",
+    "CrossingAlert",
+    "CrossingDetector",
+    "CrossingScore",
+    "CrossingSettings",
+    "IntervalScore",
+    "LineStats",
+    "PairCheck",
+    "ResampledBearings",
+    "SlidingLineFit",
+    "crossing_settings",
+    "detect_crossings",
+    "estimate_period",
+    "evaluate_pairs",
+    "resample_bearings",
+    "score_alerts",
+    "score_intervals",
+]
+
+#: Short name of :class:`CrossingAlert`.
+Alert = CrossingAlert

@@ -1,0 +1,48 @@
+"""The passive narrowband chain as one pipeline: acquisition, fixed-lag graphs, TQI, crossings.
+
+This package chains the passive stages on beam/frequency/time scans (:class:`fusion.types.Cube`):
+it measures each live track in each scan, updates its track quality
+(:mod:`fusion.passive.quality`), keeps its (bearing, bearing rate) on a GTSAM fixed-lag graph
+(:mod:`factors`), runs the crossing detector (:mod:`fusion.passive.crossing`) and resolves
+crossing episodes with the multi-track smoother (:mod:`fusion.passive.smoothing`); tracks start
+from operator clicks or automatically, through :mod:`fusion.passive.acquisition`. It holds no
+algorithm of its own and imports no I/O. A user builds a :class:`PassivePipeline` and calls
+``run(cubes, clicks)`` for whole cubes or ``step(scan)`` for streaming, and reads a
+:class:`PassiveResult`.
+
+Modules: the parts are
+:mod:`~fusion.pipelines.passive.pipeline` (the pipeline), :mod:`~fusion.pipelines.passive.measure`
+(peak measurement, automatic starts), :mod:`~fusion.pipelines.passive.tracks` (acquisition prior,
+fixed-lag graph of one track), :mod:`~fusion.pipelines.passive.crossing` (crossing episodes) and
+:mod:`~fusion.pipelines.passive.types` (scans and clicks in, results out).
+"""
+
+from fusion.pipelines.passive.measure import LineStarter
+from fusion.pipelines.passive.pipeline import PassivePipeline
+from fusion.pipelines.passive.types import (
+    Click,
+    PassiveResult,
+    PassiveTrack,
+    Scan,
+    ScanResult,
+    SmootherSettings,
+    TrackEnd,
+    TrackStart,
+    TrackUpdate,
+    scans_of,
+)
+
+__all__ = [
+    "Click",
+    "LineStarter",
+    "PassivePipeline",
+    "PassiveResult",
+    "PassiveTrack",
+    "Scan",
+    "ScanResult",
+    "SmootherSettings",
+    "TrackEnd",
+    "TrackStart",
+    "TrackUpdate",
+    "scans_of",
+]
