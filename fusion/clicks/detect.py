@@ -269,28 +269,11 @@ class ClickDetector:
     ) -> tuple[ClickDetector, ReplicaEstimate | None]:
         """This detector with its replica estimated from a recording (step 32).
 
-        The clicks this detector finds in `samples` are ranked by band power; the strongest
-        `max_clicks` of all channels are aligned on their correlation with the current replica
-        and averaged, repeatedly (:func:`fusion.clicks.replica.estimate_replica`, starting from
-        this detector's replica), for at most six passes or until a pass changes it by
-        less than 0.03 (unit-energy replicas).
-
-        Parameters
-        ----------
-        samples : array_like, shape (n,) or (n, n_channels)
-            Audio, e.g. the first minute of a recording.
-        fs : float
-            Sample rate, Hz.
-        max_clicks, min_clicks : int, optional
-            Strongest clicks averaged; fewest clicks worth an estimate.
-
-        Returns
-        -------
-        detector : ClickDetector
-            A new detector with the estimated replica (this one when there were too few clicks
-            or the estimate did not converge).
-        estimate : ReplicaEstimate or None
-            The estimate (None when fewer than `min_clicks` clicks were found).
+        The strongest `max_clicks` clicks it finds in `samples` (n, channels), by band power,
+        are aligned and averaged, starting from its replica, for at most six passes or until a
+        pass changes it by less than 0.03 (:func:`fusion.clicks.replica.estimate_replica`).
+        Returns the new detector (this one when fewer than `min_clicks` clicks were found or
+        the estimate did not settle) and the estimate (None without one).
         """
         x = np.asarray(samples, dtype=float)
         clicks = self.detect(x, fs)
