@@ -27,16 +27,21 @@ inputs and the file system:
   own messages then go to stderr; commands that write a folder refuse it (``./-`` names a file
   called ``-``);
 - missing folders on the way are created, like ``mkdir -p``; writes are atomic
-  (:func:`fusion.io.atomic_output`), and temporaries of killed runs are removed by the next run.
+  (:func:`fusion.io.atomic_output`), and temporaries of killed runs are removed by the next run;
+- all outputs of a run are committed together at its end, or none (:func:`_run_outputs`); a
+  failed run (bad input found late, a full disk: ``out.csv: No space left on device``) removes
+  the folders it created.
 
 A command module declares its inputs with ``set_defaults(inputs=("bearings", ...))`` (the dest
 names of the options that name files it reads); ``out_is_dir=True`` when ``--out`` is a folder;
-``out_stdout=False`` to refuse ``--out -`` for a one-file output that is not text.
+``out_stdout=False`` to refuse ``--out -`` for a one-file output that is not text;
+``outputs_together=False`` when it reads back what it wrote (see :func:`_run_outputs`).
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import logging
 import math
@@ -48,7 +53,13 @@ from types import ModuleType
 
 from fusion import __version__
 from fusion._notes import held_notes
-from fusion._output import STDOUT, Terminated, output_destination, termination_as_interrupt
+from fusion._output import (
+    STDOUT,
+    Terminated,
+    output_destination,
+    outputs_together,
+    termination_as_interrupt,
+)
 from fusion._validation import GridTooLarge
 
 #: The subcommands, in the order of ``fusion --help``: name -> (module, one-line help).
@@ -366,6 +377,21 @@ def _os_error_message(e: OSError) -> str:
     return str(e)
 
 
+def _run_outputs(args: argparse.Namespace) -> contextlib.AbstractContextManager[None]:
+    """The outputs of a run, committed together at its end (see :func:`outputs_together`).
+
+    A failing run replaces no output and leaves no folder it created (a folder ``--out``
+    that did not exist is removed when still empty). Commands that read back what they wrote
+    (``localize`` resumes from its parts, ``demo`` reads its scenario) declare
+    ``outputs_together=False``; their files are still each written atomically.
+    """
+    if not getattr(args, "outputs_together", True):
+        return contextlib.nullcontext()
+    out = getattr(args, "out", None)
+    folders = [out] if out is not None and getattr(args, "out_is_dir", False) else []
+    return outputs_together(*folders)
+
+
 def _silence_stdout() -> None:
     """After a broken pipe on stdout, send what is left to /dev/null (no second error at exit)."""
     try:
@@ -398,7 +424,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         with termination_as_interrupt(), held_notes(handler):  # SIGTERM, SIGHUP: like Ctrl-C
             _data_on_stdout = check_paths(args, _option_names(sub.choices[args.command]))
-            return int(args.handler(args) or 0)
+            with _run_outputs(args):
+                return int(args.handler(args) or 0)
     except BrokenPipeError:  # `fusion ... --out - | head`: the reader left; not an error of ours
         _silence_stdout()
         return 1
