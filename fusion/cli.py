@@ -124,6 +124,16 @@ class Parser(argparse.ArgumentParser):
         return ns, extras
 
 
+#: Largest magnitude of any number option without a tighter bound (as of CSV values): beyond
+#: it a value is a unit error, and 1e300 overflows whatever it is multiplied with.
+MAX_OPTION_ABS = 1e12
+#: Bounds of decibel options (SNRs): 10**(100/10) = 1e10 is as strong as a signal gets.
+DB_RANGE = (-100.0, 100.0)
+#: Largest count of scans, pings or windows an option may set (a track rule, a window, a map
+#: memory): each sizes arrays or loops over the data.
+MAX_SCANS_OPTION = 100_000
+
+
 def number(
     kind: type = float,
     *,
@@ -134,8 +144,12 @@ def number(
     """An argparse ``type`` for a finite number with bounds (``gt``: >, ``ge``: >=, ``le``: <=).
 
     ``number(float, gt=0)`` accepts positive floats; ``number(int, ge=1)`` positive integers. A
-    bad value becomes the one-line usage error ``argument --opt: must be > 0, got '-1'``.
+    bad value becomes the one-line usage error ``argument --opt: must be > 0, got '-1'``. Every
+    number is at most :data:`MAX_OPTION_ABS` in magnitude (``le`` and ``ge`` tighten it):
+    ``--snr0-db 1e300`` is refused, not overflowed.
     """
+    ge = -MAX_OPTION_ABS if ge is None and gt is None else ge
+    le = MAX_OPTION_ABS if le is None else le
 
     def convert(text: str):
         try:
@@ -378,12 +392,10 @@ def _os_error_message(e: OSError) -> str:
 
 
 def _run_outputs(args: argparse.Namespace) -> contextlib.AbstractContextManager[None]:
-    """The outputs of a run, committed together at its end (see :func:`outputs_together`).
+    """A run's outputs, committed together at its end, none on failure (``outputs_together``).
 
-    A failing run replaces no output and leaves no folder it created (a folder ``--out``
-    that did not exist is removed when still empty). Commands that read back what they wrote
-    (``localize`` resumes from its parts, ``demo`` reads its scenario) declare
-    ``outputs_together=False``; their files are still each written atomically.
+    Commands that read back what they wrote (``localize``, ``demo``) declare
+    ``outputs_together=False``; each of their files is still written atomically.
     """
     if not getattr(args, "outputs_together", True):
         return contextlib.nullcontext()

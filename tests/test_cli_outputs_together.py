@@ -143,3 +143,53 @@ def test_enospc_names_the_destination_not_the_temporary(tmp_path):
     assert info.value.filename == str(tmp_path / "new" / "o.csv")
     assert info.value.errno == errno.ENOSPC
     assert not (tmp_path / "new").exists()  # the folder made for it is removed again
+
+
+# --------------------------------------------------------------------------------------------
+# options bounded to plausible ranges; localize --audio DIR declares its outputs
+# --------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("argv", [
+    ("tqi", "--snr0-db", "1e300"),
+    ("tqi", "--snr1-db", "101"),
+    ("tqi", "--tu", "1e300"),
+    ("tqi", "--n-looks", "1000000"),
+    ("crossings", "--windows", "100000"),
+    ("crossings", "--horizon", "1e300"),
+    ("smooth", "--q-deg2-per-s3", "1e300"),
+    ("smooth", "--max-gap-scans", "1000000000"),
+    ("tma", "--q", "1e300"),
+    ("track", "--map-memory-pings", "1000000000"),
+    ("simulate", "--snr-db", "1e300"),
+])
+def test_option_beyond_its_plausible_range_is_a_usage_error(argv, run_cli, tmp_path):
+    """--snr0-db 1e300 (was: success with an overflow warning), --windows 100000 (40 GiB)."""
+    command, option, value = argv
+    needs = {"tqi": ("--amplitudes",), "crossings": ("--bearings",), "smooth": ("--bearings",),
+             "tma": ("--bearings", "--ownship"), "track": ("--detections",),
+             "simulate": ()}[command]
+    (tmp_path / "x.csv").write_text("a\n1\n")
+    args = [command, *(["clicks"] if command == "simulate" else [])]
+    for n in needs:
+        args += [n, tmp_path / "x.csv"]
+    code, _, err = run_cli(*args, f"{option}={value}", "--out", tmp_path / "o")
+    assert code == 2 and f"argument {option}" in err and "must be" in err, err
+    assert len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "o").exists()
+
+
+def test_localize_folder_outputs_are_declared_to_the_guard(tmp_path):
+    """--audio DIR --array OUT/x.json --out OUT: OUT/x.json would become x.flac's result."""
+    from fusion.cli import _option_names, build_parser, check_paths
+
+    rec, out = tmp_path / "rec", tmp_path / "out"
+    rec.mkdir()
+    out.mkdir()
+    (rec / "x.flac").write_bytes(b"")
+    (out / "x.json").write_text("{}")
+    parser = build_parser("localize")
+    args = parser.parse_args(["localize", "--audio", str(rec), "--array", str(out / "x.json"),
+                              "--out", str(out)])
+    assert "x.json" in args.out_files and "localize.settings.json" in args.out_files
+    sub = next(a for a in parser._actions if a.dest == "command")
+    with pytest.raises(ValueError, match=r"its x\.json\) is the same file as the input --array"):
+        check_paths(args, _option_names(sub.choices["localize"]))
