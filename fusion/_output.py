@@ -15,12 +15,16 @@ Rules (the command line applies the same ones before any work, see :mod:`fusion.
 - ``"-"`` means standard output: the file is written to a private temporary folder and copied to
   stdout when complete;
 - temporaries of runs that were killed (even by SIGKILL) are removed by the next write of the same
-  destination; new files get the usual permissions (``0o666`` less the umask).
+  destination; new files get the usual permissions (``0o666`` less the umask);
+- folders created for an output are removed again when the write fails (if still empty);
+- an OSError while writing (``[Errno 28] No space left on device``) names the destination file;
+- inside :func:`outputs_together`, every write is committed at the end of the block, all or none.
 """
 
 from __future__ import annotations
 
 import contextlib
+import contextvars
 import logging
 import os
 import shutil
@@ -31,7 +35,8 @@ from collections.abc import Iterator
 from pathlib import Path
 
 __all__ = ["STDOUT", "TMP_MARK", "Terminated", "atomic_output", "atomic_outputs", "output_lock",
-           "output_destination", "private_folder", "special_file_kind", "termination_as_interrupt"]
+           "output_destination", "outputs_together", "private_folder", "special_file_kind",
+           "termination_as_interrupt"]
 
 logger = logging.getLogger(__name__)
 
@@ -172,19 +177,128 @@ def atomic_output(path: PathLike, *, suffix: str | None = None) -> Iterator[Path
             _copy_to_stdout(tmp)
         return
     dest = output_destination(path)
-    dest.parent.mkdir(parents=True, exist_ok=True)
-    _remove_stale_temporaries(dest)
+    batch = _batch.get()
+    created = _missing_folders(dest.parent)
     tmp = dest.parent / f".{dest.name}.{os.getpid()}.{TMP_MARK}{sfx}"
-    with contextlib.suppress(FileNotFoundError):
-        tmp.unlink()
-    # O_EXCL: never write through a link planted at the temporary name; mode 0o666 & ~umask.
-    os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
     try:
-        yield tmp
-        os.replace(tmp, dest)
+        with _naming(dest, tmp):
+            if batch is not None:
+                batch.folders += created
+            dest.parent.mkdir(parents=True, exist_ok=True)
+            _remove_stale_temporaries(dest)
+            with contextlib.suppress(FileNotFoundError):
+                tmp.unlink()
+            # O_EXCL: never write through a link planted at the temporary name; 0o666 & ~umask.
+            os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
+            yield tmp
+            if batch is None:
+                os.replace(tmp, dest)
+            else:
+                batch.renames.pop(dest, None)
+                batch.renames[dest] = tmp  # committed with the others at the end of the block
     except BaseException:
         with contextlib.suppress(FileNotFoundError):
             tmp.unlink()
+        if batch is None:
+            _remove_empty(created)
+        raise
+
+
+def _missing_folders(folder: PathLike) -> list[Path]:
+    """`folder` and its ancestors that do not exist yet (outermost first)."""
+    missing: list[Path] = []
+    p = Path(os.path.abspath(folder))
+    while not os.path.lexists(p) and p != p.parent:
+        missing.insert(0, p)
+        p = p.parent
+    return missing
+
+
+def _remove_empty(folders: list[Path]) -> None:
+    """Remove those of `folders` that are empty, deepest first (created for a failed write)."""
+    for f in sorted(set(folders), key=lambda q: len(q.parts), reverse=True):
+        with contextlib.suppress(OSError):
+            f.rmdir()
+
+
+@contextlib.contextmanager
+def _naming(dest: Path, tmp: Path) -> Iterator[None]:
+    """OSErrors of writing `dest` name `dest` (``out.csv: No space left on device``).
+
+    Writers report a full disk as ``[Errno 28] No space left on device`` without a file name,
+    or with the temporary's; errors naming another file (an input read meanwhile) are kept.
+    """
+    try:
+        yield
+    except OSError as e:
+        if e.filename is None or os.fspath(e.filename) == os.fspath(tmp):
+            raise OSError(e.errno, e.strerror or str(e), os.fspath(dest)) from e
+        raise
+
+
+class _Batch:
+    """Writes held by :func:`outputs_together`: destination -> temporary, created folders."""
+
+    def __init__(self) -> None:
+        self.renames: dict[Path, Path] = {}
+        self.folders: list[Path] = []
+
+    def commit(self) -> None:
+        pending = list(self.renames.items())
+        try:
+            while pending:
+                dest, tmp = pending[0]
+                with _naming(dest, tmp):
+                    os.replace(tmp, dest)
+                pending.pop(0)
+        finally:
+            self.renames = dict(pending)
+
+    def discard(self) -> None:
+        for tmp in self.renames.values():
+            with contextlib.suppress(OSError):
+                tmp.unlink()
+        self.renames.clear()
+        _remove_empty(self.folders)
+
+
+_batch: contextvars.ContextVar[_Batch | None] = contextvars.ContextVar("fusion_outputs",
+                                                                       default=None)
+
+
+@contextlib.contextmanager
+def outputs_together(*folders: PathLike) -> Iterator[None]:
+    """Every output written in the block (by :func:`atomic_output`) is committed at its end.
+
+    A run that writes several files (a folder of figures, a simulated scenario, the files of
+    several imported scenarios) writes each into its temporary; only when the block ends
+    without an exception are they all renamed onto their names, in the order written. If the
+    block fails (bad input found late, a full disk, Ctrl-C), every temporary is deleted, no
+    output is replaced, and the folders created for the outputs -- those of `folders` (the
+    ``--out`` folder) that did not exist when the block began, and those made by the writes --
+    are removed when empty. Inside an enclosing block, this one joins it (commits at its end).
+
+    A write inside the block is not readable under its name before the block ends.
+    """
+    if _batch.get() is not None:
+        yield
+        return
+    batch = _Batch()
+    for f in folders:
+        if os.fspath(f) != STDOUT:
+            batch.folders += _missing_folders(f)
+    token = _batch.set(batch)
+    try:
+        yield
+    except BaseException:
+        _batch.reset(token)
+        batch.discard()
+        raise
+    _batch.reset(token)
+    try:
+        batch.commit()
+    except BaseException:
+        batch.discard()
         raise
 
 
@@ -194,12 +308,13 @@ def atomic_outputs(*paths: PathLike, suffixes: tuple[str | None, ...] = ()) -> I
 
     Like :func:`atomic_output` for each of `paths` (`suffixes`: theirs, one per path, default
     each path's own): if writing any of them fails, none is replaced -- no result is left half
-    written beside a missing other half.
+    written beside a missing other half (an :func:`outputs_together` block of its own, or the
+    enclosing one).
     """
     if len(suffixes) > len(paths):
         raise ValueError(f"{len(suffixes)} suffixes for {len(paths)} paths")
     sfx = list(suffixes) + [None] * (len(paths) - len(suffixes))
-    with contextlib.ExitStack() as stack:
+    with outputs_together(), contextlib.ExitStack() as stack:
         yield [stack.enter_context(atomic_output(p, suffix=s))
                for p, s in zip(paths, sfx, strict=True)]
 

@@ -27,28 +27,40 @@ inputs and the file system:
   own messages then go to stderr; commands that write a folder refuse it (``./-`` names a file
   called ``-``);
 - missing folders on the way are created, like ``mkdir -p``; writes are atomic
-  (:func:`fusion.io.atomic_output`), and temporaries of killed runs are removed by the next run.
+  (:func:`fusion.io.atomic_output`), and temporaries of killed runs are removed by the next run;
+- all outputs of a run are committed together at its end, or none (:func:`_run_outputs`); a
+  failed run (bad input found late, a full disk: ``out.csv: No space left on device``) removes
+  the folders it created.
 
 A command module declares its inputs with ``set_defaults(inputs=("bearings", ...))`` (the dest
 names of the options that name files it reads); ``out_is_dir=True`` when ``--out`` is a folder;
-``out_stdout=False`` to refuse ``--out -`` for a one-file output that is not text.
+``out_stdout=False`` to refuse ``--out -`` for a one-file output that is not text;
+``outputs_together=False`` when it reads back what it wrote (see :func:`_run_outputs`).
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import logging
 import math
 import os
 import sys
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from types import ModuleType
 
 from fusion import __version__
 from fusion._notes import held_notes
-from fusion._output import STDOUT, Terminated, output_destination, termination_as_interrupt
+from fusion._options import DB_RANGE, MAX_OPTION_ABS, MAX_SCANS_OPTION, number  # noqa: F401 (re-exported)
+from fusion._output import (
+    STDOUT,
+    Terminated,
+    output_destination,
+    outputs_together,
+    termination_as_interrupt,
+)
 from fusion._validation import GridTooLarge
 
 #: The subcommands, in the order of ``fusion --help``: name -> (module, one-line help).
@@ -111,37 +123,6 @@ class Parser(argparse.ArgumentParser):
                     self.error(f"argument {'/'.join(action.option_strings)}: {v} is not a "
                                "finite number")
         return ns, extras
-
-
-def number(
-    kind: type = float,
-    *,
-    gt: float | None = None,
-    ge: float | None = None,
-    le: float | None = None,
-) -> Callable[[str], float]:
-    """An argparse ``type`` for a finite number with bounds (``gt``: >, ``ge``: >=, ``le``: <=).
-
-    ``number(float, gt=0)`` accepts positive floats; ``number(int, ge=1)`` positive integers. A
-    bad value becomes the one-line usage error ``argument --opt: must be > 0, got '-1'``.
-    """
-
-    def convert(text: str):
-        try:
-            v = kind(text)
-        except ValueError:
-            what = "an integer" if kind is int else "a number"
-            raise argparse.ArgumentTypeError(f"{text!r} is not {what}") from None
-        if not math.isfinite(v):
-            raise argparse.ArgumentTypeError(f"{text!r} is not a finite number")
-        for bound, ok, sign in ((gt, lambda b: v > b, ">"), (ge, lambda b: v >= b, ">="),
-                                (le, lambda b: v <= b, "<=")):
-            if bound is not None and not ok(bound):
-                raise argparse.ArgumentTypeError(f"must be {sign} {bound:g}, got {text!r}")
-        return v
-
-    convert.__name__ = kind.__name__
-    return convert
 
 
 # --------------------------------------------------------------------------------------------
@@ -366,6 +347,19 @@ def _os_error_message(e: OSError) -> str:
     return str(e)
 
 
+def _run_outputs(args: argparse.Namespace) -> contextlib.AbstractContextManager[None]:
+    """A run's outputs, committed together at its end, none on failure (``outputs_together``).
+
+    Commands that read back what they wrote (``localize``, ``demo``) declare
+    ``outputs_together=False``; each of their files is still written atomically.
+    """
+    if not getattr(args, "outputs_together", True):
+        return contextlib.nullcontext()
+    out = getattr(args, "out", None)
+    folders = [out] if out is not None and getattr(args, "out_is_dir", False) else []
+    return outputs_together(*folders)
+
+
 def _silence_stdout() -> None:
     """After a broken pipe on stdout, send what is left to /dev/null (no second error at exit)."""
     try:
@@ -398,7 +392,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         with termination_as_interrupt(), held_notes(handler):  # SIGTERM, SIGHUP: like Ctrl-C
             _data_on_stdout = check_paths(args, _option_names(sub.choices[args.command]))
-            return int(args.handler(args) or 0)
+            with _run_outputs(args):
+                return int(args.handler(args) or 0)
     except BrokenPipeError:  # `fusion ... --out - | head`: the reader left; not an error of ours
         _silence_stdout()
         return 1

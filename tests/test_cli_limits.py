@@ -129,11 +129,23 @@ def test_failing_run_prints_only_its_error_line(run_cli, tmp_path):
     assert "sorted" not in err
 
 
-def test_numpy_warning_of_a_successful_run_is_one_line(run_cli, tmp_path):
+def test_numpy_warning_of_a_successful_run_is_one_line(run_cli, tmp_path, monkeypatch):
+    """A numpy overflow in a run that succeeds (options no longer overflow: --snr0-db 1e300 is
+    refused, so the overflow is planted in the command)."""
+    import numpy as np
+
+    import fusion.commands.tqi as tqi
+
+    real = tqi.run
+
+    def overflowing(args):
+        np.float64(1e300) * np.float64(1e300)
+        return real(args)
+
+    monkeypatch.setattr(tqi, "run", overflowing)
     src = tmp_path / "a.csv"
     src.write_text("track_id,time,amplitude,residual\n0,0,1,0.1\n0,1,2,0.2\n0,2,1,0.1\n")
-    code, _, err = run_cli("tqi", "--amplitudes", src, "--out", tmp_path / "t.csv",
-                           "--snr0-db", "1e300", "--snr1-db", "1e301")
+    code, _, err = run_cli("tqi", "--amplitudes", src, "--out", tmp_path / "t.csv")
     assert code == 0, err
     lines = err.strip().splitlines()
     assert lines and all(ln.startswith("fusion tqi: warning: ") for ln in lines), err

@@ -98,3 +98,35 @@ def test_progress_on_a_terminal_counts_weights(monkeypatch, capsys):
     assert bar.n == 7
     bar.close()
     assert not hasattr(progress(3, quiet=True), "n")
+
+
+
+def test_smooth_of_one_long_track_shows_progress_before_the_end(inputs, tmp_path, monkeypatch,
+                                                                 run_cli):
+    """One labelled track: the bar moves (settings fitted) before the track's smoothing ends.
+
+    It counts rows twice, as fitted and as smoothed (was: one update, 0 % then 100 %).
+    """
+    import fusion.commands.smooth as smooth
+
+    lines = (inputs / "bearings/bearings.csv").read_text().splitlines()
+    one = tmp_path / "one.csv"
+    rows = [r for r in lines[1:] if r.startswith("0,")]
+    one.write_text("\n".join([lines[0], *rows]) + "\n")
+    seen = []
+
+    class Bar:
+        def __init__(self, total, **kwargs):
+            seen.append(("total", total))
+
+        def update(self, n=1):
+            seen.append(("update", n))
+
+        def close(self):
+            seen.append(("close", None))
+
+    monkeypatch.setattr(smooth, "progress", Bar)
+    code, _, err = run_cli("smooth", "--bearings", one, "--out", tmp_path / "s.csv")
+    assert code == 0, err
+    assert seen == [("total", 2 * len(rows)), ("update", len(rows)), ("update", len(rows)),
+                    ("close", None)]

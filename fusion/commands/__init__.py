@@ -12,7 +12,9 @@ when its command is chosen, so it may import what it needs at the top. Each modu
 - ``out_stdout=False`` when a one-file output cannot go to standard output;
 - ``out_files=("a.csv", ...)``: the files a folder ``--out`` receives;
 - ``more_outputs=("opt", ...)``: the dests of other options naming files the command writes;
-- ``input_files={"opt": ("a.json", ...)}``: the files read inside a folder input.
+- ``input_files={"opt": ("a.json", ...)}``: the files read inside a folder input;
+- ``outputs_together=False`` when the command reads back files it wrote (by default every
+  output of a run is committed at its end, all or none: :func:`fusion._output.outputs_together`).
 
 No output may be an input or another output (by any path or link): :func:`fusion.cli.check_paths`
 refuses it before any work.

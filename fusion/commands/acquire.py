@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fusion.cli import emit, number
+from fusion.cli import MAX_SCANS_OPTION, emit, number
 from fusion.io import read_cube
 from fusion.passive.acquisition import Acquisition
 
@@ -34,17 +34,17 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="initialisation bandwidth, Hz (default: the clicked bin)")
     p.add_argument("--no-normalize", action="store_true",
                    help="the cube is already normalised to unit noise mean")
-    p.add_argument("--min-scans", type=number(int, ge=2), default=None,
+    p.add_argument("--min-scans", type=number(int, ge=2, le=MAX_SCANS_OPTION), default=None,
                    help="fewest scans a line may span before leaving the BTR, at most the "
                         "cube's scans (default: all)")
     p.add_argument("--noise-dof", type=number(float, gt=0), default=None,
                    help="degrees of freedom of the noise per cell (2: one periodogram look; "
                         "default: estimated from the cube)")
-    p.add_argument("--freq-tolerance", type=number(int, ge=0), default=1,
+    p.add_argument("--freq-tolerance", type=number(int, ge=0, le=MAX_SCANS_OPTION), default=1,
                    help="bins the clicked frequency may be off the line: the initialisation band "
                         "is also tried shifted by up to this many bins (default 1; 0: the "
                         "clicked band only)")
-    p.add_argument("--pool-scans", type=number(int, ge=1), default=None,
+    p.add_argument("--pool-scans", type=number(int, ge=1, le=MAX_SCANS_OPTION), default=None,
                    help="scans pooled into each noise estimate of the normaliser (default: the "
                         "whole history; 1: every scan on its own, the method's literal normaliser)")
     p.add_argument("--trace", choices=("bearing", "beam"), default="bearing",

@@ -21,7 +21,7 @@ from collections.abc import Iterator
 import numpy as np
 
 from fusion._progress import track_progress
-from fusion.cli import emit, number
+from fusion.cli import MAX_SCANS_OPTION, emit, number
 from fusion.io import RowOrderError, iter_bearings, read_bearings, write_table
 from fusion.passive.crossing import CrossingAlert, detect_crossings
 from fusion.passive.crossing.settings import (
@@ -43,6 +43,10 @@ from fusion.passive.crossing.stream import (
     scan_long_gaps,
 )
 from fusion.passive.crossing.summary import BearingStats, BearingSummary
+
+#: Most windows in the ladder: each doubles the last, and the memory with it (16: the longest
+#: window is 32,768 times the first, about 170 MB on a small file; 100,000 asked for 40 GiB).
+MAX_N_WINDOWS = 16
 
 logger = logging.getLogger(__name__)
 
@@ -75,13 +79,15 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--horizon", type=number(float, gt=0), default=None, metavar="S",
                    help="prediction horizon and widest interval of an alert, s "
                         f"(default {DEFAULT_HORIZON_S:g} s)")
-    p.add_argument("--windows", type=number(int, ge=1), default=DEFAULT_N_WINDOWS, metavar="N",
+    p.add_argument("--windows", type=number(int, ge=1, le=MAX_N_WINDOWS),
+                   default=DEFAULT_N_WINDOWS, metavar="N",
                    help="windows in the ladder, each twice the previous "
                         f"(default {DEFAULT_N_WINDOWS}; 1: the method's single window)")
     p.add_argument("--lead", type=number(float, gt=0), default=DEFAULT_LEAD_WINDOWS, metavar="F",
                    help="predictions reach F spans of the window used ahead "
                         f"(default {DEFAULT_LEAD_WINDOWS:g}; the method: 1)")
-    p.add_argument("--confirm", type=number(int, ge=1), default=DEFAULT_CONFIRM, metavar="N",
+    p.add_argument("--confirm", type=number(int, ge=1, le=MAX_SCANS_OPTION), default=DEFAULT_CONFIRM,
+                   metavar="N",
                    help="samples in a row a pair must satisfy an inequality before it alerts "
                         f"(default {DEFAULT_CONFIRM}; the method: 1)")
     p.add_argument("--level", type=number(float, gt=0, le=0.99999), default=DEFAULT_LEVEL,
@@ -92,7 +98,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="grid period K, s (default: the median time step within tracks, "
                         "coarser if the window would hold more than "
                         f"{MAX_SAMPLES_PER_WINDOW} samples)")
-    p.add_argument("--window", "-J", type=number(int, ge=3), default=None, metavar="J",
+    p.add_argument("--window", "-J", type=number(int, ge=3, le=MAX_SCANS_OPTION), default=None, metavar="J",
                    help="samples in the shortest window, > 2 (replaces --window-s)")
     p.add_argument("--merge-window", type=number(float, gt=0), default=None, metavar="S",
                    help="alerts of a pair whose t_cross differ by <= S s, or whose intervals "

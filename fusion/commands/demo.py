@@ -21,7 +21,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--part", action="append", default=None, help="run only this part (repeatable)")
     p.add_argument("--quiet", action="store_true",
                    help="no progress bar (none either when standard error is not a terminal)")
-    p.set_defaults(handler=run, inputs=(), out_is_dir=True)
+    p.set_defaults(handler=run, inputs=(), out_is_dir=True,
+                   outputs_together=False)  # reads back its scenario files
 
 
 def run(args: argparse.Namespace) -> int:

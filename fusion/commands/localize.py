@@ -149,7 +149,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     from fusion.commands.localize_events import add_event_options
 
     add_event_options(p)
-    p.set_defaults(handler=run, inputs=("audio", "array", "events"))
+    p.set_defaults(handler=run, inputs=("audio", "array", "events"),
+                   outputs_together=False)  # resumes from its parts: reads back what it wrote
 
 
 #: Audio read to estimate the replica from the recording (the first seconds of the first file).
@@ -240,6 +241,14 @@ class _AudioPaths(argparse.Action):
                  values: list[Path], option_string: str | None = None) -> None:
         setattr(namespace, self.dest, values)
         namespace.out_is_dir = len(values) == 1 and Path(values[0]).is_dir()
+        if namespace.out_is_dir:  # declared to the output guard (fusion.cli.check_paths)
+            namespace.out_files = (*(f"{p.stem}.json" for p in _audio_files(Path(values[0]))),
+                                   "localize.settings.json")
+
+
+def _audio_files(folder: Path) -> list[Path]:
+    """The recordings of a folder ``--audio``, by name."""
+    return sorted(p for p in folder.iterdir() if p.is_file() and p.suffix.lower() in _SUFFIXES)
 
 
 _SUFFIXES = (".wav", ".flac")
@@ -252,7 +261,7 @@ def _recordings(args: argparse.Namespace, n_sensors: int) -> list:
     if not getattr(args, "out_is_dir", False):
         return [(open_audio(list(args.audio), n_sensors), args.out)]
     folder = Path(args.audio[0])
-    files = sorted(p for p in folder.iterdir() if p.is_file() and p.suffix.lower() in _SUFFIXES)
+    files = _audio_files(folder)
     if not files:
         raise ValueError(f"--audio {folder}: no .wav or .flac recordings in the folder")
     stems = [p.stem for p in files]

@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from fusion._output import atomic_outputs
-from fusion.cli import emit, number
+from fusion.cli import DB_RANGE, MAX_SCANS_OPTION, emit, number
 from fusion.io import Cube, read_cube, read_table, write_table
 
 logger = logging.getLogger(__name__)
@@ -65,7 +65,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                         help="start tracks automatically on the strongest lines")
     p.add_argument("--out", type=Path, required=True, help="output folder")
     g = p.add_argument_group("pipeline")
-    g.add_argument("--acq-scans", type=number(int, ge=3), default=60,
+    g.add_argument("--acq-scans", type=number(int, ge=3, le=MAX_SCANS_OPTION), default=60,
                    help="scans the acquisition looks back over (60)")
     g.add_argument("--lag", type=number(float, gt=0), default=200.0,
                    help="fixed lag of the tracks' graphs, s (200)")
@@ -73,13 +73,13 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="bearing-acceleration standard deviation, deg/min^2 (2)")
     g.add_argument("--beam-sigma", type=number(float, gt=0), default=0.5,
                    help="standard deviation of a measured peak, beams (0.5)")
-    g.add_argument("-J", "--window", type=number(int, ge=3), default=12, metavar="J",
+    g.add_argument("-J", "--window", type=number(int, ge=3, le=MAX_SCANS_OPTION), default=12, metavar="J",
                    help="crossing detector: samples per least-squares window (12)")
     g.add_argument("-K", "--period", type=number(float, gt=0), default=None, metavar="K",
                    help="crossing detector: sample period, s (default 5 scan periods)")
-    g.add_argument("--snr0-db", type=number(float), default=3.0,
+    g.add_argument("--snr0-db", type=number(float, ge=DB_RANGE[0], le=DB_RANGE[1]), default=3.0,
                    help="TQI design SNR of the tracker threshold, dB (3)")
-    g.add_argument("--snr1-db", type=number(float), default=10.0,
+    g.add_argument("--snr1-db", type=number(float, ge=DB_RANGE[0], le=DB_RANGE[1]), default=10.0,
                    help="TQI design SNR of a strong track, dB (10)")
     g.add_argument("--normalize", action="store_true",
                    help="normalise the cubes to unit noise mean first (split-window median over "

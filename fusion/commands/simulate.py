@@ -11,7 +11,7 @@ import argparse
 import inspect
 from pathlib import Path
 
-from fusion.cli import emit, number
+from fusion.cli import DB_RANGE, emit, number
 from fusion.simulate import SIMULATORS, get_writer
 
 #: Options of ``fusion simulate clicks`` only: dest -> (option as written, keyword of the writer).
@@ -46,7 +46,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="number of whales, 1-5 (default 2)")
     g.add_argument("--sensors", type=number(int, ge=1), default=None, metavar="N",
                    help="number of hydrophones, 3-10 (default 5)")
-    g.add_argument("--snr-db", dest="snr_db", type=number(float), default=None, metavar="DB",
+    g.add_argument("--snr-db", dest="snr_db", type=number(float, ge=DB_RANGE[0], le=DB_RANGE[1]),
+                   default=None, metavar="DB",
                    help="SNR of a nominal click at 1 km over the in-band noise (default 30)")
     g.add_argument("--echo", choices=("none", "surface", "bottom", "both"), default=None,
                    help="echoes rendered; puts the hydrophones above a sea floor (default: "

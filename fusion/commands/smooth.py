@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from fusion._progress import progress
-from fusion.cli import emit, number
+from fusion.cli import MAX_SCANS_OPTION, emit, number
 from fusion.io import read_bearings, write_settings, write_table
 from fusion.passive.smoothing import BearingSmoother, MultiTrackSmoother, smooth_bearings
 from fusion.passive.smoothing.merge import merge_scan_detections
@@ -59,7 +59,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--init-sigma-rate-deg-per-s", type=number(float, gt=0), default=None,
                    help="bearing-rate standard deviation of a new track, deg/s (default: "
                         "estimated)")
-    p.add_argument("--max-misses", type=number(int, ge=1), default=None,
+    p.add_argument("--max-misses", type=number(int, ge=1, le=MAX_SCANS_OPTION), default=None,
                    help="scans in a row without a detection that end a track (default: from "
                         "the detection probability)")
     p.add_argument("--max-miss-s", type=number(float, gt=0), default=4.0,
@@ -73,10 +73,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="tracks from unknown-origin rows whose median distance over their "
                         "common time is below this are one source, deg (default 4.0: a boat "
                         "10 m long at 150 m; 0: keep them apart)")
-    p.add_argument("--max-gap-scans", type=number(int, ge=1), default=None,
+    p.add_argument("--max-gap-scans", type=number(int, ge=1, le=MAX_SCANS_OPTION), default=None,
                    help="longest gap, in scans, that a track may bridge (default: from "
                         "--max-misses)")
-    p.add_argument("--min-length", type=number(int, ge=2), default=None,
+    p.add_argument("--min-length", type=number(int, ge=2, le=MAX_SCANS_OPTION), default=None,
                    help="fewest detections of a track formed from unknown-origin rows, >= 2 "
                         "(default: from the detection probability)")
     p.add_argument("--quiet", action="store_true",
@@ -93,6 +93,9 @@ def run(args: argparse.Namespace) -> int:
         listed = ", ".join(map(str, short[:5])) + (", ..." if len(short) > 5 else "")
         raise ValueError(f"{args.bearings}: track(s) {listed} have fewer than 2 distinct times; "
                          "a bearing rate needs at least 2 samples per track")
+    # work in rows, twice: once when the settings are fitted to them, once when smoothed (a
+    # file of one long track is not 0 % until the end, the fit is half the work)
+    bar = progress(2 * len(ids), quiet=args.quiet, desc="smooth", unit="row")
     z = np.radians(table["bearing_deg"])
     merge = float(np.radians(args.merge_deg))
     unk = ids < 0
@@ -103,11 +106,12 @@ def run(args: argparse.Namespace) -> int:
         fit_t, fit_z = np.r_[times[~unk], tm], np.r_[z[~unk], zm]
     else:
         fit_ids, fit_t, fit_z = ids, times, z
-    st = fit_smooth_settings(
-        fit_ids, fit_t, fit_z, sigma_bearing_deg=args.sigma_bearing_deg, max_miss_s=args.max_miss_s,
-        q_deg2_per_s3=args.q_deg2_per_s3, clutter_density=args.clutter_density,
-        p_detect=args.p_detect, init_sigma_rate_deg_per_s=args.init_sigma_rate_deg_per_s,
-        max_misses=args.max_misses, max_gap_scans=args.max_gap_scans, min_length=args.min_length)
+    try:
+        st = _fit(args, fit_ids, fit_t, fit_z)
+    except BaseException:
+        bar.close()
+        raise
+    bar.update(len(ids))
     sigma = np.radians(st.sigma_bearing_deg)
     q = st.q_deg2_per_s3 * np.radians(1.0) ** 2
     single = BearingSmoother(sigma_bearing=sigma, q=q, robust=args.robust)
@@ -116,7 +120,6 @@ def run(args: argparse.Namespace) -> int:
                                init_sigma_rate=np.radians(st.init_sigma_rate_deg_per_s),
                                max_misses=st.max_misses, max_gap_scans=st.max_gap_scans)
     bearing_deg = table["bearing_deg"]
-    bar = progress(len(bearing_deg), quiet=args.quiet, desc="smooth", unit="row")
     try:
         tracks = smooth_bearings(table["track_id"], table["time"], np.radians(bearing_deg),
                                  single=single, multi=multi, merge_within=merge,
@@ -145,3 +148,12 @@ def run(args: argparse.Namespace) -> int:
     emit(f"fusion smooth: {st.describe()}: {len(tracks)} track(s) -> {args.out}")
     logger.info("wrote %d tracks to %s", len(tracks), args.out)
     return 0
+
+
+def _fit(args: argparse.Namespace, ids: np.ndarray, t: np.ndarray, z: np.ndarray):
+    """The smoothing settings: those given, the others fitted to the rows."""
+    return fit_smooth_settings(
+        ids, t, z, sigma_bearing_deg=args.sigma_bearing_deg, max_miss_s=args.max_miss_s,
+        q_deg2_per_s3=args.q_deg2_per_s3, clutter_density=args.clutter_density,
+        p_detect=args.p_detect, init_sigma_rate_deg_per_s=args.init_sigma_rate_deg_per_s,
+        max_misses=args.max_misses, max_gap_scans=args.max_gap_scans, min_length=args.min_length)

@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 
 from fusion._progress import track_progress
-from fusion.cli import number
+from fusion.cli import DB_RANGE, MAX_SCANS_OPTION, number
 from fusion.io import (
     RowOrderError,
     TableChunk,
@@ -51,9 +51,11 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="CSV track_id,time,amplitude,residual")
     p.add_argument("--out", type=Path, required=True, help="output CSV (input columns + tqi)")
     g = p.add_argument_group("design SNRs (per cell)")
-    g.add_argument("--snr0-db", type=number(float), default=3.0, help="tracker threshold SNR_0 (3 dB)")
-    g.add_argument("--snr1-db", type=number(float), default=10.0, help="strong-track SNR_1 (10 dB)")
-    g.add_argument("--n-looks", type=number(int, ge=1), default=1,
+    g.add_argument("--snr0-db", type=number(float, ge=DB_RANGE[0], le=DB_RANGE[1]), default=3.0,
+                   help="tracker threshold SNR_0 (3 dB)")
+    g.add_argument("--snr1-db", type=number(float, ge=DB_RANGE[0], le=DB_RANGE[1]), default=10.0,
+                   help="strong-track SNR_1 (10 dB)")
+    g.add_argument("--n-looks", type=number(int, ge=1, le=MAX_SCANS_OPTION), default=1,
                    help="periodogram looks averaged per cell of the spectra (1)")
     t = p.add_argument_group("thresholds (method defaults)")
     t.add_argument("--tl", type=number(float), default=-3.5, help="lost threshold TL (-3.5)")

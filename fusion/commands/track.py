@@ -38,7 +38,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from fusion._progress import track_progress
-from fusion.cli import emit, number
+from fusion.cli import MAX_SCANS_OPTION, emit, number
 from fusion.io import (
     RowOrderError,
     iter_detections,
@@ -111,7 +111,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     g.add_argument("--max-speed", type=number(float, gt=0), default=30.0, metavar="V",
                    help="fastest plausible object, m/s: how far the settings look for the "
                         "next detection of an object (default 30)")
-    g.add_argument("--fit-pings", type=number(int, ge=3), default=FIT_PINGS, metavar="N",
+    g.add_argument("--fit-pings", type=number(int, ge=3, le=MAX_SCANS_OPTION), default=FIT_PINGS, metavar="N",
                    help=f"pings the scales are read from (default {FIT_PINGS})")
     p.add_argument("--position-errors", choices=("geometry", "isotropic"), default="geometry",
                    help="position error of detections with src_x,src_y,rcv_x,rcv_y: bistatic "
@@ -165,9 +165,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "rank threshold (default 0.25)")
     p.add_argument("--confirmed-edge-likelihood", type=number(float, gt=0, le=0.999999), default=0.1,
                    help="the same for confirmed tracks (default 0.1)")
-    p.add_argument("--confirm", type=number(int, ge=1), nargs=2, default=(3, 4), metavar=("M", "N"),
+    p.add_argument("--confirm", type=number(int, ge=1, le=MAX_SCANS_OPTION), nargs=2, default=(3, 4),
+                   metavar=("M", "N"),
                    help="confirm after M hits in the first N pings (default 3 4)")
-    p.add_argument("--max-misses", type=number(int, ge=1), default=5,
+    p.add_argument("--max-misses", type=number(int, ge=1, le=MAX_SCANS_OPTION), default=5,
                    help="consecutive misses deleting a confirmed track (default 5)")
     p.add_argument("--confirm-stationary", action="store_true",
                    help="fuzzy mode: confirm a track on its hits alone, even when its own "
@@ -185,7 +186,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "ellipse (default) or counted in fixed grid cells")
     p.add_argument("--hotspot-cell", type=number(float, gt=0), default=150.0,
                    help="--clutter-map grid: cell size, m (default 150)")
-    p.add_argument("--map-memory-pings", type=number(int, ge=2), default=MAP_MEMORY_PINGS,
+    p.add_argument("--map-memory-pings", type=number(int, ge=2, le=MAX_SCANS_OPTION),
+                   default=MAP_MEMORY_PINGS,
                    metavar="N",
                    help="the density clutter map remembers the last N pings (default "
                         f"{MAP_MEMORY_PINGS}: memory and time per ping stay bounded on long runs)")

@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from fusion.datasets._autoferry_json import parse_ground_truth, parse_scans
 from fusion.io import Table, read_json
 
 __all__ = ["AutoferryRecording", "Sensor", "load_autoferry"]
@@ -61,7 +62,10 @@ class AutoferryRecording:
         Per scan: bearings, deg (EO/IR, shape (M,)) or absolute positions, m (radar/lidar,
         shape (M, 2) as x, y).
     truth : Table
-        GNSS truth: ``track_id, time, x, y`` (time in s from ``t0_unix``).
+        GNSS truth: ``track_id, time, x, y`` (time in s from ``t0_unix``); no rows when the
+        scenario has no ground truth.
+    truth_file : pathlib.Path or None
+        The ground-truth file read (None: the folder holds none).
     """
 
     name: str
@@ -71,6 +75,7 @@ class AutoferryRecording:
     ownship_xy: NDArray[np.float64]
     measurements: tuple[NDArray[np.float64], ...]
     truth: Table
+    truth_file: Path | None = None
 
     def bearings(self, sensors: Iterable[int] = (Sensor.IR, Sensor.EO)) -> Table:
         """Camera bearings as a table.
@@ -164,22 +169,9 @@ class AutoferryRecording:
             out["time"].append(self.scan_time[inside])
             out["bearing_deg"].append(np.mod(np.degrees(np.arctan2(dx, dy)), 360.0)[inside])
             out["range_m"].append(np.hypot(dx, dy)[inside])
-        cols = {k: np.concatenate(v) for k, v in out.items()}
+        cols = {k: np.concatenate(v) if v else np.zeros(0) for k, v in out.items()}
         cols["track_id"] = cols["track_id"].astype(np.int64)
         return Table(cols, f"{self.name}:true_bearings")
-
-
-def _as_positions(meas: object, where: str) -> NDArray[np.float64]:
-    a = np.asarray(meas, dtype=float)
-    if a.size == 0:
-        return np.zeros((0, 2))
-    if a.ndim == 2 and a.shape[0] == 2:  # [[n...], [e...]]
-        north, east = a[0], a[1]
-    elif a.ndim == 1 and a.size % 2 == 0:  # flattened [n1, e1, n2, e2, ...]
-        north, east = a[0::2], a[1::2]
-    else:
-        raise ValueError(f"{where}: unexpected radar/lidar measurement shape {a.shape}")
-    return np.column_stack([east, north])
 
 
 def load_autoferry(folder: str | Path) -> AutoferryRecording:
@@ -188,7 +180,8 @@ def load_autoferry(folder: str | Path) -> AutoferryRecording:
     Parameters
     ----------
     folder : path-like
-        The scenario folder; the two JSON files are found by their name endings.
+        The scenario folder; the two JSON files are found by their name endings. Without a
+        ``*_groundTruth.json`` the recording has no truth (a table without rows).
 
     Returns
     -------
@@ -197,56 +190,41 @@ def load_autoferry(folder: str | Path) -> AutoferryRecording:
     Raises
     ------
     FileNotFoundError, ValueError
-        Missing files or malformed content, naming the file.
+        Missing files, malformed content, numbers that are not finite or not plausible
+        (:mod:`fusion.datasets._autoferry_json`): one line naming the file and the scan or
+        entry.
     """
     folder = Path(folder)
     if not folder.is_dir():
         raise FileNotFoundError(f"{folder}: no such folder")
-    det_files = sorted(folder.glob("*_detections.json"))
-    gt_files = sorted(folder.glob("*_groundTruth.json"))
-    if not det_files or not gt_files:
-        raise FileNotFoundError(f"{folder}: needs *_detections.json and *_groundTruth.json")
-    det = read_json(det_files[0])
-    gt = read_json(gt_files[0])
-    if not isinstance(det, list) or not det:
-        raise ValueError(f"{det_files[0]}: expected a non-empty list of scans")
-    try:
-        times = np.array([float(s["time"]) for s in det])
-        sensors = np.array([int(s["sensorID"]) for s in det], dtype=np.int64)
-        own_ne = np.array([s["ownshipPosition"][:2] for s in det], dtype=float)
-    except (KeyError, TypeError, ValueError) as e:
-        raise ValueError(f"{det_files[0]}: malformed scan ({e})") from None
+    det_file = _one_file(folder, "*_detections.json")
+    if det_file is None:
+        raise FileNotFoundError(f"{folder}: needs *_detections.json (and *_groundTruth.json)")
+    gt_file = _one_file(folder, "*_groundTruth.json")
+    times, sensors, own_ne, raw = parse_scans(det_file, read_json(det_file))
     order = np.argsort(times, kind="stable")
     t0 = float(times[order[0]])
     meas: list[NDArray[np.float64]] = []
     for k in order:
-        m, sid = det[k]["measurement"], sensors[k]
-        where = f"{det_files[0]}: scan {k}"
-        if sid in (Sensor.IR, Sensor.EO):
-            b = np.atleast_1d(np.asarray(m, dtype=float)).reshape(-1)
-            meas.append(np.mod(np.degrees(b), 360.0))
-        else:
-            xy = _as_positions(m, where) + own_ne[k, ::-1]
-            meas.append(xy)
-    tid, tt, tx, ty = [], [], [], []
-    for entry in gt:
-        for target in entry if isinstance(entry, list) else [entry]:
-            try:
-                n, e = float(target["position"][0]), float(target["position"][1])
-                tid.append(int(target["targetID"]))
-                tt.append(float(target["time"]) - t0)
-                tx.append(e)
-                ty.append(n)
-            except (KeyError, TypeError, ValueError, IndexError) as err:
-                raise ValueError(f"{gt_files[0]}: malformed target ({err})") from None
+        if sensors[k] in (Sensor.IR, Sensor.EO):
+            meas.append(np.mod(np.degrees(raw[k]), 360.0))
+        else:  # (north, east) offsets -> absolute (x east, y north)
+            meas.append(raw[k][:, ::-1] + own_ne[k, ::-1])
+    tid: list[int] = []
+    tt: list[float] = []
+    tx: list[float] = []
+    ty: list[float] = []
+    if gt_file is not None:
+        tid, tt, tx, ty = parse_ground_truth(gt_file, read_json(gt_file), n_scans=len(times),
+                                             t0=t0, detections=det_file)
     truth = Table(
         {
             "track_id": np.array(tid, dtype=np.int64),
-            "time": np.array(tt),
-            "x": np.array(tx),
-            "y": np.array(ty),
+            "time": np.array(tt, dtype=float),
+            "x": np.array(tx, dtype=float),
+            "y": np.array(ty, dtype=float),
         },
-        str(gt_files[0]),
+        str(gt_file if gt_file is not None else folder),
     )
     return AutoferryRecording(
         name=folder.name,
@@ -256,4 +234,15 @@ def load_autoferry(folder: str | Path) -> AutoferryRecording:
         ownship_xy=own_ne[order][:, ::-1].copy(),
         measurements=tuple(meas),
         truth=truth,
+        truth_file=gt_file,
     )
+
+
+def _one_file(folder: Path, pattern: str) -> Path | None:
+    """The one file of `folder` matching `pattern` (None if none; two are refused)."""
+    found = sorted(folder.glob(pattern))
+    if len(found) > 1:
+        names = ", ".join(p.name for p in found)
+        raise ValueError(f"{folder}: holds {len(found)} {pattern} files ({names}); expected one "
+                         "scenario per folder")
+    return found[0] if found else None

@@ -15,8 +15,14 @@ file                      columns (``docs/formats.md``)
 ``truth.csv``             ``track_id,time,x,y`` -- GNSS fixes of the target boats (each once)
 ``truth_bearings.csv``    ``track_id,time,bearing_deg,range_m`` -- GNSS bearing and range from
                           the ferry at every scan (what the camera bearings should follow)
-``import.json``           time origin (Unix s), frame, row counts, source files
+``import.json``           time origin (Unix s), frame, row counts, source files, files not
+                          written and why
 ========================  ===================================================================
+
+A scenario without ground truth (no ``*_groundTruth.json``) is imported without ``truth.csv``
+and ``truth_bearings.csv``, and a file that would have no rows is not written; one warning line
+names each (see :func:`import_autoferry`). Everything read is checked first (finite, plausible:
+:mod:`fusion.datasets._autoferry_json`), and all files of all scenarios are written together.
 
 Frame: x east, y north, metres, the upstream "Piren" NED frame with its axes renamed (origin at
 lat 63.4389029083, lon 10.39908278). Time: seconds from the earliest scan of the scenario, any
@@ -34,8 +40,9 @@ from pathlib import Path
 
 import numpy as np
 
+from fusion._output import outputs_together
 from fusion.datasets.autoferry import AutoferryRecording, Sensor, load_autoferry
-from fusion.io import write_json, write_table
+from fusion.io import MAX_ABS_VALUE, write_json, write_table
 from fusion.types import Table
 
 __all__ = ["AutoferryImport", "autoferry_tables", "find_scenarios", "import_autoferry"]
@@ -116,28 +123,79 @@ def autoferry_tables(rec: AutoferryRecording) -> dict[str, dict[str, np.ndarray]
 
 
 def find_scenarios(folder: str | Path) -> list[Path]:
-    """Scenario folders under `folder`: `folder` itself if it holds the two JSON files, else its
-    sub-folders that do (sorted by name).
+    """Scenario folders under `folder`: `folder` itself if it holds a ``*_detections.json``,
+    else its sub-folders that do (sorted by name).
 
     Raises
     ------
     FileNotFoundError
         If `folder` does not exist or holds no scenario.
+    ValueError
+        A sub-folder holds a ``*_groundTruth.json`` without its ``*_detections.json`` (it is
+        not skipped silently).
     """
     folder = Path(folder)
     if not folder.is_dir():
         raise FileNotFoundError(f"{folder}: no such folder")
 
-    def is_scenario(p: Path) -> bool:
-        return any(p.glob("*_detections.json")) and any(p.glob("*_groundTruth.json"))
+    def has(p: Path, pattern: str) -> bool:
+        return any(p.glob(pattern))
 
-    if is_scenario(folder):
+    if has(folder, "*_detections.json"):
         return [folder]
-    subs = sorted(p for p in folder.iterdir() if p.is_dir() and is_scenario(p))
-    if not subs:
+    subs = sorted(p for p in folder.iterdir() if p.is_dir())
+    for sub in subs:
+        if has(sub, "*_groundTruth.json") and not has(sub, "*_detections.json"):
+            raise ValueError(f"{sub}: holds a *_groundTruth.json but no *_detections.json; not "
+                             "an Autoferry scenario (remove it or add its detections)")
+    found = [p for p in subs if has(p, "*_detections.json")]
+    if not found:
         raise FileNotFoundError(f"{folder}: no Autoferry scenario (needs *_detections.json and "
                                 "*_groundTruth.json, here or in its sub-folders)")
-    return subs
+    return found
+
+
+@dataclass(frozen=True)
+class _Planned:
+    """One scenario read and checked, its files not written yet."""
+
+    scenario: Path
+    rec: AutoferryRecording
+    dest: Path
+    tables: dict[str, dict[str, np.ndarray]]  # the files to write (those with rows)
+    left_out: dict[str, str]  # file name -> why it is not written
+
+
+def _plan(scen: Path, dest: Path) -> _Planned:
+    """Read and check one scenario; decide its files (nothing written)."""
+    rec = load_autoferry(scen)
+    tables = autoferry_tables(rec)
+    left_out: dict[str, str] = {}
+    if rec.truth_file is None or len(rec.truth) == 0:
+        why = (f"{scen} has no ground truth (*_groundTruth.json)" if rec.truth_file is None
+               else f"{rec.truth_file} holds no GNSS fix")
+        left_out |= {"truth.csv": why, "truth_bearings.csv": why}
+    elif len(tables["truth_bearings.csv"]["time"]) == 0:
+        t = rec.truth["time"]
+        raise ValueError(f"{rec.truth_file}: the GNSS fixes ({t.min():.3g}..{t.max():.3g} s) "
+                         f"cover no scan (0..{rec.scan_time[-1]:.3g} s); the ground truth of "
+                         "another recording?")
+    for name in FILES:
+        if name not in left_out and len(next(iter(tables[name].values()))) == 0:
+            left_out[name] = f"{scen} has no {name.removesuffix('.csv').replace('_', ' ')}"
+    for name in left_out:
+        tables.pop(name)
+        if (dest / name).exists():
+            raise ValueError(f"{dest / name}: exists (from an earlier import?), and this import "
+                             f"writes no {name} ({left_out[name]}); remove it or choose another "
+                             "--out")
+    for name, cols in tables.items():  # what the readers of the next command accept
+        for col, v in cols.items():
+            if not np.all(np.abs(v) <= MAX_ABS_VALUE):
+                k = int(np.flatnonzero(~(np.abs(v) <= MAX_ABS_VALUE))[0])
+                raise ValueError(f"{scen}: {name} would hold {v[k]:g} in column {col!r} (row "
+                                 f"{k + 1}): not a finite plausible value; check the recording")
+    return _Planned(scen, rec, dest, tables, left_out)
 
 
 def import_autoferry(folder: str | Path, out_dir: str | Path) -> list[AutoferryImport]:
@@ -149,7 +207,9 @@ def import_autoferry(folder: str | Path, out_dir: str | Path) -> list[AutoferryI
         One scenario folder, or a folder of scenario folders.
     out_dir : path-like
         Output folder. One scenario: the files go into it; several: into ``out_dir/NAME/``.
-        Each file is written atomically; existing files of these names are replaced.
+        Every scenario is read and checked before anything is written; then all files are
+        committed together (:func:`fusion._output.outputs_together`): a failure leaves no file
+        and no folder of the import. Existing files of these names are replaced.
 
     Returns
     -------
@@ -159,7 +219,16 @@ def import_autoferry(folder: str | Path, out_dir: str | Path) -> list[AutoferryI
     Raises
     ------
     FileNotFoundError, ValueError
-        No scenario, malformed upstream files (naming the file), or `out_dir` inside the input.
+        No scenario, malformed or implausible upstream content (naming the file and the scan or
+        entry), or `out_dir` inside the input.
+
+    Notes
+    -----
+    A scenario without ground truth (no ``*_groundTruth.json``, or one without fixes) is
+    imported without ``truth.csv`` and ``truth_bearings.csv``; a file that would have no rows
+    (no lidar scans, say) is not written either. A warning names each file left out, and
+    ``import.json`` lists them; an existing file of that name in the destination is refused
+    rather than left beside files of another recording.
     """
     src = Path(folder)
     out = Path(out_dir)
@@ -168,28 +237,33 @@ def import_autoferry(folder: str | Path, out_dir: str | Path) -> list[AutoferryI
     if out_abs == src_abs or src_abs in out_abs.parents:
         raise ValueError(f"{out}: is inside the input folder {src}; refusing to write into the "
                          "recording")
+    plans = [_plan(scen, out if len(scenarios) == 1 else out / scen.name) for scen in scenarios]
     done = []
-    for scen in scenarios:
-        try:
-            rec = load_autoferry(scen)
-        except (KeyError, TypeError, IndexError) as e:  # ragged or missing fields
-            raise ValueError(f"{scen}: malformed Autoferry scan ({type(e).__name__}: {e})") from None
-        dest = out if len(scenarios) == 1 else out / scen.name
-        tables = autoferry_tables(rec)
-        rows = {}
-        for name in FILES:
-            write_table(dest / name, tables[name])
-            rows[name] = int(len(next(iter(tables[name].values()))))
-        write_json(dest / "import.json", {
-            "scenario": rec.name,
-            "source": str(scen),
-            "t0_unix": rec.t0_unix,
-            "time": "s from t0_unix, the earliest scan of any sensor",
-            "frame": "x east, y north, m: the Piren NED frame of the data set with axes renamed",
-            "frame_origin_lat_lon_h": list(PIREN_LLA),
-            "bearings": "deg clockwise from north (true), from the ferry",
-            "rows": rows,
-        })
-        logger.info("%s: %s", rec.name, ", ".join(f"{k} {v}" for k, v in rows.items()))
-        done.append(AutoferryImport(rec.name, dest, rec.t0_unix, rows))
+    with outputs_together(out):
+        for plan in plans:
+            done.append(_write(plan))
+    for plan in plans:
+        for why in dict.fromkeys(plan.left_out.values()):
+            names = ", ".join(n for n, w in plan.left_out.items() if w == why)
+            logger.warning("%s: %s; %s not written", plan.rec.name, why, names)
     return done
+
+
+def _write(plan: _Planned) -> AutoferryImport:
+    rec, dest = plan.rec, plan.dest
+    rows = {name: int(len(next(iter(cols.values())))) for name, cols in plan.tables.items()}
+    for name, cols in plan.tables.items():
+        write_table(dest / name, cols, max_abs=MAX_ABS_VALUE)
+    write_json(dest / "import.json", {
+        "scenario": rec.name,
+        "source": str(plan.scenario),
+        "t0_unix": rec.t0_unix,
+        "time": "s from t0_unix, the earliest scan of any sensor",
+        "frame": "x east, y north, m: the Piren NED frame of the data set with axes renamed",
+        "frame_origin_lat_lon_h": list(PIREN_LLA),
+        "bearings": "deg clockwise from north (true), from the ferry",
+        "rows": rows,
+        "not_written": plan.left_out,
+    })
+    logger.info("%s: %s", rec.name, ", ".join(f"{k} {v}" for k, v in rows.items()))
+    return AutoferryImport(rec.name, dest, rec.t0_unix, rows)

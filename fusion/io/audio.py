@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import errno
 import math
 from collections.abc import Iterator
 from pathlib import Path
@@ -166,6 +167,11 @@ def write_audio(path: PathLike, samples: ArrayLike, fs: float, *, subtype: str |
     x = np.asarray(samples)
     if not np.all(np.isfinite(x)):
         raise ValueError(f"{p}: refusing to write NaN or infinite samples")
+    sf = _sf()
     with atomic_output(p) as tmp:
-        _sf().write(str(tmp), x, int(round(fs)), format=fmt, subtype=subtype or "PCM_24")
+        try:
+            sf.write(str(tmp), x, int(round(fs)), format=fmt, subtype=subtype or "PCM_24")
+        except sf.LibsndfileError as e:  # a full disk is "System error." here: no errno
+            raise OSError(errno.EIO, f"audio could not be written (libsndfile: {_sf_message(e)}; "
+                          "is the disk full?)", str(p)) from None
     return p

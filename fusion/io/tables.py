@@ -370,7 +370,8 @@ def _write_rows(w: Any, cols: dict[str, NDArray[Any]], n: int, float_format: str
 
 
 def write_table(
-    path: PathLike, columns: Mapping[str, ArrayLike], *, float_format: str = "%.6f"
+    path: PathLike, columns: Mapping[str, ArrayLike], *, float_format: str = "%.6f",
+    max_abs: float | None = None,
 ) -> Path:
     """Write columns as a CSV file with a header line, atomically.
 
@@ -383,6 +384,9 @@ def write_table(
     float_format : str, optional
         printf-style format of float values below 1e15 in magnitude; larger ones are written in
         their shortest exact form (``1e+20``), never as hundreds of fixed-point digits.
+    max_abs : float, optional
+        Refuse (ValueError naming file, row and column) NaN, infinity and numbers beyond
+        +-`max_abs` -- what the readers refuse (:data:`MAX_ABS_VALUE`) -- before writing.
 
     Returns
     -------
@@ -390,6 +394,11 @@ def write_table(
         The written path.
     """
     cols, n = _columns(path, columns)
+    for name, v in cols.items() if max_abs is not None else ():
+        bad = np.flatnonzero(~(np.abs(v) <= max_abs)) if v.dtype.kind in "fiu" else []
+        if len(bad):
+            raise ValueError(f"{path}: row {bad[0] + 1}, column {name!r}: {v[bad[0]]:g} is not "
+                             f"a finite number within +-{max_abs:g}; not written")
     with atomic_output(path) as tmp, tmp.open("w", newline="") as fh:
         w = csv.writer(fh, lineterminator="\n")
         w.writerow(list(cols))

@@ -29,6 +29,7 @@ from typing import Any
 
 import numpy as np
 
+from fusion._output import outputs_together
 from fusion.report.figures import FigureWriter
 from fusion.report.kinds import KINDS, DetectedResult, detect_result
 
@@ -170,9 +171,10 @@ def _tqi(res: DetectedResult, extra: ReportInputs, out: FigureWriter) -> None:
     from fusion.report.bearing_time import tqi_bearing_figure, tqi_figure
 
     table = read_tqi(res.path)
+    bearings = _read_bearings(extra.bearings) if extra.bearings else None
     out.save(tqi_figure(table, title=f"fusion tqi: {res.path.name}"), "tqi.png")
-    if extra.bearings:
-        out.save(tqi_bearing_figure(table, _read_bearings(extra.bearings),
+    if bearings is not None:
+        out.save(tqi_bearing_figure(table, bearings,
                                     title=f"TQI on the tracks of {extra.bearings.name}"),
                  "tqi_bearing_time.png")
 
@@ -183,11 +185,12 @@ def _alerts(res: DetectedResult, extra: ReportInputs, out: FigureWriter) -> None
     alerts = _read_alerts(res.path)
     if len(alerts) == 0 and not extra.bearings:
         raise ValueError(f"{res.path}: no alerts to draw (give --bearings to draw the tracks)")
+    bearings = _read_bearings(extra.bearings) if extra.bearings else None
     if len(alerts):
         out.save(alerts_figure(alerts, title=f"fusion crossings: {res.path.name}"),
                  "crossings.png")
-    if extra.bearings:
-        out.save(alerts_on_tracks_figure(alerts, _read_bearings(extra.bearings),
+    if bearings is not None:
+        out.save(alerts_on_tracks_figure(alerts, bearings,
                                          title=f"crossing alerts on {extra.bearings.name}"),
                  "crossings_bearing_time.png")
 
@@ -198,13 +201,15 @@ def _tracks(res: DetectedResult, extra: ReportInputs, out: FigureWriter) -> None
 
     tracks = read_tracks(res.path)
     det = read_detections(extra.detections) if extra.detections else None
-    out.save(tracks_figure(tracks, detections=det, title=f"fusion track: {res.path.name}",
-                           map_settings=track_map_settings(res.path)),
-             "tracks.png")
     try:
         sig = read_table(res.path, required=("sigma_x", "sigma_y"), max_abs=None)
     except ValueError:
-        return  # not a --smooth output
+        sig = None  # not a --smooth output
+    out.save(tracks_figure(tracks, detections=det, title=f"fusion track: {res.path.name}",
+                           map_settings=track_map_settings(res.path)),
+             "tracks.png")
+    if sig is None:
+        return
     out.save(track_sigma_figure(tracks, sig["sigma_x"], sig["sigma_y"],
                                 title=f"fusion track --smooth: {res.path.name}"),
              "tracks_sigma.png")
@@ -247,10 +252,10 @@ def _localization(res: DetectedResult, extra: ReportInputs, out: FigureWriter) -
 
     array = read_array(extra.array) if extra.array else None
     folder = res.kind == "localization_folder"
-    for path in res.files:
-        kind = file_kind(path) if folder else res.kind
+    kinds = [file_kind(path) if folder else res.kind for path in res.files]
+    read = [read_fixes(path, kind) for path, kind in zip(res.files, kinds, strict=True)]
+    for path, kind, fixes in zip(res.files, kinds, read, strict=True):  # all read first
         prefix = f"{path.stem}_" if folder else ""
-        fixes = read_fixes(path, kind)
         out.save(fixes_figure(fixes, array=array, title=f"fusion localize: {path.name}"),
                  f"{prefix}localize.png")
         if array is not None and kind == "localization":
@@ -300,7 +305,8 @@ def make_report(result: str | Path, out_dir: str | Path, *,
     ------
     ValueError
         An unknown result, an extra input the kind does not use, a missing required input, or
-        bad content in any input (one line naming the file).
+        bad content in any input (one line naming the file). Every input is read before any
+        figure is drawn, and the figures are committed together: a failure writes none.
     """
     extra = inputs or ReportInputs()
     found = detect_result(result)
@@ -309,5 +315,6 @@ def make_report(result: str | Path, out_dir: str | Path, *,
         names = ", ".join(OPTION[u] for u in unused)
         raise ValueError(f"{names}: not used for a result of {KINDS[found.kind]} ({result})")
     out = FigureWriter(out_dir, inputs=[*found.files, *extra.paths()])
-    DRAW[found.kind](found, extra, out)
+    with outputs_together(out_dir):  # every figure, or none (an input found bad late)
+        DRAW[found.kind](found, extra, out)
     return found.kind, out.written
