@@ -22,6 +22,8 @@ windows, whales found within 10 m, false fixes, the median error of found fixes 
 from __future__ import annotations
 
 import argparse
+import contextlib
+import io
 import json
 import tempfile
 from pathlib import Path
@@ -68,7 +70,8 @@ def main(argv: list[str] | None = None) -> dict:
         sim = ["simulate", "clicks", "--seed", str(args.seed), "--out", str(scen),
                "--duration-s", str(args.duration_s)]
         sim += ["--vary"] if args.vary else ["--whales", str(args.whales), "--echo", args.echo]
-        assert fusion(sim) == 0
+        with contextlib.redirect_stdout(io.StringIO()):  # the written paths
+            assert fusion(sim) == 0
         audio = next(p for p in (scen / "audio.flac", scen / "audio.wav") if p.exists())
         result = folder / "localization.json"
         assert fusion(["localize", "--audio", str(audio), "--array", str(scen / "array.json"),
