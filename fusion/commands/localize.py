@@ -99,7 +99,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="validator model .npz (default: the one shipped; see train-validator)")
     p.add_argument("--replica", default=None, metavar="NPZ|generic",
                    help="click replica: a .npz file, or 'generic' for the one shipped (default: "
-                        f"estimated from the strongest clicks of the first {REPLICA_SPAN_S:g} s "
+                        "estimated from the strongest clicks of the first 60 s "
                         "of the recording, starting from the shipped one)")
     p.add_argument("--llr-threshold", type=float, default=None,
                    help="validation threshold on the log-likelihood ratio (default: the model's)")
@@ -153,85 +153,23 @@ def register(sub: argparse._SubParsersAction) -> None:
                    outputs_together=False)  # resumes from its parts: reads back what it wrote
 
 
-#: Audio read to estimate the replica from the recording (the first seconds of the first file).
-REPLICA_SPAN_S = 60.0
-
-
-def _first_audio(source):
-    """The first :data:`REPLICA_SPAN_S` seconds of a recording (all channels) and their span."""
-    n = min(source.frames, int(round(REPLICA_SPAN_S * source.fs)))
-    _, x = next(source.blocks(block=n))
-    return x, f"the first {n / source.fs:.3g} s of {Path(source.paths[0]).name}"
-
-
-def _detector(args: argparse.Namespace, det_opts: dict, source, first) -> tuple:
-    """The click detector: its replica from ``--replica`` or estimated from the recording.
-
-    Returns the detector, a one-line note of the replica used, and its record for the
-    settings file.
-    """
+def _decisions(args: argparse.Namespace, det_opts: dict, settings, source, array):
+    """Replica, echo suppression and sea floor decided from the first minute of the first
+    recording (:func:`fusion.pipelines.from_recording.decide_from_recording`)."""
     from fusion.clicks.detect import ClickDetector
     from fusion.clicks.replica import load_replica
+    from fusion.pipelines.from_recording import RECORDING_SPAN_S, decide_from_recording
 
-    if args.replica not in (None, "generic"):
-        det = ClickDetector(**det_opts, replica=load_replica(Path(args.replica)))
-        return det, f"replica: {args.replica}", {"source": str(args.replica)}
-    det = ClickDetector(**det_opts)
-    if args.replica == "generic":
-        return det, "replica: the generic one shipped", {"source": "generic"}
-    x, span = first
-    new, est = det.with_recording_replica(x, source.fs)
-    if new is det:
-        why = ("fewer than 20 clicks" if est is None else
-               f"the estimate did not settle (change {est.change:.3g} after "
-               f"{est.n_iterations} passes)")
-        return det, f"replica: the generic one shipped ({why} in {span})", {
-            "source": "generic", "reason": why}
-    note = (f"replica: estimated from {est.n_clicks} clicks of {span} ({est.n_iterations} "
-            f"passes, last change {est.change:.2g}; --replica generic to skip)")
-    return new, note, {"source": f"estimated from {span}", "clicks": est.n_clicks,
-                       "passes": est.n_iterations, "change": est.change, "fs": est.replica.fs,
-                       "samples": [float(v) for v in est.replica.samples]}
-
-
-def _echoes(args: argparse.Namespace, settings, detector, source, first, array) -> tuple:
-    """Bottom echoes measured on the recording: echo suppression and, if needed, the sea floor.
-
-    When at least half of the sensors hear their clicks followed by a bottom echo
-    (:func:`fusion.clicks.echoes.bottom_echoes`), they stand near the floor: the detector drops
-    a click that follows a stronger one within the measured echo lags
-    (:func:`fusion.clicks.echoes.echo_window`), and, without ``--sea-floor-z`` for sensors all
-    below the surface, sources are searched above the deepest sensor minus
-    :data:`fusion.clicks.echoes.FLOOR_MARGIN_M`. Returns the settings, the detector, a note
-    (or None) and the record for the settings file.
-    """
-    import numpy as np
-
-    from fusion.clicks.echoes import FLOOR_MARGIN_M, bottom_echoes, echo_window
-
-    x, span = first
-    echoes = bottom_echoes(x, source.fs, detector.detect(x, source.fs),
-                           band_hz=detector.band_hz)
-    record = {"source": "given" if args.sea_floor_z is not None else "none",
-              "sea_floor_z": args.sea_floor_z, "near_floor": echoes.near_floor,
-              "bottom_echo_z": [None if not np.isfinite(v) else round(float(v), 2)
-                                for v in echoes.z],
-              "bottom_echo_lag_s": [None if not np.isfinite(v) else float(v)
-                                    for v in echoes.lag_s]}
-    if not echoes.near_floor:
-        return settings, detector, None, record
-    window = echo_window(echoes)
-    record["echo_window_s"] = list(window)
-    note = (f"{echoes.describe()} in {span}: a click "
-            f"{window[0] * 1e3:.2g}-{window[1] * 1e3:.2g} ms after a stronger one is taken as "
-            "its echo")
-    if (settings is not None and args.sea_floor_z is None
-            and bool((array.positions[:, 2] < 0.0).all())):
-        floor = float(array.positions[:, 2].min()) - FLOOR_MARGIN_M
-        settings = dataclasses.replace(settings, sea_floor_z=floor)
-        record.update(source="bottom echoes", sea_floor_z=floor)
-        note += f"; the sensors stand near the sea floor: sources searched above z = {floor:g} m"
-    return settings, detector.with_echo_window(window), note, record
+    given = args.replica not in (None, "generic")
+    detector = ClickDetector(**det_opts, **({"replica": load_replica(Path(args.replica))}
+                                            if given else {}))
+    n = min(source.frames, int(round(RECORDING_SPAN_S * source.fs)))
+    _, first = next(source.blocks(block=n))
+    return decide_from_recording(
+        first, source.fs, array, detector=detector, settings=settings,
+        estimate_replica=args.replica is None,
+        replica_source=str(args.replica) if given else "generic",
+        span=f"the first {n / source.fs:.3g} s of {Path(source.paths[0]).name}")
 
 
 class _AudioPaths(argparse.Action):
@@ -334,15 +272,13 @@ def run(args: argparse.Namespace) -> int:
                  else default_validator())
     if args.llr_threshold is not None:
         validator = dataclasses.replace(validator, threshold=args.llr_threshold)
-    first = _first_audio(recordings[0][0])
-    detector, replica_note, replica_record = _detector(args, det_opts, recordings[0][0], first)
     # checked (and the direct-path fallback logged) once for the array; the pipeline resolves
     # the localizers, with the surface-path reading decided per window from the data
     localizer = None if args.method == "none" else settings_from_args(args)
     if localizer is not None:
         localizer.localizers(array.positions)
-    localizer, detector, floor_note, floor_record = _echoes(args, localizer, detector,
-                                                           recordings[0][0], first, array)
+    decided = _decisions(args, det_opts, localizer, recordings[0][0], array)
+    detector, localizer = decided.detector, decided.settings
     front = ClickFrontEnd(
         detector=detector,
         correlator=ClickMapCorrelator(config=ScmConfig(window_s=args.window),
@@ -384,11 +320,9 @@ def run(args: argparse.Namespace) -> int:
         store.remove()
         side = (Path(args.out) / "localize" if getattr(args, "out_is_dir", False)
                 else args.out)
-        write_settings(side, {"command": "localize", "replica": replica_record,
-                              "sea_floor": floor_record,
+        write_settings(side, {"command": "localize", **decided.record,
                               "localization": None if localizer is None else localizer.to_dict()},
                        inputs=[*audio, args.array, args.events, args.validator])
-    emit(replica_note, err=True)
-    if floor_note:
-        emit(floor_note, err=True)
+    for note in decided.notes:
+        emit(note, err=True)
     return 0

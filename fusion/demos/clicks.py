@@ -1,7 +1,10 @@
 """Demo part ``clicks-scenario``: whale clicks to validated TDOAs and sources, with figures.
 
-A seeded three-whale scenario is written in the project's file formats (``fusion simulate
-clicks``), read back as a user's recording would be, and run through
+A seeded three-whale scenario on hydrophones standing a few metres above the sea floor (floor
+and surface echoes, ``fusion simulate clicks --echo both``) is written in the project's file
+formats, read back as a user's recording would be, its replica, echo suppression and sea floor
+decided from the recording as ``fusion localize`` does
+(:func:`fusion.pipelines.from_recording.decide_from_recording`), and run through
 :class:`fusion.pipelines.localization.ClickLocalization` (click detection, smoothed click maps,
 GMM validation, sub-sample refinement, association across time and pairs, competing sources on
 the factor graph). The truth is used only to score and to draw.
@@ -181,6 +184,8 @@ def run_demo(out_dir: Path, *, seed: int) -> dict[str, Any]:
     import matplotlib.pyplot as plt
 
     from fusion.pipelines.click_training import label_windows, scenario_labels
+    from fusion.pipelines.clicks import ClickFrontEnd
+    from fusion.pipelines.from_recording import RECORDING_SPAN_S, decide_from_recording
     from fusion.pipelines.localization import (
         ClickLocalization,
         LocalizerSettings,
@@ -190,15 +195,19 @@ def run_demo(out_dir: Path, *, seed: int) -> dict[str, Any]:
     from fusion.simulate.clicks import simulate_clicks, write_click_scenario
 
     out = Path(out_dir)
-    sc = simulate_clicks(seed=seed, n_sensors=5, n_sources=3, duration_s=24.0, snr_db=30.0)
+    # hydrophones 1-20 m above the sea floor: floor and surface echoes on every sensor
+    sc = simulate_clicks(seed=seed, n_sensors=5, n_sources=3, duration_s=24.0, snr_db=30.0,
+                         echo="both")
     write_click_scenario(out / "scenario", sc)
     array = read_array(out / "scenario" / "array.json")
     audio, fs = read_audio(out / "scenario" / "audio.flac", n_channels=array.n_sensors)
 
-    # bottom-mounted hydrophones: the sea floor at the deepest one, the surface at z = 0;
-    # otherwise fusion localize's defaults (paths decided per window from the data)
-    bottom = float(array.positions[:, 2].min())
-    pipe = ClickLocalization(localizer=LocalizerSettings(sea_floor_z=bottom))
+    # fusion localize's defaults: replica, echo suppression and sea floor decided from the
+    # recording, surface paths per window
+    decided = decide_from_recording(audio[:int(RECORDING_SPAN_S * fs)], fs, array,
+                                    settings=LocalizerSettings(), span="the demo recording")
+    pipe = ClickLocalization(front_end=ClickFrontEnd(detector=decided.detector),
+                             localizer=decided.settings)
     step = int(round(pipe.front_end.hop_s * fs))
     blocks = ((a / fs, audio[a:a + step]) for a in range(0, audio.shape[0], step))
     done = list(pipe.iter_windows(blocks, fs=fs, sensors=array, duration_s=audio.shape[0] / fs))
@@ -310,4 +319,7 @@ def run_demo(out_dir: Path, *, seed: int) -> dict[str, Any]:
         "source_error_median_m": round(float(np.median(src_err)), 2) if src_err else None,
         "tracks": len(tracks),
         "surface_window_s": surf,
+        "replica_estimated": decided.replica is not None,
+        "bottom_echoes": decided.echoes.describe(),
+        "sea_floor_z": decided.settings.sea_floor_z,
     }

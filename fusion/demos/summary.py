@@ -35,8 +35,9 @@ FIGURES: dict[str, tuple[str, tuple[str, ...]]] = {
         "localized sources against the true positions", ("sources", "sources_flagged",
                                                           "source_error_median_m")),
     "clicks-scenario/clicks_tracks.png": (
-        "whale tracks in plan view and depth",
-        ("tracks", "sources", "sources_flagged", "source_error_median_m")),
+        "whale tracks in plan view and depth (replica, echoes and sea floor from the recording)",
+        ("tracks", "sources", "sources_flagged", "source_error_median_m", "replica_estimated",
+         "bottom_echoes", "sea_floor_z")),
     "tma/tma.png": (
         "plan view: own-ship, true target and the TMA estimate with 2-sigma ellipses",
         ("final_range_error_pct", "final_position_error_m", "nees_4dof", "observable")),

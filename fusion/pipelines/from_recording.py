@@ -1,0 +1,158 @@
+"""Settings of the click localization decided from the recording itself (``docs/localization.md``).
+
+Before the windows are processed, the first minute of a recording is examined once:
+
+* the click replica is estimated from its strongest clicks (step 32 of the method,
+  :meth:`fusion.clicks.detect.ClickDetector.with_recording_replica`), unless one is given;
+* the bottom echoes are measured (:func:`fusion.clicks.echoes.bottom_echoes`): when the
+  hydrophones hear their clicks followed by a floor echo, the detector drops echoes within the
+  measured lags (:func:`fusion.clicks.echoes.echo_window`) and, when no sea floor is given and
+  every sensor is below the surface z = 0, sources are searched above the deepest sensor minus
+  :data:`fusion.clicks.echoes.FLOOR_MARGIN_M`.
+
+:func:`decide_from_recording` returns the detector and localizer settings to use, one line per
+decision for the user and a JSON-ready record; ``fusion localize`` prints the lines and writes the
+record beside its output, and the demo uses the same function.
+
+Examples
+--------
+>>> from fusion.simulate.clicks import simulate_clicks
+>>> sc = simulate_clicks(seed=21, n_sources=1, duration_s=20.0, echo="both")
+>>> d = decide_from_recording(sc.audio, sc.fs, sc.sensors, settings=LocalizerSettings())
+>>> d.replica is not None, d.echoes.near_floor, d.settings.sea_floor_z < -1600
+(True, True, True)
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from fusion.clicks.detect import ClickDetector
+from fusion.clicks.echoes import FLOOR_MARGIN_M, BottomEchoes, bottom_echoes, echo_window
+from fusion.clicks.replica import ReplicaEstimate
+from fusion.geometry import SensorArray
+from fusion.pipelines.localization import SEA_SURFACE_Z, LocalizerSettings
+
+__all__ = ["RECORDING_SPAN_S", "RecordingDecisions", "decide_from_recording"]
+
+#: Seconds at the start of a recording examined for the decisions.
+RECORDING_SPAN_S = 60.0
+
+
+@dataclass(frozen=True)
+class RecordingDecisions:
+    """What :func:`decide_from_recording` decided.
+
+    Attributes
+    ----------
+    detector : ClickDetector
+        The detector to use (replica and echo window decided).
+    settings : LocalizerSettings or None
+        The localizer settings (sea floor decided), None when localization is off.
+    replica : ReplicaEstimate or None
+        The replica estimate when one was made.
+    echoes : BottomEchoes
+        The bottom-echo evidence.
+    notes : tuple of str
+        One line per decision, for the user.
+    record : dict
+        The decisions as JSON-ready values (``replica`` and ``sea_floor``).
+    """
+
+    detector: ClickDetector
+    settings: LocalizerSettings | None
+    replica: ReplicaEstimate | None
+    echoes: BottomEchoes
+    notes: tuple[str, ...] = ()
+    record: dict[str, Any] = field(default_factory=dict)
+
+
+def decide_from_recording(
+    samples: ArrayLike,
+    fs: float,
+    sensors: SensorArray,
+    *,
+    detector: ClickDetector | None = None,
+    settings: LocalizerSettings | None = None,
+    estimate_replica: bool = True,
+    replica_source: str = "generic",
+    span: str = "the recording",
+) -> RecordingDecisions:
+    """Decide the replica, the echo suppression and the sea floor from a recording's start.
+
+    Parameters
+    ----------
+    samples : array_like, shape (n, n_sensors)
+        The first :data:`RECORDING_SPAN_S` seconds (or all) of the recording.
+    fs : float
+        Sample rate, Hz.
+    sensors : SensorArray
+        The array.
+    detector : ClickDetector, optional
+        The detector to start from (default :class:`ClickDetector`).
+    settings : LocalizerSettings, optional
+        The localizer settings; a sea floor already set is kept. None: no localization.
+    estimate_replica : bool, optional
+        Estimate the replica (False: keep the detector's, named by `replica_source`).
+    replica_source : str, optional
+        What the starting replica is, for the notes (e.g. a file name).
+    span : str, optional
+        How to name `samples` in the notes (e.g. "the first 60 s of a.flac").
+
+    Returns
+    -------
+    RecordingDecisions
+    """
+    x = np.asarray(samples, dtype=float)
+    det = detector if detector is not None else ClickDetector()
+    est = None
+    if estimate_replica:
+        new, est = det.with_recording_replica(x, fs)
+        if new is det:
+            why = ("fewer than 20 clicks" if est is None else
+                   f"the estimate did not settle (change {est.change:.3g} after "
+                   f"{est.n_iterations} passes)")
+            replica_note = f"replica: the {replica_source} one ({why} in {span})"
+            replica_record: dict[str, Any] = {"source": replica_source, "reason": why}
+            est = None
+        else:
+            det = new
+            replica_note = (f"replica: estimated from {est.n_clicks} clicks of {span} "
+                            f"({est.n_iterations} passes, last change {est.change:.2g}; "
+                            "--replica generic to skip)")
+            replica_record = {"source": f"estimated from {span}", "clicks": est.n_clicks,
+                              "passes": est.n_iterations, "change": est.change,
+                              "fs": est.replica.fs,
+                              "samples": [float(v) for v in est.replica.samples]}
+    else:
+        replica_note, replica_record = f"replica: {replica_source}", {"source": replica_source}
+
+    echoes = bottom_echoes(x, fs, det.detect(x, fs), band_hz=det.band_hz)
+    given = settings is not None and settings.sea_floor_z is not None
+    floor_record: dict[str, Any] = {
+        "source": "given" if given else "none",
+        "sea_floor_z": settings.sea_floor_z if given else None,
+        "near_floor": echoes.near_floor,
+        "bottom_echo_z": [None if not np.isfinite(v) else round(float(v), 2) for v in echoes.z],
+        "bottom_echo_lag_s": [None if not np.isfinite(v) else float(v) for v in echoes.lag_s]}
+    notes = [replica_note]
+    if echoes.near_floor:
+        window = echo_window(echoes)
+        det = det.with_echo_window(window)
+        floor_record["echo_window_s"] = list(window)
+        note = (f"{echoes.describe()} in {span}: a click {window[0] * 1e3:.2g}-"
+                f"{window[1] * 1e3:.2g} ms after a stronger one is taken as its echo")
+        below = bool(np.all(sensors.positions[:, 2] < SEA_SURFACE_Z))
+        if settings is not None and not given and below:
+            floor = float(sensors.positions[:, 2].min()) - FLOOR_MARGIN_M
+            settings = dataclasses.replace(settings, sea_floor_z=floor)
+            floor_record.update(source="bottom echoes", sea_floor_z=floor)
+            note += f"; the sensors stand near the sea floor: sources searched above z = {floor:g} m"
+        notes.append(note)
+    return RecordingDecisions(det, settings, est, echoes, tuple(notes),
+                              {"replica": replica_record, "sea_floor": floor_record})
