@@ -209,14 +209,14 @@ def test_deprecated_paths_warn_and_forward(old, name):
 
 #: Names moved out of a module when it was split by role -> (old module, new module).
 MOVED_NAMES = {
-    "ClickWaveform": ("fusion.simulate.clicks", "fusion.simulate._click_types"),
-    "ClickScenario": ("fusion.simulate.clicks", "fusion.simulate._click_types"),
-    "WhaleTrack": ("fusion.simulate.clicks", "fusion.simulate._click_types"),
-    "draw_emission_times": ("fusion.simulate.clicks", "fusion.simulate._click_synthesis"),
-    "_transient_shape": ("fusion.simulate.clicks", "fusion.simulate._click_synthesis"),
-    "FILE_PEAK": ("fusion.simulate.clicks", "fusion.simulate._click_files"),
-    "truth_document": ("fusion.simulate.clicks", "fusion.simulate._click_files"),
-    "write_click_scenario": ("fusion.simulate.clicks", "fusion.simulate._click_files"),
+    "ClickWaveform": ("fusion.simulate.clicks", "fusion.simulate.whale_range.types"),
+    "ClickScenario": ("fusion.simulate.clicks", "fusion.simulate.whale_range.types"),
+    "WhaleTrack": ("fusion.simulate.clicks", "fusion.simulate.whale_range.types"),
+    "draw_emission_times": ("fusion.simulate.clicks", "fusion.simulate.whale_range.synthesis"),
+    "_transient_shape": ("fusion.simulate.clicks", "fusion.simulate.whale_range.synthesis"),
+    "FILE_PEAK": ("fusion.simulate.clicks", "fusion.simulate.whale_range.files"),
+    "truth_document": ("fusion.simulate.clicks", "fusion.simulate.whale_range.files"),
+    "write_click_scenario": ("fusion.simulate.clicks", "fusion.simulate.whale_range.files"),
     "TrackQuality": ("fusion.passive.quality", "fusion.passive.quality.types"),
     "LABELS": ("fusion.passive.quality", "fusion.passive.quality.types"),
     "START": ("fusion.passive.quality", "fusion.passive.quality.types"),

@@ -57,11 +57,12 @@ def test_passive_input_inside_its_out_folder_is_refused(run_cli, passive_files, 
     out = tmp_path / "out"
     out.mkdir()
     (out / name).write_bytes((passive_files / "clicks.csv").read_bytes())
-    _refused(run_cli, tmp_path, "passive", "--cube", passive_files / "cube.npz",
-             "--clicks", out / name, "--out", out, "--quiet", words=(name, "--clicks", "input"))
+    assert _refused(run_cli, tmp_path, "passive", "--cube", passive_files / "cube.npz",
+                    "--clicks", out / name, "--out", out, "--quiet",
+                    words=(name, "--clicks", "input"))
     (tmp_path / "x").mkdir()
-    _refused(run_cli, tmp_path, "passive", "--cube", out / name, "--click", "1,100",
-             "--out", tmp_path / "x" / ".." / "out", "--quiet", words=(name, "--cube"))
+    assert _refused(run_cli, tmp_path, "passive", "--cube", out / name, "--click", "1,100",
+                    "--out", tmp_path / "x" / ".." / "out", "--quiet", words=(name, "--cube"))
 
 
 def test_passive_writes_both_tables(run_cli, passive_files, tmp_path):

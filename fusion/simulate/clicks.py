@@ -17,7 +17,7 @@ Default physics (the localizer's own model; every choice explicit, see :func:`si
 
 The world of a real range (the *range options* of :func:`simulate_clicks`, all off by default
 and all drawn by ``fusion simulate clicks --vary``, ranges in
-:data:`fusion.simulate._click_varied.VARIED_RANGES`) adds what the localizer does not model:
+:data:`fusion.simulate.whale_range.varied.VARIED_RANGES`) adds what the localizer does not model:
 
 * hydrophones 1-20 m above a plane sea floor (depth 500-2,000 m under the array centre,
   slope 0-5 deg), 3-10 of them on a jittered triangular grid of spacing 0.5-6 km;
@@ -26,7 +26,7 @@ and all drawn by ``fusion simulate clicks --vary``, ranges in
   random) and a rough-surface echo (inverted, magnitude 0.5-0.95 per sensor); ``echo`` chooses
   ``none``, ``surface``, ``bottom`` or ``both``;
 * a depth-dependent sound speed (Munk or thermocline profile) with straight-ray travel times
-  ``L / (d2 - d1) * integral dd / c`` (:mod:`fusion.simulate._click_propagation`), while
+  ``L / (d2 - d1) * integral dd / c`` (:mod:`fusion.simulate.whale_range.propagation`), while
   ``array.json`` states one nominal speed (the profile's water-column mean): path speeds differ
   from it by up to about 1 %;
 * per-whale FM upsweeps (20-50 kHz, 150-400 us), source levels (±6 dB) and ICIs (0.2-1 s);
@@ -38,9 +38,9 @@ and all drawn by ``fusion simulate clicks --vary``, ranges in
 Each click is synthesised analytically at its exact (continuous) arrival time, so the sampled
 audio carries arrival times exact to well under a sample.
 
-This module holds the simulator; its data classes (:mod:`fusion.simulate._click_types`), building
-blocks (:mod:`fusion.simulate._click_synthesis`, :mod:`fusion.simulate._click_world`,
-:mod:`fusion.simulate._click_propagation`) and file writers (:mod:`fusion.simulate._click_files`)
+This module holds the simulator; its data classes (:mod:`fusion.simulate.whale_range.types`), building
+blocks (:mod:`fusion.simulate.whale_range.synthesis`, :mod:`fusion.simulate.whale_range.world`,
+:mod:`fusion.simulate.whale_range.propagation`) and file writers (:mod:`fusion.simulate.whale_range.files`)
 are importable from here.
 
 Examples
@@ -61,23 +61,23 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fusion.geometry import SensorArray
-from fusion.simulate._click_files import (  # FILE_PEAK re-exported: benchmarks read it here
+from fusion.simulate.whale_range.files import (  # FILE_PEAK re-exported: benchmarks read it here
     FILE_PEAK,  # noqa: F401
     truth_document,
     write_click_scenario,
 )
-from fusion.simulate._click_propagation import SoundSpeedProfile, path_times
-from fusion.simulate._click_sources import jsonable, simulate_whales
-from fusion.simulate._click_synthesis import (
+from fusion.simulate.whale_range.propagation import SoundSpeedProfile, path_times
+from fusion.simulate.whale_range.sources import jsonable, simulate_whales
+from fusion.simulate.whale_range.synthesis import (
     _add_band_noise,
     _layout,
     _render,
     _transient_shape,
     draw_emission_times,
 )
-from fusion.simulate._click_types import ClickScenario, ClickWaveform, WhaleTrack
-from fusion.simulate._click_validate import validate_options, validate_range_options
-from fusion.simulate._click_world import (
+from fusion.simulate.whale_range.types import ClickScenario, ClickWaveform, WhaleTrack
+from fusion.simulate.whale_range.validate import validate_options, validate_range_options
+from fusion.simulate.whale_range.world import (
     RANGE_DEFAULTS,
     RangeWorld,
     simulate_interferers,
@@ -222,7 +222,7 @@ def simulate_clicks(
         no grid, the horizontal positions of the default ring).
     sound_speed_profile : SoundSpeedProfile or dict, optional
         Depth-dependent sound speed (``{"kind": ..., **params}``, see
-        :class:`~fusion.simulate._click_propagation.SoundSpeedProfile`); travel times integrate
+        :class:`~fusion.simulate.whale_range.propagation.SoundSpeedProfile`); travel times integrate
         ``1/c`` along straight rays. None: constant `sound_speed`.
     nominal_sound_speed : float, optional
         Speed written into ``array.json`` (default: `sound_speed`, or the profile's mean over
@@ -255,7 +255,7 @@ def simulate_clicks(
     Returns
     -------
     ClickScenario
-        With ``world`` (a :class:`~fusion.simulate._click_world.RangeWorld`) when any range
+        With ``world`` (a :class:`~fusion.simulate.whale_range.world.RangeWorld`) when any range
         option is given; then ``sensors`` holds the surveyed positions and the nominal speed.
 
     Raises
@@ -409,7 +409,7 @@ def write_scenario(
         Scenario seed.
     vary : bool, optional
         Draw the physics of a real bottom-mounted range from
-        :data:`fusion.simulate._click_varied.VARIED_RANGES` (floor, profile, echoes, survey
+        :data:`fusion.simulate.whale_range.varied.VARIED_RANGES` (floor, profile, echoes, survey
         errors, click shapes, interferers, counts, ...); ``truth.json`` records the drawn
         settings under ``parameters`` (the world's resolved values beside them).
     duration_s, n_sources, n_sensors, snr_db, echo : optional
@@ -430,7 +430,7 @@ def write_scenario(
              if v is not None}
     settings: dict[str, Any] = {"seed": seed}
     if vary:
-        from fusion.simulate._click_varied import varied_settings
+        from fusion.simulate.whale_range.varied import varied_settings
 
         settings = varied_settings(seed)
     settings |= given

@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from fusion.simulate._click_propagation import FloorPlane, SoundSpeedProfile
+from fusion.simulate.whale_range.propagation import FloorPlane, SoundSpeedProfile
 
 __all__ = ["InterfererTrain", "RangeWorld", "broadband_click", "grid_layout"]
 
@@ -212,7 +212,7 @@ def simulate_interferers(
     above the floor (or 20-1000 m without a floor); ICI, click length, carrier and level are
     drawn from the ``interferer_*`` ranges of `opts` (log-uniform ICI). Every path of
     `propagate` whose coefficient is non-zero is rendered."""
-    from fusion.simulate._click_synthesis import _render, draw_emission_times
+    from fusion.simulate.whale_range.synthesis import _render, draw_emission_times
 
     out = []
     centre = sensors[:, :2].mean(axis=0)
@@ -289,7 +289,7 @@ def world_geometry(
         whale_radius`` of a random one of the centres; with a spacing the centroids of each
         sensor and its two nearest neighbours, ``0.6 whale_radius`` = half the spacing).
     """
-    from fusion.simulate._click_synthesis import _layout
+    from fusion.simulate.whale_range.synthesis import _layout
 
     def opt(name: str) -> Any:
         return RANGE_DEFAULTS[name] if opts.get(name) is None else opts[name]

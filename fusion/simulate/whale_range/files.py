@@ -19,7 +19,7 @@ from fusion.io import (
     write_json,
     write_table,
 )
-from fusion.simulate._click_types import ClickScenario
+from fusion.simulate.whale_range.types import ClickScenario
 
 __all__ = ["FILE_PEAK", "truth_document", "write_click_scenario"]
 
@@ -57,7 +57,7 @@ def truth_document(scenario: ClickScenario, *, audio_scale: float = 1.0,
         units; multiply by ``audio_scale`` for file units. ``snr_db`` is ``null`` for
         noise-free audio.
 
-        A scenario with a range world (:class:`~fusion.simulate._click_world.RangeWorld`) adds
+        A scenario with a range world (:class:`~fusion.simulate.whale_range.world.RangeWorld`) adds
         its keys (``echo, nominal_sound_speed, sensors_true, position_error_m, floor,
         sensor_heights_m, surface_reflection_coefficients, bottom_reflection_coefficients,
         sound_speed_profile, interferers, parameters``) and per source ``click``,

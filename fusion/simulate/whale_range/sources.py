@@ -13,10 +13,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from fusion.simulate._click_propagation import FloorPlane, SoundSpeedProfile
-from fusion.simulate._click_synthesis import _positions, _render, draw_emission_times
-from fusion.simulate._click_types import ClickWaveform, WhaleTrack
-from fusion.simulate._click_world import RANGE_DEFAULTS, draw_click_band
+from fusion.simulate.whale_range.propagation import FloorPlane, SoundSpeedProfile
+from fusion.simulate.whale_range.synthesis import _positions, _render, draw_emission_times
+from fusion.simulate.whale_range.types import ClickWaveform, WhaleTrack
+from fusion.simulate.whale_range.world import RANGE_DEFAULTS, draw_click_band
 
 __all__ = ["jsonable", "simulate_whales"]
 

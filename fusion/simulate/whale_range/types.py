@@ -13,7 +13,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from fusion.geometry import SensorArray
-from fusion.simulate._click_synthesis import _positions
+from fusion.simulate.whale_range.synthesis import _positions
 
 __all__ = ["ClickScenario", "ClickWaveform", "WhaleTrack"]
 
