@@ -137,6 +137,10 @@ def score_tdoas(truth: Truth, tdoas: list[tuple[int, int, float, float]], st: di
             st["tdoa_err_us"].append(float(e.min()) * 1e6)
 
 
+#: Extra ``fusion localize`` options of the project's runs (``--project-options``: ablations).
+PROJECT_OPTIONS: list[str] = []
+
+
 def run_project(folder: Path, audio_path: Path, sensors, sea_floor_z):
     """``fusion localize`` as a user runs it (its defaults; ``--sea-floor-z`` when given) on
     the written files: per window (t_start, t_end, sources, flagged, valid TDOAs with t)."""
@@ -150,6 +154,7 @@ def run_project(folder: Path, audio_path: Path, sensors, sea_floor_z):
             "--out", str(out), "--quiet"]
     if sea_floor_z is not None:
         argv += ["--sea-floor-z", repr(sea_floor_z)]
+    argv += PROJECT_OPTIONS
     with contextlib.redirect_stderr(io.StringIO()):
         if fusion_main(argv) != 0:
             raise SystemExit(f"fusion localize failed on {audio_path}")
@@ -197,8 +202,12 @@ def main(argv: list[str] | None = None) -> list[dict]:
     ap.add_argument("--sea-floor", choices=("none", "deepest"), default="none",
                     help="sea floor handed to both methods: unknown (default, as fusion "
                          "localize's default) or at the deepest hydrophone")
+    ap.add_argument("--project-options", default="", metavar="'OPTS'",
+                    help="extra fusion localize options of the project's runs, e.g. "
+                         "'--replica generic' or '--max-tdoa-rate 0' (ablations)")
     ap.add_argument("--out", type=Path, default=None, help="JSON lines file to append to")
     args = ap.parse_args(argv)
+    PROJECT_OPTIONS[:] = args.project_options.split()
     methods = [m.strip() for m in args.methods.split(",") if m.strip()]
     bad = [m for m in methods if m not in METHODS]
     if bad or not methods:
@@ -250,6 +259,8 @@ def main(argv: list[str] | None = None) -> list[dict]:
             "snr_db": snr_set[0] if len(snr_set) == 1 else snr_set,
             "echo": args.echo or "default", "vary": bool(args.vary),
             "duration_s": args.duration_s, "sea_floor": args.sea_floor,
+            **({"project_options": args.project_options}
+               if m == "project" and args.project_options else {}),
             "windows": st["windows"],
             "within_10m_pct": round(100.0 * st["found"] / max(st["pairs"], 1), 1),
             "false_sources_pct": round(100.0 * st["false"] / max(st["reported"], 1), 1),
