@@ -281,6 +281,8 @@ class DocumentSummary:
     n_mirror: int = 0
     n_few_tdoas: int = 0
     n_flagged: int = 0
+    n_not_localized: int = 0
+    not_localized_reason: str = ""
 
     def line(self) -> str:
         """The one-line summary ``fusion localize`` prints."""
@@ -289,8 +291,10 @@ class DocumentSummary:
                                                (self.n_few_tdoas, f"on <= {FEW_TDOAS} TDOAs"))
                  if n]
         flagged = f" ({self.n_flagged} flagged: {', '.join(flags)})" if self.n_flagged else ""
+        failed = (f"; {self.n_not_localized} windows not localized "
+                  f"(e.g. {self.not_localized_reason})" if self.n_not_localized else "")
         return (f"{self.n_windows} windows, {self.n_valid_tdoas} valid TDOAs, "
-                f"{self.n_sources} sources{flagged}")
+                f"{self.n_sources} sources{flagged}{failed}")
 
 
 #: A source fixed by this many TDOAs or fewer has no redundancy (three fix a point in 3-D).
@@ -324,6 +328,7 @@ def write_document(path: str | Path, parts: Iterable[str]) -> DocumentSummary:
     """
     n = n_valid = n_src = 0
     flag_counts = np.zeros(4, dtype=int)  # unobservable, mirror, few TDOAs, any
+    n_failed, reason = 0, ""
     sources_of: list[tuple[float, list[dict]]] = []  # per window: centre, sources (small)
     with atomic_output(path) as tmp, open(tmp, "w", encoding="utf-8") as f:
         f.write('{\n "windows": [')
@@ -334,6 +339,9 @@ def write_document(path: str | Path, parts: Iterable[str]) -> DocumentSummary:
                 n += 1
                 n_valid += sum(1 for d in w["tdoas"] if d["valid"])
                 n_src += len(w["sources"])
+                if w.get("not_localized"):
+                    n_failed += 1
+                    reason = reason or w["not_localized"]
                 for src in w["sources"]:
                     flags = source_flags(src)
                     flag_counts += np.array([*flags, any(flags)], dtype=int)
@@ -341,7 +349,7 @@ def write_document(path: str | Path, parts: Iterable[str]) -> DocumentSummary:
         tracks = [t.to_dict() for t in track_document_sources(sources_of)]
         body = json.dumps(tracks, indent=1, allow_nan=False).replace("\n", "\n ")
         f.write(("\n ]" if n else "]") + ',\n "tracks": ' + body + "\n}\n")
-    return DocumentSummary(n, n_valid, n_src, *(int(v) for v in flag_counts))
+    return DocumentSummary(n, n_valid, n_src, *(int(v) for v in flag_counts), n_failed, reason)
 
 
 def track_document_sources(windows: Sequence[tuple[float, Sequence[dict]]]) -> tuple:

@@ -48,11 +48,16 @@ class LocalizedWindow:
         Indices into ``window.tdoas`` of the TDOAs handed to the localizer.
     output : LocalizationOutput or None
         The localizer's result (None when too few valid TDOAs).
+    note : str
+        Why a window with enough valid TDOAs has no result (the localizer's error, e.g. too
+        few independent pairs); empty otherwise. Written with the window and counted in
+        ``fusion localize``'s summary.
     """
 
     window: ClickWindow
     valid_index: np.ndarray
     output: LocalizationOutput | None
+    note: str = ""
 
 
 #: Candidates per window and smallest TDOA weight of a source when surface paths are read.
@@ -310,16 +315,18 @@ class ClickLocalization:
         localizer, fallback = self.localizers_for(sensors)
         if localizer is None or idx.size < self.min_tdoas:
             return LocalizedWindow(window, idx, None)
-        out = self._solve(localizer, window, idx, sensors)
+        out, note = self._solve(localizer, window, idx, sensors)
         if fallback is not None and explained_fraction(out) < AUTO_EXPLAINED:
-            other = self._solve(fallback, window, idx, sensors)
+            other, other_note = self._solve(fallback, window, idx, sensors)
             if explained_fraction(other) > explained_fraction(out):
                 out = other
-        return LocalizedWindow(window, idx, out)
+            note = note or other_note
+        return LocalizedWindow(window, idx, out, "" if out is not None else note)
 
     def _solve(self, localizer: MultiSourceLocalizer, window: ClickWindow, idx: np.ndarray,
-               sensors: SensorArray) -> LocalizationOutput | None:
-        """The window's valid TDOAs (indices `idx`) solved by one localizer (the passes above)."""
+               sensors: SensorArray) -> tuple[LocalizationOutput | None, str]:
+        """The window's valid TDOAs (indices `idx`) solved by one localizer (the passes above),
+        and the localizer's error when it found no solution."""
         d = [window.tdoas[k] for k in idx]
         pos = sensors.positions
         c = sensors.sound_speed
@@ -344,8 +351,8 @@ class ClickLocalization:
                 out = localizer.localize(pos, pairs, retimed, sig, alpha, c=c)
         except ValueError as e:  # e.g. too few independent pairs: no fix in this window
             logger.info("window %.1f s: not localized (%s)", window.t_start, e)
-            out = None
-        return out
+            return None, str(e)
+        return out, ""
 
     def iter_windows(
         self, blocks: Iterable, *, fs: float, sensors: SensorArray, duration_s: float | None = None
@@ -451,5 +458,6 @@ def result_document(windows: Iterable[LocalizedWindow], *, tracks: Iterable[Trac
                 })
         doc_windows.append({"t_start": float(w.t_start), "t_end": float(w.t_end),
                             "clicks": [int(c.n_clicks) for c in w.clicks],
-                            "tdoas": tdoas, "sources": sources})
+                            "tdoas": tdoas, "sources": sources,
+                            **({"not_localized": lw.note} if lw.note else {})})
     return {"windows": doc_windows, "tracks": [t.to_dict() for t in tracks]}

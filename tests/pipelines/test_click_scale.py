@@ -292,3 +292,19 @@ def test_document_summary_counts_flagged_sources_apart(tmp_path):
     assert (s.n_unobservable, s.n_mirror, s.n_few_tdoas, s.n_flagged) == (1, 1, 2, 3)
     assert s.line() == ("2 windows, 2 valid TDOAs, 5 sources (3 flagged: 1 unobservable, "
                         "1 mirror-ambiguous, 2 on <= 3 TDOAs)")
+
+
+def test_windows_not_localized_are_written_and_counted(tmp_path):
+    """A window whose localizer failed carries the reason; the summary counts it."""
+    import json
+
+    from fusion.pipelines.click_chunks import write_document
+
+    w1 = {"t_start": 0.0, "t_end": 12.0, "tdoas": [{"valid": True}] * 3, "sources": [],
+          "not_localized": "too few independent pairs"}
+    w2 = {"t_start": 2.0, "t_end": 14.0, "tdoas": [], "sources": []}
+    s = write_document(tmp_path / "r.json", [json.dumps([w1, w2])])
+    assert (s.n_not_localized, s.not_localized_reason) == (1, "too few independent pairs")
+    assert s.line().endswith("; 1 windows not localized (e.g. too few independent pairs)")
+    assert json.loads((tmp_path / "r.json").read_text())["windows"][0]["not_localized"] == \
+        "too few independent pairs"

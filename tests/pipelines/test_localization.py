@@ -248,3 +248,24 @@ def test_tdoas_hold_at_their_own_time_with_their_rate(localized):
     assert len(errs) >= 50
     assert np.median(errs) < 0.5e-6  # ~1.5e-7 measured (sigma ~1.5e-7); 4e-4 with t off by 3 s
     assert np.median(rate_errs) < 1e-6  # s/s (~1.2e-7 measured); drifts here ~7e-4 s/s
+
+
+def test_a_window_the_localizer_cannot_solve_says_why():
+    """A window the localizer refuses (here a TDOA whose sigma is not finite) carries the reason,
+    written as ``not_localized``, instead of a silent empty result."""
+    import dataclasses
+
+    from fusion.geometry import SensorArray
+    from fusion.pipelines.clicks import ClickWindow
+
+    sensors = SensorArray(_FIVE, 1500.0)
+    full = _synthetic_window(np.array([300.0, 500.0, -900.0]), with_echoes=False)
+    bad = (dataclasses.replace(full.tdoas[0], sigma_s=float("nan")),) + full.tdoas[1:]
+    window = ClickWindow(0.0, 12.0, (), bad, full.alpha)
+    lw = ClickLocalization(localizer=LocalizerSettings(sea_floor_z=-1700.0)).localize(window,
+                                                                                      sensors)
+    assert lw.output is None and "sigma" in lw.note
+    assert result_document([lw])["windows"][0]["not_localized"] == lw.note
+    good = ClickLocalization(localizer=LocalizerSettings(sea_floor_z=-1700.0)).localize(
+        full, sensors)
+    assert good.note == "" and "not_localized" not in result_document([good])["windows"][0]
