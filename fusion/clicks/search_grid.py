@@ -19,13 +19,10 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from fusion.types import frozen_array
+
 __all__ = ["SearchGrid", "SearchRegion", "array_aperture", "sensor_distances"]
 
-
-def _frozen(a: ArrayLike) -> NDArray[np.float64]:
-    out = np.array(a, dtype=float)
-    out.setflags(write=False)
-    return out
 
 
 def array_aperture(sensors: ArrayLike) -> float:
@@ -53,7 +50,7 @@ class SearchGrid:
             a = np.array(getattr(self, name), dtype=float).reshape(-1)
             if a.size < 1 or not np.all(np.isfinite(a)) or np.any(np.diff(a) <= 0):
                 raise ValueError(f"grid axis {name} must be finite, non-empty and increasing")
-            object.__setattr__(self, name, _frozen(a))
+            object.__setattr__(self, name, frozen_array(a))
 
     @property
     def shape(self) -> tuple[int, int, int]:

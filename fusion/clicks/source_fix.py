@@ -18,18 +18,14 @@ from dataclasses import dataclass
 
 import gtsam
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import NDArray
 
 from factors.tdoa import weighted_tdoa_vector_factor
 from fusion.clicks.window_tdoas import WindowTdoas
+from fusion.types import frozen_array
 
 __all__ = ["LocalizationOutput", "SourceFix", "solve_weighted", "weighted_cost", "weighted_graph"]
 
-
-def _frozen(a: ArrayLike) -> NDArray[np.float64]:
-    out = np.array(a, dtype=float)
-    out.setflags(write=False)
-    return out
 
 
 @dataclass(frozen=True)
@@ -81,7 +77,7 @@ class SourceFix:
 
     def __post_init__(self) -> None:
         for name in ("position", "covariance", "information", "weights", "mirror_position"):
-            object.__setattr__(self, name, _frozen(getattr(self, name)))
+            object.__setattr__(self, name, frozen_array(getattr(self, name)))
         w = self.weights
         paths = np.where(w > 0.5, 0, -1) if self.paths is None else np.asarray(self.paths)
         if paths.shape != w.shape:

@@ -37,11 +37,12 @@ from typing import Any
 
 import gtsam
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import NDArray
 from scipy.optimize import linear_sum_assignment
 
 from factors.motion import transition_matrix, wna_sqrt_information
 from fusion.clicks.localize import SourceFix
+from fusion.types import frozen_array
 
 __all__ = ["SourceTracker", "Track", "WindowSources"]
 
@@ -50,11 +51,6 @@ _LOG = logging.getLogger(__name__)
 #: Cost of an impossible assignment.
 _FORBIDDEN = 1e12
 
-
-def _frozen(a: ArrayLike, dtype: type = float) -> NDArray:
-    out = np.array(a, dtype=dtype)
-    out.setflags(write=False)
-    return out
 
 
 @dataclass(frozen=True)
@@ -81,7 +77,7 @@ class WindowSources:
             raise ValueError(f"time_s must be finite, got {self.time_s!r}")
         object.__setattr__(self, "sources", tuple(self.sources))
         if self.tdoa_links is not None:
-            links = _frozen(self.tdoa_links, np.intp).reshape(-1)
+            links = frozen_array(self.tdoa_links, np.intp).reshape(-1)
             for f in self.sources:
                 if f.weights.shape != links.shape:
                     raise ValueError(f"tdoa_links has {links.size} entries but a source weighs "
@@ -119,14 +115,14 @@ class Track:
     velocities: NDArray[np.float64]
     covariances: NDArray[np.float64]
     raw_positions: NDArray[np.float64]
-    windows: NDArray[np.intp] = field(default_factory=lambda: _frozen([], np.intp))
-    sources: NDArray[np.intp] = field(default_factory=lambda: _frozen([], np.intp))
+    windows: NDArray[np.intp] = field(default_factory=lambda: frozen_array([], np.intp))
+    sources: NDArray[np.intp] = field(default_factory=lambda: frozen_array([], np.intp))
 
     def __post_init__(self) -> None:
         for name in ("times", "positions", "velocities", "covariances", "raw_positions"):
-            object.__setattr__(self, name, _frozen(getattr(self, name)))
+            object.__setattr__(self, name, frozen_array(getattr(self, name)))
         for name in ("windows", "sources"):
-            object.__setattr__(self, name, _frozen(getattr(self, name), np.intp))
+            object.__setattr__(self, name, frozen_array(getattr(self, name), np.intp))
 
     def to_dict(self) -> dict[str, Any]:
         """The track in the ``tracks`` form of the project's ``localize`` output (formats, 2)."""

@@ -18,14 +18,10 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from factors.tdoa_model import TdoaModel, check_speed
+from fusion.types import frozen_array
 
 __all__ = ["WindowTdoas"]
 
-
-def _frozen(a: ArrayLike, dtype: type = float) -> NDArray:
-    out = np.array(a, dtype=dtype)
-    out.setflags(write=False)
-    return out
 
 
 @dataclass(frozen=True)
@@ -64,10 +60,10 @@ class WindowTdoas:
         if not np.all(np.isfinite(sig) & (sig > 0)):
             raise ValueError("sigmas must be positive and finite (one per TDOA, s)")
         object.__setattr__(self, "c", check_speed(self.c))
-        object.__setattr__(self, "sensors", _frozen(model.sensors))
-        object.__setattr__(self, "pairs", _frozen(model.pairs, np.intp))
-        object.__setattr__(self, "taus", _frozen(model.taus))
-        object.__setattr__(self, "sigmas", _frozen(sig))
+        object.__setattr__(self, "sensors", frozen_array(model.sensors))
+        object.__setattr__(self, "pairs", frozen_array(model.pairs, np.intp))
+        object.__setattr__(self, "taus", frozen_array(model.taus))
+        object.__setattr__(self, "sigmas", frozen_array(sig))
         object.__setattr__(self, "_model", model)
         if self.alpha is not None:
             a = np.array(self.alpha, dtype=float)
@@ -77,7 +73,7 @@ class WindowTdoas:
                 raise ValueError("alpha must be finite and non-negative")
             if not np.allclose(a, a.T, rtol=1e-9, atol=1e-12):
                 raise ValueError("alpha must be symmetric (alpha[l, m] == alpha[m, l])")
-            object.__setattr__(self, "alpha", _frozen(0.5 * (a + a.T)))
+            object.__setattr__(self, "alpha", frozen_array(0.5 * (a + a.T)))
 
     @property
     def m(self) -> int:
