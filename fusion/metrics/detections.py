@@ -1,4 +1,4 @@
-"""Scoring detected clicks against a simulated scenario's truth (tests and benchmarks only).
+"""Scores of click detections against a simulated scenario's truth (tests and benchmarks only).
 
 A detection is matched, one to one and closest first, to the truth of its channel in this
 order: a direct-path arrival (a *hit*), a surface echo (an *echo*: a real click in the audio,

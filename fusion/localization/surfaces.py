@@ -2,10 +2,10 @@
 
 One import path for the surface layer, whose parts live in one module per role:
 
-:mod:`fusion.clicks.window_tdoas`  the window's TDOAs with their array (:class:`WindowTdoas`)
-:mod:`fusion.clicks.search_grid`   the search box and grids sized by the array, sensor ranges
-:mod:`fusion.clicks.intensity`     eq. (16)-(18) on a grid (:func:`intensity_volume`)
-:mod:`fusion.clicks.peak_search`   coarse-to-fine peak refinement and the depth scan
+:mod:`fusion.localization.window_tdoas`  the window's TDOAs with their array (:class:`WindowTdoas`)
+:mod:`fusion.localization.search_grid`   the search box and grids sized by the array, sensor ranges
+:mod:`fusion.localization.intensity`     eq. (16)-(18) on a grid (:func:`intensity_volume`)
+:mod:`fusion.localization.peak_search`   coarse-to-fine peak refinement and the depth scan
 
 Notes
 -----
@@ -14,16 +14,16 @@ Notes
 
 from __future__ import annotations
 
-from fusion.clicks.intensity import (
+from fusion.localization.intensity import (
     IntensityVolume,
     associated_intensity,
     intensity_volume,
     smoothing_sigma,
     tdoa_intensities,
 )
-from fusion.clicks.peak_search import fine_step, refine_peak, scan_depth
-from fusion.clicks.search_grid import SearchGrid, SearchRegion, array_aperture, sensor_distances
-from fusion.clicks.window_tdoas import WindowTdoas
+from fusion.localization.peak_search import fine_step, refine_peak, scan_depth
+from fusion.localization.search_grid import SearchGrid, SearchRegion, array_aperture, sensor_distances
+from fusion.localization.window_tdoas import WindowTdoas
 
 __all__ = [
     "IntensityVolume",

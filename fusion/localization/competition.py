@@ -58,7 +58,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from factors.tdoa import weighted_tdoa_vector_factor
-from fusion.clicks.ownership import (
+from fusion.localization.competition_settings import CompetitionSettings
+from fusion.localization.ownership import (
     association_weights,
     cap_per_pair,
     holds_a_source,
@@ -67,7 +68,7 @@ from fusion.clicks.ownership import (
     same_source,
     supported_weights,
 )
-from fusion.clicks.window_tdoas import WindowTdoas
+from fusion.localization.window_tdoas import WindowTdoas
 
 __all__ = [
     "CompetitionResult",
@@ -81,82 +82,6 @@ __all__ = [
 ]
 
 _LOG = logging.getLogger(__name__)
-
-
-@dataclass(frozen=True)
-class CompetitionSettings:
-    """Options of :func:`compete`.
-
-    Attributes
-    ----------
-    clutter_fraction : float
-        Prior probability that a TDOA is clutter, in (0, 1).
-    beta_scale : float
-        ``sigma_t`` of eq. (20) in units of the (annealed) TDOA sigma.
-    anneal_factor : float
-        Ratio of the delay scale between iterations, in (0, 1).
-    max_iterations : int
-        Iteration limit.
-    min_weight : float
-        Smallest total weight ``sum_m w_km`` a candidate keeps once annealed (3.5: about four
-        TDOAs, one more than the unknowns).
-    min_independent : int
-        Smallest rank of the incidence of a candidate's TDOAs of weight > 0.5.
-    merge_sigmas : float
-        Candidates whose predicted delays differ by less than this many sigmas (RMS over the
-        TDOAs either holds) merge.
-    max_overlap : float
-        Candidates sharing more than this fraction of the smaller one's weight merge.
-    use_alpha : bool
-        Use ``gamma`` of eq. (21) (needs ``alpha``); False: ``gamma_km = beta_m``.
-    pair_exclusive : bool
-        Cap a candidate's total weight per sensor pair at one.
-    solver_iterations : int
-        Levenberg-Marquardt iterations per candidate update.
-    tol : float
-        Convergence: largest weight change, and largest position change in units of
-        ``min(sigma) c``.
-    min_alpha_link : float
-        Association count that links two TDOAs for the growth step (default 3:
-        ``1 - exp(-3/4) = 0.53`` in eq. 21).
-    gate_sigmas : float
-        Residual gate, in TDOA sigmas, of the growth step.
-    """
-
-    clutter_fraction: float = 0.1
-    beta_scale: float = 4.0
-    anneal_factor: float = 0.3
-    max_iterations: int = 40
-    min_weight: float = 3.5
-    min_independent: int = 3
-    merge_sigmas: float = 3.0
-    max_overlap: float = 0.5
-    use_alpha: bool = True
-    pair_exclusive: bool = True
-    solver_iterations: int = 10
-    tol: float = 1e-2
-    min_alpha_link: float = 3.0
-    gate_sigmas: float = 3.0
-
-    def __post_init__(self) -> None:
-        for name in ("clutter_fraction", "anneal_factor"):
-            v = getattr(self, name)
-            if not 0.0 < v < 1.0:
-                raise ValueError(f"{name} must lie in (0, 1), got {v!r}")
-        for name in ("beta_scale", "merge_sigmas", "tol", "gate_sigmas"):
-            v = getattr(self, name)
-            if not (np.isfinite(v) and v > 0):
-                raise ValueError(f"{name} must be positive, got {v!r}")
-        if not 0.0 < self.max_overlap <= 1.0:
-            raise ValueError(f"max_overlap must lie in (0, 1], got {self.max_overlap!r}")
-        if not (np.isfinite(self.min_alpha_link) and self.min_alpha_link >= 0.0):
-            raise ValueError(f"min_alpha_link must be >= 0, got {self.min_alpha_link!r}")
-        if not self.min_weight >= 0.0:
-            raise ValueError(f"min_weight must be >= 0, got {self.min_weight!r}")
-        for name in ("max_iterations", "min_independent", "solver_iterations"):
-            v = getattr(self, name)
-            if int(v) != v or v < 1:
-                raise ValueError(f"{name} must be a positive integer, got {v!r}")
 
 
 @dataclass(frozen=True)
@@ -296,7 +221,7 @@ def compete(
     tdoas : WindowTdoas
         The window's TDOAs (``alpha`` used when present and ``settings.use_alpha``).
     starts : array_like, shape (K, 3)
-        Candidate positions, m (e.g. :class:`fusion.clicks.candidates.CandidateFinder`).
+        Candidate positions, m (e.g. :class:`fusion.localization.candidates.CandidateFinder`).
     start_scale_s : float, keyword-only
         Delay uncertainty of the starts, s (e.g. the delay smoothing of the grid they come
         from); the annealing starts there.
@@ -314,7 +239,7 @@ def compete(
         sigmas instead of `start_scale_s`.
     groups : array_like of int, shape (M,), optional, keyword-only
         The measurement each TDOA column reads (several columns: one measured delay read as
-        several propagation paths, :mod:`fusion.clicks.surface_paths`). The responsibilities of
+        several propagation paths, :mod:`fusion.localization.surface_paths`). The responsibilities of
         the columns of one measurement and its clutter component sum to one (a measured delay
         belongs to one candidate along one path, or to clutter). Default: every column its own
         measurement.

@@ -1,7 +1,7 @@
 """The validated TDOAs of one processing window with their array, checked once.
 
 :class:`WindowTdoas` is the data every stage of the multi-source localization reads: the
-intensity surfaces (:mod:`fusion.clicks.intensity`), the candidates, the competition and the
+intensity surfaces (:mod:`fusion.localization.intensity`), the candidates, the competition and the
 localizer.
 
 Notes

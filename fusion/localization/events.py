@@ -5,10 +5,10 @@ output, e.g. a spectrogram blob). :class:`EventLocalizer` turns each into an :cl
 
 1. cut the event with a margin of the array's largest delay (a little more) on each side, and
    band-pass every channel to the event's band (given, or estimated from the event against the
-   noise before it, :func:`fusion.clicks.event_tdoa.estimate_band`);
+   noise before it, :func:`fusion.localization.event_tdoa.estimate_band`);
 2. cross-correlate every sensor pair within its physically possible lags, to a fraction of a
-   sample, with a standard deviation from the data (:func:`fusion.clicks.event_tdoa.pair_tdoas`);
-3. set aside TDOAs that break their triangle closures (:func:`~fusion.clicks.event_tdoa.
+   sample, with a standard deviation from the data (:func:`fusion.localization.event_tdoa.pair_tdoas`);
+3. set aside TDOAs that break their triangle closures (:func:`~fusion.localization.event_tdoa.
    closure_screen`);
 4. start from the best points of a TDOA-misfit grid over a box a few array apertures wide,
    solve on a factor graph (:func:`factors.tdoa.solve_source`, least squares, then Huber with the
@@ -46,7 +46,8 @@ from scipy import stats
 from factors.tdoa import solve_source
 from factors.tdoa_model import predicted_tdoas
 from fusion._validation import check_positive
-from fusion.clicks.event_tdoa import (
+from fusion.geometry import SensorArray
+from fusion.localization.event_tdoa import (
     MAX_EDGE_FRACTION,
     PairTdoas,
     bandpass,
@@ -54,7 +55,7 @@ from fusion.clicks.event_tdoa import (
     estimate_band,
     pair_tdoas,
 )
-from fusion.clicks.surfaces import (
+from fusion.localization.surfaces import (
     SearchRegion,
     WindowTdoas,
     array_aperture,
@@ -62,8 +63,7 @@ from fusion.clicks.surfaces import (
     refine_peak,
     sensor_distances,
 )
-from fusion.clicks.types import frozen_array
-from fusion.geometry import SensorArray
+from fusion.types import frozen_array
 
 __all__ = ["Event", "EventFix", "EventLocalizer"]
 

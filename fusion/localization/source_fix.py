@@ -2,7 +2,7 @@
 
 :class:`SourceFix` (position, ``gtsam.Marginals`` covariance, the TDOAs it uses, observability
 flags) and :class:`LocalizationOutput` (all sources of a window) are what
-:class:`fusion.clicks.localize.MultiSourceLocalizer` returns; :func:`solve_weighted` is the
+:class:`fusion.localization.localize.MultiSourceLocalizer` returns; :func:`solve_weighted` is the
 weighted least-squares position on a one-factor graph
 (:func:`factors.tdoa.weighted_tdoa_vector_factor`) used to polish and to test fixes.
 
@@ -21,7 +21,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from factors.tdoa import weighted_tdoa_vector_factor
-from fusion.clicks.window_tdoas import WindowTdoas
+from fusion.localization.window_tdoas import WindowTdoas
 from fusion.types import frozen_array
 
 __all__ = ["LocalizationOutput", "SourceFix", "solve_weighted", "weighted_cost", "weighted_graph"]
@@ -58,7 +58,7 @@ class SourceFix:
         That solution, m; NaN when there is none.
     paths : ndarray of int, shape (M,), optional
         Path pair along which the fix reads each TDOA (index into
-        :data:`fusion.clicks.surface_paths.PATHS`: 0 direct, 1 both surface-reflected, 2 direct
+        :data:`fusion.localization.surface_paths.PATHS`: 0 direct, 1 both surface-reflected, 2 direct
         then reflected, 3 reflected then direct), -1 for a TDOA it does not hold. Default (None):
         every TDOA read along direct paths.
     """

@@ -1,6 +1,6 @@
 """Hyperbolic intensity surfaces of a window's TDOAs (eq. 16-18).
 
-A window's validated TDOAs (:class:`~fusion.clicks.window_tdoas.WindowTdoas`) are drawn as
+A window's validated TDOAs (:class:`~fusion.localization.window_tdoas.WindowTdoas`) are drawn as
 smoothed hyperbolas on a grid: each TDOA ``m`` gives the intensity ``I_m`` of eq. (16); their
 sum is eq. (17); the sum of products of pairs weighted by the cross-pair association ``alpha``
 is eq. (18), computed from the ``I_m`` once as one quadratic form per grid point,
@@ -23,8 +23,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from fusion.clicks.search_grid import SearchGrid
-from fusion.clicks.window_tdoas import WindowTdoas
+from fusion.localization.search_grid import SearchGrid
+from fusion.localization.window_tdoas import WindowTdoas
 
 __all__ = [
     "IntensityVolume",
@@ -233,7 +233,7 @@ def combine_intensities(intensities: ArrayLike, tdoas: WindowTdoas, equation: in
         Which intensity.
     groups : array_like of int, shape (M,), optional
         The measurement each column reads (one measured delay read along several propagation
-        paths, :mod:`fusion.clicks.surface_paths`): a measurement's intensity is the largest of
+        paths, :mod:`fusion.localization.surface_paths`): a measurement's intensity is the largest of
         its columns' (the union of its hyperbolas, counted once), and eq. (18) uses the
         association of each measurement's first column.
 

@@ -1,6 +1,6 @@
 """Source tracks across processing windows, smoothed on a constant-velocity factor graph.
 
-Successive windows' sources (:class:`fusion.clicks.localize.SourceFix`) are linked into tracks
+Successive windows' sources (:class:`fusion.localization.localize.SourceFix`) are linked into tracks
 (step 52's association across time, and paragraph [0046]: stepping the window forward "a sense
 of the movement of the source is developed"). Two kinds of evidence link a source to a track:
 
@@ -41,7 +41,7 @@ from numpy.typing import NDArray
 from scipy.optimize import linear_sum_assignment
 
 from factors.motion import transition_matrix, wna_sqrt_information
-from fusion.clicks.localize import SourceFix
+from fusion.localization.localize import SourceFix
 from fusion.types import frozen_array
 
 __all__ = ["SourceTracker", "Track", "WindowSources"]
@@ -158,7 +158,7 @@ class SourceTracker:
 
     Examples
     --------
-    >>> from fusion.clicks.localize import SourceFix
+    >>> from fusion.localization.localize import SourceFix
     >>> def fix(p):
     ...     return SourceFix(position=p, covariance=np.eye(3), information=np.eye(3),
     ...                      weights=np.ones(4), tdoas_used=4, residual_rms_s=0.0,

@@ -29,8 +29,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from fusion.clicks.types import frozen_array
-from fusion.clicks.window_tdoas import WindowTdoas
+from fusion.localization.window_tdoas import WindowTdoas
+from fusion.types import frozen_array
 
 __all__ = ["PATHS", "PathTdoas", "surface_paths"]
 

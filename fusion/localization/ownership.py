@@ -1,6 +1,6 @@
 """Which TDOAs a candidate holds: eq. (20)-(21) weights, the per-pair cap, merging, dropping.
 
-The pieces of the competition (:mod:`fusion.clicks.competition`) that judge a candidate's share
+The pieces of the competition (:mod:`fusion.localization.competition`) that judge a candidate's share
 of a window's TDOAs: the delay-fit and association weights of eq. (20)-(21), the rank of the
 sensor pairs a set of TDOAs spans (three independent pairs fix a 3-D position), the cap of one
 TDOA's worth of weight per sensor pair, and the rule that keeps a candidate only while its
@@ -19,8 +19,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 if TYPE_CHECKING:
-    from fusion.clicks.competition import CompetitionSettings
-    from fusion.clicks.window_tdoas import WindowTdoas
+    from fusion.localization.competition_settings import CompetitionSettings
+    from fusion.localization.window_tdoas import WindowTdoas
 
 __all__ = [
     "association_weights",

@@ -15,15 +15,15 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from fusion.clicks.intensity import (
+from fusion.localization.intensity import (
     check_equation,
     combine_intensities,
     intensity_volume,
     smoothing_sigma,
     tdoa_intensities,
 )
-from fusion.clicks.search_grid import SearchGrid
-from fusion.clicks.window_tdoas import WindowTdoas
+from fusion.localization.search_grid import SearchGrid
+from fusion.localization.window_tdoas import WindowTdoas
 
 __all__ = ["fine_step", "refine_peak", "scan_depth"]
 
@@ -68,7 +68,7 @@ def scan_depth(
         Largest number of heights (the spacing widens to fit).
     groups : array_like of int, shape (M,), optional, keyword-only
         The measurement each TDOA column reads
-        (:func:`fusion.clicks.intensity.combine_intensities`).
+        (:func:`fusion.localization.intensity.combine_intensities`).
 
     Returns
     -------
@@ -136,7 +136,7 @@ def refine_peak(
         Bounds of the search box, m (a plane: ``lo[2] == hi[2]``).
     groups : array_like of int, shape (M,), optional, keyword-only
         The measurement each TDOA column reads
-        (:func:`fusion.clicks.intensity.combine_intensities`).
+        (:func:`fusion.localization.intensity.combine_intensities`).
 
     Returns
     -------

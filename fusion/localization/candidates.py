@@ -1,10 +1,10 @@
 """Candidate source positions: the local maxima of an intensity volume (step 62).
 
 The association-weighted volume of eq. (18) over depths has many local maxima; the strongest
-become the candidate solutions that compete for the TDOAs (:mod:`fusion.clicks.competition`).
+become the candidate solutions that compete for the TDOAs (:mod:`fusion.localization.competition`).
 :class:`CandidateFinder` finds the 3-D local maxima with :func:`scipy.ndimage.maximum_filter`,
 keeps those above a fraction of the largest, optionally refines each on finer grids
-(:func:`fusion.clicks.peak_search.refine_peak`) and rescans its depth, suppresses near-duplicates
+(:func:`fusion.localization.peak_search.refine_peak`) and rescans its depth, suppresses near-duplicates
 and returns at most ``max_candidates``, strongest first.
 
 Notes
@@ -22,9 +22,9 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.ndimage import maximum_filter
 
-from fusion.clicks.intensity import IntensityVolume
-from fusion.clicks.peak_search import refine_peak, scan_depth
-from fusion.clicks.window_tdoas import WindowTdoas
+from fusion.localization.intensity import IntensityVolume
+from fusion.localization.peak_search import refine_peak, scan_depth
+from fusion.localization.window_tdoas import WindowTdoas
 
 __all__ = ["CandidateFinder", "Candidates"]
 
@@ -81,13 +81,13 @@ class CandidateFinder:
         Two candidates closer than this many coarse cells are one (the weaker is dropped).
     scan_depth : bool, keyword-only
         After the first two refinement levels, scan the whole vertical range of the box at the
-        refined ``x, y`` (:func:`fusion.clicks.peak_search.scan_depth`) and move to a better depth
+        refined ``x, y`` (:func:`fusion.localization.peak_search.scan_depth`) and move to a better depth
         if there is one, then refine on (default True; needs `lo`, `hi` and a volume with
         several depths).
 
     Examples
     --------
-    >>> from fusion.clicks.surfaces import SearchGrid
+    >>> from fusion.localization.surfaces import SearchGrid
     >>> g = SearchGrid(np.arange(5.0), np.arange(5.0), [0.0])
     >>> vals = np.zeros((5, 5, 1)); vals[1, 1, 0] = 2.0; vals[3, 4, 0] = 1.0
     >>> c = CandidateFinder(refine_levels=0).find(IntensityVolume(g, vals, 17, np.ones(1)))

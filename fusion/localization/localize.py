@@ -7,7 +7,7 @@ covariance, the TDOAs it uses, observability flags). Four methods, for use and c
 ``"competition"`` (default)
     Association-weighted volume (eq. 18; eq. 17 when the window has no ``alpha``) over the
     search region, its local maxima as candidates, and the candidates competing for the TDOAs
-    on factor graphs (:func:`fusion.clicks.competition.compete`, eq. 19-22). TDOAs the
+    on factor graphs (:func:`fusion.localization.competition.compete`, eq. 19-22). TDOAs the
     survivors leave to clutter that still form associated groups able to fix a source (two
     whales the coarse surface merged into one peak) get a surface of their own and new
     candidates, and all compete again (``max_rounds``). Each survivor is then re-solved with
@@ -50,27 +50,27 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import connected_components
 
-from fusion.clicks.candidates import CandidateFinder
-from fusion.clicks.competition import (
+from fusion.localization.candidates import CandidateFinder
+from fusion.localization.competition import (
     CompetitionSettings,
     compete,
     independent_pairs,
     supported_weights,
     vertical_starts,
 )
-from fusion.clicks.intensity import intensity_volume, smoothing_sigma
-from fusion.clicks.peak_search import fine_step
-from fusion.clicks.search_grid import SearchGrid, SearchRegion, sensor_distances
-from fusion.clicks.source_fix import (
+from fusion.localization.intensity import intensity_volume, smoothing_sigma
+from fusion.localization.peak_search import fine_step
+from fusion.localization.search_grid import SearchGrid, SearchRegion, sensor_distances
+from fusion.localization.source_fix import (
     LocalizationOutput,
     SourceFix,
     solve_weighted,
     weighted_cost,
     weighted_graph,
 )
-from fusion.clicks.surface_paths import PathTdoas, surface_paths
-from fusion.clicks.types import frozen_array
-from fusion.clicks.window_tdoas import WindowTdoas
+from fusion.localization.surface_paths import PathTdoas, surface_paths
+from fusion.localization.window_tdoas import WindowTdoas
+from fusion.types import frozen_array
 
 __all__ = ["METHODS", "LocalizationOutput", "MultiSourceLocalizer", "SourceFix"]
 
@@ -118,7 +118,7 @@ class MultiSourceLocalizer:
         stop as soon as no such group is left.
     surface_z : float, optional, keyword-only
         Height of the sea surface, m (0 in the project's convention). When given, every TDOA is
-        also read along surface-reflected paths (:mod:`fusion.clicks.surface_paths`: echoes of
+        also read along surface-reflected paths (:mod:`fusion.localization.surface_paths`: echoes of
         the clicks at the surface give delays between echoes and between a direct arrival and
         an echo), sources are searched below the surface only, and each fix records the path
         pair of each of its TDOAs (:attr:`SourceFix.paths`). Not used by ``"lsq"``. Default
@@ -368,7 +368,7 @@ class MultiSourceLocalizer:
         """The drop rule: enough TDOAs spanning three independent pairs.
 
         With `associated` (the competition) and ``alpha``, only TDOAs associated with another
-        of the fix's TDOAs count (:func:`fusion.clicks.competition.supported_weights`).
+        of the fix's TDOAs count (:func:`fusion.localization.competition.supported_weights`).
         """
         alpha = tdoas.alpha if associated and self.competition.use_alpha else None
         ws = supported_weights(w, alpha, self.competition.min_alpha_link)

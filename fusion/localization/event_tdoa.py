@@ -39,7 +39,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy import ndimage, signal
 
 from fusion._validation import check_positive
-from fusion.clicks.types import frozen_array
+from fusion.types import frozen_array
 
 __all__ = ["PairTdoas", "bandpass", "closure_screen", "estimate_band", "pair_tdoas"]
 
