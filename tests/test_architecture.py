@@ -188,13 +188,21 @@ def test_old_import_paths_still_work():
     assert Cube is Cube2
 
 
-#: Import paths examples/ showed before the passive families became packages -> where the name
-#: lives now. They work for one release, with a DeprecationWarning.
+#: Import paths examples/, README.md and docs/ showed before the passive families became packages
+#: and localization left fusion.clicks -> where the name lives now. They work for one release,
+#: with a DeprecationWarning.
 DEPRECATED_PATHS = {
     ("fusion.pipelines.passive_measure", "LineStarter"): "fusion.pipelines.passive",
     ("fusion.pipelines.passive_types", "Click"): "fusion.pipelines.passive",
     ("fusion.pipelines.passive_scoring", "ScoredTrack"): "fusion.metrics.tracks",
     ("fusion.pipelines.passive_scoring", "score_tracks"): "fusion.metrics.tracks",
+    ("fusion.clicks.localize", "MultiSourceLocalizer"): "fusion.localization.localize",
+    ("fusion.clicks.surface_paths", "surface_paths"): "fusion.localization.surface_paths",
+    ("fusion.clicks.tracks", "SourceTracker"): "fusion.localization.tracks",
+    ("fusion.clicks.events", "EventLocalizer"): "fusion.localization.events",
+    ("fusion.clicks.competition", "CompetitionSettings"): "fusion.localization.competition",
+    ("fusion.clicks.surfaces", "SearchRegion"): "fusion.localization.surfaces",
+    ("fusion.clicks.scoring", "score_clicks"): "fusion.metrics.detections",
 }
 
 
