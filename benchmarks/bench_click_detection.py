@@ -5,7 +5,7 @@ assumptions: scenario SNR 8-35 dB (at 1 km; the per-click SNR spreads over rough
 with range), ICI jitter 0-80 ms, surface-echo coefficient -1..0, 0-15 transients, 1-3 whales,
 3-8 sensors. Clicks are detected with the default :class:`~fusion.clicks.detect.ClickDetector`
 (generic replica) by both formulations, ``stft`` (the method's) and ``envelope``, and scored
-with :func:`fusion.clicks.scoring.score_clicks`: hits within 0.5 ms of a direct arrival, surface
+with :func:`fusion.metrics.detections.score_clicks`: hits within 0.5 ms of a direct arrival, surface
 echoes neither hits nor false alarms, transients false alarms. Per-click SNR is the received
 peak amplitude over the in-band noise standard deviation (truth, for scoring only).
 
@@ -45,7 +45,7 @@ from threadpoolctl import threadpool_limits
 
 from fusion.clicks.detect import DEFAULT_THRESHOLD, ClickDetector
 from fusion.clicks.replica import correlate_replica, load_replica
-from fusion.clicks.scoring import ClickScore, match_times, score_clicks
+from fusion.metrics.detections import ClickScore, match_times, score_clicks
 from fusion.simulate.clicks import ClickScenario, simulate_clicks
 
 TUNING_SEEDS = list(range(10))

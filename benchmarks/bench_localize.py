@@ -3,7 +3,7 @@
 Three parts, one JSON line:
 
 (a) ``crb``: one source, all-pairs TDOAs with Gaussian noise, localized by
-    :class:`fusion.clicks.localize.MultiSourceLocalizer` (competition, its own start from the
+    :class:`fusion.localization.localize.MultiSourceLocalizer` (competition, its own start from the
     eq. 18 surface and default search region) on the geometries of ``bench_tdoa_factor.py``:
     the 5-sensor kilometre array (sources inside its box, or 1.5-3 km out) and the 1.7 m XAV
     frame (inside, or 1-2 m out). Per case: RMS position error over the runs against the RMS of
@@ -49,9 +49,9 @@ from pathlib import Path
 
 import numpy as np
 
-from fusion.clicks.competition import CompetitionSettings
-from fusion.clicks.localize import MultiSourceLocalizer
-from fusion.clicks.surfaces import SearchRegion
+from fusion.localization.competition import CompetitionSettings
+from fusion.localization.localize import MultiSourceLocalizer
+from fusion.localization.surfaces import SearchRegion
 from fusion.simulate.tdoa_sets import simulate_tdoa_window
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))

@@ -2,7 +2,7 @@
 
 Runs the click front end (:class:`fusion.pipelines.clicks.ClickFrontEnd`, shipped validator) once
 per scenario and then every localization method of
-:class:`fusion.clicks.localize.MultiSourceLocalizer` on the same valid TDOAs through
+:class:`fusion.localization.localize.MultiSourceLocalizer` on the same valid TDOAs through
 :class:`fusion.pipelines.localization.ClickLocalization`. Truth is used only to score: a whale's
 position for a window is its position at the emission whose arrivals are centred on the window
 (window centre minus the mean travel time).

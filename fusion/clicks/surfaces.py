@@ -1,42 +1,17 @@
-"""Intensity surfaces of a window's TDOAs (eq. 16-18) on grids sized by the array.
+"""Deprecated import path: use :mod:`fusion.localization.surfaces`; this module goes in the next release.
 
-One import path for the surface layer, whose parts live in one module per role:
-
-:mod:`fusion.clicks.window_tdoas`  the window's TDOAs with their array (:class:`WindowTdoas`)
-:mod:`fusion.clicks.search_grid`   the search box and grids sized by the array, sensor ranges
-:mod:`fusion.clicks.intensity`     eq. (16)-(18) on a grid (:func:`intensity_volume`)
-:mod:`fusion.clicks.peak_search`   coarse-to-fine peak refinement and the depth scan
-
-Notes
------
-*Localization of Short Duration Periodic Signals*, eq. (14)-(18) (steps 56-60) and step 62.
+Why: localization (TDOAs to sources and tracks) is its own package, :mod:`fusion.localization`.
 """
 
-from __future__ import annotations
+from fusion._deprecated import moved_names
 
-from fusion.clicks.intensity import (
-    IntensityVolume,
-    associated_intensity,
-    intensity_volume,
-    smoothing_sigma,
-    tdoa_intensities,
-)
-from fusion.clicks.peak_search import fine_step, refine_peak, scan_depth
-from fusion.clicks.search_grid import SearchGrid, SearchRegion, array_aperture, sensor_distances
-from fusion.clicks.window_tdoas import WindowTdoas
-
-__all__ = [
-    "IntensityVolume",
-    "SearchGrid",
-    "SearchRegion",
-    "WindowTdoas",
-    "array_aperture",
-    "associated_intensity",
-    "fine_step",
-    "intensity_volume",
-    "refine_peak",
-    "scan_depth",
-    "sensor_distances",
-    "smoothing_sigma",
-    "tdoa_intensities",
+# served by __getattr__
+__all__ = [  # noqa: F822
+    "IntensityVolume", "SearchGrid", "SearchRegion", "WindowTdoas", "array_aperture",
+    "associated_intensity", "fine_step", "intensity_volume", "refine_peak", "scan_depth",
+    "sensor_distances", "smoothing_sigma", "tdoa_intensities"
 ]
+
+__getattr__ = moved_names(
+    __name__, "fusion.localization.surfaces", __all__, shown="fusion.localization.surfaces"
+)

@@ -10,16 +10,11 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import NDArray
 
-__all__ = ["ChannelClicks", "frozen_array"]
+from fusion.types import frozen_array
 
-
-def frozen_array(a: ArrayLike, dtype: type = float) -> NDArray:
-    """A read-only copy of `a` as an ndarray of `dtype` (for frozen dataclass fields)."""
-    out = np.array(a, dtype=dtype)
-    out.setflags(write=False)
-    return out
+__all__ = ["ChannelClicks", "frozen_array"]  # frozen_array: fusion.types's, re-exported
 
 
 @dataclass(frozen=True)

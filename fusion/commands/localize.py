@@ -45,7 +45,7 @@ a source needs (by default those of the path reading).
 With ``--events E.csv`` (``t_start,t_end[,f_low,f_high]``, events found by any other detector)
 each event is localized instead from band-passed waveform cross-correlation TDOAs of every pair,
 screened by triangle closure, solved on the factor graph with its covariance and 95 % interval,
-and checked against the eq. 17 intensity surface (:mod:`fusion.clicks.events`); nothing assumes
+and checked against the eq. 17 intensity surface (:mod:`fusion.localization.events`); nothing assumes
 kilometre scales (the search box follows the array's aperture).
 """
 

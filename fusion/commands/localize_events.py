@@ -6,7 +6,7 @@ columns each event's band is estimated from its spectrum against the background 
 The audio is one multichannel file (channel i = sensor i) or one mono file per sensor in array
 order (trimmed to the shortest with a warning; a sample-rate mismatch is an error).
 
-Per event (:class:`fusion.clicks.events.EventLocalizer`): band-passed cross-correlation TDOAs of
+Per event (:class:`fusion.localization.events.EventLocalizer`): band-passed cross-correlation TDOAs of
 every pair with sub-sample precision and data sigmas, triangle-closure screening, the
 factor-graph solve with covariance and the eq. (17) intensity surface as a check. The result
 JSON::
@@ -56,8 +56,8 @@ def add_event_options(parser: argparse.ArgumentParser) -> None:
 
 def read_events(path: Path) -> list:
     """Events of an events CSV (``t_start,t_end[,f_low,f_high]``), checked row by row."""
-    from fusion.clicks.events import Event
     from fusion.io import read_table
+    from fusion.localization.events import Event
 
     table = read_table(path, required=("t_start", "t_end"), optional=("f_low", "f_high"))
     cols = table.columns
@@ -80,7 +80,7 @@ def _num(v: float) -> float | None:
 
 
 def event_document(fixes: list, *, sound_speed: float, fs: float) -> dict[str, Any]:
-    """The result JSON of a list of :class:`fusion.clicks.events.EventFix` (NaN -> null)."""
+    """The result JSON of a list of :class:`fusion.localization.events.EventFix` (NaN -> null)."""
     rows = []
     for f in fixes:
         cov = [[_num(v) for v in row] for row in np.asarray(f.covariance)]
@@ -114,8 +114,8 @@ def run_events(args: argparse.Namespace) -> int:
     options of :func:`add_event_options` (their defaults when absent).
     """
     from fusion.audio_files import read_audio_files
-    from fusion.clicks.events import EventLocalizer
     from fusion.io import read_array, read_audio, write_json
+    from fusion.localization.events import EventLocalizer
 
     array = read_array(args.array)
     events = read_events(Path(args.events))

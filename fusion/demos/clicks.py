@@ -26,11 +26,11 @@ from typing import Any
 
 import numpy as np
 
-from fusion.clicks.intensity import intensity_volume
-from fusion.clicks.search_grid import SearchRegion
-from fusion.clicks.surface_paths import surface_paths
-from fusion.clicks.window_tdoas import WindowTdoas
 from fusion.io import read_array, read_audio, write_json
+from fusion.localization.intensity import intensity_volume
+from fusion.localization.search_grid import SearchRegion
+from fusion.localization.surface_paths import surface_paths
+from fusion.localization.window_tdoas import WindowTdoas
 from fusion.pipelines.click_chunks import FEW_TDOAS
 
 __all__ = ["run_demo"]

@@ -9,7 +9,8 @@ One module per kind of result, used by tests, benchmarks, examples and the demo:
 - :mod:`~fusion.metrics.tqi` -- track quality indicator outputs (declaration lag, state changes).
 - :mod:`~fusion.metrics.localization` -- fixes matched to true sources per window
   (:func:`~fusion.metrics.localization.match_fixes`) and estimates with covariances (NEES).
-- :mod:`~fusion.metrics.detections` -- click detections against true click times.
+- :mod:`~fusion.metrics.detections` -- click detections against a simulated scenario's true
+  click times (:func:`~fusion.metrics.detections.score_clicks`).
 
 Importing this package imports none of them; import the module you need.
 """

@@ -355,12 +355,12 @@ def write_document(path: str | Path, parts: Iterable[str]) -> DocumentSummary:
 def track_document_sources(windows: Sequence[tuple[float, Sequence[dict]]]) -> tuple:
     """Tracks of the sources of written windows (``fusion localize`` JSON entries).
 
-    Sources are linked by position (:class:`fusion.clicks.tracks.SourceTracker`'s gate with each
+    Sources are linked by position (:class:`fusion.localization.tracks.SourceTracker`'s gate with each
     fix's covariance) -- the TDOA links do not survive the file -- and smoothed; fixes flagged
     unobservable or mirror-ambiguous are not tracked.
     """
-    from fusion.clicks.localize import SourceFix
-    from fusion.clicks.tracks import SourceTracker, WindowSources
+    from fusion.localization.localize import SourceFix
+    from fusion.localization.tracks import SourceTracker, WindowSources
     from fusion.pipelines.localization import UNBOUNDED_M2
 
     items = []

@@ -18,9 +18,9 @@ measured piece by piece gives exactly (bit for bit) the windows of one stream ov
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -28,11 +28,12 @@ from numpy.typing import ArrayLike, NDArray
 from fusion._validation import check_positive
 from fusion.clicks.types import ChannelClicks
 from fusion.geometry import SensorArray
+from fusion.pipelines.click_types import WindowTdoa
 
 if TYPE_CHECKING:  # pragma: no cover
-    from fusion.pipelines.clicks import ClickFrontEnd, WindowTdoa
+    from fusion.clicks.detect import ClickDetector
 
-__all__ = ["MeasuredWindow", "measure_stream", "stream_start"]
+__all__ = ["MeasuredWindow", "WindowMeasurer", "measure_stream", "stream_start"]
 
 
 @dataclass(frozen=True)
@@ -56,6 +57,22 @@ class MeasuredWindow:
     t_end: float
     clicks: tuple[ChannelClicks, ...]
     tdoas: tuple[WindowTdoa, ...]
+
+
+class WindowMeasurer(Protocol):
+    """What :func:`measure_stream` asks of the front end: detector, window, hop, measurement.
+
+    :class:`fusion.pipelines.clicks.ClickFrontEnd` is one (this module does not import it: it is
+    the module that imports this one).
+    """
+
+    detector: ClickDetector
+    window_s: float
+    hop_s: float
+
+    def measure_window(self, clicks: Sequence[ChannelClicks], *, t0_s: float,
+                       sensors: SensorArray, audio: NDArray | None = None,
+                       audio_t0_s: float = 0.0, fs: float | None = None) -> list[WindowTdoa]: ...
 
 
 def stream_start(window_start: int, *, block: int, guard: int) -> tuple[int, int]:
@@ -144,7 +161,7 @@ class _AudioRing:
 
 
 def measure_stream(
-    front: ClickFrontEnd,
+    front: WindowMeasurer,
     blocks: Iterable[tuple[float, ArrayLike]] | Iterable[tuple[float, ArrayLike, float]],
     *,
     fs: float,
@@ -159,8 +176,8 @@ def measure_stream(
 
     Parameters
     ----------
-    front : ClickFrontEnd
-        Detector, window length, hop and ``measure_window``.
+    front : WindowMeasurer
+        Detector, window length, hop and ``measure_window`` (a :class:`ClickFrontEnd`).
     blocks : iterable of (t0, samples) or (t0, samples, fs)
         Consecutive, non-overlapping blocks (n, n_sensors) in time order, the first at
         ``start_sample / fs``.

@@ -1,7 +1,7 @@
 """Whale-click localization end to end: the click front end, then the sources of each window.
 
 :class:`ClickLocalization` chains :class:`fusion.pipelines.clicks.ClickFrontEnd` (validated,
-associated TDOAs per window) and :class:`fusion.clicks.localize.MultiSourceLocalizer` (sources
+associated TDOAs per window) and :class:`fusion.localization.localize.MultiSourceLocalizer` (sources
 competing for the window's valid TDOAs, refined on a factor graph, eq. 14-22 of *Localization of
 Short Duration Periodic Signals*). It holds no algorithm of its own; :func:`result_document`
 turns its output into the ``fusion localize`` JSON (the project's file formats, section 2), with
@@ -21,12 +21,12 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
-from fusion.clicks.candidates import CandidateFinder
-from fusion.clicks.competition import CompetitionSettings
-from fusion.clicks.localize import METHODS, LocalizationOutput, MultiSourceLocalizer
-from fusion.clicks.search_grid import SearchRegion
-from fusion.clicks.tracks import SourceTracker, Track, WindowSources
 from fusion.geometry import SensorArray
+from fusion.localization.candidates import CandidateFinder
+from fusion.localization.competition import CompetitionSettings
+from fusion.localization.localize import METHODS, LocalizationOutput, MultiSourceLocalizer
+from fusion.localization.search_grid import SearchRegion
+from fusion.localization.tracks import SourceTracker, Track, WindowSources
 from fusion.pipelines.clicks import ClickFrontEnd, ClickWindow
 
 __all__ = ["AUTO_EXPLAINED", "ClickLocalization", "LocalizedWindow", "LocalizerSettings",
@@ -85,7 +85,7 @@ def whale_localizer(
     Parameters
     ----------
     method : str, optional
-        One of :data:`fusion.clicks.localize.METHODS`.
+        One of :data:`fusion.localization.localize.METHODS`.
     surface_z : float or None, keyword-only
         Height of the sea surface, m (default 0, the project's convention, z up): every TDOA is
         also read along surface-reflected paths and sources are searched below the surface.
@@ -126,7 +126,7 @@ class LocalizerSettings:
     Attributes
     ----------
     method : str
-        One of :data:`fusion.clicks.localize.METHODS` (default ``"competition"``).
+        One of :data:`fusion.localization.localize.METHODS` (default ``"competition"``).
     surface_paths : bool or None
         Read every TDOA along direct and surface-reflected paths, the surface at z = 0
         (True), along direct paths only (False), or decide from the data (None, default):

@@ -4,7 +4,7 @@ Plan view (x east, y north) and depth against time of every localized source and
 2-sigma ellipses and bars from each fix's covariance; sources flagged unobservable or
 mirror-ambiguous are hollow. With the array, the eq. (17) intensity of the window with the most
 valid TDOAs (*Localization of Short Duration Periodic Signals*, eq. 16-17, steps 56-60;
-:func:`fusion.clicks.surfaces.intensity_volume`) is drawn as its largest value over depth (plan
+:func:`fusion.localization.surfaces.intensity_volume`) is drawn as its largest value over depth (plan
 view) and over y (depth section), with that window's sources on it.
 """
 
@@ -205,7 +205,7 @@ def surface_figure(fixes: Fixes, array: SensorArray, *, title: str) -> Any | Non
         Plan view (largest intensity over depth) and depth section (largest over y), with the
         window's sources and the sensors.
     """
-    from fusion.clicks.surfaces import SearchRegion, WindowTdoas, intensity_volume
+    from fusion.localization.surfaces import SearchRegion, WindowTdoas, intensity_volume
 
     k = _best_window(fixes.windows)
     if k is None:

@@ -10,9 +10,9 @@ from numpy.testing import assert_allclose
 
 from fusion.clicks.detect import ClickDetector
 from fusion.clicks.replica import Replica
-from fusion.clicks.scoring import match_times, score_clicks
 from fusion.clicks.types import ChannelClicks
 from fusion.io import iter_audio_blocks, write_audio
+from fusion.metrics.detections import match_times, score_clicks
 from fusion.simulate.clicks import ClickWaveform, _transient_shape, simulate_clicks
 
 FS = 96_000.0

@@ -14,14 +14,10 @@ from numpy.typing import ArrayLike, NDArray
 
 from fusion.geometry import SensorArray
 from fusion.simulate.whale_range.synthesis import _positions
+from fusion.types import frozen_array
 
 __all__ = ["ClickScenario", "ClickWaveform", "WhaleTrack"]
 
-
-def _frozen(a: ArrayLike, dtype: Any = float) -> NDArray[Any]:
-    out = np.array(a, dtype=dtype)
-    out.setflags(write=False)
-    return out
 
 
 @dataclass(frozen=True)
@@ -185,7 +181,7 @@ class WhaleTrack:
             "bottom_echo_arrival_times", "bottom_echo_amplitudes",
         ):
             if getattr(self, name) is not None:
-                object.__setattr__(self, name, _frozen(getattr(self, name)))
+                object.__setattr__(self, name, frozen_array(getattr(self, name)))
         n = self.emission_times.shape[0]
         if self.positions.shape != (n, 3) or self.arrival_times.shape[0] != n:
             raise ValueError("WhaleTrack arrays disagree on the number of clicks")
@@ -294,10 +290,10 @@ class ClickScenario:
     noise_band_hz: tuple[float, float]
     absorption_db_per_km: float
     surface_reflection: float
-    transient_times: NDArray[np.float64] = field(default_factory=lambda: _frozen([]))
-    transient_channels: NDArray[np.int64] = field(default_factory=lambda: _frozen([], int))
-    transient_amplitudes: NDArray[np.float64] = field(default_factory=lambda: _frozen([]))
-    transient_freqs_hz: NDArray[np.float64] = field(default_factory=lambda: _frozen([]))
+    transient_times: NDArray[np.float64] = field(default_factory=lambda: frozen_array([]))
+    transient_channels: NDArray[np.int64] = field(default_factory=lambda: frozen_array([], int))
+    transient_amplitudes: NDArray[np.float64] = field(default_factory=lambda: frozen_array([]))
+    transient_freqs_hz: NDArray[np.float64] = field(default_factory=lambda: frozen_array([]))
     world: Any = None
 
     def __post_init__(self) -> None:
@@ -310,8 +306,8 @@ class ClickScenario:
         object.__setattr__(self, "audio", audio)
         object.__setattr__(self, "sources", tuple(self.sources))
         for name in ("transient_times", "transient_amplitudes", "transient_freqs_hz"):
-            object.__setattr__(self, name, _frozen(getattr(self, name)))
-        object.__setattr__(self, "transient_channels", _frozen(self.transient_channels, int))
+            object.__setattr__(self, name, frozen_array(getattr(self, name)))
+        object.__setattr__(self, "transient_channels", frozen_array(self.transient_channels, int))
 
     @property
     def n_sensors(self) -> int:

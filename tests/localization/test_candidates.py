@@ -6,8 +6,14 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from fusion.clicks.candidates import CandidateFinder
-from fusion.clicks.surfaces import IntensityVolume, SearchGrid, SearchRegion, WindowTdoas, intensity_volume
+from fusion.localization.candidates import CandidateFinder
+from fusion.localization.surfaces import (
+    IntensityVolume,
+    SearchGrid,
+    SearchRegion,
+    WindowTdoas,
+    intensity_volume,
+)
 from fusion.simulate.tdoa_sets import simulate_tdoa_window
 
 C = 1500.0

@@ -14,11 +14,11 @@ import soundfile as sf
 
 from factors.tdoa_model import predicted_tdoas
 from fusion.audio_files import read_audio_files
-from fusion.clicks.event_tdoa import bandpass, closure_screen, estimate_band, pair_tdoas
-from fusion.clicks.events import Event, EventFix, EventLocalizer
 from fusion.commands.localize_events import add_event_options, event_document, run_events
 from fusion.geometry import SensorArray
 from fusion.io import read_array, write_json
+from fusion.localization.event_tdoa import bandpass, closure_screen, estimate_band, pair_tdoas
+from fusion.localization.events import Event, EventFix, EventLocalizer
 
 XAV = Path(__file__).resolve().parents[1] / "data" / "xav"
 FS = 32_000.0

@@ -7,7 +7,7 @@ import pytest
 from numpy.testing import assert_allclose
 
 from factors.tdoa import predicted_tdoas
-from fusion.clicks.surfaces import (
+from fusion.localization.surfaces import (
     SearchGrid,
     SearchRegion,
     WindowTdoas,

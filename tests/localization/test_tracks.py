@@ -8,8 +8,8 @@ from filterpy.kalman import KalmanFilter
 from numpy.testing import assert_allclose
 
 from factors.motion import transition_matrix, wna_covariance
-from fusion.clicks.localize import SourceFix
-from fusion.clicks.tracks import SourceTracker, WindowSources
+from fusion.localization.localize import SourceFix
+from fusion.localization.tracks import SourceTracker, WindowSources
 
 DT = 2.0
 

@@ -7,7 +7,7 @@ import pytest
 from numpy.testing import assert_allclose
 
 from factors.tdoa import predicted_tdoas, solve_source
-from fusion.clicks.competition import (
+from fusion.localization.competition import (
     CompetitionSettings,
     association_weights,
     compete,
@@ -15,8 +15,8 @@ from fusion.clicks.competition import (
     independent_pairs,
     supported_weights,
 )
-from fusion.clicks.localize import MultiSourceLocalizer
-from fusion.clicks.surfaces import SearchRegion, WindowTdoas
+from fusion.localization.localize import MultiSourceLocalizer
+from fusion.localization.surfaces import SearchRegion, WindowTdoas
 from fusion.simulate.tdoa_sets import all_pairs, simulate_tdoa_window
 
 C = 1500.0

@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from fusion.clicks.competition import compete
-from fusion.clicks.intensity import combine_intensities, tdoa_intensities
-from fusion.clicks.localize import MultiSourceLocalizer
-from fusion.clicks.search_grid import SearchRegion
-from fusion.clicks.surface_paths import PATHS, surface_paths
-from fusion.clicks.window_tdoas import WindowTdoas
+from fusion.localization.competition import compete
+from fusion.localization.intensity import combine_intensities, tdoa_intensities
+from fusion.localization.localize import MultiSourceLocalizer
+from fusion.localization.search_grid import SearchRegion
+from fusion.localization.surface_paths import PATHS, surface_paths
+from fusion.localization.window_tdoas import WindowTdoas
 from fusion.simulate.tdoa_sets import all_pairs
 
 C = 1500.0
