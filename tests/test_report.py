@@ -34,11 +34,11 @@ def outputs(tmp_path_factory) -> dict[str, Path]:
     """Small scenarios from the simulators, run through the real commands once for all tests."""
     from fusion.io import write_cube, write_table
     from fusion.simulate import amplitudes, multistatic, tma
-    from fusion.simulate.whale_range.files import write_click_scenario
     from fusion.simulate.bearings import simulate_bearings
     from fusion.simulate.clicks import simulate_clicks
     from fusion.simulate.cube import simulate_cube
     from fusion.simulate.passive import simulate_passive
+    from fusion.simulate.whale_range.files import write_click_scenario
 
     d = tmp_path_factory.mktemp("report")
     f: dict[str, Path] = {"dir": d}

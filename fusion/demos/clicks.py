@@ -175,8 +175,9 @@ def run_demo(out_dir: Path, *, seed: int) -> dict[str, Any]:
         within 3 ms of a true TDOA), the median |error| of valid refined TDOAs (us) and their
         median CRB (us), sources reported, how many of them are flagged (unobservable,
         mirror-ambiguous or on <= 3 TDOAs; not scored) and the median 3-D error of the other
-        sources matched to a whale within 50 m, the number of tracks and the start of the window whose surfaces are
-        drawn (s).
+        sources matched to a whale within 50 m, the number of tracks, the start of the window
+        whose surfaces are drawn (s), and what was decided from the recording (replica, bottom
+        echoes, sea floor).
     """
     import matplotlib
 

@@ -98,6 +98,12 @@ def test_localize_decides_the_sea_floor_from_the_recording(tmp_path, echo):
         assert side["localization"]["sea_floor_z"] is None
 
 
+def _echoes_after(detected, direct):
+    """Detections 3.9-4.1 ms after a direct click."""
+    lag = detected.times_s[:, None] - direct.times_s[None]
+    return int(np.sum(np.any((lag > 3.9e-3) & (lag < 4.1e-3), axis=1)))
+
+
 def test_echo_window_drops_the_echoes_and_keeps_the_clicks():
     """A detector with the echo window measured from the recording keeps every direct click
     and drops the detected echoes 4 ms after them; without it, the echoes are clicks too."""
@@ -114,11 +120,7 @@ def test_echo_window_drops_the_echoes_and_keeps_the_clicks():
     for c, p, s in zip(clicks, plain, suppressed, strict=True):
         near = np.min(np.abs(s.times_s[:, None] - c.times_s[None]), axis=0)
         assert np.all(near < 1e-4)  # every direct click kept
-        def echoes(d):  # detections 3.9-4.1 ms after a direct click
-            lag = d.times_s[:, None] - c.times_s[None]
-            return int(np.sum(np.any((lag > 3.9e-3) & (lag < 4.1e-3), axis=1)))
-
-        assert echoes(s) == 0
-        assert echoes(p) >= 0.9 * c.times_s.size  # without the window: detected as clicks
+        assert _echoes_after(s, c) == 0
+        assert _echoes_after(p, c) >= 0.9 * c.times_s.size  # without the window: clicks too
     with pytest.raises(ValueError, match="echo_window_s"):
         ClickDetector(echo_window_s=(0.01, 0.001))

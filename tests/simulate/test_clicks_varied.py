@@ -12,13 +12,13 @@ import pytest
 from numpy.testing import assert_allclose
 
 from fusion.io import read_array, read_audio, read_json
+from fusion.simulate.clicks import ClickWaveform, simulate_clicks
 from fusion.simulate.whale_range.propagation import (
     FloorPlane,
     SoundSpeedProfile,
     segment_time,
 )
 from fusion.simulate.whale_range.varied import VARIED_RANGES, varied_settings
-from fusion.simulate.clicks import ClickWaveform, simulate_clicks
 
 RNG = np.random.default_rng(12345)
 
