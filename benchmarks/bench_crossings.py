@@ -31,7 +31,7 @@ after the last design change and run once.
 Prints one JSON line on stdout (human-readable lines on stderr)::
 
     python benchmarks/bench_crossings.py                  # report seeds
-    python benchmarks/bench_crossings.py --tune -- --horizon 300   # tuning seeds, other options
+    python benchmarks/bench_crossings.py --tune -- --horizon-s 300   # tuning seeds, other options
 """
 
 from __future__ import annotations

@@ -132,7 +132,7 @@ def main() -> None:
     ap.add_argument("--workers", type=int, default=2, help="Dask workers of the parallel runs")
     ap.add_argument("--modes", nargs="+", choices=("serial", "workers"),
                     default=["serial", "workers"], help="runs per recording")
-    ap.add_argument("--chunk", type=float, default=60.0, help="--chunk of fusion localize, s")
+    ap.add_argument("--chunk", type=float, default=60.0, help="--chunk-s of fusion localize, s")
     ap.add_argument("--no-resume", action="store_true", help="skip the kill + rerun check")
     ap.add_argument("--localize-args", default="",
                     help="extra options of fusion localize, one string (e.g. '--no-refine')")
@@ -142,7 +142,7 @@ def main() -> None:
     args = ap.parse_args()
     work = args.folder or Path(tempfile.mkdtemp(prefix="bench-localize-scale-"))
     work.mkdir(parents=True, exist_ok=True)
-    extra = [*args.localize_args.split(), "--chunk", str(args.chunk)]
+    extra = [*args.localize_args.split(), "--chunk-s", str(args.chunk)]
     runs, identical = [], {}
     try:
         recordings = []

@@ -47,13 +47,21 @@ import logging
 import math
 import os
 import sys
+import warnings
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 from types import ModuleType
 
 from fusion import __version__
 from fusion._notes import held_notes
-from fusion._options import DB_RANGE, MAX_OPTION_ABS, MAX_SCANS_OPTION, number  # noqa: F401 (re-exported)
+from fusion._options import (  # noqa: F401 (re-exported)
+    DB_RANGE,
+    MAX_OPTION_ABS,
+    MAX_SCANS_OPTION,
+    add_old_spellings,
+    number,
+    old_spelling_warnings,
+)
 from fusion._output import (
     STDOUT,
     Terminated,
@@ -116,6 +124,10 @@ class Parser(argparse.ArgumentParser):
         for action in self._actions:
             if not action.option_strings or isinstance(action, argparse._HelpAction):
                 continue
+            if action.help == argparse.SUPPRESS and action.default == argparse.SUPPRESS:
+                continue  # an old spelling (fusion._options.OLD_SPELLINGS): checked as the new
+            if getattr(action, "required_any", False) and getattr(ns, action.dest, None) is None:
+                self.error(f"the following arguments are required: {action.option_strings[0]}")
             value = getattr(ns, action.dest, None)
             values = value if isinstance(value, list | tuple) else [value]
             for v in values:
@@ -164,6 +176,8 @@ def _option_names(parser: argparse.ArgumentParser) -> dict[str, str]:
     """dest -> how the user wrote it (``--bearings``, or the metavar of a positional)."""
     names = {}
     for action in parser._actions:
+        if action.help == argparse.SUPPRESS and action.dest in names:
+            continue  # an old spelling: the new one names the option
         if action.option_strings:
             names[action.dest] = max(action.option_strings, key=len)
         else:
@@ -320,6 +334,7 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     for name, (_module, help_text) in COMMANDS.items():
         if name == command:
             load_command(name).register(sub)
+            add_old_spellings(sub.choices[name], name)  # hidden, warn when used
         else:
             sub.add_parser(name, help=help_text, add_help=False)
     return parser
@@ -391,6 +406,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
     try:
         with termination_as_interrupt(), held_notes(handler):  # SIGTERM, SIGHUP: like Ctrl-C
+            for line in old_spelling_warnings(args):
+                warnings.warn(line, DeprecationWarning, stacklevel=1)
             _data_on_stdout = check_paths(args, _option_names(sub.choices[args.command]))
             with _run_outputs(args):
                 return int(args.handler(args) or 0)

@@ -459,7 +459,7 @@ def test_text_named_npz(run_cli, tmp_path):
     """A text file named ``.npz``: 'not a valid .npz file', no talk of pickles."""
     p = tmp_path / "cube.npz"
     p.write_text("power,freqs\n1,2\n")
-    code, stdout, err = run_cli("acquire", "--cube", p, "--beam", "1", "--freq", "100")
+    code, stdout, err = run_cli("acquire", "--cube", p, "--beam", "1", "--freq-hz", "100")
     assert_one_line(code, err, "cube.npz: not a valid .npz file")
     assert "pickle" not in err and stdout == ""
 
@@ -473,5 +473,5 @@ def test_cube_power_must_be_real(power, dtype, run_cli, tmp_path):
     p = tmp_path / "cube.npz"
     np.savez(p, power=power, freqs=np.array([100.0, 101, 102]), scan_period=1.0, aperture=20.0,
              sound_speed=1500.0)
-    code, _, err = run_cli("acquire", "--cube", p, "--beam", "1", "--freq", "100")
+    code, _, err = run_cli("acquire", "--cube", p, "--beam", "1", "--freq-hz", "100")
     assert_one_line(code, err, "cube.npz: 'power' must hold real numbers", dtype)

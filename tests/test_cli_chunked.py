@@ -161,8 +161,8 @@ def bearing_files(tmp_path_factory):
     (1, ["--windows", "1", "--window-s", "60"], 1000),
     (2, ["--windows", "3"], 1000),  # a varied scenario
     (3, [], 41),  # fractional times, gaps, missed detections, clutter
-    (3, ["--max-gap", "25"], 1 << 16),
-    (4, ["--period", "7"], 1000),  # 2 s data averaged onto a 7 s grid
+    (3, ["--max-gap-s", "25"], 1 << 16),
+    (4, ["--period-s", "7"], 1000),  # 2 s data averaged onto a 7 s grid
 ])
 def test_crossings_streamed_equals_whole_file(tmp_path, monkeypatch, capsys, bearing_files,
                                              which, extra, rows_per_chunk):

@@ -65,7 +65,7 @@ def test_implausible_cube_scalars_are_refused(run_cli, tmp_path, cube, key, valu
     d[key] = np.array(value)
     p = tmp_path / "c.npz"
     np.savez(p, **d)
-    argv = (["acquire", "--cube", p, "--beam", 3, "--freq", 102] if command == "acquire" else
+    argv = (["acquire", "--cube", p, "--beam", 3, "--freq-hz", 102] if command == "acquire" else
             ["passive", "--cube", p, "--auto", "--out", tmp_path / "o", "--quiet"])
     _one_line_exit_2(run_cli, *argv, words=("c.npz", key, "plausible range"))
     assert not (tmp_path / "o").exists()
@@ -85,7 +85,7 @@ def test_localize_window_1e9_is_refused(run_cli, tmp_path):
     audio = write_audio(tmp_path / "a.wav", np.zeros((96000, 4)), 96000.0)
     _one_line_exit_2(run_cli, "localize", "--audio", audio, "--array",
                      _array(tmp_path / "a.json", 1500.0), "--out", tmp_path / "l.json",
-                     "--window", "1e9", "--hop", 1, "--quiet", words=("1e+09 s", "shorter window"))
+                     "--window-s", "1e9", "--hop-s", 1, "--quiet", words=("1e+09 s", "shorter window"))
     assert not (tmp_path / "l.json").exists()
 
 

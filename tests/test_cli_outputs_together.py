@@ -154,10 +154,10 @@ def test_enospc_names_the_destination_not_the_temporary(tmp_path):
     ("tqi", "--tu", "1e300"),
     ("tqi", "--n-looks", "1000000"),
     ("crossings", "--windows", "100000"),
-    ("crossings", "--horizon", "1e300"),
-    ("smooth", "--q-deg2-per-s3", "1e300"),
+    ("crossings", "--horizon-s", "1e300"),
+    ("smooth", "--accel-psd-deg2-per-s3", "1e300"),
     ("smooth", "--max-gap-scans", "1000000000"),
-    ("tma", "--q", "1e300"),
+    ("tma", "--accel-psd-m2-per-s3", "1e300"),
     ("track", "--map-memory-pings", "1000000000"),
     ("simulate", "--snr-db", "1e300"),
 ])

@@ -135,7 +135,7 @@ option_values = st.one_of(st.sampled_from(["0", "-1", "1e308", "1e-300", "nan", 
 
 @settings(max_examples=_EACH)
 @given(opts=st.dictionaries(st.sampled_from(["--snr0-db", "--snr1-db", "--n-looks", "--tl", "--tu",
-                                             "--ts", "--lh", "--sh", "--omega", "--t-err",
+                                             "--ts", "--lh", "--sh", "--omega-per-deg", "--t-err",
                                              "--residual-smoothing", "--sllr0-max"]),
                             option_values, max_size=4))
 def test_tqi_options(opts):
@@ -152,9 +152,9 @@ def test_tqi_options(opts):
 
 
 @settings(max_examples=_EACH)
-@given(opts=st.dictionaries(st.sampled_from(["--window-s", "--horizon", "--windows", "--lead",
-                                             "--confirm", "--level", "--period", "--window",
-                                             "--merge-window", "--max-gap"]),
+@given(opts=st.dictionaries(st.sampled_from(["--window-s", "--horizon-s", "--windows", "--lead",
+                                             "--confirm", "--level", "--period-s", "--window-samples",
+                                             "--merge-window-s", "--max-gap-s"]),
                             option_values, max_size=3))
 def test_crossings_options(opts):
     with tempfile.TemporaryDirectory() as d:

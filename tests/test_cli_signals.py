@@ -54,7 +54,7 @@ def test_termination_signal_removes_temporaries(recording, tmp_path, sig):
     tmp.mkdir()
     proc = subprocess.Popen(
         [sys.executable, "-m", "fusion", "localize", "--audio", recording / "audio.flac",
-         "--array", recording / "array.json", "--out", "-", "--chunk", "2", "--quiet"],
+         "--array", recording / "array.json", "--out", "-", "--chunk-s", "2", "--quiet"],
         env=_env(tmp), stdout=subprocess.PIPE, stderr=subprocess.PIPE, cwd=tmp_path)
     parts = lambda: list(tmp.glob(f"fusion-localize-{proc.pid}-*/parts/*"))  # noqa: E731
     assert _wait_for(parts), proc.communicate()

@@ -48,7 +48,7 @@ def outputs(tmp_path_factory) -> dict[str, Path]:
     f["acq"] = d / "acq.json"
     printed = io.StringIO()
     with contextlib.redirect_stdout(printed):  # acquire prints its JSON: saved, as a user would
-        assert _cli("acquire", "--cube", f["cube"], "--beam", cube.click_beam, "--freq",
+        assert _cli("acquire", "--cube", f["cube"], "--beam", cube.click_beam, "--freq-hz",
                     cube.click_freq) == 0
     f["acq"].write_text(printed.getvalue(), encoding="utf-8")
     f["freq"] = cube.click_freq  # type: ignore[assignment]
@@ -101,7 +101,7 @@ def _check_figures(out: Path, names: list[str]) -> None:
 
 
 @pytest.mark.parametrize(("result", "extra", "kind", "names"), [
-    ("acq", ("--cube", "cube", "--freq", "freq"), "acquisition", ["btr.png"]),
+    ("acq", ("--cube", "cube", "--freq-hz", "freq"), "acquisition", ["btr.png"]),
     ("tqi.csv", ("--bearings", "bearings"), "tqi", ["tqi.png", "tqi_bearing_time.png"]),
     ("alerts.csv", ("--bearings", "bearings"), "alerts",
      ["crossings.png", "crossings_bearing_time.png"]),
@@ -160,7 +160,7 @@ def _bad_inputs(outputs: dict[str, Path], tmp: Path) -> list[tuple[list[object],
         ([outputs["acq"]], "needs --cube"),
         ([tmp / "acq_nan.json", "--cube", outputs["cube"]], "finite number"),
         ([d / "tqi.csv", "--cube", outputs["cube"]], "--cube: not used for a result of fusion tqi"),
-        ([outputs["acq"], "--cube", outputs["cube"], "--freq", "5000"], "outside the band"),
+        ([outputs["acq"], "--cube", outputs["cube"], "--freq-hz", "5000"], "outside the band"),
         ([d / "tqi.csv", "--out", tmp / "a_file"], "not a folder"),
     ]
 

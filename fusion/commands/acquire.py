@@ -1,4 +1,4 @@
-"""``fusion acquire --cube C.npz --beam B --freq F``: initial bearing, bearing rate and SNR."""
+"""``fusion acquire --cube C.npz --beam B --freq-hz F``: initial bearing, bearing rate and SNR."""
 
 from __future__ import annotations
 
@@ -27,10 +27,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--cube", type=Path, required=True, help="cube .npz (power, freqs, ...)")
     p.add_argument("--beam", type=number(int, ge=0), required=True,
                    help="clicked beam (0 = forward endfire)")
-    p.add_argument("--freq", type=number(float, gt=0), required=True, help="clicked frequency, Hz")
-    p.add_argument("--lag", type=number(float, ge=0), default=0.0,
+    p.add_argument("--freq-hz", dest="freq",
+                   type=number(float, gt=0), required=True, help="clicked frequency, Hz")
+    p.add_argument("--display-lag-s", dest="lag", type=number(float, ge=0), default=0.0,
                    help="spectral integration / display lag to correct, s (default 0)")
-    p.add_argument("--ibw", type=number(float, gt=0), default=None,
+    p.add_argument("--ibw-hz", dest="ibw", type=number(float, gt=0), default=None,
                    help="initialisation bandwidth, Hz (default: the clicked bin)")
     p.add_argument("--no-normalize", action="store_true",
                    help="the cube is already normalised to unit noise mean")
@@ -69,7 +70,7 @@ def run(args: argparse.Namespace) -> int:
     df = float(np.median(np.diff(cube.freqs)))
     lo, hi = cube.freqs[0] - 0.5 * df, cube.freqs[-1] + 0.5 * df
     if not lo <= args.freq <= hi:
-        raise ValueError(f"--freq {args.freq:g} Hz is outside the band {lo:g}..{hi:g} Hz of "
+        raise ValueError(f"--freq-hz {args.freq:g} Hz is outside the band {lo:g}..{hi:g} Hz of "
                          f"{args.cube}")
     if args.min_scans is not None and args.min_scans > cube.n_scans:
         raise ValueError(f"--min-scans {args.min_scans} exceeds the {cube.n_scans} scans of "

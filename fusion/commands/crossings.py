@@ -64,7 +64,7 @@ def register(sub: argparse._SubParsersAction) -> None:
             "window cannot resolve is tried on windows 2, 4, ... times longer; no alert carries "
             "an interval wider than the horizon. Windows and horizon are in seconds; the "
             "sample period K comes from the data (dense data are averaged onto a coarser "
-            "grid, irregular data interpolated; gaps longer than --max-gap split a track). "
+            "grid, irregular data interpolated; gaps longer than --max-gap-s split a track). "
             "One line says what was chosen. Rows with track_id -1 are ignored. Defaults "
             "chosen on varied simulated scenarios (benchmarks/RESULTS.md)."
         ),
@@ -76,7 +76,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help=f"shortest least-squares window, s (default {DEFAULT_WINDOW_S:g} s or "
                         "an eighth of the median track span if shorter, at least "
                         f"{MIN_SAMPLES_PER_WINDOW} samples)")
-    p.add_argument("--horizon", type=number(float, gt=0), default=None, metavar="S",
+    p.add_argument("--horizon-s", dest="horizon", type=number(float, gt=0), default=None, metavar="S",
                    help="prediction horizon and widest interval of an alert, s "
                         f"(default {DEFAULT_HORIZON_S:g} s)")
     p.add_argument("--windows", type=number(int, ge=1, le=MAX_N_WINDOWS),
@@ -94,16 +94,18 @@ def register(sub: argparse._SubParsersAction) -> None:
                    metavar="P", help="nominal level of the fits' t_cross intervals (default "
                    f"{DEFAULT_LEVEL:g}: on varied scenarios about 95 %% of such intervals hold "
                    "the crossing, the fits' own 95 %% too few because tracks curve)")
-    p.add_argument("--period", "-K", type=number(float, gt=0), default=None, metavar="K",
+    p.add_argument("--period-s", "-K", dest="period", type=number(float, gt=0), default=None, metavar="K",
                    help="grid period K, s (default: the median time step within tracks, "
                         "coarser if the window would hold more than "
                         f"{MAX_SAMPLES_PER_WINDOW} samples)")
-    p.add_argument("--window", "-J", type=number(int, ge=3, le=MAX_SCANS_OPTION), default=None, metavar="J",
+    p.add_argument("--window-samples", "-J", dest="window",
+                   type=number(int, ge=3, le=MAX_SCANS_OPTION), default=None, metavar="J",
                    help="samples in the shortest window, > 2 (replaces --window-s)")
-    p.add_argument("--merge-window", type=number(float, gt=0), default=None, metavar="S",
+    p.add_argument("--merge-window-s", dest="merge_window",
+                   type=number(float, gt=0), default=None, metavar="S",
                    help="alerts of a pair whose t_cross differ by <= S s, or whose intervals "
                         "overlap, are one event (default: the window)")
-    p.add_argument("--max-gap", type=number(float, gt=0), default=None, metavar="S",
+    p.add_argument("--max-gap-s", dest="max_gap", type=number(float, gt=0), default=None, metavar="S",
                    help="a gap longer than S s splits a track (default 3*K)")
     p.add_argument("--quiet", action="store_true",
                    help="no progress bar (none either when standard error is not a terminal)")
@@ -144,7 +146,7 @@ def _check_spans(args: argparse.Namespace, st: CrossingSettings, spans_s: np.nda
     n_samples = np.floor(np.asarray(spans_s) / st.period_s + 1e-9).astype(int) + 1
     if np.sum(n_samples >= st.J) < 2:
         raise ValueError(
-            f"{args.bearings}: fewer than two tracks span --window J={st.J} samples at "
+            f"{args.bearings}: fewer than two tracks span --window-samples J={st.J} samples at "
             f"K={st.period_s:g} s (longest: {int(n_samples.max())}); no crossing can be tested"
         )
 

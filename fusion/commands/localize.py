@@ -10,7 +10,7 @@ warning), a sample-rate mismatch is an error. A progress bar shows on a terminal
 turns it off).
 
 Long recordings (:mod:`fusion.pipelines.click_chunks`, :mod:`fusion.scale`): the windows are
-processed in chunks of ``--chunk`` seconds of consecutive windows (default 60); each chunk's task
+processed in chunks of ``--chunk-s`` seconds of consecutive windows (default 60); each chunk's task
 reads its own audio (its windows, one neighbour window on each side and the detector's guards)
 from the file(s) with soundfile and localizes its windows, and the chunks are stitched in order.
 Memory does not grow with the length of the recording. By default the chunks run one after the
@@ -69,7 +69,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "localize",
         help="localize clicking sources (whales) from multichannel audio",
         description="Detect clicks, measure, validate and associate TDOAs, localize sources.",
-        epilog="Long recordings are read in blocks and processed in chunks of --chunk seconds: "
+        epilog="Long recordings are read in blocks and processed in chunks of --chunk-s seconds: "
                "serially in this process by default, on Dask with --workers or --scheduler (the "
                "output is the same byte for byte). Finished chunks are kept in OUT.parts/ "
                "beside the output; after an interruption, run the same command again to resume. "
@@ -84,13 +84,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--array", type=Path, required=True, help="array JSON (sensors, sound speed)")
     p.add_argument("--out", type=Path, required=True,
                    help="result JSON (a folder of them for a folder of recordings)")
-    p.add_argument("--window", type=number(float, gt=0), default=12.0,
+    p.add_argument("--window-s", dest="window", type=number(float, gt=0), default=12.0,
                    help="processing window, s (default 12)")
-    p.add_argument("--hop", type=number(float, gt=0), default=2.0,
+    p.add_argument("--hop-s", dest="hop", type=number(float, gt=0), default=2.0,
                    help="update period, s (default 2)")
-    p.add_argument("--band", type=number(float, gt=0), nargs=2, metavar=("LOW", "HIGH"),
+    p.add_argument("--band-hz", dest="band", type=number(float, gt=0), nargs=2, metavar=("LOW", "HIGH"),
                    default=(14000.0, 40000.0), help="click detection band, Hz (default 14000 40000)")
-    p.add_argument("--min-centre-freq", type=number(float, ge=0), default=20000.0,
+    p.add_argument("--min-centre-freq-hz", dest="min_centre_freq", type=number(float, ge=0), default=20000.0,
                    help="smallest click centre frequency (eq. 2), Hz (default 20000)")
     p.add_argument("--detect-threshold", type=number(float, gt=0), default=None,
                    help="click detection threshold on the normalised band power (default: the "
@@ -135,7 +135,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="CSV t_start,t_end[,f_low,f_high] of events found by another detector: "
                         "localize each event from band-passed waveform cross-correlation "
                         "instead of detecting clicks")
-    p.add_argument("--chunk", type=number(float, gt=0), default=60.0,
+    p.add_argument("--chunk-s", dest="chunk", type=number(float, gt=0), default=60.0,
                    help="audio per task, s: consecutive windows processed (and recorded for "
                         "resuming) together (default 60)")
     where = p.add_mutually_exclusive_group()
@@ -255,16 +255,16 @@ def run(args: argparse.Namespace) -> int:
     from fusion.scale import PartStore, dask_client, progress, run_tasks
 
     if args.hop > args.window:
-        raise ValueError(f"--hop {args.hop} is longer than --window {args.window}")
+        raise ValueError(f"--hop-s {args.hop} is longer than --window-s {args.window}")
     lo, hi = args.band
     if not lo < hi:
-        raise ValueError(f"--band: low edge {lo} must be below the high edge {hi}")
+        raise ValueError(f"--band-hz: low edge {lo} must be below the high edge {hi}")
     array = read_array(args.array)
     recordings = _recordings(args, array.n_sensors)
     for source, _ in recordings:
         if hi >= source.fs / 2:
             raise ValueError(f"{source.paths[0]}: sample rate {source.fs:g} Hz is too low for the "
-                             f"click band up to {hi:g} Hz (needs > {2 * hi:g} Hz; see --band)")
+                             f"click band up to {hi:g} Hz (needs > {2 * hi:g} Hz; see --band-hz)")
     det_opts = {"band_hz": (lo, hi), "min_centre_freq_hz": args.min_centre_freq}
     if args.detect_threshold is not None:
         det_opts["threshold"] = args.detect_threshold

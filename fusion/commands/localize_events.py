@@ -41,10 +41,12 @@ __all__ = ["add_event_options", "event_document", "read_events", "run_events"]
 def add_event_options(parser: argparse.ArgumentParser) -> None:
     """Add the options of the event mode (all optional, each with the library's default)."""
     g = parser.add_argument_group("events (--events)")
-    g.add_argument("--event-band-floor", type=number(float, gt=0), default=10.0, metavar="HZ",
+    g.add_argument("--event-band-floor-hz", dest="event_band_floor",
+                   type=number(float, gt=0), default=10.0, metavar="HZ",
                    help="lowest band edge of an event, Hz; a zero f_low is raised to it "
                         "(default 10)")
-    g.add_argument("--event-default-band", type=number(float, gt=0), nargs=2, default=None,
+    g.add_argument("--event-default-band-hz", dest="event_default_band",
+                   type=number(float, gt=0), nargs=2, default=None,
                    metavar=("LOW", "HIGH"),
                    help="band of an event without f_low/f_high whose band cannot be estimated "
                         "(default: the band floor to 0.45 of the sample rate)")
@@ -127,10 +129,10 @@ def run_events(args: argparse.Namespace) -> int:
     floor = float(getattr(args, "event_band_floor", 10.0))
     default_band = getattr(args, "event_default_band", None)
     if default_band is not None and not default_band[0] < default_band[1]:
-        raise ValueError(f"--event-default-band: low edge {default_band[0]:g} must be below the "
+        raise ValueError(f"--event-default-band-hz: low edge {default_band[0]:g} must be below the "
                          f"high edge {default_band[1]:g}")
     if floor >= 0.45 * fs:
-        raise ValueError(f"--event-band-floor {floor:g} Hz is above 0.45 of the sample rate "
+        raise ValueError(f"--event-band-floor-hz {floor:g} Hz is above 0.45 of the sample rate "
                          f"{fs:g} Hz")
     localizer = EventLocalizer(
         band_floor_hz=floor,

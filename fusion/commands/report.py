@@ -36,11 +36,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     extra = p.add_argument_group("extra inputs (where a figure needs them)")
     extra.add_argument("--cube", type=Path, default=None,
                        help="acquire: the cube .npz it read (required for its BTR)")
-    extra.add_argument("--freq", type=number(float, gt=0), default=None,
+    extra.add_argument("--freq-hz", dest="freq", type=number(float, gt=0), default=None,
                        help="acquire: the clicked frequency, Hz (default: the bin with the "
                             "strongest line)")
-    extra.add_argument("--lag", type=number(float, ge=0), default=0.0,
-                       help="acquire: the --lag it was given, s (default 0)")
+    extra.add_argument("--display-lag-s", dest="lag", type=number(float, ge=0), default=0.0,
+                       help="acquire: the --display-lag-s it was given, s (default 0)")
     extra.add_argument("--bearings", type=Path, default=None,
                        help="crossings/smooth/tqi: bearings CSV track_id,time,bearing_deg (the "
                             "tracks the alerts or states belong to, or the raw input)")

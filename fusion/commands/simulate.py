@@ -40,8 +40,6 @@ def register(sub: argparse._SubParsersAction) -> None:
                              "the default (or, with --vary, drawn) values")
     g.add_argument("--duration-s", dest="duration_s", type=number(float, gt=0), default=None,
                    metavar="SECONDS", help="audio length, s (default 30)")
-    g.add_argument("--duration", dest="duration_s", type=number(float, gt=0), default=None,
-                   help=argparse.SUPPRESS)
     g.add_argument("--whales", type=number(int, ge=1), default=None, metavar="N",
                    help="number of whales, 1-5 (default 2)")
     g.add_argument("--sensors", type=number(int, ge=1), default=None, metavar="N",

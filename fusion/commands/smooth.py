@@ -42,10 +42,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--bearings", type=Path, required=True, help="input CSV track_id,time,bearing_deg")
     p.add_argument("--out", type=Path, required=True, help="output CSV")
-    p.add_argument("--sigma-bearing-deg", type=number(float, gt=0), default=None,
+    p.add_argument("--bearing-sigma-deg", dest="sigma_bearing_deg", type=number(float, gt=0), default=None,
                    help="bearing measurement standard deviation, deg (default: estimated from "
                         "the scatter of the detections)")
-    p.add_argument("--q-deg2-per-s3", type=number(float, gt=0), default=None,
+    p.add_argument("--accel-psd-deg2-per-s3", dest="q_deg2_per_s3", type=number(float, gt=0), default=None,
                    help="bearing acceleration PSD, deg^2/s^3 (default: estimated from the "
                         "changes of the bearing rate along tracks, checked against the "
                         "growth of second differences with the lag)")
@@ -53,10 +53,11 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="loss on the bearing factors of labelled tracks (default huber)")
     p.add_argument("--clutter-density", type=number(float, gt=0), default=None,
                    help="false detections per scan per radian (default: estimated)")
-    p.add_argument("--p-detect", type=number(float, gt=0, le=1), default=None,
+    p.add_argument("--detection-probability", dest="p_detect", type=number(float, gt=0, le=1), default=None,
                    help="probability that a track is detected in a scan, (0, 1] (default: "
                         "estimated)")
-    p.add_argument("--init-sigma-rate-deg-per-s", type=number(float, gt=0), default=None,
+    p.add_argument("--init-rate-sigma-deg-per-s", dest="init_sigma_rate_deg_per_s",
+                   type=number(float, gt=0), default=None,
                    help="bearing-rate standard deviation of a new track, deg/s (default: "
                         "estimated)")
     p.add_argument("--max-misses", type=number(int, ge=1, le=MAX_SCANS_OPTION), default=None,
@@ -129,7 +130,7 @@ def run(args: argparse.Namespace) -> int:
         bar.close()
         first = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
         raise ValueError(f"{args.bearings}: the smoothing graph is ill-conditioned ({first}); "
-                         "a larger --q-deg2-per-s3 or --sigma-bearing-deg may help") from None
+                         "a larger --accel-psd-deg2-per-s3 or --bearing-sigma-deg may help") from None
     bar.close()
     to_360 = bool(np.all(bearing_deg >= 0))
     cols: dict[str, list[np.ndarray]] = {k: [] for k in (

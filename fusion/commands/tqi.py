@@ -70,7 +70,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     t.add_argument("--no-hysteresis", action="store_true",
                    help="single thresholds (LH = SH = 0 in the decision flow)")
     r = p.add_argument_group("residual test")
-    r.add_argument("--omega", type=number(float, gt=0), default=0.25,
+    r.add_argument("--omega-per-deg", dest="omega", type=number(float, gt=0), default=0.25,
                    help="error-detector angular centre frequency Omega, 1/deg (0.25)")
     r.add_argument("--t-err", type=number(float, ge=0), default=3.0, help="residual threshold constant (3.0)")
     r.add_argument("--residual-smoothing", type=number(float, gt=0, le=1), default=0.1,

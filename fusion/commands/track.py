@@ -6,9 +6,9 @@ and writes one row per track per event:
 ``track_id,event,time,x,y,vx,vy,status``. Clue columns absent from the file leave the rules that
 read them out of the rank; the command says so once on stderr. With ``src_x, src_y, rcv_x, rcv_y``
 each detection's position error is the bistatic error ellipse propagated from the range-sum and
-bearing accuracies, learnt per receiver from the data starting from ``--range-sum-sigma`` and
-``--bearing-sigma`` (``--noise fixed``: those values for every receiver); without them (e.g.
-radar), or with ``--position-errors isotropic``, it is ``--position-sigma`` per axis. The
+bearing accuracies, learnt per receiver from the data starting from ``--range-sum-sigma-m`` and
+``--bearing-sigma-deg`` (``--noise fixed``: those values for every receiver); without them (e.g.
+radar), or with ``--position-errors isotropic``, it is ``--position-sigma-m`` per axis. The
 equivalent aspect angle comes from each track's heading and the source/receiver positions; an
 ``aspect_deg`` column is used only with ``--aspect-column measured`` (nothing in a file says how
 it was obtained). With ``--smooth`` each confirmed track is refined with all of its detections on
@@ -82,9 +82,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="association: fuzzy rank (default) or Kalman likelihood alone")
     p.add_argument("--rules", type=Path, default=None,
                    help="fuzzy system JSON file (default: the built-in rule base, its hotspot "
-                        "'near' from --hotspot-near)")
+                        "'near' from --hotspot-near-m)")
     g = p.add_argument_group("scales (default: read from the detections)")
-    g.add_argument("--position-sigma", type=number(float, gt=0), default=None, metavar="M",
+    g.add_argument("--position-sigma-m", dest="position_sigma",
+                   type=number(float, gt=0), default=None, metavar="M",
                    help="position error of a detection per axis, m, for detections without "
                         "source/receiver positions (default: the scatter of straight-line "
                         "triplets of detections)")
@@ -92,23 +93,26 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="standard deviation of each velocity component of a new track, m/s "
                         "(default: half the 90th percentile speed of objects seen moving; 3 "
                         "when too few are)")
-    g.add_argument("--accel-psd", type=number(float, ge=0), default=None, metavar="Q",
+    g.add_argument("--accel-psd-m2-per-s3", dest="accel_psd",
+                   type=number(float, ge=0), default=None, metavar="Q",
                    help="white-acceleration spectral density, m^2/s^3 (default: "
                         "speed_sigma^2 / (2.5 scan periods))")
     g.add_argument("--init-exclusion-m", type=number(float, ge=0), default=None, metavar="M",
                    help="detections this close to a hotspot region start no track, m (default: "
                         "the position sigma)")
-    g.add_argument("--hotspot-near", type=number(float, ge=0), nargs=2, default=None,
+    g.add_argument("--hotspot-near-m", dest="hotspot_near", type=number(float, ge=0), nargs=2, default=None,
                    metavar=("FULL", "NONE"),
                    help="distances to a hotspot where the rule 'near' is 1 and 0, m (default: "
                         "1 and 5 position sigmas)")
-    g.add_argument("--feature-sigma", type=number(float, ge=0), default=None, metavar="M",
+    g.add_argument("--feature-sigma-m", dest="feature_sigma",
+                   type=number(float, ge=0), default=None, metavar="M",
                    help="spread of a clutter feature's echoes per axis, m, for the density "
                         "clutter map (default: 0.3 position sigma)")
-    g.add_argument("--intensity-bandwidth", type=number(float, gt=0), default=None, metavar="M",
+    g.add_argument("--intensity-bandwidth-m", dest="intensity_bandwidth",
+                   type=number(float, gt=0), default=None, metavar="M",
                    help="kernel of the clutter intensity of the track score, m (default: 10 "
                         "position sigmas)")
-    g.add_argument("--max-speed", type=number(float, gt=0), default=30.0, metavar="V",
+    g.add_argument("--max-speed-mps", dest="max_speed", type=number(float, gt=0), default=30.0, metavar="V",
                    help="fastest plausible object, m/s: how far the settings look for the "
                         "next detection of an object (default 30)")
     g.add_argument("--fit-pings", type=number(int, ge=3, le=MAX_SCANS_OPTION), default=FIT_PINGS, metavar="N",
@@ -116,17 +120,17 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--position-errors", choices=("geometry", "isotropic"), default="geometry",
                    help="position error of detections with src_x,src_y,rcv_x,rcv_y: bistatic "
                         "error ellipse from range-sum and bearing accuracies (default) or "
-                        "--position-sigma per axis")
-    p.add_argument("--range-sum-sigma", type=number(float, gt=0), default=100.0,
+                        "--position-sigma-m per axis")
+    p.add_argument("--range-sum-sigma-m", dest="range_sum_sigma", type=number(float, gt=0), default=100.0,
                    help="bistatic range-sum accuracy (standard deviation), m: the start of the "
                         "per-receiver estimate, or the value itself with --noise fixed "
                         "(default 100)")
-    p.add_argument("--bearing-sigma", type=number(float, gt=0), default=1.5,
+    p.add_argument("--bearing-sigma-deg", dest="bearing_sigma", type=number(float, gt=0), default=1.5,
                    help="receiver bearing accuracy (standard deviation), deg; as "
-                        "--range-sum-sigma (default 1.5)")
+                        "--range-sum-sigma-m (default 1.5)")
     p.add_argument("--noise", choices=("estimate", "fixed"), default="estimate",
                    help="range-sum and bearing accuracies: learnt per receiver from echoes that "
-                        "recur (default) or --range-sum-sigma/--bearing-sigma for all")
+                        "recur (default) or --range-sum-sigma-m/--bearing-sigma-deg for all")
     p.add_argument("--aspect-column", choices=("ignored", "measured"), default="ignored",
                    help="an aspect_deg column is ignored (default: the aspect comes from the "
                         "track heading and the source/receiver positions) or used as a "
@@ -149,7 +153,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--clutter-density", type=number(float, gt=0), default=None,
                    help="clutter detections per m^2 per ping and receiver, for the track score "
                         "(default: estimated over the field from the detections)")
-    p.add_argument("--min-speed", type=number(float, ge=0), default=0.5,
+    p.add_argument("--min-speed-mps", dest="min_speed", type=number(float, ge=0), default=0.5,
                    help="speeds up to this count as standing still in the motion test, m/s "
                         "(default 0.5)")
     p.add_argument("--motion-probability", type=number(float, gt=0, le=0.999999), default=0.999,
@@ -184,7 +188,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--clutter-map", choices=("density", "grid"), default="density",
                    help="clutter map: recurrence judged with each detection's own error "
                         "ellipse (default) or counted in fixed grid cells")
-    p.add_argument("--hotspot-cell", type=number(float, gt=0), default=150.0,
+    p.add_argument("--hotspot-cell-m", dest="hotspot_cell", type=number(float, gt=0), default=150.0,
                    help="--clutter-map grid: cell size, m (default 150)")
     p.add_argument("--map-memory-pings", type=number(int, ge=2, le=MAX_SCANS_OPTION),
                    default=MAP_MEMORY_PINGS,
@@ -231,11 +235,11 @@ class _Summary:
                     f"(at most {most} of {self.pings} pings; {len(self.hits)} tracks started): "
                     f"the detections do not recur along a path inside the gates (position "
                     f"sigma {st.position_sigma_m:.3g} m, speed sigma "
-                    f"{st.speed_sigma_mps:.3g} m/s; see --position-sigma, --speed-sigma-mps)")
+                    f"{st.speed_sigma_mps:.3g} m/s; see --position-sigma-m, --speed-sigma-mps)")
         held = sum(h >= m for h in self.hits.values())
         why = []
         if not args.confirm_stationary and args.mode == "fuzzy":
-            why.append(f"their detections did not move faster than --min-speed "
+            why.append(f"their detections did not move faster than --min-speed-mps "
                        f"{args.min_speed:g} m/s significantly (stationary hold; "
                        "--confirm-stationary)")
             if not args.keep_platform_fixed:
@@ -367,7 +371,7 @@ def run(args: argparse.Namespace) -> int:
     if args.confirm[0] > args.confirm[1]:
         raise ValueError(f"--confirm: M must not exceed N, got {args.confirm[0]} {args.confirm[1]}")
     if args.smooth and args.accel_psd is not None and args.accel_psd <= 0:
-        raise ValueError("--smooth needs --accel-psd > 0")
+        raise ValueError("--smooth needs --accel-psd-m2-per-s3 > 0")
     system = None
     if args.mode == "fuzzy" and args.rules is not None:
         from fusion.active.fuzzy import load_system

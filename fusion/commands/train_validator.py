@@ -3,7 +3,7 @@
 The validator (step 50, eq. 7-11 of *Localization of Short Duration Periodic Signals*) is a
 Gaussian-mixture likelihood ratio over SCM2 features. This command runs the click front end
 without validation on labelled recordings, labels each candidate TDOA valid when it lies within
-``--tolerance`` of a labelled TDOA of its pair at the window centre (else invalid), and fits the
+``--tolerance-s`` of a labelled TDOA of its pair at the window centre (else invalid), and fits the
 two mixtures; the model is written as plain arrays (npz, never pickle) for
 ``fusion localize --validator``. ``--replica-out`` also re-estimates the click replica from the
 recordings' detected clicks (step 32: align at the correlator peak, average, repeat).
@@ -47,7 +47,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", type=Path, required=True, help="validator model .npz")
     p.add_argument("--replica-out", type=Path, default=None,
                    help="also write a replica re-estimated from the recordings' clicks (.npz)")
-    p.add_argument("--tolerance", type=number(float, gt=0), default=3e-3,
+    p.add_argument("--tolerance-s", dest="tolerance", type=number(float, gt=0), default=3e-3,
                    help="largest |tau - label| of a valid candidate's smoothed-click-map "
                         "delay, s (default 0.003, about the SCM pulse half-width)")
     p.add_argument("--components", type=number(int, ge=1), default=None,
@@ -56,8 +56,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="false-accept rate of invalid candidates that sets the threshold "
                         "(default 0.02)")
     p.add_argument("--seed", type=number(int, ge=0), default=0, help="fitting seed (default 0)")
-    p.add_argument("--window", type=number(float, gt=0), default=12.0, help="window, s")
-    p.add_argument("--hop", type=number(float, gt=0), default=2.0, help="update period, s")
+    p.add_argument("--window-s", dest="window", type=number(float, gt=0), default=12.0, help="window, s")
+    p.add_argument("--hop-s", dest="hop", type=number(float, gt=0), default=2.0, help="update period, s")
     p.add_argument("--quiet", action="store_true",
                    help="no progress bar (none either when standard error is not a terminal)")
     p.set_defaults(handler=run, inputs=("recording", "audio", "array", "labels"),

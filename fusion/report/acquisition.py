@@ -80,7 +80,7 @@ def btr_bin(cube: Cube, freq_hz: float | None) -> int:
         return int(np.argmax(contrast))
     df = float(np.median(np.diff(f))) if f.size > 1 else 0.0
     if not f[0] - 0.5 * df <= freq_hz <= f[-1] + 0.5 * df:
-        raise ValueError(f"--freq {freq_hz:g} Hz is outside the band {f[0] - 0.5 * df:g}.."
+        raise ValueError(f"--freq-hz {freq_hz:g} Hz is outside the band {f[0] - 0.5 * df:g}.."
                          f"{f[-1] + 0.5 * df:g} Hz of the cube")
     return int(np.argmin(np.abs(f - freq_hz)))
 
@@ -104,7 +104,7 @@ def acquisition_figure(cube: Cube, result: Mapping[str, float | bool], *, freq_h
     freq_hz : float or None, keyword-only
         The clicked frequency, Hz (``None``: see :func:`btr_bin`).
     lag_s : float, keyword-only
-        The ``--lag`` of the acquisition, s: the reported bearing is the line's bearing
+        The ``--display-lag-s`` of the acquisition, s: the reported bearing is the line's bearing
         ``lag_s`` after the latest scan.
     title : str, keyword-only
 

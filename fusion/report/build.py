@@ -49,7 +49,7 @@ class ReportInputs:
     freq_hz : float, optional
         Clicked frequency of an acquisition, Hz.
     lag_s : float
-        ``--lag`` of the acquisition, s.
+        ``--display-lag-s`` of the acquisition, s.
     bearings : pathlib.Path, optional
         ``track_id,time,bearing_deg`` CSV (input of crossings/smooth, bearings of tqi tracks).
     alerts : pathlib.Path, optional
@@ -96,7 +96,8 @@ USES: dict[str, frozenset[str]] = {
 }
 
 #: Option name of each extra input (for messages).
-OPTION = {"cube": "--cube", "freq_hz": "--freq", "lag_s": "--lag", "bearings": "--bearings",
+OPTION = {"cube": "--cube", "freq_hz": "--freq-hz", "lag_s": "--display-lag-s",
+          "bearings": "--bearings",
           "alerts": "--alerts", "detections": "--detections", "ownship": "--ownship",
           "array": "--array"}
 

@@ -195,7 +195,7 @@ def write_scenario(out_dir: Path, *, seed: int, vary: bool = False) -> list[Path
     """Write a high bearing-rate cube scenario: ``cube.npz`` and ``truth.json``.
 
     The scenario (a 35 deg/min line at 6 dB per-bin SNR, start bearing drawn from the seed) is the
-    input of ``fusion acquire --cube cube.npz --beam B --freq F`` with the click in ``truth.json``.
+    input of ``fusion acquire --cube cube.npz --beam B --freq-hz F`` with the click in ``truth.json``.
 
     Parameters
     ----------

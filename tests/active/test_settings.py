@@ -190,7 +190,7 @@ def test_cli_says_why_nothing_confirmed(tmp_path, run_cli):
     write_table(tmp_path / "s.csv", {"event": np.arange(n), "time": 2.0 * np.arange(n),
                                      "x": rng.normal(0, 3, n), "y": rng.normal(0, 3, n)})
     code, _, err = run_cli("track", "--detections", tmp_path / "s.csv", "--out",
-                           tmp_path / "s_t.csv", "--position-sigma", "3")
+                           tmp_path / "s_t.csv", "--position-sigma-m", "3")
     assert code == 0, err
     why = [ln for ln in err.splitlines() if "no track confirmed" in ln]
-    assert len(why) == 1 and "held tentative" in why[0] and "--min-speed" in why[0]
+    assert len(why) == 1 and "held tentative" in why[0] and "--min-speed-mps" in why[0]

@@ -234,5 +234,5 @@ def test_cli_smooth_appends_sigmas(tmp_path, run_cli):
     assert changed.any()
     assert set(np.unique(plain["track_id"][changed])) <= set(result.confirmed_ids().tolist())
     code, _, err = run_cli("track", "--detections", tmp_path / "d.csv", "--out",
-                           tmp_path / "bad.csv", "--smooth", "--accel-psd", "0")
-    assert code == 2 and "--accel-psd" in err
+                           tmp_path / "bad.csv", "--smooth", "--accel-psd-m2-per-s3", "0")
+    assert code == 2 and "--accel-psd-m2-per-s3" in err

@@ -568,7 +568,7 @@ def test_position_error_options_rejected():
 
 def test_cli_position_error_flags(tmp_path, run_cli):
     """fusion track --position-errors isotropic differs from the default geometry errors on
-    data with source/receiver columns; --range-sum-sigma / --bearing-sigma are used."""
+    data with source/receiver columns; --range-sum-sigma-m / --bearing-sigma-deg are used."""
     sc = simulate_multistatic(seed=3)
     d = sc.detections
     src = tmp_path / "d.csv"
@@ -576,7 +576,7 @@ def test_cli_position_error_flags(tmp_path, run_cli):
                                         "aspect_deg", "src_x", "src_y", "rcv_x", "rcv_y")})
     outs = {}
     for name, extra in (("geo", ()), ("iso", ("--position-errors", "isotropic")),
-                        ("sig", ("--range-sum-sigma", "60", "--bearing-sigma", "2"))):
+                        ("sig", ("--range-sum-sigma-m", "60", "--bearing-sigma-deg", "2"))):
         out = tmp_path / f"{name}.csv"
         code, _, _ = run_cli("track", "--detections", src, "--out", out, *extra)
         assert code == 0
@@ -584,8 +584,8 @@ def test_cli_position_error_flags(tmp_path, run_cli):
     assert not np.array_equal(outs["geo"], outs["iso"])
     assert not np.array_equal(outs["geo"], outs["sig"])
     code, _, err = run_cli("track", "--detections", src, "--out", tmp_path / "b.csv",
-                           "--bearing-sigma", "-1")
-    assert code == 2 and "--bearing-sigma" in err
+                           "--bearing-sigma-deg", "-1")
+    assert code == 2 and "--bearing-sigma-deg" in err
 
 
 # ------------------------------------------------------------------------------------------
@@ -663,7 +663,7 @@ def test_cli_confirm_stationary_flag(tmp_path, run_cli):
     write_table(src, rows)
     for flag, out in (((), "a.csv"), (("--confirm-stationary",), "b.csv")):
         code, _, _ = run_cli("track", "--detections", src, "--out", tmp_path / out,
-                             "--hotspot-cell", "1", *flag)
+                             "--hotspot-cell-m", "1", *flag)
         assert code == 0
     a = read_table(tmp_path / "a.csv", required=("status",), text=("status",))
     b = read_table(tmp_path / "b.csv", required=("status",), text=("status",))

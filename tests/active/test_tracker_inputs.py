@@ -112,7 +112,7 @@ def test_cli_options(tmp_path, run_cli):
     runs = {
         "default": ((), {}),
         "measured": (("--aspect-column", "measured"), {"aspect": "measured"}),
-        "mofn": (("--no-track-score", "--min-speed", "0"), {"confirm_llr": None,
+        "mofn": (("--no-track-score", "--min-speed-mps", "0"), {"confirm_llr": None,
                                                             "min_speed_mps": 0.0}),
         "fixed": (("--noise", "fixed", "--detection-probability", "0.8",
                    "--clutter-density", "1e-7"),
@@ -126,5 +126,5 @@ def test_cli_options(tmp_path, run_cli):
         want = Tracker(**{**fitted, **kw}).run(table).columns()
         assert_allclose(got["x"], want["x"], rtol=1e-6, atol=1e-3)
     code, _, err = run_cli("track", "--detections", src, "--out", tmp_path / "g.csv",
-                           "--clutter-map", "grid", "--hotspot-cell", "120")
+                           "--clutter-map", "grid", "--hotspot-cell-m", "120")
     assert code == 0, err

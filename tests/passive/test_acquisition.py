@@ -546,7 +546,7 @@ class TestCli:
         sc = simulate_cube(seed=10, bearing0_deg=60.0, bearing_rate_deg_per_min=30.0, snr_db=10.0)
         write_cube(tmp_path / "c.npz", sc.cube)
         code, out, err = run_cli("acquire", "--cube", tmp_path / "c.npz", "--beam", sc.click_beam,
-                                 "--freq", sc.click_freq, "--lag", "1.0")
+                                 "--freq-hz", sc.click_freq, "--display-lag-s", "1.0")
         assert code == 0, err
         got = json.loads(out)
         assert sorted(got) == ["bearing_deg", "bearing_rate_deg_per_min", "default_used", "snr_db"]
@@ -563,7 +563,7 @@ class TestCli:
         sc = simulate_cube(seed=12, bearing0_deg=50.0, bearing_rate_deg_per_min=35.0, snr_db=8.0)
         write_cube(tmp_path / "c.npz", sc.cube)
         code, out, err = run_cli("acquire", "--cube", tmp_path / "c.npz", "--beam", sc.click_beam,
-                                 "--freq", sc.click_freq, *args)
+                                 "--freq-hz", sc.click_freq, *args)
         assert code == 0, err
         want = Acquisition(**options).acquire(sc.cube, beam=sc.click_beam, freq_hz=sc.click_freq)
         assert json.loads(out) == pytest.approx(want.to_json(), rel=1e-12)
@@ -574,12 +574,12 @@ class TestCli:
         """--rate-at without --trace beam: exit 2 with one line naming the option."""
         write_cube(tmp_path / "c.npz", simulate_cube(seed=11).cube)
         code, out, err = run_cli("acquire", "--cube", tmp_path / "c.npz", "--beam", "3",
-                                 "--freq", "300", "--rate-at", "latest")
+                                 "--freq-hz", "300", "--rate-at", "latest")
         assert code == 2 and out == ""
         assert len(err.strip().splitlines()) == 1 and "--rate-at" in err
 
-    @pytest.mark.parametrize("args", [("--beam", "99", "--freq", "300"),
-                                      ("--beam", "3", "--freq", "5")])
+    @pytest.mark.parametrize("args", [("--beam", "99", "--freq-hz", "300"),
+                                      ("--beam", "3", "--freq-hz", "5")])
     def test_bad_click_exit_2(self, tmp_path, run_cli, args):
         """A click outside the cube: exit 2, one line on stderr, nothing on stdout."""
         write_cube(tmp_path / "c.npz", simulate_cube(seed=11).cube)
@@ -590,5 +590,5 @@ class TestCli:
     def test_missing_file_exit_2(self, tmp_path, run_cli):
         """A missing cube: exit 2, one line."""
         code, out, err = run_cli("acquire", "--cube", tmp_path / "no.npz", "--beam", "1",
-                                 "--freq", "300")
+                                 "--freq-hz", "300")
         assert code == 2 and len(err.strip().splitlines()) == 1

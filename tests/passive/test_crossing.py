@@ -463,8 +463,8 @@ def test_cli_no_alerts_writes_header_only(tmp_path):
         ("track_id,time\n1,0\n", [], "missing required column"),
         ("track_id,time,bearing_deg\n1,0,abc\n", [], "not a number"),
         ("track_id,time,bearing_deg\n1,0,1\n1,1,2\n", [], "two tracks"),
-        ("track_id,time,bearing_deg\n1,0,1\n2,0,2\n", ["-J", "2"], "--window"),
-        ("track_id,time,bearing_deg\n1,0,1\n2,0,2\n", ["--period", "-3"], "--period"),
+        ("track_id,time,bearing_deg\n1,0,1\n2,0,2\n", ["-J", "2"], "--window-samples"),
+        ("track_id,time,bearing_deg\n1,0,1\n2,0,2\n", ["--period-s", "-3"], "--period-s"),
     ],
 )
 def test_cli_bad_input_exit_2_one_line(tmp_path, capsys, content, extra, match):

@@ -205,7 +205,7 @@ def test_cli_prints_and_writes_settings(run_cli, tmp_path):
         for ti, zi in zip(t, np.degrees(z), strict=True):
             w.writerow([-1, ti, zi])
     code, out, err = run_cli("smooth", "--bearings", src, "--out", tmp_path / "s.csv",
-                             "--q-deg2-per-s3", "1e-4")
+                             "--accel-psd-deg2-per-s3", "1e-4")
     assert code == 0, err
     lines = [ln for ln in out.splitlines() if ln.startswith("fusion smooth:")]
     assert len(lines) == 1 and "sigma" in lines[0] and "(est.)" in lines[0]

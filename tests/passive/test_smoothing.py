@@ -223,7 +223,7 @@ def test_cli_smooth(tmp_path):
     src.write_text("\n".join(lines) + "\n")
     out = tmp_path / "s.csv"
     assert main(["smooth", "--bearings", str(src), "--out", str(out),
-                 "--sigma-bearing-deg", str(np.degrees(SIG))]) == 0
+                 "--bearing-sigma-deg", str(np.degrees(SIG))]) == 0
     head, *rows = out.read_text().splitlines()
     assert head == "track_id,time,bearing_deg,bearing_rate_deg_per_min,sigma_bearing_deg"
     tids = {int(r.split(",")[0]) for r in rows}

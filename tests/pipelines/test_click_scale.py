@@ -46,7 +46,7 @@ def recording(tmp_path_factory) -> Path:
 def _args(rec: Path, out: Path, *extra: str, chunk: float = 4.0) -> list[str]:
     """5 windows of 12 s every 2 s; by default chunks of 2 windows (3 tasks, the last short)."""
     return ["localize", "--audio", str(rec / "audio.flac"), "--array", str(rec / "array.json"),
-            "--out", str(out), "--chunk", str(chunk), "--quiet", *extra]
+            "--out", str(out), "--chunk-s", str(chunk), "--quiet", *extra]
 
 
 @pytest.fixture(scope="module")
@@ -167,7 +167,7 @@ def test_folder_of_recordings_on_dask(recording, serial_bytes, cluster, tmp_path
     (folder / "notes.txt").write_text("not audio", encoding="utf-8")
     out = tmp_path / "results"
     argv = ["localize", "--audio", str(folder), "--array", str(recording / "array.json"),
-            "--out", str(out), "--chunk", "60", "--quiet", "--scheduler",
+            "--out", str(out), "--chunk-s", "60", "--quiet", "--scheduler",
             cluster.scheduler.address]
     assert main(argv) == 0
     assert sorted(p.name for p in out.iterdir()) == ["a.json", "b.json",
