@@ -100,7 +100,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                         f"{MAX_SAMPLES_PER_WINDOW} samples)")
     p.add_argument("--window-samples", "-J", dest="window",
                    type=number(int, ge=3, le=MAX_SCANS_OPTION), default=None, metavar="J",
-                   help="samples in the shortest window, > 2 (replaces --window-s)")
+                   help="samples in the shortest window, > 2 (default: from --window-s; replaces it)")
     p.add_argument("--merge-window-s", dest="merge_window",
                    type=number(float, gt=0), default=None, metavar="S",
                    help="alerts of a pair whose t_cross differ by <= S s, or whose intervals "

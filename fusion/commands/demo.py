@@ -16,7 +16,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="run every pipeline on built-in simulated scenarios",
         description="Run every pipeline on built-in scenarios; write results, figures and a summary.",
     )
-    p.add_argument("--out", type=Path, default=Path("fusion-demo"), help="output folder")
+    p.add_argument("--out", type=Path, default=Path("fusion-demo"),
+                   help="output folder (default fusion-demo)")
     p.add_argument("--seed", type=number(int, ge=0), default=0, help="scenario seed (default 0)")
     p.add_argument("--part", action="append", default=None, help="run only this part (repeatable)")
     p.add_argument("--quiet", action="store_true",

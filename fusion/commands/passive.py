@@ -66,22 +66,22 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", type=Path, required=True, help="output folder")
     g = p.add_argument_group("pipeline")
     g.add_argument("--acq-scans", type=number(int, ge=3, le=MAX_SCANS_OPTION), default=60,
-                   help="scans the acquisition looks back over (60)")
+                   help="scans the acquisition looks back over, scans (default 60)")
     g.add_argument("--graph-lag-s", dest="lag", type=number(float, gt=0), default=200.0,
-                   help="fixed lag of the tracks' graphs, s (200)")
+                   help="fixed lag of the tracks' graphs, s (default 200)")
     g.add_argument("--accel-sigma-deg-per-min2", dest="accel_sigma", type=number(float, gt=0), default=2.0,
-                   help="bearing-acceleration standard deviation, deg/min^2 (2)")
+                   help="bearing-acceleration standard deviation, deg/min^2 (default 2)")
     g.add_argument("--beam-sigma-beams", dest="beam_sigma", type=number(float, gt=0), default=0.5,
-                   help="standard deviation of a measured peak, beams (0.5)")
+                   help="standard deviation of a measured peak, beams (default 0.5)")
     g.add_argument("-J", "--window-samples", dest="window",
                    type=number(int, ge=3, le=MAX_SCANS_OPTION), default=12, metavar="J",
-                   help="crossing detector: samples per least-squares window (12)")
+                   help="crossing detector: samples per least-squares window, samples (default 12)")
     g.add_argument("-K", "--period-s", dest="period", type=number(float, gt=0), default=None, metavar="K",
                    help="crossing detector: sample period, s (default 5 scan periods)")
     g.add_argument("--snr0-db", type=number(float, ge=DB_RANGE[0], le=DB_RANGE[1]), default=3.0,
-                   help="TQI design SNR of the tracker threshold, dB (3)")
+                   help="TQI design SNR of the tracker threshold, dB (default 3)")
     g.add_argument("--snr1-db", type=number(float, ge=DB_RANGE[0], le=DB_RANGE[1]), default=10.0,
-                   help="TQI design SNR of a strong track, dB (10)")
+                   help="TQI design SNR of a strong track, dB (default 10)")
     g.add_argument("--normalize", action="store_true",
                    help="normalise the cubes to unit noise mean first (split-window median over "
                         "frequency, pooled over 60 scans); default: cubes are already normalised")

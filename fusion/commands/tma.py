@@ -34,7 +34,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--bearing-sigma-deg", type=number(float, gt=0), default=1.0,
                    help="bearing noise standard deviation, deg (default 1.0)")
     p.add_argument("--motion", choices=("single", "chain"), default="single",
-                   help="one constant-velocity state, or a state per time with CV factors")
+                   help="one constant-velocity state, or a state per time with CV factors "
+                        "(default single)")
     p.add_argument("--accel-psd-m2-per-s3", dest="q", type=number(float, gt=0), default=1e-6,
                    help="acceleration PSD of the target for --motion chain, m^2/s^3 (default 1e-6)")
     p.add_argument("--robust", choices=("huber", "cauchy", "tukey"), default=None,

@@ -52,17 +52,22 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", type=Path, required=True, help="output CSV (input columns + tqi)")
     g = p.add_argument_group("design SNRs (per cell)")
     g.add_argument("--snr0-db", type=number(float, ge=DB_RANGE[0], le=DB_RANGE[1]), default=3.0,
-                   help="tracker threshold SNR_0 (3 dB)")
+                   help="tracker threshold SNR_0, dB (default 3)")
     g.add_argument("--snr1-db", type=number(float, ge=DB_RANGE[0], le=DB_RANGE[1]), default=10.0,
-                   help="strong-track SNR_1 (10 dB)")
+                   help="strong-track SNR_1, dB (default 10)")
     g.add_argument("--n-looks", type=number(int, ge=1, le=MAX_SCANS_OPTION), default=1,
-                   help="periodogram looks averaged per cell of the spectra (1)")
+                   help="periodogram looks averaged per cell of the spectra, count (default 1)")
     t = p.add_argument_group("thresholds (method defaults)")
-    t.add_argument("--tl", type=number(float), default=-3.5, help="lost threshold TL (-3.5)")
-    t.add_argument("--tu", type=number(float), default=1.75, help="uncertain threshold TU (1.75)")
-    t.add_argument("--ts", type=number(float), default=7.0, help="strong threshold TS (7.0)")
-    t.add_argument("--lh", type=number(float, ge=0), default=1.5, help="low-SNR hysteresis LH (1.5)")
-    t.add_argument("--sh", type=number(float, ge=0), default=2.0, help="strong-SNR hysteresis SH (2.0)")
+    t.add_argument("--tl", type=number(float), default=-3.5,
+                   help="lost threshold TL, dimensionless (default -3.5)")
+    t.add_argument("--tu", type=number(float), default=1.75,
+                   help="uncertain threshold TU, dimensionless (default 1.75)")
+    t.add_argument("--ts", type=number(float), default=7.0,
+                   help="strong threshold TS, dimensionless (default 7.0)")
+    t.add_argument("--lh", type=number(float, ge=0), default=1.5,
+                   help="low-SNR hysteresis LH, dimensionless (default 1.5)")
+    t.add_argument("--sh", type=number(float, ge=0), default=2.0,
+                   help="strong-SNR hysteresis SH, dimensionless (default 2.0)")
     t.add_argument("--sllr0-max", type=number(float), default=None, metavar="TM0",
                    help="ceiling TM_0 of SLLR_0: how much evidence a loss must undo before "
                         "'lost' (default TU + LH + 0.25; above TU + LH so a track can leave "
@@ -71,10 +76,11 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="single thresholds (LH = SH = 0 in the decision flow)")
     r = p.add_argument_group("residual test")
     r.add_argument("--omega-per-deg", dest="omega", type=number(float, gt=0), default=0.25,
-                   help="error-detector angular centre frequency Omega, 1/deg (0.25)")
-    r.add_argument("--t-err", type=number(float, ge=0), default=3.0, help="residual threshold constant (3.0)")
+                   help="error-detector angular centre frequency Omega, 1/deg (default 0.25)")
+    r.add_argument("--t-err", type=number(float, ge=0), default=3.0,
+                   help="residual threshold constant, dimensionless (default 3.0)")
     r.add_argument("--residual-smoothing", type=number(float, gt=0, le=1), default=0.1,
-                   help="gain of the recursive residual smoother, (0, 1] (0.1)")
+                   help="gain of the recursive residual smoother, (0, 1] (default 0.1)")
     p.add_argument("--diagnostics", action="store_true",
                    help="also write sllr0, sllr1, smoothed_residual, err_max columns")
     p.add_argument("--quiet", action="store_true",

@@ -56,8 +56,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="false-accept rate of invalid candidates that sets the threshold "
                         "(default 0.02)")
     p.add_argument("--seed", type=number(int, ge=0), default=0, help="fitting seed (default 0)")
-    p.add_argument("--window-s", dest="window", type=number(float, gt=0), default=12.0, help="window, s")
-    p.add_argument("--hop-s", dest="hop", type=number(float, gt=0), default=2.0, help="update period, s")
+    p.add_argument("--window-s", dest="window", type=number(float, gt=0), default=12.0,
+                   help="processing window, s (default 12)")
+    p.add_argument("--hop-s", dest="hop", type=number(float, gt=0), default=2.0,
+                   help="update period, s (default 2)")
     p.add_argument("--quiet", action="store_true",
                    help="no progress bar (none either when standard error is not a terminal)")
     p.set_defaults(handler=run, inputs=("recording", "audio", "array", "labels"),
