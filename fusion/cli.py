@@ -119,7 +119,7 @@ class Parser(argparse.ArgumentParser):
         self.exit(EXIT_BAD_INPUT, f"{self.prog}: error: {msg} (see '{self.prog} --help')\n")
 
     def parse_known_args(self, args=None, namespace=None):  # type: ignore[override]
-        """Parse, then reject non-finite float option values (``--sigma nan``, ``--lag inf``)."""
+        """Parse, then reject non-finite float option values (``--sigma nan``, ``--graph-lag-s inf``)."""
         ns, extras = super().parse_known_args(args, namespace)
         for action in self._actions:
             if not action.option_strings or isinstance(action, argparse._HelpAction):
