@@ -139,7 +139,8 @@ def add_old_spellings(parser: argparse.ArgumentParser, command: str) -> None:
     """Register the hidden old spellings of `command`'s renamed options (:data:`OLD_SPELLINGS`).
 
     A required option becomes optional to argparse (its old spelling may give it) and is marked
-    ``required_any``: :class:`fusion.cli.Parser` then requires one of its spellings.
+    ``required_any``: :class:`fusion.cli.Parser` then requires one of its spellings, and shows it
+    required in the usage.
     """
     for old, new in OLD_SPELLINGS.get(command, {}).items():
         action = parser._option_string_actions[new]

@@ -118,6 +118,27 @@ class Parser(argparse.ArgumentParser):
         msg = " ".join(message.split())
         self.exit(EXIT_BAD_INPUT, f"{self.prog}: error: {msg} (see '{self.prog} --help')\n")
 
+    def format_usage(self) -> str:
+        """The usage, options required under any spelling shown required (``required_any``)."""
+        with self._required_shown():
+            return super().format_usage()
+
+    def format_help(self) -> str:
+        """The help, options required under any spelling shown required (``required_any``)."""
+        with self._required_shown():
+            return super().format_help()
+
+    @contextlib.contextmanager
+    def _required_shown(self) -> Iterator[None]:
+        either = [a for a in self._actions if getattr(a, "required_any", False)]
+        for action in either:
+            action.required = True
+        try:
+            yield
+        finally:
+            for action in either:
+                action.required = False
+
     def parse_known_args(self, args=None, namespace=None):  # type: ignore[override]
         """Parse, then reject non-finite float option values (``--sigma nan``, ``--graph-lag-s inf``)."""
         ns, extras = super().parse_known_args(args, namespace)
