@@ -84,3 +84,4 @@ def test_old_spelling_warns_once_and_gives_the_same_output(run_cli, tmp_path):
 def test_required_option_given_by_no_spelling_is_a_usage_error(run_cli):
     code, _, err = run_cli("acquire", "--cube", "c.npz", "--beam", "1")
     assert code == 2 and "required: --freq-hz" in err
+    assert "[--freq-hz" not in _subparser("acquire").format_usage()
