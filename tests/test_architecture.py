@@ -250,8 +250,8 @@ MOVED_NAMES = {
     "AcquisitionResult": ("fusion.passive.acquisition.acquire", "fusion.passive.acquisition.result"),
     "CompetitionSettings": ("fusion.localization.competition",
                             "fusion.localization.competition_settings"),
-    "WindowTdoa": ("fusion.pipelines.clicks", "fusion.pipelines.click_types"),
-    "ClickWindow": ("fusion.pipelines.clicks", "fusion.pipelines.click_types"),
+    "WindowTdoa": ("fusion.pipelines.clicks", "fusion.clicks.window"),
+    "ClickWindow": ("fusion.pipelines.clicks", "fusion.clicks.window"),
     "frozen_array": ("fusion.clicks.types", "fusion.types"),
 }
 

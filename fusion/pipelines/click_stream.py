@@ -28,7 +28,7 @@ from numpy.typing import ArrayLike, NDArray
 from fusion._validation import check_positive
 from fusion.clicks.types import ChannelClicks
 from fusion.geometry import SensorArray
-from fusion.pipelines.click_types import WindowTdoa
+from fusion.clicks.window import WindowTdoa
 
 if TYPE_CHECKING:  # pragma: no cover
     from fusion.clicks.detect import ClickDetector

@@ -66,7 +66,7 @@ from fusion.clicks.types import ChannelClicks
 from fusion.clicks.validate import TdoaValidator, scm2_features
 from fusion.geometry import SensorArray
 from fusion.pipelines.click_stream import MeasuredWindow, measure_stream, window_starts_count
-from fusion.pipelines.click_types import ClickWindow, WindowTdoa
+from fusion.clicks.window import ClickWindow, WindowTdoa
 
 __all__ = ["ClickFrontEnd", "ClickWindow", "WindowTdoa", "default_validator", "window_starts"]
 

@@ -2,8 +2,9 @@
 
 :class:`WindowTdoa` and :class:`ClickWindow` are the results of
 :class:`fusion.pipelines.clicks.ClickFrontEnd` and of its streaming part
-(:mod:`fusion.pipelines.click_stream`); they live in their own module so that neither of those
-imports the other's. Import them from :mod:`fusion.pipelines.clicks`.
+(:mod:`fusion.pipelines.click_stream`): data of the click front end, kept with its other types
+below the pipelines so that neither pipeline module imports the other's. Also importable from
+:mod:`fusion.pipelines.clicks`.
 """
 
 from __future__ import annotations
