@@ -125,7 +125,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                             "line, when a sensor is not below z = 0)")
     p.add_argument("--sea-floor-z", type=number(float), default=None, metavar="Z",
                    help="height of the sea floor, m (z up, e.g. -1700; at or below every sensor): "
-                        "sources are searched between it and the surface (default: unknown)")
+                        "sources are searched between it and the surface (default: 30 m under "
+                        "the deepest sensor when the sensors hear bottom echoes, else unknown)")
     p.add_argument("--candidates", type=number(int, ge=1), default=None, metavar="N",
                    help="candidates per window (default 16 reading surface paths, 8 direct)")
     p.add_argument("--min-source-tdoas", type=number(float, gt=0), default=None, metavar="W",
