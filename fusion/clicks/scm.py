@@ -233,16 +233,17 @@ class ClickMapCorrelator:
         q = n // 4  # |tau| <= T/4: no wrap-around
         lags = np.arange(-q, q + 1)
         # plain SCM1 (eq. 3) and windowed SCM1 (eq. 5) of each channel used
+        t_c = t0_s + 0.5 * cfg.window_s
+        # sensor j's clicks moved along each drift (sensor i as measured); the measured maps
+        # last, so that they stay cached for the window's SCM2s
+        moved = {rate: window_maps([tl[ch] + rate * (tl[ch] - t_c) for ch in used], t0_s=t0_s,
+                                   config=cfg).plain for rate in self.rates if rate}
+        # plain SCM1 (eq. 3) and windowed SCM1 (eq. 5) of each channel used
         base = window_maps([tl[ch] for ch in used], t0_s=t0_s, config=cfg, windowed=True)
         windowed_i = base.windowed[row[pr[:, 0]]]
-        t_c = t0_s + 0.5 * cfg.window_s
         values = rate_of = None
         for rate in self.rates:
-            if rate:  # sensor j's clicks moved along the drift (sensor i as measured)
-                plain = window_maps([tl[ch] + rate * (tl[ch] - t_c) for ch in used], t0_s=t0_s,
-                                    config=cfg).plain
-            else:
-                plain = base.plain
+            plain = moved[rate] if rate else base.plain
             # eq. 6: c(m) = (1/N) sum_k Xw_i(k) conj(X_j(k)) e^{j 2 pi k m / N}, peak at
             # m = (t_i - t_j) fs
             corr = scipy.fft.irfft(windowed_i * np.conj(plain[row[pr[:, 1]]]), n, axis=-1)
@@ -253,8 +254,6 @@ class ClickMapCorrelator:
                 better = v > values
                 values = np.where(better, v, values)
                 rate_of = np.where(better, rate, rate_of)
-        if len(self.rates) > 1:  # the measured maps cached again for the window's SCM2s
-            window_maps([tl[ch] for ch in used], t0_s=t0_s, config=cfg, windowed=True)
         limit = np.minimum(max_delay, q / cfg.fs_hz)
         peaks = self._peaks(values, lags, limit, pr, rate_of)
         return ScmCorrelation(
