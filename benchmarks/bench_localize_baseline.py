@@ -50,7 +50,7 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from fusion.io import read_array, read_audio, read_json
-from fusion.metrics.localization import match_fixes
+from fusion.metrics.localization import match_fixes, true_positions, true_tdoas
 
 METHODS = ("project", "baseline")
 #: options simulate_clicks takes (the fallback while write_scenario takes the seed alone)
@@ -92,29 +92,19 @@ def write_recording(out_dir: Path, seed: int, options: dict) -> None:
 
 
 class Truth:
-    """Whale positions and direct-path TDOAs at a time, from ``truth.json``."""
+    """Whale positions and direct-path TDOAs at a time, from ``truth.json``
+    (:func:`fusion.metrics.localization.true_positions`, :func:`~.true_tdoas`)."""
 
     def __init__(self, doc: dict) -> None:
-        self.sources = []
-        for s in doc["sources"]:
-            arr = np.asarray(s["arrival_times"], dtype=float)  # (n_clicks, n_sensors)
-            pos = np.asarray(s["positions"], dtype=float)
-            mean = arr.mean(axis=1)
-            order = np.argsort(mean)
-            self.sources.append((arr[order], pos[order], mean[order]))
+        self.doc = doc
 
     def positions(self, t_mid: float) -> np.ndarray:
         """(n_whales, 3): each whale where it emitted the click whose mean arrival is `t_mid`."""
-        return np.array([[np.interp(t_mid, mean, pos[:, k]) for k in range(3)]
-                         for _, pos, mean in self.sources])
+        return true_positions(self.doc, t_mid)
 
     def tdoas(self, t_mid: float, i: int, j: int) -> np.ndarray:
         """Each whale's ``t_i - t_j`` with its arrival at sensor i at `t_mid`, s."""
-        out = []
-        for arr, _, _ in self.sources:
-            o = np.argsort(arr[:, i])
-            out.append(np.interp(t_mid, arr[o, i], arr[o, i] - arr[o, j]))
-        return np.array(out)
+        return true_tdoas(self.doc, i, j, t_mid)
 
 
 def score_window(truth: np.ndarray, sources: list, st: dict) -> None:

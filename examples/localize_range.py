@@ -31,28 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from fusion.cli import main as fusion
-from fusion.metrics.localization import match_fixes
-
-
-def _truth_positions(truth: dict, t_mid: float) -> np.ndarray:
-    """Each whale where it emitted the click whose mean arrival is at `t_mid`."""
-    out = []
-    for s in truth["sources"]:
-        mean = np.asarray(s["arrival_times"], dtype=float).mean(axis=1)
-        pos = np.asarray(s["positions"], dtype=float)
-        order = np.argsort(mean)
-        out.append([np.interp(t_mid, mean[order], pos[order, k]) for k in range(3)])
-    return np.array(out)
-
-
-def _true_tau(truth: dict, i: int, j: int, t: float) -> float:
-    """The true direct-path delay nearest to `tau` candidates: all whales' delays at time t."""
-    taus = []
-    for s in truth["sources"]:
-        arr = np.asarray(s["arrival_times"], dtype=float)
-        o = np.argsort(arr[:, i])
-        taus.append(np.interp(t, arr[o, i], arr[o, i] - arr[o, j]))
-    return np.array(taus)
+from fusion.metrics.localization import match_fixes, true_positions, true_tdoas
 
 
 def main(argv: list[str] | None = None) -> dict:
@@ -84,13 +63,13 @@ def main(argv: list[str] | None = None) -> dict:
         t_mid = 0.5 * (w["t_start"] + w["t_end"])
         fixes = [[s["x"], s["y"], s["z"]] for s in w["sources"]
                  if s.get("observable", True) and not s.get("mirror_ambiguous", False)]
-        m = match_fixes(_truth_positions(truth, t_mid), fixes)
+        m = match_fixes(true_positions(truth, t_mid), fixes)
         found, pairs = found + m.found, pairs + len(truth["sources"])
         false, reported = false + m.false, reported + len(fixes)
         errors += m.errors_m
         for d in w["tdoas"]:
             if d["valid"]:
-                e = np.min(np.abs(_true_tau(truth, *d["pair"], d["t"]) - d["tau"]))
+                e = np.min(np.abs(true_tdoas(truth, *d["pair"], d["t"]) - d["tau"]))
                 if e < 1e-3:
                     tdoa_errors.append(float(e) * 1e6)
     summary = {

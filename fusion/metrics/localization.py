@@ -17,7 +17,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.stats import chi2
 
-__all__ = ["FixMatch", "match_fixes", "nees", "nees_interval"]
+__all__ = ["FixMatch", "match_fixes", "nees", "nees_interval", "true_positions", "true_tdoas"]
 
 
 class FixMatch(NamedTuple):
@@ -118,3 +118,25 @@ def nees_interval(dof: int, *, level: float = 0.95, n_runs: int = 1) -> tuple[fl
         raise ValueError(f"level must lie in (0, 1), got {level!r}")
     lo, hi = chi2.ppf([(1.0 - level) / 2.0, (1.0 + level) / 2.0], int(n_runs) * int(dof))
     return float(lo) / n_runs, float(hi) / n_runs
+
+
+def true_positions(truth: dict, t_mid: float) -> NDArray[np.float64]:
+    """Each whale of a ``fusion simulate clicks`` truth where it emitted the click whose mean
+    arrival over the sensors is at `t_mid` (interpolated between its emissions), (n, 3) m."""
+    out = []
+    for s in truth["sources"]:
+        mean = np.asarray(s["arrival_times"], dtype=float).mean(axis=1)
+        pos = np.asarray(s["positions"], dtype=float)
+        order = np.argsort(mean)
+        out.append([np.interp(t_mid, mean[order], pos[order, k]) for k in range(3)])
+    return np.array(out, dtype=float).reshape(-1, 3)
+
+
+def true_tdoas(truth: dict, i: int, j: int, t: float) -> NDArray[np.float64]:
+    """Each whale's direct-path ``t_i - t_j`` with its arrival at sensor i at time `t`, s."""
+    out = []
+    for s in truth["sources"]:
+        arr = np.asarray(s["arrival_times"], dtype=float)
+        o = np.argsort(arr[:, i])
+        out.append(np.interp(t, arr[o, i], arr[o, i] - arr[o, j]))
+    return np.array(out, dtype=float)
