@@ -107,3 +107,12 @@ def test_module_entry_point():
     r = subprocess.run([sys.executable, "-m", "fusion", "--version"], capture_output=True, text=True,
                        check=False)
     assert r.returncode == 0 and r.stdout.startswith("fusion ")
+
+
+def test_localize_help_default_drift_is_the_library_default():
+    """fusion localize states the drift grid's default without importing the click stages
+    (--help stays light): the two constants must agree."""
+    from fusion.clicks.scm import MAX_TDOA_RATE
+    from fusion.commands import localize
+
+    assert localize.MAX_TDOA_RATE == MAX_TDOA_RATE
