@@ -57,7 +57,8 @@ METHODS = ("project", "baseline")
 SIMULATE_KEYS = {"duration_s", "n_sources", "n_sensors", "snr_db"}
 #: write_scenario keyword -> this script's option
 OPTION_FLAGS = {"duration_s": "--duration-s", "n_sources": "--whales", "n_sensors": "--sensors",
-                "snr_db": "--snr-db", "echo": "--echo", "vary": "--vary"}
+                "snr_db": "--snr-db", "echo": "--echo", "vary": "--vary",
+                "vary_only": "--vary-only"}
 GATE_TDOA_S = 1e-3
 WITHIN_M = 10.0
 
@@ -187,6 +188,9 @@ def main(argv: list[str] | None = None) -> list[dict]:
     ap.add_argument("--echo", choices=("none", "surface", "bottom", "both"), default=None,
                     help="echo paths (default: the simulator's)")
     ap.add_argument("--vary", action="store_true", help="the simulator's varied scenarios")
+    ap.add_argument("--vary-only", default=None, metavar="GROUPS",
+                    help="vary only these effects (fusion simulate clicks --vary-only), e.g. "
+                         "sound-speed or click-shape")
     ap.add_argument("--methods", default="project,baseline",
                     help="comma list of project, baseline")
     ap.add_argument("--sea-floor", choices=("none", "deepest"), default="none",
@@ -207,6 +211,8 @@ def main(argv: list[str] | None = None) -> list[dict]:
                                  ("echo", args.echo)) if v is not None}
     if args.vary:
         options["vary"] = True
+    if args.vary_only:
+        options["vary_only"] = tuple(g.strip() for g in args.vary_only.split(","))
 
     stats = {m: {"found": 0, "pairs": 0, "reported": 0, "false": 0, "flagged": 0,
                  "errors": [], "windows": 0, "cpu_s": 0.0, "tdoas": 0, "tdoa_err_us": []}
@@ -247,7 +253,7 @@ def main(argv: list[str] | None = None) -> list[dict]:
         line = {
             "method": m, "seeds": seed_text, "whales": sorted(whales),
             "snr_db": snr_set[0] if len(snr_set) == 1 else snr_set,
-            "echo": args.echo or "default", "vary": bool(args.vary),
+            "echo": args.echo or "default", "vary": bool(args.vary), "vary_only": args.vary_only,
             "duration_s": args.duration_s, "sea_floor": args.sea_floor,
             **({"project_options": args.project_options}
                if m == "project" and args.project_options else {}),

@@ -54,6 +54,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import dataclasses
+import json
 from pathlib import Path
 
 from fusion.cli import emit, number
@@ -127,6 +128,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="height of the sea floor, m (z up, e.g. -1700; at or below every sensor): "
                         "sources are searched between it and the surface (default: 30 m under "
                         "the deepest sensor when the sensors hear bottom echoes, else unknown)")
+    p.add_argument("--sound-speed", choices=("estimate", "array"), default="estimate",
+                   help="estimate (default): one sound speed for the recording, estimated on a "
+                        "factor graph from all its fixes, and every fix re-solved at it (the "
+                        "array file's speed only starts it); array: the array file's speed")
     p.add_argument("--candidates", type=number(int, ge=1), default=None, metavar="N",
                    help="candidates per window (default 16 reading surface paths, 8 direct)")
     p.add_argument("--min-source-tdoas", type=number(float, gt=0), default=None, metavar="W",
@@ -296,6 +301,7 @@ def run(args: argparse.Namespace) -> int:
 
         def name(t: ChunkTask) -> str:
             return f"{number_of[t.source]:05d}-{t.name}"
+    notes: list[str] = []
     with contextlib.ExitStack() as stack:
         stack.enter_context(output_lock(args.out))  # one run per output (none for stdout)
         if str(args.out) == STDOUT:  # no resume: parts in a private temporary folder
@@ -315,15 +321,26 @@ def run(args: argparse.Namespace) -> int:
         run_tasks(localize_chunk, (pipe, array), tasks, names=name, store=store, client=client,
                   on_done=lambda t: bar.update(t.stop_window - t.first_window))
         bar.close()
+        speeds = {}
         for (_, out), plan in zip(recordings, plans, strict=True):
-            summary = write_document(out, (store.read(name(t)) for t in plan))
+            transform = None
+            if args.sound_speed == "estimate" and localizer is not None:
+                from fusion.pipelines.sound_speed import calibrate_speed
+
+                cal = calibrate_speed((w for t in plan for w in json.loads(store.read(name(t)))),
+                                      array.positions, array.sound_speed)
+                transform, speeds[str(out)] = cal.apply, cal.record()
+                notes.append(cal.note if len(recordings) == 1 else f"{out}: {cal.note}")
+            summary = write_document(out, (store.read(name(t)) for t in plan),
+                                     transform=transform)
             emit(f"{summary.line()} -> {out}", err=True)
         store.remove()
         side = (Path(args.out) / "localize" if getattr(args, "out_is_dir", False)
                 else args.out)
         write_settings(side, {"command": "localize", **decided.record,
-                              "localization": None if localizer is None else localizer.to_dict()},
+                              "localization": None if localizer is None else localizer.to_dict(),
+                              **({"sound_speed": speeds} if speeds else {})},
                        inputs=[*audio, args.array, args.events, args.validator])
-    for note in decided.notes:
+    for note in [*decided.notes, *notes]:
         emit(note, err=True)
     return 0

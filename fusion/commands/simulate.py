@@ -21,7 +21,22 @@ CLICK_OPTIONS = {
     "sensors": ("--sensors", "n_sensors"),
     "snr_db": ("--snr-db", "snr_db"),
     "echo": ("--echo", "echo"),
+    "vary_only": ("--vary-only", "vary_only"),
 }
+
+#: Groups of ``--vary-only`` (fusion.simulate.whale_range.varied.VARIED_GROUPS; not imported
+#: here: --help stays light; a test keeps the two equal).
+VARY_GROUPS = ("counts", "floor", "spacing", "sound-speed", "survey", "click-shape",
+               "interferers")
+
+
+def _groups(text: str) -> tuple[str, ...]:
+    names = tuple(x.strip() for x in text.split(",") if x.strip())
+    bad = [n for n in names if n not in VARY_GROUPS]
+    if not names or bad:
+        raise argparse.ArgumentTypeError(
+            f"expected a comma list of {', '.join(VARY_GROUPS)}, got {text!r}")
+    return names
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -50,6 +65,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     g.add_argument("--echo", choices=("none", "surface", "bottom", "both"), default=None,
                    help="echoes rendered; puts the hydrophones above a sea floor (default: "
                         "today's surface echo, or both with --vary)")
+    g.add_argument("--vary-only", dest="vary_only", type=_groups, default=None,
+                   metavar="GROUPS",
+                   help="draw only these effects of --vary, the rest as the default scenario "
+                        f"(a comma list of {', '.join(VARY_GROUPS)}; e.g. sound-speed)")
     p.set_defaults(handler=run, inputs=(), out_is_dir=True)
 
 

@@ -40,7 +40,7 @@ from __future__ import annotations
 import json
 import logging
 import math
-from collections.abc import Iterable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -307,7 +307,8 @@ def source_flags(src: dict) -> tuple[bool, bool, bool]:
             int(src["tdoas_used"]) <= FEW_TDOAS)
 
 
-def write_document(path: str | Path, parts: Iterable[str]) -> DocumentSummary:
+def write_document(path: str | Path, parts: Iterable[str],
+                   transform: Callable[[dict], dict] | None = None) -> DocumentSummary:
     """Write the ``fusion localize`` JSON from the chunks' parts in order, one at a time.
 
     The ``windows`` are byte for byte what :func:`fusion.io.write_json` writes for
@@ -320,6 +321,9 @@ def write_document(path: str | Path, parts: Iterable[str]) -> DocumentSummary:
         Output (written atomically; ``"-"`` for standard output).
     parts : iterable of str
         Parts (:func:`localize_chunk`) in chunk order.
+    transform : callable, optional
+        Applied to each window entry before it is written (e.g. the fixes re-solved at the
+        recording's sound speed, :meth:`fusion.pipelines.sound_speed.SpeedCalibration.apply`).
 
     Returns
     -------
@@ -334,6 +338,7 @@ def write_document(path: str | Path, parts: Iterable[str]) -> DocumentSummary:
         f.write('{\n "windows": [')
         for text in parts:
             for w in json.loads(text):
+                w = w if transform is None else transform(w)
                 body = json.dumps(w, indent=1, allow_nan=False).replace("\n", "\n  ")
                 f.write(("," if n else "") + "\n  " + body)
                 n += 1

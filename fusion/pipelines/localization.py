@@ -25,7 +25,9 @@ from fusion.geometry import SensorArray
 from fusion.localization.candidates import CandidateFinder
 from fusion.localization.competition import CompetitionSettings
 from fusion.localization.localize import METHODS, LocalizationOutput, MultiSourceLocalizer
+from fusion.localization.retime import emission_shift
 from fusion.localization.search_grid import SearchRegion
+from fusion.localization.surface_paths import PATHS
 from fusion.localization.tracks import SourceTracker, Track, WindowSources
 from fusion.pipelines.clicks import ClickFrontEnd, ClickWindow
 
@@ -346,8 +348,7 @@ class ClickLocalization:
             for _ in range(1 if surface_z is None else 2):
                 if not (out.sources and np.any(rate != 0)):
                     break
-                retimed = _retime(out, taus, rate, pairs, pos, c,
-                                  0.5 * (window.t_start + window.t_end), surface_z)
+                retimed = _retime(out, taus, rate, pairs, pos, c, surface_z)
                 out = localizer.localize(pos, pairs, retimed, sig, alpha, c=c)
         except ValueError as e:  # e.g. too few independent pairs: no fix in this window
             logger.info("window %.1f s: not localized (%s)", window.t_start, e)
@@ -372,25 +373,24 @@ def explained_fraction(out: LocalizationOutput | None) -> float:
 
 
 def _retime(out: LocalizationOutput, taus: np.ndarray, rate: np.ndarray, pairs: np.ndarray,
-            pos: np.ndarray, c: float, mid: float, surface_z: float | None) -> np.ndarray:
+            pos: np.ndarray, c: float, surface_z: float | None) -> np.ndarray:
     """Each TDOA moved along its drift to the arrival at its first sensor of one emission.
 
     The emission is that of the source owning the TDOA (largest weight) whose mean direct
-    arrival is at the window centre `mid`; the arrival at the first sensor is along the path
-    the source reads the TDOA on (direct, or reflected at the surface ``z = surface_z``).
+    arrival is at the window centre (:func:`~fusion.localization.retime.emission_shift`); the
+    arrival at the first sensor is along the path the source reads the TDOA on (direct, or
+    reflected at the surface ``z = surface_z``).
     """
     w = np.stack([s.weights for s in out.sources])  # (K, M)
     owner = np.argmax(w, axis=0)
     retimed = taus.copy()
-    for m in range(taus.size):
-        fix = out.sources[owner[m]]
-        r = np.linalg.norm(pos - fix.position, axis=1) / c
-        first = r[pairs[m, 0]]
-        if surface_z is not None and fix.paths[m] in (1, 3):  # an echo at sensor i
-            image = pos[pairs[m, 0]] * [1.0, 1.0, -1.0] + [0.0, 0.0, 2.0 * surface_z]
-            first = float(np.linalg.norm(image - fix.position)) / c
-        t_i = mid + first - r.mean()  # arrival at sensor i of one emission
-        retimed[m] = taus[m] + rate[m] * (t_i - mid)
+    for k, fix in enumerate(out.sources):
+        m = np.flatnonzero(owner == k)
+        if m.size:
+            reflected = np.isin(fix.paths[m], (1, 3)) if surface_z is not None else False
+            retimed[m] = taus[m] + emission_shift(rate[m], pairs[m, 0],
+                                                  np.broadcast_to(reflected, m.shape),
+                                                  fix.position, pos, c, surface_z)
     return retimed
 
 
@@ -449,12 +449,15 @@ def result_document(windows: Iterable[LocalizedWindow], *, tracks: Iterable[Trac
             for s in lw.output.sources:
                 # an unobservable direction has no finite variance: written as UNBOUNDED_M2
                 cov = np.where(np.isfinite(s.covariance), s.covariance, UNBOUNDED_M2)
+                owned = np.flatnonzero(s.weights > 0.5)
                 sources.append({
                     "x": float(s.position[0]), "y": float(s.position[1]),
                     "z": float(s.position[2]), "cov": cov.tolist(),
                     "tdoas_used": int(s.tdoas_used), "observable": bool(s.observable),
                     "mirror_ambiguous": bool(s.mirror_ambiguous),
                     "residual_rms_s": _f(s.residual_rms_s),
+                    "owned_tdoas": [int(lw.valid_index[k]) for k in owned],
+                    "paths": [PATHS[max(int(s.paths[k]), 0)] for k in owned],
                 })
         doc_windows.append({"t_start": float(w.t_start), "t_end": float(w.t_end),
                             "clicks": [int(c.n_clicks) for c in w.clicks],

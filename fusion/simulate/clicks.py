@@ -393,6 +393,7 @@ def write_scenario(
     *,
     seed: int,
     vary: bool = False,
+    vary_only: tuple[str, ...] | None = None,
     duration_s: float | None = None,
     n_sources: int | None = None,
     n_sensors: int | None = None,
@@ -412,6 +413,10 @@ def write_scenario(
         :data:`fusion.simulate.whale_range.varied.VARIED_RANGES` (floor, profile, echoes, survey
         errors, click shapes, interferers, counts, ...); ``truth.json`` records the drawn
         settings under ``parameters`` (the world's resolved values beside them).
+    vary_only : tuple of str, optional
+        Draw only these groups of
+        :data:`fusion.simulate.whale_range.varied.VARIED_GROUPS` (one physical effect at a
+        time, e.g. ``("sound-speed",)``); the rest stay the default scenario's. Not with `vary`.
     duration_s, n_sources, n_sensors, snr_db, echo : optional
         Explicit values; they override the varied (or default) ones. Without any of them and
         without `vary` the files are those of the default scenario, byte for byte.
@@ -429,12 +434,14 @@ def write_scenario(
                                ("n_sensors", n_sensors), ("snr_db", snr_db), ("echo", echo))
              if v is not None}
     settings: dict[str, Any] = {"seed": seed}
-    if vary:
+    if vary and vary_only:
+        raise ValueError("--vary draws every group; --vary-only draws the groups named")
+    if vary or vary_only:
         from fusion.simulate.whale_range.varied import varied_settings
 
-        settings = varied_settings(seed)
+        settings = varied_settings(seed, only=tuple(vary_only) if vary_only else None)
     settings |= given
     scenario = simulate_clicks(**settings)
-    if not vary:
+    if not (vary or vary_only):
         return write_click_scenario(out, scenario)
     return write_click_scenario(out, scenario, parameters=settings)

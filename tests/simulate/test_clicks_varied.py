@@ -458,3 +458,36 @@ def test_cli_most_whales_and_sensors(run_cli, tmp_path):
                                  *option)
         assert code == 2 and len(err.strip().splitlines()) == 1, err
         assert not (tmp_path / "bad").exists()
+
+
+def test_vary_only_draws_one_group_as_the_full_draw_does():
+    from fusion.commands.simulate import VARY_GROUPS
+    from fusion.simulate.whale_range.varied import VARIED_GROUPS
+
+    assert tuple(VARIED_GROUPS) == VARY_GROUPS  # the command's light copy of the names
+    every = varied_settings(11)
+    grouped = [k for g in VARIED_GROUPS.values() for k in g]
+    assert sorted(grouped) == sorted(set(every) - {"seed"})  # each setting in one group
+    only = varied_settings(11, only=("sound-speed", "survey"))
+    assert set(only) == {"seed", "sound_speed_profile", "position_error_m"}
+    assert only["sound_speed_profile"] == every["sound_speed_profile"]
+    assert only["position_error_m"] == every["position_error_m"]
+    with pytest.raises(ValueError, match="unknown varied group"):
+        varied_settings(11, only=("sound",))
+
+
+def test_vary_only_sound_speed_changes_the_speed_and_nothing_else(tmp_path):
+    from fusion.simulate.clicks import write_scenario
+
+    write_scenario(tmp_path / "a", seed=5, n_sources=1, duration_s=3.0, echo="both")
+    write_scenario(tmp_path / "b", seed=5, n_sources=1, duration_s=3.0, echo="both",
+                   vary_only=("sound-speed",))
+    ta, tb = (read_json(tmp_path / x / "truth.json") for x in "ab")
+    assert ta["sound_speed_profile"] is None and tb["sound_speed_profile"] is not None
+    assert tb["parameters"]["sound_speed_profile"] == varied_settings(5)["sound_speed_profile"]
+    assert_allclose(ta["sensors_true"], tb["sensors_true"])
+    assert ta["sources"][0]["click"] == tb["sources"][0]["click"]
+    speeds = np.array(tb["sources"][0]["effective_speeds"]["direct"])
+    assert 0.001 < np.max(np.abs(speeds / tb["nominal_sound_speed"] - 1)) < 0.012
+    with pytest.raises(ValueError, match="--vary-only"):
+        write_scenario(tmp_path / "c", seed=5, vary=True, vary_only=("survey",))

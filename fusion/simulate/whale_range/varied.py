@@ -48,7 +48,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["VARIED_RANGES", "varied_settings"]
+__all__ = ["VARIED_GROUPS", "VARIED_RANGES", "varied_settings"]
 
 #: Ranges of a varied click scenario (see the module docstring for how each is drawn).
 VARIED_RANGES: dict[str, Any] = {
@@ -91,7 +91,25 @@ VARIED_RANGES: dict[str, Any] = {
 }
 
 
-def varied_settings(seed: int, *, fs: float = 96_000.0) -> dict[str, Any]:
+#: The varied settings by physical effect, for varying one effect at a time (``fusion simulate
+#: clicks --vary-only``); every drawn setting belongs to exactly one group.
+VARIED_GROUPS: dict[str, tuple[str, ...]] = {
+    "counts": ("duration_s", "n_sources", "n_sensors", "snr_db"),
+    "floor": ("echo", "floor_depth_m", "floor_slope_deg", "floor_azimuth_deg",
+              "height_above_floor_m", "surface_reflection_range", "bottom_reflection_db",
+              "bottom_reflection_sign"),
+    "spacing": ("sensor_spacing_m", "close_pair_probability", "close_pair_distance_m"),
+    "sound-speed": ("sound_speed_profile",),
+    "survey": ("position_error_m",),
+    "click-shape": ("click_band_hz", "click_duration_s", "source_level_spread_db",
+                    "level_jitter_db", "ici_range_s"),
+    "interferers": ("n_interferers", "interferer_ici_s", "interferer_duration_s",
+                    "interferer_level_db", "n_transients"),
+}
+
+
+def varied_settings(seed: int, *, fs: float = 96_000.0,
+                    only: tuple[str, ...] | None = None) -> dict[str, Any]:
     """Keyword arguments of :func:`~fusion.simulate.clicks.simulate_clicks` drawn from
     :data:`VARIED_RANGES`.
 
@@ -102,12 +120,25 @@ def varied_settings(seed: int, *, fs: float = 96_000.0) -> dict[str, Any]:
         the scenario drawn with them from ``seed`` shares no random numbers with them.
     fs : float, optional
         Sample rate, Hz (caps the click band at ``0.47 fs``).
+    only : tuple of str, optional
+        Names of :data:`VARIED_GROUPS`: only their settings are returned (drawn as with all of
+        them, so a group's values are the same alone or with the others); the rest keep the
+        default scenario's.
 
     Returns
     -------
     dict
-        ``seed`` and every option of the varied world, JSON-serialisable.
+        ``seed`` and every option of the varied world (or of the groups `only`),
+        JSON-serialisable.
     """
+    if only is not None:
+        unknown = sorted(set(only) - set(VARIED_GROUPS))
+        if unknown:
+            raise ValueError(f"unknown varied group(s) {', '.join(unknown)}; choose from "
+                             f"{', '.join(VARIED_GROUPS)}")
+        every = varied_settings(seed, fs=fs)
+        keep = {k for g in only for k in VARIED_GROUPS[g]}
+        return {"seed": every["seed"], **{k: v for k, v in every.items() if k in keep}}
     rng = np.random.default_rng([int(seed), 3])
     r = VARIED_RANGES
 

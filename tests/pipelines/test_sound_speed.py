@@ -1,0 +1,117 @@
+"""A recording's sound speed from its written windows, and `fusion localize --sound-speed`."""
+
+import json
+
+import numpy as np
+import pytest
+from scipy.optimize import least_squares
+
+from factors.tdoa_model import predicted_tdoas
+from fusion.pipelines.sound_speed import calibrate_speed, fix_tdoas
+
+SENSORS = np.array([[0.0, 0, -1500], [3200, 150, -1610], [1500, 2900, -1550],
+                    [-1800, 1400, -1480], [400, -2500, -1590]])
+PAIRS = [(i, j) for i in range(5) for j in range(i + 1, 5)]
+
+
+def _window(p_true, c_true, c_file, t0):
+    """A written window whose one source was solved at the file's speed."""
+    q = np.array(PAIRS)
+    taus = predicted_tdoas(p_true, SENSORS, q, c=c_true)
+    start = least_squares(lambda x: (predicted_tdoas(x, SENSORS, q, c=c_file) - taus) * 1e6,
+                          p_true).x
+    tdoas = [{"pair": list(pr), "tau": float(t), "t": t0 + 6.0, "rate": 0.0, "valid": True,
+              "llr": 5.0, "sigma": 1e-7} for pr, t in zip(PAIRS, taus, strict=True)]
+    src = {"x": start[0], "y": start[1], "z": start[2], "cov": np.eye(3).tolist(),
+           "tdoas_used": len(PAIRS), "observable": True, "mirror_ambiguous": False,
+           "owned_tdoas": list(range(len(PAIRS))), "paths": ["direct"] * len(PAIRS)}
+    return {"t_start": t0, "t_end": t0 + 12.0, "tdoas": tdoas, "sources": [src]}
+
+
+TRUE = np.array([[800.0, 600, -900], [820, 630, -905], [850, 650, -910], [870, 690, -915]])
+
+
+def test_windows_re_solved_at_the_speed_their_fixes_share():
+    windows = [_window(p, 1484.0, 1500.0, 2.0 * k) for k, p in enumerate(TRUE)]
+    before = np.array([[w["sources"][0][a] for a in "xyz"] for w in windows])
+    assert np.min(np.linalg.norm(before - TRUE, axis=1)) > 5.0
+    cal = calibrate_speed(windows, SENSORS, 1500.0)
+    assert cal.estimate is not None
+    assert cal.speed_mps == pytest.approx(1484.0, abs=0.01)
+    after = [cal.apply(w) for w in windows]
+    pos = np.array([[w["sources"][0][a] for a in "xyz"] for w in after])
+    np.testing.assert_allclose(pos, TRUE, atol=0.01)
+    assert all(w["sources"][0]["residual_rms_s"] < 1e-9 for w in after)
+    assert windows[0]["sources"][0]["x"] == before[0, 0]  # the input left as it was
+    rec = cal.record()
+    assert rec["source"] == "estimated" and rec["nominal_mps"] == 1500.0
+    assert rec["fixes"] == 4 and rec["tdoas"] == 40
+    assert "1484.0" in cal.note and "--sound-speed array" in cal.note
+
+
+def test_the_right_speed_leaves_the_fixes_where_they_are():
+    windows = [_window(p, 1500.0, 1500.0, 2.0 * k) for k, p in enumerate(TRUE)]
+    cal = calibrate_speed(windows, SENSORS, 1500.0)
+    assert cal.speed_mps == pytest.approx(1500.0, abs=0.01)
+    for w in windows:
+        s = cal.apply(w)["sources"][0]
+        assert np.linalg.norm([s["x"] - w["sources"][0]["x"], s["y"] - w["sources"][0]["y"],
+                               s["z"] - w["sources"][0]["z"]]) < 0.01
+
+
+def test_too_few_fixes_keep_the_file_speed_and_say_so():
+    windows = [_window(p, 1484.0, 1500.0, 2.0 * k) for k, p in enumerate(TRUE[:2])]
+    cal = calibrate_speed(windows, SENSORS, 1500.0)
+    assert cal.estimate is None and cal.speed_mps == 1500.0
+    assert "array file's 1500 m/s" in cal.note and "3 are needed" in cal.note
+    assert cal.apply(windows[0]) is windows[0]
+    # fixes flagged mirror-ambiguous or unobservable teach nothing
+    flagged = [_window(p, 1484.0, 1500.0, 2.0 * k) for k, p in enumerate(TRUE)]
+    for w in flagged[:2]:
+        w["sources"][0]["mirror_ambiguous"] = True
+    assert calibrate_speed(flagged, SENSORS, 1500.0).estimate is None
+
+
+def test_fix_tdoas_moves_each_delay_along_its_drift():
+    w = _window(TRUE[0], 1500.0, 1500.0, 0.0)
+    for d in w["tdoas"]:
+        d["rate"] = 1e-3
+    fix = fix_tdoas(w, w["sources"][0], SENSORS, 1500.0)
+    r = np.linalg.norm(SENSORS - [w["sources"][0][a] for a in "xyz"], axis=1) / 1500.0
+    expect = [d["tau"] + 1e-3 * (r[d["pair"][0]] - r.mean()) for d in w["tdoas"]]
+    np.testing.assert_allclose(fix.taus, expect, rtol=1e-12)
+    assert fix_tdoas(w, {**w["sources"][0], "owned_tdoas": []}, SENSORS, 1500.0) is None
+
+
+def test_cli_estimates_the_speed_the_array_file_gets_wrong(tmp_path):
+    """A recording made at 1,485 m/s with an array file saying 1,500: the default estimates
+    the speed and lands on the whale; ``--sound-speed array`` stays metres off (ablation)."""
+    from fusion.cli import main
+    from fusion.simulate.clicks import simulate_clicks, write_click_scenario
+
+    sc = simulate_clicks(seed=7001, n_sensors=5, n_sources=1, duration_s=20.0, snr_db=36.0,
+                         sound_speed_profile={"kind": "constant", "c0": 1485.0},
+                         nominal_sound_speed=1500.0, echo="both")
+    write_click_scenario(tmp_path / "sc", sc)
+    assert json.loads((tmp_path / "sc" / "array.json").read_text())["sound_speed"] == 1500.0
+    whale = sc.sources[0]
+    errors = {}
+    for mode in ("estimate", "array"):
+        out = tmp_path / f"{mode}.json"
+        assert main(["localize", "--audio", str(tmp_path / "sc" / "audio.flac"), "--array",
+                     str(tmp_path / "sc" / "array.json"), "--out", str(out), "--quiet",
+                     "--sound-speed", mode]) == 0
+        doc = json.loads(out.read_text())
+        errs = []
+        for w in doc["windows"]:
+            truth = whale.position_at([0.5 * (w["t_start"] + w["t_end"])])[0]
+            errs += [np.linalg.norm(np.array([s["x"], s["y"], s["z"]]) - truth)
+                     for s in w["sources"]]
+        errors[mode] = np.median(errs)
+        side = json.loads(out.with_name(out.stem + ".settings.json").read_text())
+        if mode == "estimate":
+            speed = side["sound_speed"][str(out)]
+            assert speed["speed_mps"] == pytest.approx(1485.0, abs=1.0)
+        else:
+            assert "sound_speed" not in side
+    assert errors["estimate"] < 2.0 < 5.0 < errors["array"]
