@@ -8,8 +8,9 @@ works on the written windows (the JSON entries of :func:`fusion.pipelines.locali
 result_document`), so it runs after the chunks of a long recording are done, in one pass to
 collect the fixes and one to rewrite them.
 
-Which fixes teach the speed: those observable and not mirror-ambiguous that own more TDOAs
-than their three coordinates (a fix with exactly three has nothing to say about the speed).
+Which fixes teach the speed: those observable and not mirror-ambiguous whose TDOAs join at
+least five (real or image) sensors -- four independent delays for three coordinates (more delays
+between four sensors only repeat three of them and say nothing about the speed).
 """
 
 from __future__ import annotations
@@ -34,6 +35,14 @@ from fusion.pipelines.localization import SEA_SURFACE_Z, UNBOUNDED_M2
 
 __all__ = ["SpeedCalibration", "calibrate_speed", "fix_tdoas"]
 
+#: Sources of one window closer than this after the re-solve are one source, m (whales closer
+#: than a few metres are not told apart by their delays anyway).
+MERGE_M = 5.0
+#: Sources of one window closer than this at the file's speed are joined to teach the speed, m
+#: (a 1 % speed error moves fixes of a kilometre-scale array by tens of metres).
+CLUSTER_M = 30.0
+#: A teaching fix whose RMS whitened residual exceeds this many times the median is left out.
+OUTLIER_RATIO = 5.0
 #: Added in quadrature to every TDOA sigma, s, as the window's own solve does
 #: (:class:`fusion.pipelines.localization.ClickLocalization`'s ``sigma_floor_s``).
 SIGMA_FLOOR_S = 1e-6
@@ -62,8 +71,43 @@ def fix_tdoas(window: dict, source: dict, sensors: ArrayLike, c: float,
     return FixTdoas(s2, q2, moved, sig, np.ones(len(d)), pos)
 
 
+def _whitened_residual(fix: FixTdoas, p: NDArray, c: float) -> NDArray[np.float64]:
+    d = (np.linalg.norm(p - fix.sensors[fix.pairs[:, 0]], axis=1)
+         - np.linalg.norm(p - fix.sensors[fix.pairs[:, 1]], axis=1)) / c
+    return (d - fix.taus) / fix.sigmas
+
+
+def _clusters(sources: list[dict]) -> list[dict]:
+    """A window's sources with those within :data:`CLUSTER_M` of each other joined (their
+    owned TDOAs together, the first one's position): a wrong speed splits one whale's delays
+    between two nearby fixes, neither of which then spans enough sensors to teach the speed."""
+    out: list[dict] = []
+    for src in sources:
+        if not src.get("owned_tdoas"):
+            continue
+        p = np.array([src["x"], src["y"], src["z"]])
+        near = next((k for k, q in enumerate(out)
+                     if np.linalg.norm(p - [q["x"], q["y"], q["z"]]) < CLUSTER_M), None)
+        if near is None:
+            out.append(src)
+            continue
+        q = out[near]
+        extra = [(k, h) for k, h in zip(src["owned_tdoas"], src["paths"], strict=True)
+                 if k not in q["owned_tdoas"]]
+        out[near] = {**q, "owned_tdoas": q["owned_tdoas"] + [k for k, _ in extra],
+                     "paths": q["paths"] + [h for _, h in extra],
+                     "observable": bool(q.get("observable", True) or src.get("observable", True)),
+                     "mirror_ambiguous": bool(q.get("mirror_ambiguous")
+                                              and src.get("mirror_ambiguous"))}
+    return out
+
+
 def _teaches(source: dict, fix: FixTdoas | None) -> bool:
-    return (fix is not None and fix.m > 3 and bool(source.get("observable", True))
+    """Whether a fix says anything about the speed: observable, not mirror-ambiguous, and
+    with delays between at least 5 (real or image) sensors -- 4 independent delays for 3
+    coordinates; more delays between 4 sensors only repeat 3 of them."""
+    return (fix is not None and np.unique(fix.pairs).size >= 5
+            and bool(source.get("observable", True))
             and not source.get("mirror_ambiguous", False))
 
 
@@ -100,27 +144,55 @@ class SpeedCalibration:
             out.update(self.estimate.to_dict())
         return out
 
+    def _solved(self, window: dict, src: dict) -> dict:
+        """One source re-solved at the estimated speed from the TDOAs it owns."""
+        fix = fix_tdoas(window, src, self.sensors, self.nominal_mps)
+        if fix is None:
+            return src
+        c = self.estimate.speed_mps
+        p, cov = refit_fix(fix, c, variance_factor=self.estimate.variance_factor)
+        d = (np.linalg.norm(p - fix.sensors[fix.pairs[:, 0]], axis=1)
+             - np.linalg.norm(p - fix.sensors[fix.pairs[:, 1]], axis=1)) / c
+        finite = bool(np.all(np.isfinite(cov)))
+        return {**src, "x": float(p[0]), "y": float(p[1]), "z": float(p[2]),
+                "cov": np.where(np.isfinite(cov), cov, UNBOUNDED_M2).tolist(),
+                "tdoas_used": int(fix.m),
+                "observable": bool(src.get("observable", True)) and finite,
+                "residual_rms_s": float(np.sqrt(np.mean((d - fix.taus) ** 2)))}
+
     def apply(self, window: dict) -> dict:
-        """The window with each source re-solved at the estimated speed (a new dict)."""
+        """The window with each source re-solved at the estimated speed (a new dict).
+
+        Sources that land within :data:`MERGE_M` of one another are one source that the
+        wrong speed had split (each part of its TDOAs fitting its own position): they are
+        merged, the stronger one (more TDOAs) taking the other's TDOAs, and solved again.
+        """
         if self.estimate is None or not window.get("sources"):
             return window
-        sources = []
-        for src in window["sources"]:
-            fix = fix_tdoas(window, src, self.sensors, self.nominal_mps)
-            if fix is None:
-                sources.append(src)
+        solved = [self._solved(window, src) for src in window["sources"]]
+        rank = sorted(range(len(solved)), key=lambda k: -len(solved[k].get("owned_tdoas", ())))
+        kept: list[dict] = []
+        first: list[int] = []  # the written position of each kept source
+        for k in rank:
+            src = solved[k]
+            p = np.array([src["x"], src["y"], src["z"]])
+            near = next((k for k, q in enumerate(kept) if src.get("owned_tdoas")
+                         and q.get("owned_tdoas")
+                         and np.linalg.norm(p - [q["x"], q["y"], q["z"]]) < MERGE_M), None)
+            if near is None:
+                kept.append(src)
+                first.append(k)
                 continue
-            p, cov = refit_fix(fix, self.estimate.speed_mps,
-                               variance_factor=self.estimate.variance_factor)
-            s2 = fix.sensors
-            d = (np.linalg.norm(p - s2[fix.pairs[:, 0]], axis=1)
-                 - np.linalg.norm(p - s2[fix.pairs[:, 1]], axis=1)) / self.estimate.speed_mps
-            finite = bool(np.all(np.isfinite(cov)))
-            sources.append({**src, "x": float(p[0]), "y": float(p[1]), "z": float(p[2]),
-                            "cov": np.where(np.isfinite(cov), cov, UNBOUNDED_M2).tolist(),
-                            "observable": bool(src.get("observable", True)) and finite,
-                            "residual_rms_s": float(np.sqrt(np.mean((d - fix.taus) ** 2)))})
-        return {**window, "sources": sources}
+            first[near] = min(first[near], k)
+            q = kept[near]
+            extra = [(k, h) for k, h in zip(src["owned_tdoas"], src["paths"], strict=True)
+                     if k not in q["owned_tdoas"]]
+            union = {**q, "owned_tdoas": q["owned_tdoas"] + [k for k, _ in extra],
+                     "paths": q["paths"] + [h for _, h in extra],
+                     "mirror_ambiguous": bool(q.get("mirror_ambiguous") and
+                                              src.get("mirror_ambiguous"))}
+            kept[near] = self._solved(window, union)
+        return {**window, "sources": [kept[j] for j in np.argsort(first, kind="stable")]}
 
 
 def calibrate_speed(windows: Iterable[dict], sensors: ArrayLike, nominal_mps: float
@@ -139,19 +211,31 @@ def calibrate_speed(windows: Iterable[dict], sensors: ArrayLike, nominal_mps: fl
     s = np.asarray(sensors, dtype=float)
     fixes = []
     for w in windows:
-        for src in w.get("sources", []):
+        for src in _clusters(w.get("sources", [])):
             fix = fix_tdoas(w, src, s, nominal_mps)
             if _teaches(src, fix):
                 fixes.append(fix)
     if len(fixes) < MIN_CALIBRATION_FIXES:
         return SpeedCalibration(nominal_mps, None, (
-            f"sound speed: the array file's {nominal_mps:g} m/s ({len(fixes)} fixes with more "
-            f"than 3 TDOAs; {MIN_CALIBRATION_FIXES} are needed to estimate it)"), s)
+            f"sound speed: the array file's {nominal_mps:g} m/s ({len(fixes)} fixes with delays "
+            f"between 5 or more sensors; {MIN_CALIBRATION_FIXES} are needed to estimate it)"), s)
     try:
         est = estimate_sound_speed(fixes, nominal_mps=nominal_mps, n_real_sensors=len(s))
-    except (ValueError, RuntimeError) as e:
+        # a fix that fits far worse than the others (a cluster of two whales, a wrong
+        # association) is left out and the speed estimated again
+        rms = np.array([np.sqrt(np.mean(_whitened_residual(f, p, est.speed_mps) ** 2))
+                        for f, p in zip(fixes, est.positions, strict=True)])
+        good = rms <= OUTLIER_RATIO * max(np.median(rms), 1.0)
+        if not good.all() and good.sum() >= MIN_CALIBRATION_FIXES:
+            fixes = [f for f, g in zip(fixes, good, strict=True) if g]
+            est = estimate_sound_speed(fixes, nominal_mps=nominal_mps, n_real_sensors=len(s))
+    except ValueError as e:
         return SpeedCalibration(nominal_mps, None, (
             f"sound speed: the array file's {nominal_mps:g} m/s (not estimated: {e})"), s)
+    except RuntimeError:  # gtsam: indeterminate system
+        return SpeedCalibration(nominal_mps, None, (
+            f"sound speed: the array file's {nominal_mps:g} m/s (not estimated: the "
+            f"{len(fixes)} fixes do not constrain it)"), s)
     return SpeedCalibration(nominal_mps, est, (
         f"sound speed: {est.speed_mps:.1f} +- {est.sigma_mps:.2g} m/s estimated from "
         f"{est.n_tdoas} TDOAs of {est.n_fixes} fixes (array file {nominal_mps:g} m/s); every "

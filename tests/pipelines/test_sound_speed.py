@@ -63,7 +63,7 @@ def test_too_few_fixes_keep_the_file_speed_and_say_so():
     windows = [_window(p, 1484.0, 1500.0, 2.0 * k) for k, p in enumerate(TRUE[:2])]
     cal = calibrate_speed(windows, SENSORS, 1500.0)
     assert cal.estimate is None and cal.speed_mps == 1500.0
-    assert "array file's 1500 m/s" in cal.note and "3 are needed" in cal.note
+    assert "array file's 1500 m/s" in cal.note and "3 are needed" in cal.note and "5 or more sensors" in cal.note
     assert cal.apply(windows[0]) is windows[0]
     # fixes flagged mirror-ambiguous or unobservable teach nothing
     flagged = [_window(p, 1484.0, 1500.0, 2.0 * k) for k, p in enumerate(TRUE)]
@@ -115,3 +115,25 @@ def test_cli_estimates_the_speed_the_array_file_gets_wrong(tmp_path):
         else:
             assert "sound_speed" not in side
     assert errors["estimate"] < 2.0 < 5.0 < errors["array"]
+
+
+def test_a_source_split_by_the_wrong_speed_is_merged_after_the_re_solve():
+    windows = [_window(p, 1484.0, 1500.0, 2.0 * k) for k, p in enumerate(TRUE)]
+    w = windows[0]
+    src = w["sources"][0]
+    # the same whale written as two sources owning halves of its delays (apart at 1500 m/s)
+    a = {**src, "owned_tdoas": list(range(6)), "paths": ["direct"] * 6, "x": src["x"] + 9.0}
+    b = {**src, "owned_tdoas": list(range(4, 10)), "paths": ["direct"] * 6, "y": src["y"] - 8.0}
+    split = {**w, "sources": [a, b]}
+    cal = calibrate_speed(windows, SENSORS, 1500.0)
+    out = cal.apply(split)["sources"]
+    assert len(out) == 1
+    assert sorted(out[0]["owned_tdoas"]) == list(range(10)) and out[0]["tdoas_used"] == 10
+    np.testing.assert_allclose([out[0][k] for k in "xyz"], TRUE[0], atol=0.01)
+    # two whales 40 m apart stay two sources
+    other = _window(TRUE[0] + [40.0, 0, 0], 1484.0, 1500.0, 0.0)
+    two = {**w, "tdoas": w["tdoas"] + other["tdoas"],
+           "sources": [src, {**other["sources"][0],
+                             "owned_tdoas": list(range(10, 20)),
+                             "paths": ["direct"] * 10}]}
+    assert len(cal.apply(two)["sources"]) == 2
