@@ -12,11 +12,13 @@ surface paths only in windows the direct paths leave unexplained. The truth is r
 Usage::
 
     python examples/localize_range.py [--seed 3] [--whales 2] [--echo both] [--vary]
+        [--vary-only sound-speed]
         [--duration-s 30] [--out DIR]
 
 Prints the command's own report (replica, bottom echoes, counts) and one JSON line of scores:
 windows, whales found within 10 m, false fixes, the median error of found fixes and the median
-|TDOA error| at each TDOA's own time ``t``.
+|TDOA error| at each TDOA's own time ``t``, and the sound speed the command estimated beside
+the array file's.
 """
 
 from __future__ import annotations
@@ -40,6 +42,9 @@ def main(argv: list[str] | None = None) -> dict:
     ap.add_argument("--whales", type=int, default=2)
     ap.add_argument("--echo", choices=("none", "surface", "bottom", "both"), default="both")
     ap.add_argument("--vary", action="store_true", help="every varied assumption at once")
+    ap.add_argument("--vary-only", default=None, metavar="GROUPS",
+                    help="one varied effect at a time, e.g. sound-speed (fusion simulate clicks "
+                         "--vary-only)")
     ap.add_argument("--duration-s", type=float, default=30.0)
     ap.add_argument("--out", type=Path, default=None, help="keep the files here")
     args = ap.parse_args(argv)
@@ -49,6 +54,7 @@ def main(argv: list[str] | None = None) -> dict:
         sim = ["simulate", "clicks", "--seed", str(args.seed), "--out", str(scen),
                "--duration-s", str(args.duration_s)]
         sim += ["--vary"] if args.vary else ["--whales", str(args.whales), "--echo", args.echo]
+        sim += ["--vary-only", args.vary_only] if args.vary_only else []
         with contextlib.redirect_stdout(io.StringIO()):  # the written paths
             assert fusion(sim) == 0
         audio = next(p for p in (scen / "audio.flac", scen / "audio.wav") if p.exists())
@@ -57,6 +63,7 @@ def main(argv: list[str] | None = None) -> dict:
                        "--out", str(result), "--quiet"]) == 0
         doc = json.loads(result.read_text())
         truth = json.loads((scen / "truth.json").read_text())
+        side = json.loads((folder / "localization.settings.json").read_text())
     found = pairs = false = reported = 0
     errors, tdoa_errors = [], []
     for w in doc["windows"]:
@@ -78,6 +85,8 @@ def main(argv: list[str] | None = None) -> dict:
         "median_error_m": round(float(np.median(errors)), 3) if errors else None,
         "median_tdoa_error_us": round(float(np.median(tdoa_errors)), 3) if tdoa_errors else None,
         "found_fraction": found / max(pairs, 1), "false_fraction": false / max(reported, 1),
+        "sound_speed_mps": round(next(iter(side["sound_speed"].values()))["speed_mps"], 2),
+        "array_file_sound_speed_mps": truth["nominal_sound_speed"],
     }
     print(json.dumps(summary))
     return summary

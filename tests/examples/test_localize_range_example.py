@@ -23,4 +23,5 @@ def test_example_runs_small(capsys):
     assert s["found_fraction"] >= 0.8 and s["false_fraction"] == 0.0
     assert s["median_error_m"] < 1.0 and s["median_tdoa_error_us"] < 1.0
     err = capsys.readouterr().err
-    assert "replica: estimated" in err and "bottom echoes" in err
+    assert "replica: estimated" in err and "bottom echoes" in err and "sound speed" in err
+    assert abs(s["sound_speed_mps"] - s["array_file_sound_speed_mps"]) < 1.0  # the file was right
