@@ -127,7 +127,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--sea-floor-z", type=number(float), default=None, metavar="Z",
                    help="height of the sea floor, m (z up, e.g. -1700; at or below every sensor): "
                         "sources are searched between it and the surface (default: 30 m under "
-                        "the deepest sensor when the sensors hear bottom echoes, else unknown)")
+                        "the deepest sensor, which hears bottom echoes or is taken as "
+                        "bottom-mounted; sensors not all below z = 0: unknown)")
     p.add_argument("--sound-speed", choices=("estimate", "array"), default="estimate",
                    help="estimate (default): one sound speed for the recording, estimated on a "
                         "factor graph from all its fixes, and every fix re-solved at it (the "

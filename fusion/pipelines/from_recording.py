@@ -8,7 +8,11 @@ Before the windows are processed, the first minute of a recording is examined on
   hydrophones hear their clicks followed by a floor echo, the detector drops echoes within the
   measured lags (:func:`fusion.clicks.echoes.echo_window`) and, when no sea floor is given and
   every sensor is below the surface z = 0, sources are searched above the deepest sensor minus
-  :data:`fusion.clicks.echoes.FLOOR_MARGIN_M`.
+  :data:`fusion.clicks.echoes.FLOOR_MARGIN_M`;
+* when no floor echo is heard, the hydrophones (all below the surface, no sea floor given) are
+  taken as bottom-mounted, the method's range, and sources are searched above the same bound:
+  a nearly flat array cannot tell a whale from its mirror image below it, and on a range that
+  image is in the sea bed. ``--sea-floor-z`` gives another floor (hydrophones moored above it).
 
 :func:`decide_from_recording` returns the detector and localizer settings to use, one line per
 decision for the user and a JSON-ready record; ``fusion localize`` prints the lines and writes the
@@ -141,18 +145,27 @@ def decide_from_recording(
         "bottom_echo_z": [None if not np.isfinite(v) else round(float(v), 2) for v in echoes.z],
         "bottom_echo_lag_s": [None if not np.isfinite(v) else float(v) for v in echoes.lag_s]}
     notes = [replica_note]
+    below = bool(np.all(sensors.positions[:, 2] < SEA_SURFACE_Z))
     if echoes.near_floor:
         window = echo_window(echoes)
         det = det.with_echo_window(window)
         floor_record["echo_window_s"] = list(window)
         note = (f"{echoes.describe()} in {span}: a click {window[0] * 1e3:.2g}-"
                 f"{window[1] * 1e3:.2g} ms after a stronger one is taken as its echo")
-        below = bool(np.all(sensors.positions[:, 2] < SEA_SURFACE_Z))
         if settings is not None and not given and below:
             floor = float(sensors.positions[:, 2].min()) - FLOOR_MARGIN_M
             settings = dataclasses.replace(settings, sea_floor_z=floor)
             floor_record.update(source="bottom echoes", sea_floor_z=floor)
             note += f"; the sensors stand near the sea floor: sources searched above z = {floor:g} m"
         notes.append(note)
+    elif settings is not None and not given and below:
+        # no floor echo heard: the method's range (hydrophones on the sea floor) is assumed, so
+        # that a whale and its mirror image through a nearly flat array are not both kept
+        floor = float(sensors.positions[:, 2].min()) - FLOOR_MARGIN_M
+        settings = dataclasses.replace(settings, sea_floor_z=floor)
+        floor_record.update(source="bottom-mounted (no bottom echo heard)", sea_floor_z=floor)
+        notes.append(f"no bottom echo heard in {span}: the hydrophones are taken as bottom-mounted "
+                     f"(the method's range): sources searched above z = {floor:g} m "
+                     "(--sea-floor-z for hydrophones moored above the floor)")
     return RecordingDecisions(det, settings, est, echoes, tuple(notes),
                               {"replica": replica_record, "sea_floor": floor_record})

@@ -78,7 +78,8 @@ def test_half_the_channels_decide_and_few_clicks_abstain():
 @pytest.mark.parametrize("echo", ["bottom", "none"])
 def test_localize_decides_the_sea_floor_from_the_recording(tmp_path, echo):
     """`fusion localize` without --sea-floor-z: a recording with bottom echoes gets the floor
-    below the deepest sensor (printed, in the settings file); one without keeps none."""
+    below the deepest sensor (printed, in the settings file); one without takes the hydrophones
+    as bottom-mounted (the same bound, another source named); with --sea-floor-z, that one."""
     from fusion.cli import main
 
     assert main(["simulate", "clicks", "--seed", "21", "--out", str(tmp_path / "s"),
@@ -94,8 +95,15 @@ def test_localize_decides_the_sea_floor_from_the_recording(tmp_path, echo):
         assert side["sea_floor"]["sea_floor_z"] == pytest.approx(deepest - FLOOR_MARGIN_M)
         assert side["localization"]["sea_floor_z"] == pytest.approx(deepest - FLOOR_MARGIN_M)
     else:
-        assert side["sea_floor"]["source"] == "none" and not side["sea_floor"]["near_floor"]
-        assert side["localization"]["sea_floor_z"] is None
+        assert not side["sea_floor"]["near_floor"]
+        assert side["sea_floor"]["source"] == "bottom-mounted (no bottom echo heard)"
+        assert side["localization"]["sea_floor_z"] == pytest.approx(deepest - FLOOR_MARGIN_M)
+        assert main(["localize", "--audio", str(tmp_path / "s" / "audio.flac"), "--array",
+                     str(tmp_path / "s" / "array.json"), "--out", str(tmp_path / "g.json"),
+                     "--quiet", "--sea-floor-z", str(deepest - 500.0)]) == 0
+        given = json.loads((tmp_path / "g.settings.json").read_text())
+        assert given["sea_floor"]["source"] == "given"
+        assert given["localization"]["sea_floor_z"] == pytest.approx(deepest - 500.0)
 
 
 def _echoes_after(detected, direct):
