@@ -103,7 +103,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "estimated from the strongest clicks of the first 60 s "
                         "of the recording, starting from the shipped one)")
     p.add_argument("--llr-threshold", type=float, default=None,
-                   help="validation threshold on the log-likelihood ratio (default: the model's)")
+                   help="validation threshold on the log-likelihood ratio (default: 0, even "
+                        "odds, with the shipped validator; a --validator file's own threshold)")
     p.add_argument("--max-tdoa-rate", type=number(float, ge=0, le=0.05), default=MAX_TDOA_RATE,
                    metavar="S_PER_S",
                    help="largest delay drift d tau/dt the click-map correlation compensates, s/s "
@@ -257,7 +258,7 @@ def run(args: argparse.Namespace) -> int:
         plan_chunks,
         write_document,
     )
-    from fusion.pipelines.clicks import ClickFrontEnd, default_validator
+    from fusion.pipelines.clicks import LLR_THRESHOLD, ClickFrontEnd, default_validator
     from fusion.pipelines.localization import ClickLocalization, settings_from_args
     from fusion.scale import PartStore, dask_client, progress, run_tasks
 
@@ -276,7 +277,7 @@ def run(args: argparse.Namespace) -> int:
     if args.detect_threshold is not None:
         det_opts["threshold"] = args.detect_threshold
     validator = (TdoaValidator.load(args.validator) if args.validator is not None
-                 else default_validator())
+                 else default_validator(LLR_THRESHOLD))
     if args.llr_threshold is not None:
         validator = dataclasses.replace(validator, threshold=args.llr_threshold)
     # checked (and the direct-path fallback logged) once for the array; the pipeline resolves

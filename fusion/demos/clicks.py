@@ -185,7 +185,7 @@ def run_demo(out_dir: Path, *, seed: int) -> dict[str, Any]:
     import matplotlib.pyplot as plt
 
     from fusion.pipelines.click_training import label_windows, scenario_labels
-    from fusion.pipelines.clicks import ClickFrontEnd
+    from fusion.pipelines.clicks import LLR_THRESHOLD, ClickFrontEnd, default_validator
     from fusion.pipelines.from_recording import RECORDING_SPAN_S, decide_from_recording
     from fusion.pipelines.localization import (
         ClickLocalization,
@@ -193,6 +193,7 @@ def run_demo(out_dir: Path, *, seed: int) -> dict[str, Any]:
         result_document,
         track_windows,
     )
+    from fusion.pipelines.sound_speed import calibrate_speed
     from fusion.simulate.clicks import simulate_clicks, write_click_scenario
 
     out = Path(out_dir)
@@ -207,7 +208,8 @@ def run_demo(out_dir: Path, *, seed: int) -> dict[str, Any]:
     # recording, surface paths per window
     decided = decide_from_recording(audio[:int(RECORDING_SPAN_S * fs)], fs, array,
                                     settings=LocalizerSettings(), span="the demo recording")
-    pipe = ClickLocalization(front_end=ClickFrontEnd(detector=decided.detector),
+    pipe = ClickLocalization(front_end=ClickFrontEnd(detector=decided.detector,
+                                                     validator=default_validator(LLR_THRESHOLD)),
                              localizer=decided.settings)
     step = int(round(pipe.front_end.hop_s * fs))
     blocks = ((a / fs, audio[a:a + step]) for a in range(0, audio.shape[0], step))
@@ -302,7 +304,11 @@ def run_demo(out_dir: Path, *, seed: int) -> dict[str, Any]:
 
     # ---- figure 3: eq. 17 against eq. 18 in plan view at the estimated depth
     tracks = track_windows(done)
-    write_json(out / "localization.json", result_document(done, tracks=tracks))
+    doc = result_document(done, tracks=tracks)
+    # the recording's sound speed from all its fixes, as fusion localize does after its windows
+    speed = calibrate_speed(doc["windows"], array.positions, array.sound_speed)
+    doc["windows"] = [speed.apply(w) for w in doc["windows"]]
+    write_json(out / "localization.json", doc)
     surf = _draw_surfaces(plt, out / "clicks_surfaces.png", done, pipe, array, sc)
 
     # ---- figure 4: tracks in plan view and depth against time
@@ -323,4 +329,6 @@ def run_demo(out_dir: Path, *, seed: int) -> dict[str, Any]:
         "replica_estimated": decided.replica is not None,
         "bottom_echoes": decided.echoes.describe(),
         "sea_floor_z": decided.settings.sea_floor_z,
+        "sound_speed_mps": round(speed.speed_mps, 2),
+        "sound_speed_source": speed.record()["source"],
     }

@@ -116,19 +116,26 @@ def test_serial_run_equals_one_pass(recording, serial_bytes, tmp_path):
             yield start / fs, x
             start += x.shape[0]
 
-    # the command's default replica: estimated from the first 60 s (here all) of the recording
-    from fusion.clicks.detect import ClickDetector
-    from fusion.pipelines.clicks import ClickFrontEnd
+    # the command's decisions from the first 60 s (here all) of the recording: replica, echoes,
+    # sea floor; then, once every window is done, the recording's sound speed
+    from fusion.pipelines.clicks import LLR_THRESHOLD, ClickFrontEnd, default_validator
+    from fusion.pipelines.from_recording import decide_from_recording
+    from fusion.pipelines.localization import LocalizerSettings
+    from fusion.pipelines.sound_speed import calibrate_speed
 
     first, _ = sf.read(str(recording / "audio.flac"), frames=int(60 * fs), dtype="float32",
                        always_2d=True)
-    detector, est = ClickDetector().with_recording_replica(first, fs)
-    assert est is not None and detector is not None
-    pipe = ClickLocalization(front_end=ClickFrontEnd(detector=detector))
+    decided = decide_from_recording(first, fs, sensors, settings=LocalizerSettings())
+    assert decided.replica is not None
+    pipe = ClickLocalization(front_end=ClickFrontEnd(detector=decided.detector,
+                                                     validator=default_validator(LLR_THRESHOLD)),
+                             localizer=decided.settings)
     with threadpool_limits(1):  # as the chunk tasks (one BLAS thread, as on a Dask worker)
         windows = list(pipe.iter_windows(blocks(), fs=fs, sensors=sensors,
                                          duration_s=info.frames / fs))
     doc = result_document(windows)
+    cal = calibrate_speed(doc["windows"], sensors.positions, sensors.sound_speed)
+    doc["windows"] = [cal.apply(w) for w in doc["windows"]]
     doc["tracks"] = [t.to_dict() for t in track_document_sources(
         [(0.5 * (w["t_start"] + w["t_end"]), w["sources"]) for w in doc["windows"]])]
     ref = write_json(tmp_path / "one_pass.json", doc)
