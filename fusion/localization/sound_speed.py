@@ -42,6 +42,7 @@ __all__ = [
     "FixTdoas",
     "SoundSpeedEstimate",
     "estimate_sound_speed",
+    "fix_residuals",
     "path_sensors",
     "refit_fix",
 ]
@@ -186,11 +187,17 @@ def _factor(fix: FixTdoas, key: int, *, c: float | None = None, speed_key: int |
                                        robust=kernel)
 
 
-def _whitened(fix: FixTdoas, p: NDArray, c: float) -> NDArray[np.float64]:
+def fix_residuals(fix: FixTdoas, position: ArrayLike, c: float) -> NDArray[np.float64]:
+    """Model minus measured delay of each of a fix's TDOAs at `position` and speed `c`, s."""
+    p = np.asarray(position, dtype=float)
     s = fix.sensors
     d = (np.linalg.norm(p - s[fix.pairs[:, 0]], axis=1)
          - np.linalg.norm(p - s[fix.pairs[:, 1]], axis=1)) / c
-    return np.sqrt(np.maximum(fix.weights, 0.0)) * (d - fix.taus) / fix.sigmas
+    return d - fix.taus
+
+
+def _whitened(fix: FixTdoas, p: NDArray, c: float) -> NDArray[np.float64]:
+    return np.sqrt(np.maximum(fix.weights, 0.0)) * fix_residuals(fix, p, c) / fix.sigmas
 
 
 def _solve(fixes: Sequence[FixTdoas], nominal_mps: float, prior_sigma_mps: float,

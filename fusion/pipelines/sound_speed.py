@@ -27,6 +27,7 @@ from fusion.localization.sound_speed import (
     FixTdoas,
     SoundSpeedEstimate,
     estimate_sound_speed,
+    fix_residuals,
     path_sensors,
     refit_fix,
 )
@@ -69,12 +70,6 @@ def fix_tdoas(window: dict, source: dict, sensors: ArrayLike, c: float,
                                   SEA_SURFACE_Z)
     s2, q2 = path_sensors(s, pairs, paths, SEA_SURFACE_Z)
     return FixTdoas(s2, q2, moved, sig, np.ones(len(d)), pos)
-
-
-def _whitened_residual(fix: FixTdoas, p: NDArray, c: float) -> NDArray[np.float64]:
-    d = (np.linalg.norm(p - fix.sensors[fix.pairs[:, 0]], axis=1)
-         - np.linalg.norm(p - fix.sensors[fix.pairs[:, 1]], axis=1)) / c
-    return (d - fix.taus) / fix.sigmas
 
 
 def _clusters(sources: list[dict]) -> list[dict]:
@@ -151,14 +146,12 @@ class SpeedCalibration:
             return src
         c = self.estimate.speed_mps
         p, cov = refit_fix(fix, c, variance_factor=self.estimate.variance_factor)
-        d = (np.linalg.norm(p - fix.sensors[fix.pairs[:, 0]], axis=1)
-             - np.linalg.norm(p - fix.sensors[fix.pairs[:, 1]], axis=1)) / c
         finite = bool(np.all(np.isfinite(cov)))
         return {**src, "x": float(p[0]), "y": float(p[1]), "z": float(p[2]),
                 "cov": np.where(np.isfinite(cov), cov, UNBOUNDED_M2).tolist(),
                 "tdoas_used": int(fix.m),
                 "observable": bool(src.get("observable", True)) and finite,
-                "residual_rms_s": float(np.sqrt(np.mean((d - fix.taus) ** 2)))}
+                "residual_rms_s": float(np.sqrt(np.mean(fix_residuals(fix, p, c) ** 2)))}
 
     def apply(self, window: dict) -> dict:
         """The window with each source re-solved at the estimated speed (a new dict).
@@ -223,7 +216,7 @@ def calibrate_speed(windows: Iterable[dict], sensors: ArrayLike, nominal_mps: fl
         est = estimate_sound_speed(fixes, nominal_mps=nominal_mps, n_real_sensors=len(s))
         # a fix that fits far worse than the others (a cluster of two whales, a wrong
         # association) is left out and the speed estimated again
-        rms = np.array([np.sqrt(np.mean(_whitened_residual(f, p, est.speed_mps) ** 2))
+        rms = np.array([np.sqrt(np.mean((fix_residuals(f, p, est.speed_mps) / f.sigmas) ** 2))
                         for f, p in zip(fixes, est.positions, strict=True)])
         good = rms <= OUTLIER_RATIO * max(np.median(rms), 1.0)
         if not good.all() and good.sum() >= MIN_CALIBRATION_FIXES:
