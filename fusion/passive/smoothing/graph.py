@@ -79,6 +79,7 @@ def _check_detections(times: ArrayLike, bearings: ArrayLike) -> tuple[FloatArray
 
 def _lm_params(max_iterations: int) -> gtsam.LevenbergMarquardtParams:
     params = gtsam.LevenbergMarquardtParams()
+    params.setLinearSolverType("MULTIFRONTAL_QR")  # see _solve_linear
     params.setMaxIterations(max_iterations)
     params.setRelativeErrorTol(1e-12)
     params.setAbsoluteErrorTol(1e-14)
@@ -143,6 +144,50 @@ def _build_graph(
     return graph
 
 
+def _natural(n: int) -> gtsam.Ordering:
+    ordering = gtsam.Ordering()
+    for k in range(n):
+        ordering.push_back(k)
+    return ordering
+
+
+def _solve_linear(graph: gtsam.GaussianFactorGraph) -> gtsam.VectorValues:
+    """``argmin ||A dx - b||^2`` of a linear chain graph (keys 0..n-1) by QR.
+
+    GTSAM's default (Cholesky of ``A^T A``) squares the condition number: with a small bearing
+    acceleration PSD (rigid motion factors, information ~ 1/(q dt^3)) beside a weak prior and a
+    few bearings it declares such well-posed chains "indeterminate" (issue 18: most crossing
+    episodes of the hard passive benchmark fell back to nearest assignment for it). QR works
+    on ``A`` itself and solves them; along the chain (natural order) it costs O(n).
+    """
+    return graph.eliminateSequential(_natural(len(graph.keys())), gtsam.EliminateQR).optimize()
+
+
+def _chain_marginals(graph: gtsam.GaussianFactorGraph, n: int) -> list[FloatArray]:
+    """Marginal covariances (2, 2) of the states 0..n-1 of a linear chain graph.
+
+    QR elimination along the chain gives conditionals ``R_k x_k + S_k x_{k+1} = d_k`` (unit
+    noise); backwards, ``Sigma_k = A_k Sigma_{k+1} A_k^T + R_k^{-1} R_k^{-T}`` with
+    ``A_k = -R_k^{-1} S_k``: the covariances of ``gtsam.Marginals`` without its Cholesky
+    factorisation, which fails on the same rigid chains as :func:`_solve_linear`'s default.
+    """
+    bn = graph.eliminateSequential(_natural(n), gtsam.EliminateQR)
+    cov: list[FloatArray] = [np.zeros((2, 2))] * n
+    for k in range(n - 1, -1, -1):
+        c = bn.at(k)
+        keys = list(c.keys())
+        r_inv = np.linalg.inv(c.R())
+        own = r_inv @ r_inv.T
+        if len(keys) == 1:
+            cov[k] = own
+        else:
+            if keys != [k, k + 1]:
+                raise RuntimeError(f"not a chain graph: state {k} depends on {keys[1:]}")
+            a = -r_inv @ c.S()
+            cov[k] = a @ cov[k + 1] @ a.T + own
+    return cov
+
+
 def _branches(
     times: FloatArray, meas: _Measurements, prior: TrackPrior | None, states: FloatArray
 ) -> FloatArray:
@@ -177,7 +222,7 @@ def _optimize(
             values.insert(k, states[k])
         if loss == "none":
             graph = graph.linearize(values)
-            values = values.retract(graph.optimize())  # x = x_0 + argmin ||A dx - b||^2
+            values = values.retract(_solve_linear(graph))  # x = x_0 + argmin ||A dx - b||^2
         else:
             values = gtsam.LevenbergMarquardtOptimizer(
                 graph, values, _lm_params(model.max_iterations)
@@ -257,8 +302,8 @@ def _solve(
         graph, values, states = _optimize(times, meas, prior, model, loss, weights, states)
     if not marginals:
         return states, None
-    marg = gtsam.Marginals(graph, values)
-    var = np.array([marg.marginalCovariance(k).diagonal() for k in range(times.size)])
+    lin = graph if isinstance(graph, gtsam.GaussianFactorGraph) else graph.linearize(values)
+    var = np.array([c.diagonal() for c in _chain_marginals(lin, times.size)])
     return states, np.sqrt(var)
 
 
@@ -274,8 +319,8 @@ def _solve_cov(
     covariances (2, 2) of the states `keys`."""
     graph, values, states = _optimize(times, meas, prior, model, "none", None,
                                       np.asarray(init, float))
-    marg = gtsam.Marginals(graph, values)
-    return states, [np.asarray(marg.marginalCovariance(int(k))) for k in keys]
+    cov = _chain_marginals(graph, times.size)
+    return states, [cov[int(k)] for k in keys]
 
 
 def _default_prior(z0: float, model: _Model, sigma_rate: float) -> TrackPrior:
