@@ -130,13 +130,15 @@ def _association_scenario(seed: int):
     return sc, {"tracks": n_tracks, "p_detect": p_d, "clutter_per_scan": clutter}
 
 
-def _smoother_from_data(t, z, association: str) -> tuple[MultiTrackSmoother, object]:
+def _smoother_from_data(t, z, association: str, st=None) -> tuple[MultiTrackSmoother, object]:
     """The multi-track smoother as ``fusion smooth`` builds it: every setting fitted to the
-    unlabelled rows (nothing from the truth)."""
-    st = fit_smooth_settings(np.full(t.size, -1), t, z)
+    unlabelled rows (nothing from the truth; `st` those settings if already fitted); the
+    clutter density of the association counted by the smoother itself from the detections
+    its tracks leave."""
+    st = fit_smooth_settings(np.full(t.size, -1), t, z) if st is None else st
     mts = MultiTrackSmoother(
         sigma_bearing=np.radians(st.sigma_bearing_deg),
-        q=st.q_deg2_per_s3 * np.radians(1.0) ** 2, clutter_density=st.clutter_density,
+        q=st.q_deg2_per_s3 * np.radians(1.0) ** 2, clutter_density=None,
         p_detect=st.p_detect, min_length=st.min_length, association=association,
         init_sigma_rate=np.radians(st.init_sigma_rate_deg_per_s), max_misses=st.max_misses,
         max_gap_scans=st.max_gap_scans)
@@ -144,11 +146,15 @@ def _smoother_from_data(t, z, association: str) -> tuple[MultiTrackSmoother, obj
 
 
 def bench_association(seeds, within_s: float = 60.0) -> dict:
-    """Weighted against nearest association (and the plain nearest-neighbour tracker) on the
-    same unlabelled bearings: outcomes around each crossing (15-scan guard, 20-scan windows),
+    """Weighted against nearest association, the plain nearest-neighbour tracker and Stone
+    Soup's JPDA tracker (:mod:`_jpda`) on the same unlabelled bearings (settings fitted once
+    per scenario, outside the timings): outcomes around each crossing (15-scan guard, 20-scan
+    windows),
     identity per detection inside the guard, bearing RMS within `within_s` of each crossing
     (per crossing target, the track that followed it before), divided by the noise."""
-    names = ("weighted", "nearest", "nn")
+    from _jpda import run_jpda  # Stone Soup, only for this part
+
+    names = ("weighted", "nearest", "nn", "jpda")
     tally = {n: dict.fromkeys(CROSSING_OUTCOMES, 0) for n in names}
     inside = {n: np.zeros(2, np.int64) for n in names}
     err = {n: [] for n in names}
@@ -161,17 +167,27 @@ def bench_association(seeds, within_s: float = 60.0) -> dict:
         kw = {"guard_s": 15 * sc.sample_period_s, "window_s": 20 * sc.sample_period_s}
         truth = {int(k): np.radians(sc.truth_bearing_deg[i]) for i, k in enumerate(sc.track_ids)}
         noise = np.radians(np.atleast_1d(sc.noise_deg))
+        st = fit_smooth_settings(np.full(t.size, -1), t, z)
+        lam_counted = st.clutter_density
         for name in names:
             t0 = time.perf_counter()
-            if name == "nn":
-                mts, st = _smoother_from_data(t, z, "nearest")
+            if name == "jpda":  # the same fitted settings and counted clutter density
+                lab, tracks = run_jpda(
+                    t, z, sigma=np.radians(st.sigma_bearing_deg),
+                    q=st.q_deg2_per_s3 * np.radians(1.0) ** 2, p_detect=st.p_detect,
+                    clutter_density=lam_counted, max_misses=st.max_misses,
+                    init_sigma_rate=np.radians(st.init_sigma_rate_deg_per_s))
+            elif name == "nn":
+                mts, _ = _smoother_from_data(t, z, "nearest", st)
                 res = mts.tracker.run(t, z)
                 lab = res.labels
                 tracks = {m: (res.scan_times[res.first_scan[m]: res.last_scan[m] + 1],
                               res.states[m][:, 0]) for m in range(res.n_tracks)}
             else:
-                mts, st = _smoother_from_data(t, z, name)
+                mts, _ = _smoother_from_data(t, z, name, st)
                 res = mts.run(t, z)
+                if name == "weighted":
+                    lam_counted = mts.used_clutter_density
                 lab = res.labels
                 tracks = {tr.track_id: (tr.times, tr.bearing) for tr in res.tracks}
             secs[name] += time.perf_counter() - t0

@@ -134,7 +134,9 @@ def run(args: argparse.Namespace) -> int:
     sigma = np.radians(st.sigma_bearing_deg)
     q = st.q_deg2_per_s3 * np.radians(1.0) ** 2
     single = BearingSmoother(sigma_bearing=sigma, q=q, robust=args.robust)
-    multi = MultiTrackSmoother(sigma_bearing=sigma, q=q, clutter_density=st.clutter_density,
+    # the association's clutter density: given, or counted by the tracker from the detections
+    # its tracks leave (closer to the truth than the pair-scatter estimate, issue 18)
+    multi = MultiTrackSmoother(sigma_bearing=sigma, q=q, clutter_density=args.clutter_density,
                                p_detect=st.p_detect, min_length=st.min_length,
                                association=args.association,
                                init_sigma_rate=np.radians(st.init_sigma_rate_deg_per_s),
@@ -166,10 +168,16 @@ def run(args: argparse.Namespace) -> int:
         cols["sigma_bearing_deg"].append(np.degrees(tr.sigma_bearing))
     out = {k: (np.concatenate(v) if v else np.zeros(0)) for k, v in cols.items()}
     write_table(args.out, out)
+    counted = getattr(multi, "used_clutter_density", None)
+    assoc = {"association": args.association, "output_times": args.output_times}
+    if counted is not None:
+        assoc["association_clutter_density"] = float(counted)
     write_settings(args.out, {"command": "smooth", "tracks": len(tracks), "settings": st.as_dict(),
-                              "association": args.association, "output_times": args.output_times},
+                              **assoc},
                    inputs=(args.bearings,))
-    emit(f"fusion smooth: {st.describe()}: {len(tracks)} track(s) -> {args.out}")
+    note = "" if counted is None or args.clutter_density is not None else (
+        f"; association {args.association}, clutter {counted:.3g} /scan/rad counted")
+    emit(f"fusion smooth: {st.describe()}{note}: {len(tracks)} track(s) -> {args.out}")
     logger.info("wrote %d tracks to %s", len(tracks), args.out)
     return 0
 

@@ -181,6 +181,10 @@ class MultiTrackSmoother:
             raise ValueError(f"association must be one of {', '.join(ASSOCIATIONS)}, got "
                              f"{association!r}")
         self.association = association
+        #: Clutter density and detection probability the last run associated with (given or
+        #: counted from the data), per scan per radian and per scan.
+        self.used_clutter_density: float | None = None
+        self.used_p_detect: float | None = None
         self.tracker = NearestNeighbourTracker(
             sigma_bearing=sigma_bearing, q=q, gate=gate, init_sigma_rate=init_sigma_rate,
             n_confirm=n_confirm, max_misses=max_misses, window_scans=window_scans,
@@ -254,8 +258,9 @@ class MultiTrackSmoother:
         released = np.zeros(t.size, bool)
         released[shared_idx] = True
         lam_hat, pd_hat = clutter_and_detection(labels, scan_of, first, last, released, z)
-        self._lam = lam_hat if self.clutter_density is None else self.clutter_density
-        self._pd = pd_hat if self.p_detect is None else self.p_detect
+        lam = lam_hat if self.clutter_density is None else self.clutter_density
+        p_d = pd_hat if self.p_detect is None else self.p_detect
+        self.used_clutter_density, self.used_p_detect = lam, p_d
         self._n_approx = 0
         weights = np.zeros(pair_det.size)
         for j in shared_idx:
@@ -296,12 +301,12 @@ class MultiTrackSmoother:
         logger.info("%d segments linked into %d tracks; %d shared detections in %d crossing "
                     "clusters; %s association, clutter %.3g /scan/rad, P_D %.3g%s",
                     len(segments), n_tracks, shared_idx.size, len(clusters), self.association,
-                    self._lam, self._pd, "" if self._n_approx == 0 else
+                    lam, p_d, "" if self._n_approx == 0 else
                     f"; {self._n_approx} busy scans with per-detection responsibilities")
         return MultiTrackResult(tuple(tracks), out_labels, shared, max_iter,
                                 pairs=(pair_det, pair_track, weights.copy()),
-                                association=self.association, clutter_density=self._lam,
-                                p_detect=self._pd, approximate_scans=self._n_approx)
+                                association=self.association, clutter_density=lam,
+                                p_detect=p_d, approximate_scans=self._n_approx)
 
     # -- segments ---------------------------------------------------------------------------
 
@@ -457,7 +462,8 @@ class MultiTrackSmoother:
             dj, mj = pair_det[sel], pair_track[sel]
             if self.association == "weighted":
                 new, n_approx = joint_weights(scan_of[dj], dj, mj, self._density(z[dj], theta),
-                                              p_detect=self._pd, clutter_density=self._lam,
+                                              p_detect=self.used_p_detect,
+                                              clutter_density=self.used_clutter_density,
                                               max_joint=MAX_JOINT)
                 if it == 1:
                     self._n_approx += n_approx
