@@ -10,8 +10,9 @@ the branch nearest the current estimate, motion residuals are wrapped at the lin
 and a graph whose solution moved a residual onto another branch is re-centred there and solved
 again. The result is the optimum of the wrapped model of the scalar factors
 (:func:`factors.bearing.bearing_factor`, :func:`factors.motion.constant_velocity_factor`).
-Bearings whose origin is uncertain enter through association-weighted factors
-(:func:`factors.weighted.weighted_factor`).
+Bearings whose origin is uncertain enter with association weights ``w``: with the Gaussian
+loss as the same built-in factor with ``sigma / sqrt(w)`` (cost ``w`` times the bearing
+factor's), with a robust loss through :func:`factors.weighted.weighted_factor`.
 
 The names here are the package's internals, shared by the batch, online and multi-track
 smoothers; the design notes ("Factor graphs", bearing-rate graph) describe the model.
@@ -30,7 +31,7 @@ from numpy.typing import ArrayLike, NDArray
 from factors.angles import nearest_branch
 from factors.bearing import linear_bearing_factors
 from factors.motion import constant_velocity_chain
-from factors.weighted import weighted_factor
+from factors.weighted import sqrt_weights, weighted_factor
 from fusion.geometry import wrap_angle
 from fusion.passive.smoothing.types import TrackPrior
 
@@ -79,7 +80,6 @@ def _check_detections(times: ArrayLike, bearings: ArrayLike) -> tuple[FloatArray
 
 def _lm_params(max_iterations: int) -> gtsam.LevenbergMarquardtParams:
     params = gtsam.LevenbergMarquardtParams()
-    params.setLinearSolverType("MULTIFRONTAL_QR")  # see _solve_linear
     params.setMaxIterations(max_iterations)
     params.setRelativeErrorTol(1e-12)
     params.setAbsoluteErrorTol(1e-14)
@@ -135,7 +135,16 @@ def _build_graph(
             estimates=states[meas.state[hard]],
         ):
             graph.add(factor)
-    if not hard.all():
+    if not hard.all() and loss == "none":
+        # Gaussian: w times a bearing factor's cost is the cost of the same factor with
+        # sigma / sqrt(w) (factors.weighted.sqrt_weights), built in C++; w < 1e-12 adds nothing
+        soft = np.flatnonzero(~hard)
+        scale = sqrt_weights(weights[widx[soft]])
+        for i, r in zip(soft[scale > 1e-6], scale[scale > 1e-6], strict=True):
+            graph.add(linear_bearing_factors(
+                gtsam.noiseModel.Isotropic.Sigma(1, model.sigma_bearing / r), meas.state[i: i + 1],
+                meas.bearing[i: i + 1], estimates=states[meas.state[i: i + 1]])[0])
+    elif not hard.all():
         wrap_noise = _robust_noise(gtsam.noiseModel.Unit.Create(2), loss, model.k)
         inner = linear_bearing_factors(gauss, meas.state[~hard], meas.bearing[~hard],
                                        estimates=states[meas.state[~hard]])

@@ -15,7 +15,6 @@ import logging
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from factors.motion import transition_matrix, wna_covariance
 from fusion._validation import check_positive
 from fusion.geometry import wrap_angle
 from fusion.passive.crossing.timing import crossing_time
@@ -395,22 +394,20 @@ class MultiTrackSmoother:
         s1, x_e, p_e = end[3], end[4], end[5]
         s0, x_s, p_s = start[0], start[1], start[2]
         sel = np.flatnonzero((scan_of > s1) & (scan_of < s0) & (labels < 0))
-        out = []
-        for j in sel:
-            dt_f = float(scan_times[scan_of[j]] - scan_times[s1])
-            dt_b = float(scan_times[s0] - scan_times[scan_of[j]])
-            f_f, f_b = transition_matrix(dt_f, 1), transition_matrix(dt_b, 1)
-            # forward prediction from the end, backward prediction from the start
-            m_f = f_f @ x_e
-            v_f = (f_f @ p_e @ f_f.T + wna_covariance(dt_f, self.model.q, 1))[0, 0]
-            m_b = np.linalg.solve(f_b, x_s)
-            fi = np.linalg.inv(f_b)
-            v_b = (fi @ (p_s + wna_covariance(dt_b, self.model.q, 1)) @ fi.T)[0, 0]
-            theta = m_f[0] + wrap_angle(m_b[0] - m_f[0]) * v_f / (v_f + v_b)
-            var = v_f * v_b / (v_f + v_b) + self.model.sigma_bearing**2
-            if abs(wrap_angle(z[j] - theta)) < self.tracker.gate * np.sqrt(var):
-                out.append(int(j))
-        return out
+        q = self.model.q
+        # forward prediction from the end, backward prediction from the start (the 2x2
+        # products F P F^T + Q written out, all detections of the gap at once)
+        dt_f = scan_times[scan_of[sel]] - scan_times[s1]
+        dt_b = scan_times[s0] - scan_times[scan_of[sel]]
+        m_f = x_e[0] + dt_f * x_e[1]
+        v_f = p_e[0, 0] + 2 * dt_f * p_e[0, 1] + dt_f**2 * p_e[1, 1] + q * dt_f**3 / 3
+        m_b = x_s[0] - dt_b * x_s[1]
+        v_b = ((p_s[0, 0] + q * dt_b**3 / 3) - 2 * dt_b * (p_s[0, 1] + q * dt_b**2 / 2)
+               + dt_b**2 * (p_s[1, 1] + q * dt_b))
+        theta = m_f + wrap_angle(m_b - m_f) * v_f / (v_f + v_b)
+        var = v_f * v_b / (v_f + v_b) + self.model.sigma_bearing**2
+        ok = np.abs(wrap_angle(z[sel] - theta)) < self.tracker.gate * np.sqrt(var)
+        return [int(j) for j in sel[ok]]
 
     def _prior(self, m: int, est: list[FloatArray]) -> TrackPrior:
         x0 = est[m][0]
