@@ -267,3 +267,26 @@ def test_cli_smooth_writes_tracks_on_the_grid(tmp_path):
     r7 = arr[arr[:, 0] == 7]
     assert r7[:, 1].tolist() == [5.0, 10.0, 15.0, 20.0, 25.0, 30.0, 35.0, 40.0]
     assert np.all(r7[:, 4] > 0)
+
+
+def test_gaussian_weighted_bearings_equal_the_weighted_factor_path():
+    """A weight w on a Gaussian bearing factor is the factor with sigma / sqrt(w): the graph
+    built that way has the same optimum as the one through factors.weighted.weighted_factor
+    (taken with a Huber loss whose threshold no residual reaches)."""
+    rng = np.random.default_rng(7)
+    times = 10.0 * np.arange(30)
+    truth = 0.3 + 1e-3 * times
+    state = np.r_[np.arange(30), np.arange(10, 20)]
+    z = np.r_[truth, truth[10:20] + 0.02] + rng.normal(0, SIG, 40)
+    widx = np.r_[np.full(30, -1), np.arange(10)]
+    weights = rng.uniform(0.0, 1.0, 10)
+    weights[3] = 0.0
+    meas = _Measurements(state=state, bearing=z, weight_index=widx)
+    gauss = _Model(sigma_bearing=SIG, q=1e-9, loss="none", k=1.345, max_iterations=100)
+    wide = _Model(sigma_bearing=SIG, q=1e-9, loss="huber", k=1e6, max_iterations=100)
+    a, sa = _solve(times, meas, None, gauss, weights=weights, marginals=True)
+    b, sb = _solve(times, meas, None, wide, weights=weights, marginals=True)
+    assert_allclose(a, b, atol=1e-9)
+    assert_allclose(sa, sb, rtol=1e-6)
+    c, _ = _solve(times, meas, None, gauss, weights=np.ones(10))
+    assert np.max(np.abs(c[10:20, 0] - a[10:20, 0])) > 1e-4  # the weights matter
