@@ -13,9 +13,10 @@ fit_smooth_settings`): scan period, bearing noise, clutter density, detection pr
 bearing acceleration PSD and the track rules that follow from them. One line says what was
 chosen; the same goes to ``S.settings.json`` beside ``S.csv`` (not with ``--out -``).
 
-Each track is written on the regular grid of the period (``--output-times grid``, the default;
-:func:`fusion.passive.smoothing.grid.on_grid`), through gaps up to ``--max-gap-scans`` periods,
-so that ``fusion crossings`` sees continuous tracks on common times.
+With ``--output-times grid`` each track is written on the regular grid of the period
+(:func:`fusion.passive.smoothing.grid.on_grid`), through gaps up to ``--max-gap-scans`` periods.
+The default stays at the smoother's own times: on the Autoferry camera bearings the grid gave
+``fusion crossings`` the same detected crossings with more false alarms (RESULTS.md, issue 18).
 """
 
 from __future__ import annotations
@@ -59,10 +60,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="weights of the bearing factors shared around crossings: posterior "
                         "association probabilities (weighted, default) or a gated nearest "
                         "assignment per scan (nearest, the baseline)")
-    p.add_argument("--output-times", choices=("grid", "states"), default="grid",
-                   help="grid (default): every track on the regular grid of --period-s through "
-                        "gaps up to --max-gap-scans periods, with its sigma; states: the "
-                        "smoother's own state times")
+    p.add_argument("--output-times", choices=("grid", "states"), default="states",
+                   help="states (default): the smoother's own state times; grid: every track "
+                        "on the regular grid of --period-s through gaps up to --max-gap-scans "
+                        "periods, with its sigma")
     p.add_argument("--accel-psd-deg2-per-s3", dest="q_deg2_per_s3", type=number(float, gt=0), default=None,
                    help="bearing acceleration PSD, deg^2/s^3 (default: estimated from the "
                         "changes of the bearing rate along tracks, checked against the "

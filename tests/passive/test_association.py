@@ -260,7 +260,7 @@ def test_cli_smooth_writes_tracks_on_the_grid(tmp_path):
     src.write_text("\n".join(lines) + "\n")
     out = tmp_path / "s.csv"
     assert main(["smooth", "--bearings", str(src), "--out", str(out), "--period-s", "5",
-                 "--association", "nearest"]) == 0
+                 "--association", "nearest", "--output-times", "grid"]) == 0
     head, *rows = out.read_text().splitlines()
     arr = np.array([list(map(float, r.split(","))) for r in rows])
     assert_allclose(np.mod(arr[:, 1], 5.0), 0.0)  # every row on the grid 0, 5, 10, ...
