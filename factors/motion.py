@@ -376,11 +376,13 @@ def constant_velocity_steps(
     unit = gtsam.noiseModel.Unit.Create(2 * d)
     linear = gtsam.GaussianFactorGraph()
     point = gtsam.Values()
+    first: dict[int, np.ndarray] = {}  # each key's linearisation point: its first estimate
     for i in range(m):
         linear.push_back(gtsam.JacobianFactor(kp[i], A_prev[i], kn[i], R[i], b[i], unit))
-        for key, x in ((kp[i], x0[i]), (kn[i], x1[i])):
-            if not point.exists(key):
-                point.insert(key, x)
+        first.setdefault(kp[i], x0[i])
+        first.setdefault(kn[i], x1[i])
+    for key, x in first.items():
+        point.insert(key, x)
     # one LinearContainerFactor per JacobianFactor, each holding its keys' linearisation point
     return gtsam.LinearContainerFactor.ConvertLinearGraph(linear, point)
 
