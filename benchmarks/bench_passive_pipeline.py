@@ -69,6 +69,11 @@ def make_pipeline(a: argparse.Namespace) -> PassivePipeline:
                                                      separation_lobes=a.separation_lobes))
 
 
+#: How the pipeline's crossing episodes were resolved, over all seeds run: ``multitrack`` or
+#: ``nearest: <why the graph's association was not used>`` (printed, never silent).
+RESOLUTIONS: dict[str, int] = {}
+
+
 def run_pipeline(sc: PassiveScenario, a: argparse.Namespace
                  ) -> tuple[list, list, list[tuple[float, float]]]:
     """Smoothed and filtered tracks of the pipeline, and the (wall, CPU) time of every step, s."""
@@ -82,6 +87,9 @@ def run_pipeline(sc: PassiveScenario, a: argparse.Namespace
         for u in out.updates:
             filtered.setdefault(u.track_id, []).append((u.time, u.bearing_deg))
     res = pipe.result()
+    for r in res.resolutions:
+        key = r.method if r.method == "multitrack" else f"{r.method}: {r.fallback}"
+        RESOLUTIONS[key] = RESOLUTIONS.get(key, 0) + 1
     # tracks are started in click order: track i is on the i-th clicked target
     target_of = [i for i in range(sc.n_targets) if np.isfinite(sc.snr_db[CLICK_SCAN, i])]
     smoothed, filt = [], []
@@ -214,6 +222,7 @@ def main(argv: list[str] | None = None) -> int:
         "pipeline": summary(smoothed),
         "pipeline_filtered_rmse_deg": summary(filtered)["rmse_deg"],
         "island": summary(island),
+        "crossing_resolutions": dict(sorted(RESOLUTIONS.items())),
     }
     if not a.no_timing:
         result["timing"] = timing(a)

@@ -3,6 +3,10 @@
 Prints one JSON line of measured metrics (human lines on stderr)::
 
     python benchmarks/bench_smoothing.py [--seeds N] [--min-crossings M] [--tracks T]
+    python benchmarks/bench_smoothing.py --association [--report]   # the ablation alone
+
+The association ablation (``--association``, issue 18) runs on :data:`TUNING_SEEDS` (the seeds
+the association was developed on) or, with ``--report``, once on :data:`REPORT_SEEDS`.
 """
 
 from __future__ import annotations
@@ -15,6 +19,7 @@ import time
 import numpy as np
 from _realdata import AUTOFERRY as REALDATA
 
+from fusion.metrics.crossings import crossing_bearing_errors, crossing_window_identity
 from fusion.passive.smoothing import (
     CROSSING_OUTCOMES,
     BearingSmoother,
@@ -26,7 +31,13 @@ from fusion.passive.smoothing import (
     crossing_outcomes,
     rts_reference,
 )
+from fusion.passive.smoothing.settings import fit_smooth_settings
 from fusion.simulate.bearings import simulate_bearings
+
+#: Seeds of the association ablation used while developing it (issue 18) ...
+TUNING_SEEDS = tuple(range(9200, 9220))
+#: ... and the seeds of its one report run, drawn after the last design change.
+REPORT_SEEDS = tuple(range(9418, 9448))
 
 
 def _log(msg: str) -> None:
@@ -40,15 +51,30 @@ def _track(rng, n, sig):
     return t, theta, theta + rng.normal(0, sig, n)
 
 
-def bench_rts(seeds: int, sig=0.01, q=1e-8) -> dict:
-    worst = 0.0
+def bench_rts(seeds: int, sig=0.01, q=1e-8, n=100) -> dict:
+    """Batch graph against filterpy's Kalman filter + RTS smoother on the same tracks: the
+    largest difference, and the time of each (states and sigmas), best of 3 per track."""
+    worst, t_graph, t_rts = 0.0, 0.0, 0.0
     for s in range(seeds):
-        t, _, z = _track(np.random.default_rng(s), 100, sig)
+        t, _, z = _track(np.random.default_rng(s), n, sig)
         prior = TrackPrior(bearing=z[0], rate=0.0, sigma_bearing=0.05, sigma_rate=0.01)
-        r = BearingSmoother(sigma_bearing=sig, q=q).smooth(t, z, prior=prior)
-        ref = rts_reference(t, z, prior, sigma_bearing=sig, q=q)[0]
+        sm = BearingSmoother(sigma_bearing=sig, q=q)
+        dts = []
+        for _ in range(3):
+            t0 = time.perf_counter()
+            r = sm.smooth(t, z, prior=prior)
+            dts.append(time.perf_counter() - t0)
+        t_graph += min(dts)
+        dts = []
+        for _ in range(3):
+            t0 = time.perf_counter()
+            ref = rts_reference(t, z, prior, sigma_bearing=sig, q=q)[0]
+            dts.append(time.perf_counter() - t0)
+        t_rts += min(dts)
         worst = max(worst, float(np.max(np.abs(r.bearing - ref[:, 0]))))
-    return {"rts_max_abs_diff_rad": worst}
+    return {"rts_max_abs_diff_rad": worst, "rts_graph_ms_per_track": 1e3 * t_graph / seeds,
+            "rts_filterpy_ms_per_track": 1e3 * t_rts / seeds,
+            "rts_time_ratio_graph_to_filterpy": t_graph / t_rts}
 
 
 def bench_outliers(seeds: int, sig=0.01, q=1e-8, frac=0.10) -> dict:
@@ -104,6 +130,106 @@ def bench_crossings(min_crossings: int, q=1e-9) -> dict:
     for name in ("em", "nn"):
         for o in ("swap", "lost", "kept"):
             out[f"{o}_rate_{name}"] = tally[name][o] / n
+    return out
+
+
+def _association_scenario(seed: int):
+    """Unlabelled bearings: 2-6 tracks, P_D 0.7-0.9, 0.5-2 clutter bearings per scan."""
+    rng = np.random.default_rng(seed)
+    n_tracks = int(rng.integers(2, 7))
+    p_d = float(rng.uniform(0.7, 0.9))
+    clutter = float(rng.uniform(0.5, 2.0))
+    sc = simulate_bearings(seed=seed, n_tracks=n_tracks, n_crossing_pairs=n_tracks // 2,
+                           n_wrap_crossings=1, n_near_miss_pairs=0, clutter_rate=clutter,
+                           p_detect=p_d, noise_deg=float(rng.uniform(0.3, 1.0)))
+    return sc, {"tracks": n_tracks, "p_detect": p_d, "clutter_per_scan": clutter}
+
+
+def _smoother_from_data(t, z, association: str, st=None) -> tuple[MultiTrackSmoother, object]:
+    """The multi-track smoother as ``fusion smooth`` builds it: every setting fitted to the
+    unlabelled rows (nothing from the truth; `st` those settings if already fitted); the
+    clutter density of the association counted by the smoother itself from the detections
+    its tracks leave."""
+    st = fit_smooth_settings(np.full(t.size, -1), t, z) if st is None else st
+    mts = MultiTrackSmoother(
+        sigma_bearing=np.radians(st.sigma_bearing_deg),
+        q=st.q_deg2_per_s3 * np.radians(1.0) ** 2, clutter_density=None,
+        p_detect=st.p_detect, min_length=st.min_length, association=association,
+        init_sigma_rate=np.radians(st.init_sigma_rate_deg_per_s), max_misses=st.max_misses,
+        max_gap_scans=st.max_gap_scans)
+    return mts, st
+
+
+def bench_association(seeds, within_s: float = 60.0) -> dict:
+    """Weighted against nearest association, the plain nearest-neighbour tracker and Stone
+    Soup's JPDA tracker (:mod:`_jpda`) on the same unlabelled bearings (settings fitted once
+    per scenario, outside the timings): outcomes around each crossing (15-scan guard, 20-scan
+    windows),
+    identity per detection inside the guard, bearing RMS within `within_s` of each crossing
+    (per crossing target, the track that followed it before), divided by the noise."""
+    from _jpda import run_jpda  # Stone Soup, only for this part
+
+    names = ("weighted", "nearest", "nn", "jpda")
+    tally = {n: dict.fromkeys(CROSSING_OUTCOMES, 0) for n in names}
+    inside = {n: np.zeros(2, np.int64) for n in names}
+    err = {n: [] for n in names}
+    secs = {n: 0.0 for n in names}
+    noise_sq = []
+    for seed in seeds:
+        sc, info = _association_scenario(seed)
+        t, z = sc.time, np.radians(sc.bearing_deg)
+        cr = [(c.track_a, c.track_b, c.t_cross) for c in sc.crossings]
+        kw = {"guard_s": 15 * sc.sample_period_s, "window_s": 20 * sc.sample_period_s}
+        truth = {int(k): np.radians(sc.truth_bearing_deg[i]) for i, k in enumerate(sc.track_ids)}
+        noise = np.radians(np.atleast_1d(sc.noise_deg))
+        st = fit_smooth_settings(np.full(t.size, -1), t, z)
+        lam_counted = st.clutter_density
+        for name in names:
+            t0 = time.perf_counter()
+            if name == "jpda":  # the same fitted settings and counted clutter density
+                lab, tracks = run_jpda(
+                    t, z, sigma=np.radians(st.sigma_bearing_deg),
+                    q=st.q_deg2_per_s3 * np.radians(1.0) ** 2, p_detect=st.p_detect,
+                    clutter_density=lam_counted, max_misses=st.max_misses,
+                    init_sigma_rate=np.radians(st.init_sigma_rate_deg_per_s))
+            elif name == "nn":
+                mts, _ = _smoother_from_data(t, z, "nearest", st)
+                res = mts.tracker.run(t, z)
+                lab = res.labels
+                tracks = {m: (res.scan_times[res.first_scan[m]: res.last_scan[m] + 1],
+                              res.states[m][:, 0]) for m in range(res.n_tracks)}
+            else:
+                mts, _ = _smoother_from_data(t, z, name, st)
+                res = mts.run(t, z)
+                if name == "weighted":
+                    lam_counted = mts.used_clutter_density
+                lab = res.labels
+                tracks = {tr.track_id: (tr.times, tr.bearing) for tr in res.tracks}
+            secs[name] += time.perf_counter() - t0
+            for o in crossing_outcomes(sc.track_id, lab, t, cr, **kw):
+                tally[name][str(o)] += 1
+            inside[name] += crossing_window_identity(sc.track_id, lab, t, cr, **kw).sum(axis=0)
+            e = crossing_bearing_errors(sc.track_id, lab, t, cr, tracks, sc.truth_time, truth,
+                                        within_s=within_s, **kw)
+            err[name].append(e)
+        noise_sq.append(float(np.mean(noise**2)))
+        _log(f"seed {seed} {info}: " + "; ".join(
+            f"{n} {tally[n]['kept']}/{tally[n]['swap']}/{tally[n]['lost']} inside "
+            f"{inside[n][1]}/{inside[n][0]}" for n in names))
+    out = {"association_seeds": [int(seeds[0]), int(seeds[-1])],
+           "noise_rms_deg": float(np.degrees(np.sqrt(np.mean(noise_sq))))}
+    for n in names:
+        scored = tally[n]["kept"] + tally[n]["swap"] + tally[n]["lost"]
+        e = np.concatenate(err[n])
+        cov = np.isfinite(e)
+        out[n] = {"scored": scored, "unscored": tally[n]["unscored"],
+                  "kept": tally[n]["kept"] / max(scored, 1), "swap": tally[n]["swap"] / max(scored, 1),
+                  "lost": tally[n]["lost"] / max(scored, 1),
+                  "inside_correct": float(inside[n][1] / max(inside[n][0], 1)),
+                  "rms_60s_deg": float(np.degrees(np.sqrt(np.mean(e[cov] ** 2)))) if cov.any()
+                  else float("nan"),
+                  "rms_60s_covered": float(cov.mean()) if e.size else 0.0,
+                  "seconds_per_scenario": secs[n] / len(seeds)}
     return out
 
 
@@ -185,7 +311,19 @@ def main(argv=None) -> int:
     ap.add_argument("--min-crossings", type=int, default=100, help="crossings to score")
     ap.add_argument("--tracks", type=int, default=100, help="tracks of the iSAM2 timing")
     ap.add_argument("--skip-real", action="store_true", help="skip the real-data part")
+    ap.add_argument("--association", action="store_true",
+                    help="run the association ablation alone (weighted / nearest / tracker)")
+    ap.add_argument("--report", action="store_true",
+                    help="the ablation on its report seeds instead of its tuning seeds")
+    ap.add_argument("--seed-count", type=int, default=None,
+                    help="first N seeds of the ablation's set (default all)")
     a = ap.parse_args(argv)
+    if a.association:
+        seeds = REPORT_SEEDS if a.report else TUNING_SEEDS
+        seeds = seeds[: a.seed_count] if a.seed_count else seeds
+        out = {"seed_set": "report" if a.report else "tuning", **bench_association(seeds)}
+        print(json.dumps(out))
+        return 0
     out = {}
     for name, fn in (("rts", lambda: bench_rts(a.seeds)), ("outliers", lambda: bench_outliers(a.seeds)),
                      ("isam", lambda: bench_isam(a.tracks)),

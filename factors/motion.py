@@ -76,6 +76,8 @@ def transition_matrix(dt: float, d: int) -> np.ndarray:
     """
     dt = _check_dt(dt, allow_zero=True)
     d = _check_d(d)
+    if d == 1:  # the bearing tracks' case, called per state: no np.block
+        return np.array([[1.0, dt], [0.0, 1.0]])
     eye = np.eye(d)
     return np.block([[eye, dt * eye], [np.zeros((d, d)), eye]])
 
@@ -116,7 +118,7 @@ def wna_covariance(dt: float, q: float, d: int) -> np.ndarray:
     if not np.isfinite(q) or q <= 0.0:
         raise ValueError(f"q (acceleration PSD) must be finite and > 0, got {q!r}")
     block = q * np.array([[dt**3 / 3.0, dt**2 / 2.0], [dt**2 / 2.0, dt]])
-    return np.kron(block, np.eye(d))
+    return block if d == 1 else np.kron(block, np.eye(d))
 
 
 def constant_velocity_factor(
@@ -374,11 +376,13 @@ def constant_velocity_steps(
     unit = gtsam.noiseModel.Unit.Create(2 * d)
     linear = gtsam.GaussianFactorGraph()
     point = gtsam.Values()
+    first: dict[int, np.ndarray] = {}  # each key's linearisation point: its first estimate
     for i in range(m):
         linear.push_back(gtsam.JacobianFactor(kp[i], A_prev[i], kn[i], R[i], b[i], unit))
-        for key, x in ((kp[i], x0[i]), (kn[i], x1[i])):
-            if not point.exists(key):
-                point.insert(key, x)
+        first.setdefault(kp[i], x0[i])
+        first.setdefault(kn[i], x1[i])
+    for key, x in first.items():
+        point.insert(key, x)
     # one LinearContainerFactor per JacobianFactor, each holding its keys' linearisation point
     return gtsam.LinearContainerFactor.ConvertLinearGraph(linear, point)
 

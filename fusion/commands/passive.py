@@ -152,7 +152,10 @@ def run(args: argparse.Namespace) -> int:
         write_table(alerts, res.alert_columns())
     n_lost = sum(t.end is not None for t in res.tracks)
     n_pred = int(np.sum(res.alert_columns()["kind"] == "predicted"))
+    near = [r.fallback for r in res.resolutions if r.method == "nearest"]
+    why = "" if not near else (f" ({len(near)} by nearest assignment: " + ", ".join(
+        f"{near.count(w)} {w}" for w in sorted(set(near))) + ")")
     emit(f"{len(res.tracks)} track(s) ({n_lost} ended lost) over {res.n_scans} scans, "
          f"{len(res.alerts)} alert(s) ({n_pred} predicted), {len(res.resolutions)} crossing(s) "
-         f"resolved -> {out}/tracks.csv, {out}/alerts.csv")
+         f"resolved{why} -> {out}/tracks.csv, {out}/alerts.csv")
     return 0

@@ -9,7 +9,7 @@ listed here too, so every crossing metric is found in one place.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -25,7 +25,9 @@ __all__ = [
     "CROSSING_OUTCOMES",
     "CrossingScore",
     "IntervalScore",
+    "crossing_bearing_errors",
     "crossing_outcomes",
+    "crossing_window_identity",
     "identity_swaps",
     "score_alerts",
     "score_intervals",
@@ -121,6 +123,135 @@ def crossing_outcomes(
         else:
             out.append("kept")
     return np.array(out, dtype="<U8")
+
+
+def _follower(tl: NDArray, el: NDArray, trk: int, sel_t: NDArray[np.bool_],
+              min_fraction: float) -> int | None:
+    """The estimated track owning at least `min_fraction` of true track `trk`'s detections
+    in `sel_t` (-1 none; None: no detection there)."""
+    sel = (tl == trk) & sel_t
+    n = int(sel.sum())
+    if n == 0:
+        return None
+    lab = el[sel]
+    lab = lab[lab >= 0]
+    if lab.size == 0:
+        return -1
+    u, c = np.unique(lab, return_counts=True)
+    i = int(np.argmax(c))
+    return int(u[i]) if c[i] >= min_fraction * n else -1
+
+
+def crossing_window_identity(
+    true_labels: ArrayLike,
+    est_labels: ArrayLike,
+    times: ArrayLike,
+    crossings: Sequence[tuple[int, int, float]],
+    *,
+    guard_s: float,
+    window_s: float,
+    min_fraction: float = 0.5,
+) -> NDArray[np.int64]:
+    """Identity per detection inside the crossing window, where :func:`crossing_outcomes`
+    does not look.
+
+    For each true crossing ``(a, b, t_c)`` and each detection of a or b with
+    ``|t - t_c| <= guard_s``: is its estimated label the track that followed its true track in
+    the window before the guard (``[t_c - guard - window, t_c - guard)``, majority owner as in
+    :func:`crossing_outcomes`)?
+
+    Returns
+    -------
+    ndarray of int, shape (n_crossings, 2)
+        Per crossing: detections of a and b inside ``+-guard_s``, and of those the ones labelled
+        with their true track's follower (a true track followed by no track before counts all
+        its detections as wrong).
+
+    Examples
+    --------
+    >>> t = np.repeat(np.arange(10.0), 2)
+    >>> true = np.tile([0, 1], 10)
+    >>> est = true.copy(); est[10] = 1  # at t = 5 track 0's detection went to track 1
+    >>> crossing_window_identity(true, est, t, [(0, 1, 5.0)], guard_s=1, window_s=4).tolist()
+    [[6, 5]]
+    """
+    tl = np.asarray(true_labels)
+    el = np.asarray(est_labels)
+    t = np.asarray(times, float)
+    if not (tl.shape == el.shape == t.shape and tl.ndim == 1):
+        raise ValueError("true_labels, est_labels and times must be 1-D of equal length")
+    out = np.zeros((len(crossings), 2), np.int64)
+    for i, (a, b, tc) in enumerate(crossings):
+        before = (t >= tc - guard_s - window_s) & (t < tc - guard_s)
+        inside = np.abs(t - tc) <= guard_s
+        for x in (a, b):
+            f = _follower(tl, el, x, before, min_fraction)
+            sel = inside & (tl == x)
+            out[i, 0] += int(sel.sum())
+            if f is not None and f >= 0:
+                out[i, 1] += int(np.sum(el[sel] == f))
+    return out
+
+
+def crossing_bearing_errors(
+    true_labels: ArrayLike,
+    est_labels: ArrayLike,
+    times: ArrayLike,
+    crossings: Sequence[tuple[int, int, float]],
+    tracks: Mapping[int, tuple[ArrayLike, ArrayLike]],
+    truth_time: ArrayLike,
+    truth_bearing: Mapping[int, ArrayLike],
+    *,
+    within_s: float,
+    guard_s: float,
+    window_s: float,
+    min_fraction: float = 0.5,
+) -> NDArray[np.float64]:
+    """Bearing errors of the tracks that follow two crossing targets, near the crossing.
+
+    For each true crossing ``(a, b, t_c)`` and each of a, b: the estimated track that followed
+    it before the crossing (majority owner in ``[t_c - guard - window, t_c - guard)``) is
+    interpolated (on the circle) at the truth times within ``+-within_s`` of ``t_c`` that it
+    spans, and compared with the true bearing there. A target followed by no track, and truth
+    times outside its track's span, give NaN (not covered).
+
+    Parameters
+    ----------
+    tracks : mapping of int to (times, bearings)
+        Estimated track id to its smoothed states, s and rad.
+    truth_time : array_like, shape (n_t,)
+        Times of the true bearings, s.
+    truth_bearing : mapping of int to array_like, shape (n_t,)
+        True track id to its bearings at `truth_time`, rad.
+    within_s : float
+        Half-width of the scored interval around each crossing, s.
+
+    Returns
+    -------
+    ndarray, shape (n_samples,)
+        Wrapped errors, rad (NaN where not covered), all crossings and both targets in turn.
+    """
+    tl = np.asarray(true_labels)
+    el = np.asarray(est_labels)
+    t = np.asarray(times, float)
+    tt = np.asarray(truth_time, float)
+    errs: list[NDArray[np.float64]] = []
+    for a, b, tc in crossings:
+        before = (t >= tc - guard_s - window_s) & (t < tc - guard_s)
+        near = np.abs(tt - tc) <= within_s
+        for x in (a, b):
+            truth = np.asarray(truth_bearing[x], float)[near]
+            f = _follower(tl, el, x, before, min_fraction)
+            e = np.full(truth.size, np.nan)
+            if f is not None and f >= 0 and f in tracks:
+                ts, bs = (np.asarray(v, float) for v in tracks[f])
+                tq = tt[near]
+                ok = (tq >= ts[0]) & (tq <= ts[-1])
+                est = np.angle(np.interp(tq[ok], ts, np.cos(bs))
+                               + 1j * np.interp(tq[ok], ts, np.sin(bs)))
+                e[ok] = np.angle(np.exp(1j * (est - truth[ok])))
+            errs.append(e)
+    return np.concatenate(errs) if errs else np.zeros(0)
 
 
 def identity_swaps(

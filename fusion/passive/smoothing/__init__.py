@@ -23,6 +23,13 @@ Modules, one role each:
 - :mod:`~fusion.passive.smoothing.multitrack` -- :class:`MultiTrackSmoother`, tracks from
   unlabeled detections with expectation-maximisation around every crossing through
   association-weighted factors.
+- :mod:`~fusion.passive.smoothing.association` -- the weights of shared detections: posterior
+  association probabilities over each scan's joint events, clutter and missed detections
+  included, or the gated nearest assignment they are measured against.
+- :mod:`~fusion.passive.smoothing.linking` -- segments chained into tracks by one assignment;
+  shared detections grouped into crossing clusters.
+- :mod:`~fusion.passive.smoothing.grid` -- :func:`~fusion.passive.smoothing.grid.on_grid`, a
+  smoothed track on a regular time grid through short gaps, with its sigmas.
 - :mod:`~fusion.passive.smoothing.merge` -- :func:`~fusion.passive.smoothing.merge.
   merge_scan_detections`, same-scan bearings closer than the sensor resolves made one.
 - :mod:`~fusion.passive.smoothing.twins` -- :func:`~fusion.passive.smoothing.twins.twin_groups`,

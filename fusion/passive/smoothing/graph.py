@@ -10,8 +10,9 @@ the branch nearest the current estimate, motion residuals are wrapped at the lin
 and a graph whose solution moved a residual onto another branch is re-centred there and solved
 again. The result is the optimum of the wrapped model of the scalar factors
 (:func:`factors.bearing.bearing_factor`, :func:`factors.motion.constant_velocity_factor`).
-Bearings whose origin is uncertain enter through association-weighted factors
-(:func:`factors.weighted.weighted_factor`).
+Bearings whose origin is uncertain enter with association weights ``w``: with the Gaussian
+loss as the same built-in factor with ``sigma / sqrt(w)`` (cost ``w`` times the bearing
+factor's), with a robust loss through :func:`factors.weighted.weighted_factor`.
 
 The names here are the package's internals, shared by the batch, online and multi-track
 smoothers; the design notes ("Factor graphs", bearing-rate graph) describe the model.
@@ -30,7 +31,7 @@ from numpy.typing import ArrayLike, NDArray
 from factors.angles import nearest_branch
 from factors.bearing import linear_bearing_factors
 from factors.motion import constant_velocity_chain
-from factors.weighted import weighted_factor
+from factors.weighted import sqrt_weights, weighted_factor
 from fusion.geometry import wrap_angle
 from fusion.passive.smoothing.types import TrackPrior
 
@@ -134,13 +135,66 @@ def _build_graph(
             estimates=states[meas.state[hard]],
         ):
             graph.add(factor)
-    if not hard.all():
+    if not hard.all() and loss == "none":
+        # Gaussian: w times a bearing factor's cost is the cost of the same factor with
+        # sigma / sqrt(w) (factors.weighted.sqrt_weights), built in C++; w < 1e-12 adds nothing
+        soft = np.flatnonzero(~hard)
+        scale = sqrt_weights(weights[widx[soft]])
+        for i, r in zip(soft[scale > 1e-6], scale[scale > 1e-6], strict=True):
+            graph.add(linear_bearing_factors(
+                gtsam.noiseModel.Isotropic.Sigma(1, model.sigma_bearing / r), meas.state[i: i + 1],
+                meas.bearing[i: i + 1], estimates=states[meas.state[i: i + 1]])[0])
+    elif not hard.all():
         wrap_noise = _robust_noise(gtsam.noiseModel.Unit.Create(2), loss, model.k)
         inner = linear_bearing_factors(gauss, meas.state[~hard], meas.bearing[~hard],
                                        estimates=states[meas.state[~hard]])
         for factor, w in zip(inner, widx[~hard], strict=True):
             graph.add(weighted_factor(factor, weights, int(w), noise=wrap_noise))
     return graph
+
+
+def _natural(n: int) -> gtsam.Ordering:
+    ordering = gtsam.Ordering()
+    for k in range(n):
+        ordering.push_back(k)
+    return ordering
+
+
+def _solve_linear(graph: gtsam.GaussianFactorGraph) -> gtsam.VectorValues:
+    """``argmin ||A dx - b||^2`` of a linear chain graph (keys 0..n-1) by QR.
+
+    GTSAM's default (Cholesky of ``A^T A``) squares the condition number: with a small bearing
+    acceleration PSD (rigid motion factors, information ~ 1/(q dt^3)) beside a weak prior and a
+    few bearings it declares such well-posed chains "indeterminate" (issue 18: most crossing
+    episodes of the hard passive benchmark fell back to nearest assignment for it). QR works
+    on ``A`` itself and solves them; along the chain (natural order) it costs O(n).
+    """
+    return graph.eliminateSequential(_natural(len(graph.keys())), gtsam.EliminateQR).optimize()
+
+
+def _chain_marginals(graph: gtsam.GaussianFactorGraph, n: int) -> list[FloatArray]:
+    """Marginal covariances (2, 2) of the states 0..n-1 of a linear chain graph.
+
+    QR elimination along the chain gives conditionals ``R_k x_k + S_k x_{k+1} = d_k`` (unit
+    noise); backwards, ``Sigma_k = A_k Sigma_{k+1} A_k^T + R_k^{-1} R_k^{-T}`` with
+    ``A_k = -R_k^{-1} S_k``: the covariances of ``gtsam.Marginals`` without its Cholesky
+    factorisation, which fails on the same rigid chains as :func:`_solve_linear`'s default.
+    """
+    bn = graph.eliminateSequential(_natural(n), gtsam.EliminateQR)
+    cov: list[FloatArray] = [np.zeros((2, 2))] * n
+    for k in range(n - 1, -1, -1):
+        c = bn.at(k)
+        keys = list(c.keys())
+        r_inv = np.linalg.inv(c.R())
+        own = r_inv @ r_inv.T
+        if len(keys) == 1:
+            cov[k] = own
+        else:
+            if keys != [k, k + 1]:
+                raise RuntimeError(f"not a chain graph: state {k} depends on {keys[1:]}")
+            a = -r_inv @ c.S()
+            cov[k] = a @ cov[k + 1] @ a.T + own
+    return cov
 
 
 def _branches(
@@ -177,7 +231,7 @@ def _optimize(
             values.insert(k, states[k])
         if loss == "none":
             graph = graph.linearize(values)
-            values = values.retract(graph.optimize())  # x = x_0 + argmin ||A dx - b||^2
+            values = values.retract(_solve_linear(graph))  # x = x_0 + argmin ||A dx - b||^2
         else:
             values = gtsam.LevenbergMarquardtOptimizer(
                 graph, values, _lm_params(model.max_iterations)
@@ -257,8 +311,8 @@ def _solve(
         graph, values, states = _optimize(times, meas, prior, model, loss, weights, states)
     if not marginals:
         return states, None
-    marg = gtsam.Marginals(graph, values)
-    var = np.array([marg.marginalCovariance(k).diagonal() for k in range(times.size)])
+    lin = graph if isinstance(graph, gtsam.GaussianFactorGraph) else graph.linearize(values)
+    var = np.array([c.diagonal() for c in _chain_marginals(lin, times.size)])
     return states, np.sqrt(var)
 
 
@@ -274,8 +328,8 @@ def _solve_cov(
     covariances (2, 2) of the states `keys`."""
     graph, values, states = _optimize(times, meas, prior, model, "none", None,
                                       np.asarray(init, float))
-    marg = gtsam.Marginals(graph, values)
-    return states, [np.asarray(marg.marginalCovariance(int(k))) for k in keys]
+    cov = _chain_marginals(graph, times.size)
+    return states, [cov[int(k)] for k in keys]
 
 
 def _default_prior(z0: float, model: _Model, sigma_rate: float) -> TrackPrior:

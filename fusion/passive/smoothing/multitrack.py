@@ -14,12 +14,15 @@ import logging
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.optimize import linear_sum_assignment
 
-from factors.motion import transition_matrix, wna_covariance
 from fusion._validation import check_positive
 from fusion.geometry import wrap_angle
 from fusion.passive.crossing.timing import crossing_time
+from fusion.passive.smoothing.association import (
+    clutter_and_detection,
+    joint_weights,
+    nearest_weights,
+)
 from fusion.passive.smoothing.graph import (
     _check_detections,
     _check_loss,
@@ -29,6 +32,7 @@ from fusion.passive.smoothing.graph import (
     _solve,
     _solve_cov,
 )
+from fusion.passive.smoothing.linking import crossing_clusters, link_segments
 from fusion.passive.smoothing.nearest_neighbour import NearestNeighbourTracker
 from fusion.passive.smoothing.types import (
     MultiTrackResult,
@@ -37,7 +41,16 @@ from fusion.passive.smoothing.types import (
     TrackPrior,
 )
 
-__all__ = ["MultiTrackSmoother"]
+__all__ = ["ASSOCIATIONS", "MultiTrackSmoother"]
+
+#: Association of the shared detections: ``weighted`` (posterior association probabilities
+#: as the weights of the bearing factors) or ``nearest`` (per scan a gated nearest assignment,
+#: weights 0 or 1: the measured baseline).
+ASSOCIATIONS = ("weighted", "nearest")
+
+#: Largest number of shared detections of one scan whose joint events are enumerated; a busier
+#: scan gets per-detection responsibilities (counted in ``MultiTrackResult.fallbacks``).
+MAX_JOINT = 7
 
 logger = logging.getLogger(__name__)
 
@@ -53,11 +66,18 @@ class MultiTrackSmoother:
         Bearing measurement standard deviation, rad.
     q : float, keyword-only
         Bearing acceleration PSD, rad^2/s^3.
-    clutter_density : float, keyword-only
-        Expected false detections per scan per radian (the clutter component of the
-        responsibilities).
-    p_detect : float, keyword-only
-        Probability that a track is detected in a scan.
+    clutter_density : float or None, keyword-only
+        Expected false detections per scan per radian (the clutter term of the association
+        probabilities); None: counted from the detections no track owns
+        (:func:`~fusion.passive.smoothing.association.clutter_and_detection`).
+    p_detect : float or None, keyword-only
+        Probability that a track is detected in a scan (the missed-detection term); None:
+        counted from the tracks' detections per scan.
+    association : {"weighted", "nearest"}, keyword-only
+        ``weighted``: the shared detections' factors are weighted by their posterior
+        association probabilities (joint events per scan, :func:`~fusion.passive.smoothing.
+        association.joint_weights`); ``nearest``: by 0/1 from a gated nearest assignment per
+        scan (the baseline the weights are measured against).
     gate, n_confirm, max_misses, init_sigma_rate, window_scans :
         Options of the initial :class:`NearestNeighbourTracker` (global nearest neighbour);
         `window_scans` is also ``J`` of the crossing test, eq. (3)-(4).
@@ -106,9 +126,13 @@ class MultiTrackSmoother:
        (:func:`factors.weighted.weighted_factor`). Per crossing cluster, EM: every track of the
        cluster gets a small graph over the cluster span plus `margin_scans` of context, with its
        own detections as hard factors and each shared detection ``j`` weighted by ``w_jm``.
-       Start ``w_jm = 1/M``; M-step: weighted least squares per track; E-step:
-       ``w_jm = P_D N(wrap(z_j - theta_m(t_j)); 0, sigma^2) / (lambda + sum_m' P_D N(...))``
-       with ``lambda`` the clutter density; repeat until the weights settle.
+       Start ``w_jm = 1/M``; M-step: weighted least squares per track (re-linearised and
+       re-centred on the wrap at every solve); E-step: ``w_jm`` the posterior probability
+       that detection ``j`` came from track ``m`` given the tracks' current bearings, summed
+       over the scan's joint events (each track at most one detection, missed with
+       ``1 - P_D``, each detection from one track or clutter of density ``lambda``); repeat
+       until the weights settle. With ``association="nearest"`` the E-step is a gated
+       nearest assignment per scan instead (weights 0 or 1).
     5. Final smoothing of every whole track with the settled weights; marginals from
        ``gtsam.Marginals``.
 
@@ -121,8 +145,9 @@ class MultiTrackSmoother:
         *,
         sigma_bearing: float,
         q: float,
-        clutter_density: float = 0.1,
-        p_detect: float = 0.9,
+        clutter_density: float | None = 0.1,
+        p_detect: float | None = 0.9,
+        association: str = "weighted",
         gate: float = 4.0,
         n_confirm: int = 3,
         max_misses: int = 5,
@@ -146,10 +171,19 @@ class MultiTrackSmoother:
             k=check_positive("robust_k", robust_k),
             max_iterations=50,
         )
-        self.clutter_density = check_positive("clutter_density", clutter_density)
-        if not 0 < p_detect <= 1:
+        self.clutter_density = (None if clutter_density is None
+                                else check_positive("clutter_density", clutter_density))
+        if p_detect is not None and not 0 < p_detect <= 1:
             raise ValueError(f"p_detect must be in (0, 1], got {p_detect!r}")
-        self.p_detect = float(p_detect)
+        self.p_detect = None if p_detect is None else float(p_detect)
+        if association not in ASSOCIATIONS:
+            raise ValueError(f"association must be one of {', '.join(ASSOCIATIONS)}, got "
+                             f"{association!r}")
+        self.association = association
+        #: Clutter density and detection probability the last run associated with (given or
+        #: counted from the data), per scan per radian and per scan.
+        self.used_clutter_density: float | None = None
+        self.used_p_detect: float | None = None
         self.tracker = NearestNeighbourTracker(
             sigma_bearing=sigma_bearing, q=q, gate=gate, init_sigma_rate=init_sigma_rate,
             n_confirm=n_confirm, max_misses=max_misses, window_scans=window_scans,
@@ -166,10 +200,11 @@ class MultiTrackSmoother:
         self.em_max_iterations = int(em_max_iterations)
         self.min_length = int(min_length)
 
-    def _likelihood(self, z: FloatArray, theta: FloatArray) -> FloatArray:
+    def _density(self, z: FloatArray, theta: FloatArray) -> FloatArray:
+        """Measurement density ``N(wrap(z - theta); 0, sigma^2)``, 1/rad."""
         s = self.model.sigma_bearing
         nu = wrap_angle(z - theta)
-        return self.p_detect * np.exp(-0.5 * (nu / s) ** 2) / (np.sqrt(2 * np.pi) * s)
+        return np.exp(-0.5 * (nu / s) ** 2) / (np.sqrt(2 * np.pi) * s)
 
     def run(self, times: ArrayLike, bearings: ArrayLike) -> MultiTrackResult:
         """Form, associate and smooth tracks.
@@ -191,7 +226,8 @@ class MultiTrackSmoother:
         scan_of = np.searchsorted(scan_times, t)
         segments = self._segments(tr, z, scan_of)
         ends = [self._segment_ends(seg, z, scan_of, scan_times) for seg in segments]
-        chains = self._link(ends, scan_times)
+        chains = link_segments(ends, scan_times, q=self.model.q, link_gate=self.link_gate,
+                               max_gap_scans=self.max_gap_scans)
         # hard labels per track, drop short tracks
         labels = np.full(t.size, -1, np.int64)
         kept: list[list[int]] = []
@@ -218,6 +254,13 @@ class MultiTrackSmoother:
         pair_det = np.array(pair_det_l, np.int64)
         pair_track = np.array(pair_track_l, np.int64)
         shared_idx = np.unique(pair_det)
+        released = np.zeros(t.size, bool)
+        released[shared_idx] = True
+        lam_hat, pd_hat = clutter_and_detection(labels, scan_of, first, last, released, z)
+        lam = lam_hat if self.clutter_density is None else self.clutter_density
+        p_d = pd_hat if self.p_detect is None else self.p_detect
+        self.used_clutter_density, self.used_p_detect = lam, p_d
+        self._n_approx = 0
         weights = np.zeros(pair_det.size)
         for j in shared_idx:
             sel = pair_det == j
@@ -229,7 +272,7 @@ class MultiTrackSmoother:
                                     pair_track[:0])
             est.append(_initial_states(times_m, meas, None))
         cands = tuple(tuple(c) for c in cand)
-        clusters = self._clusters(shared_idx, cands, scan_of)
+        clusters = crossing_clusters(shared_idx, cands, scan_of, self.margin_scans)
         max_iter = 0
         for cl in clusters:
             max_iter = max(max_iter, self._em_cluster(
@@ -245,17 +288,24 @@ class MultiTrackSmoother:
                                  marginals=True)
             tracks.append(SmoothedTrack(m, times_m, np.asarray(wrap_angle(states[:, 0])),
                                         states[:, 1].copy(), sig[:, 0], sig[:, 1]))
-        # final labels: most probable owner of each shared detection, clutter if below 0.5
+        # final labels: the most probable origin of each shared detection (a track, or clutter
+        # with probability 1 - sum of its weights)
         out_labels = labels.copy()
         for j in shared_idx:
             sel = np.flatnonzero(pair_det == j)
             best = sel[np.argmax(weights[sel])]
-            out_labels[j] = pair_track[best] if weights[best] >= 0.5 else -1
+            out_labels[j] = pair_track[best] if weights[best] >= 1.0 - weights[sel].sum() else -1
         shared = np.zeros(t.size, bool)
         shared[shared_idx] = True
         logger.info("%d segments linked into %d tracks; %d shared detections in %d crossing "
-                    "clusters", len(segments), n_tracks, shared_idx.size, len(clusters))
-        return MultiTrackResult(tuple(tracks), out_labels, shared, max_iter)
+                    "clusters; %s association, clutter %.3g /scan/rad, P_D %.3g%s",
+                    len(segments), n_tracks, shared_idx.size, len(clusters), self.association,
+                    lam, p_d, "" if self._n_approx == 0 else
+                    f"; {self._n_approx} busy scans with per-detection responsibilities")
+        return MultiTrackResult(tuple(tracks), out_labels, shared, max_iter,
+                                pairs=(pair_det, pair_track, weights.copy()),
+                                association=self.association, clutter_density=lam,
+                                p_detect=p_d, approximate_scans=self._n_approx)
 
     # -- segments ---------------------------------------------------------------------------
 
@@ -337,48 +387,6 @@ class MultiTrackSmoother:
         (st_a, cov_a), (st_b, cov_b) = out[0], out[-1]
         return (s0, st_a[0], cov_a[0], s1, st_b[-1], cov_b[-1])
 
-    def _link(self, ends: list[tuple], scan_times: FloatArray) -> list[list[int]]:
-        """Chain segments by one assignment of segment ends to later segment starts."""
-        n = len(ends)
-        if n == 0:
-            return []
-        period = float(np.median(np.diff(scan_times))) if scan_times.size > 1 else 1.0
-        big = 1e9
-        cost = np.full((n, n), np.inf)
-        for e in range(n):
-            _, _, _, s1, x_e, p_e = ends[e]
-            for s in range(n):
-                s0, x_s, p_s = ends[s][0], ends[s][1], ends[s][2]
-                dt = float(scan_times[s0] - scan_times[s1]) if s0 > s1 else -1.0
-                if s == e or dt <= 0 or dt > self.max_gap_scans * period:
-                    continue
-                f = transition_matrix(dt, 1)
-                cov = f @ p_e @ f.T + wna_covariance(dt, self.model.q, 1) + p_s
-                nu = x_s - f @ x_e
-                nu[0] = wrap_angle(nu[0])
-                d2 = float(nu @ np.linalg.solve(cov, nu))
-                if d2 <= self.link_gate:
-                    cost[e, s] = d2 + float(np.log(np.linalg.det(cov)))
-        finite = np.isfinite(cost)
-        if not finite.any():
-            return [[p] for p in range(n)]
-        # admissible links cost less than any pair of non-links: the most links, then the
-        # cheapest
-        shift = cost[finite].min()
-        c = np.where(finite, cost - shift, big)
-        rr, cc = linear_sum_assignment(c)
-        nxt = {int(r): int(s) for r, s in zip(rr, cc, strict=True) if finite[r, s]}
-        has_prev = set(nxt.values())
-        chains = []
-        for p in range(n):
-            if p in has_prev:
-                continue
-            ch = [p]
-            while ch[-1] in nxt:
-                ch.append(nxt[ch[-1]])
-            chains.append(ch)
-        return chains
-
     def _gap_candidates(self, end: tuple, start: tuple, scan_times: FloatArray, z: FloatArray,
                         scan_of: NDArray[np.int64], labels: NDArray[np.int64]) -> list[int]:
         """Unassigned detections in the gap between two linked segments, gated against the
@@ -386,52 +394,26 @@ class MultiTrackSmoother:
         s1, x_e, p_e = end[3], end[4], end[5]
         s0, x_s, p_s = start[0], start[1], start[2]
         sel = np.flatnonzero((scan_of > s1) & (scan_of < s0) & (labels < 0))
-        out = []
-        for j in sel:
-            dt_f = float(scan_times[scan_of[j]] - scan_times[s1])
-            dt_b = float(scan_times[s0] - scan_times[scan_of[j]])
-            f_f, f_b = transition_matrix(dt_f, 1), transition_matrix(dt_b, 1)
-            # forward prediction from the end, backward prediction from the start
-            m_f = f_f @ x_e
-            v_f = (f_f @ p_e @ f_f.T + wna_covariance(dt_f, self.model.q, 1))[0, 0]
-            m_b = np.linalg.solve(f_b, x_s)
-            fi = np.linalg.inv(f_b)
-            v_b = (fi @ (p_s + wna_covariance(dt_b, self.model.q, 1)) @ fi.T)[0, 0]
-            theta = m_f[0] + wrap_angle(m_b[0] - m_f[0]) * v_f / (v_f + v_b)
-            var = v_f * v_b / (v_f + v_b) + self.model.sigma_bearing**2
-            if abs(wrap_angle(z[j] - theta)) < self.tracker.gate * np.sqrt(var):
-                out.append(int(j))
-        return out
+        q = self.model.q
+        # forward prediction from the end, backward prediction from the start (the 2x2
+        # products F P F^T + Q written out, all detections of the gap at once)
+        dt_f = scan_times[scan_of[sel]] - scan_times[s1]
+        dt_b = scan_times[s0] - scan_times[scan_of[sel]]
+        m_f = x_e[0] + dt_f * x_e[1]
+        v_f = p_e[0, 0] + 2 * dt_f * p_e[0, 1] + dt_f**2 * p_e[1, 1] + q * dt_f**3 / 3
+        m_b = x_s[0] - dt_b * x_s[1]
+        v_b = ((p_s[0, 0] + q * dt_b**3 / 3) - 2 * dt_b * (p_s[0, 1] + q * dt_b**2 / 2)
+               + dt_b**2 * (p_s[1, 1] + q * dt_b))
+        theta = m_f + wrap_angle(m_b - m_f) * v_f / (v_f + v_b)
+        var = v_f * v_b / (v_f + v_b) + self.model.sigma_bearing**2
+        ok = np.abs(wrap_angle(z[sel] - theta)) < self.tracker.gate * np.sqrt(var)
+        return [int(j) for j in sel[ok]]
 
     def _prior(self, m: int, est: list[FloatArray]) -> TrackPrior:
         x0 = est[m][0]
         return TrackPrior(bearing=float(x0[0]), rate=float(x0[1]),
                           sigma_bearing=10.0 * self.model.sigma_bearing,
                           sigma_rate=self.tracker.init_sigma_rate)
-
-    def _clusters(self, shared_idx: NDArray[np.int64], cands: tuple[tuple[int, ...], ...],
-                  scan_of: NDArray[np.int64]) -> list[NDArray[np.int64]]:
-        """Group shared detections: same candidate track and < margin scans apart."""
-        if shared_idx.size == 0:
-            return []
-        parent = np.arange(shared_idx.size)
-
-        def find(a: int) -> int:
-            while parent[a] != a:
-                parent[a] = parent[parent[a]]
-                a = parent[a]
-            return a
-
-        last_seen: dict[int, int] = {}
-        for pos, j in enumerate(shared_idx):
-            for m in cands[j]:
-                if m in last_seen and scan_of[j] - scan_of[shared_idx[last_seen[m]]] <= (
-                    self.margin_scans
-                ):
-                    parent[find(pos)] = find(last_seen[m])
-                last_seen[m] = pos
-        roots = np.array([find(p) for p in range(shared_idx.size)])
-        return [shared_idx[roots == r] for r in np.unique(roots)]
 
     def _track_meas(self, m: int, s0: int, s1: int, z: FloatArray, scan_of: NDArray[np.int64],
                     labels: NDArray[np.int64], pair_det: NDArray[np.int64],
@@ -473,11 +455,18 @@ class MultiTrackSmoother:
                 on_m = pair_track[sel] == m
                 dets = pair_det[sel][on_m]
                 theta[on_m] = states[scan_of[dets] - s0, 0]
-            # E-step: responsibilities against the tracks' predicted bearings + clutter
-            lik = self._likelihood(z[pair_det[sel]], theta)
-            denom = np.full(t.size, self.clutter_density)
-            np.add.at(denom, pair_det[sel], lik)
-            new = lik / denom[pair_det[sel]]
+            # E-step: association probabilities at the tracks' current bearings
+            dj, mj = pair_det[sel], pair_track[sel]
+            if self.association == "weighted":
+                new, n_approx = joint_weights(scan_of[dj], dj, mj, self._density(z[dj], theta),
+                                              p_detect=self.used_p_detect,
+                                              clutter_density=self.used_clutter_density,
+                                              max_joint=MAX_JOINT)
+                if it == 1:
+                    self._n_approx += n_approx
+            else:
+                d2 = (wrap_angle(z[dj] - theta) / self.model.sigma_bearing) ** 2
+                new = nearest_weights(scan_of[dj], dj, mj, d2, gate=self.tracker.gate)
             change = float(np.max(np.abs(new - weights[sel]))) if sel.size else 0.0
             weights[sel] = new
             if change < self.em_tol:

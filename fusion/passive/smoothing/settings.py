@@ -116,10 +116,26 @@ class SmoothSettings:
         return d
 
 
-def scan_period(times: ArrayLike) -> float:
-    """Median step between distinct times, s (1.0 with fewer than two distinct times)."""
-    u = np.unique(np.asarray(times, float))
-    return float(np.median(np.diff(u))) if u.size > 1 else 1.0
+def scan_period(times: ArrayLike, track_id: ArrayLike | None = None) -> float:
+    """Median step between distinct times, s (1.0 with fewer than two distinct times).
+
+    With `track_id`, the steps of every labelled track and of the unknown-origin rows (id < 0)
+    are pooled: labelled rows count even when rows of unknown origin exist.
+
+    Examples
+    --------
+    >>> scan_period([0, 2, 4, 1, 2, 3, 4, 5], [-1, -1, -1, 0, 0, 0, 0, 0])
+    1.0
+    """
+    t = np.asarray(times, float)
+    if track_id is None:
+        u = np.unique(t)
+        return float(np.median(np.diff(u))) if u.size > 1 else 1.0
+    ids = np.asarray(track_id)
+    steps = [np.diff(np.unique(t[ids < 0]))]
+    steps += [np.diff(np.unique(t[ids == k])) for k in np.unique(ids[ids >= 0])]
+    d = np.concatenate(steps)
+    return float(np.median(d)) if d.size else 1.0
 
 
 def pair_scatter(
@@ -235,6 +251,7 @@ def fit_smooth_settings(
     bearings: ArrayLike,
     *,
     sigma_bearing_deg: float | None = None,
+    period_s: float | None = None,
     q_deg2_per_s3: float | None = None,
     clutter_density: float | None = None,
     p_detect: float | None = None,
@@ -254,8 +271,8 @@ def fit_smooth_settings(
         Times, s.
     bearings : array_like, shape (n,)
         Bearings, rad.
-    sigma_bearing_deg, q_deg2_per_s3, clutter_density, p_detect, init_sigma_rate_deg_per_s, \
-max_misses, max_gap_scans, min_length : optional, keyword-only
+    sigma_bearing_deg, period_s, q_deg2_per_s3, clutter_density, p_detect, \
+init_sigma_rate_deg_per_s, max_misses, max_gap_scans, min_length : optional, keyword-only
         Given values (``None``: estimate); see :class:`SmoothSettings`.
     max_miss_s : float, keyword-only
         A track of the initial tracker survives misses for at least this long, s (sets
@@ -288,8 +305,12 @@ max_misses, max_gap_scans, min_length : optional, keyword-only
     ids = np.asarray(track_id)
     t = np.asarray(times, float)
     z = np.asarray(bearings, float)
-    est: list[str] = ["period_s"]
-    period = scan_period(t[ids < 0] if (ids < 0).any() else t)
+    est: list[str] = []
+    if period_s is None:
+        period = scan_period(t, ids)
+        est.append("period_s")
+    else:
+        period = float(period_s)
     unk = ids < 0
     order = np.argsort(t[unk], kind="stable")
     tu, zu = t[unk][order], z[unk][order]

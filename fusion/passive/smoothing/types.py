@@ -134,9 +134,28 @@ class MultiTrackResult:
         Detections that entered more than one track through association-weighted factors.
     em_iterations : int
         Largest number of expectation-maximisation iterations over the crossing clusters.
+    pairs : tuple of three ndarrays, shape (n_pairs,) each
+        The shared (detection, track) pairs and their settled association weights: detection
+        index (input order), track id, weight (posterior probability, or 0/1 with
+        ``association == "nearest"``).
+    association : str
+        ``"weighted"`` (posterior association probabilities) or ``"nearest"`` (hard baseline).
+    clutter_density : float
+        Clutter density used in the association, per scan per radian (given or counted).
+    p_detect : float
+        Detection probability used in the association (given or counted).
+    approximate_scans : int
+        Scans with too many shared detections for joint events (per-detection
+        responsibilities instead).
     """
 
     tracks: tuple[SmoothedTrack, ...]
     labels: NDArray[np.int64]
     shared: NDArray[np.bool_]
     em_iterations: int
+    pairs: tuple[NDArray[np.int64], NDArray[np.int64], FloatArray] = (
+        np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0))
+    association: str = "weighted"
+    clutter_density: float = float("nan")
+    p_detect: float = float("nan")
+    approximate_scans: int = 0

@@ -106,6 +106,11 @@ class CrossingResolution:
         Detections of unknown origin in the episode.
     n_assigned : int
         Of those, detections handed to a track.
+    fallback : str
+        Why the multi-track graph's association was not used (``method == "nearest"``):
+        ``"graph failed"`` (GTSAM could not solve it), ``"no match"`` (its tracks do not match
+        the episode's one to one), ``"contradicts motion"``, ``"no context"``; empty otherwise.
+        Counted and printed by the passive benchmark instead of falling back silently.
     """
 
     tracks: tuple[int, ...]
@@ -115,6 +120,7 @@ class CrossingResolution:
     method: str
     n_detections: int
     n_assigned: int
+    fallback: str = ""
 
 
 class EpisodeBook:
@@ -322,7 +328,8 @@ class CrossingResolver:
         dets = np.array(episode.detections, dtype=float).reshape(-1, 3)
         assigned: dict[int, tuple[FloatArray, FloatArray, FloatArray]] = {}
         method = "multitrack"
-        owner = self._multitrack(episode, dets, scan_period, q) if dets.shape[0] else None
+        owner, why = (self._multitrack(episode, dets, scan_period, q) if dets.shape[0]
+                      else (None, "no detections"))
         if owner is None:
             method = "nearest"
             owner = self._nearest(episode, dets)
@@ -332,15 +339,15 @@ class CrossingResolver:
         res = CrossingResolution(
             tracks=tuple(episode.members), t_start=episode.t_open, t_end=episode.t_close,
             t_cross=episode.t_cross, method=method, n_detections=int(dets.shape[0]),
-            n_assigned=int(np.sum(owner >= 0)),
+            n_assigned=int(np.sum(owner >= 0)), fallback=why if method == "nearest" else "",
         )
         logger.debug("crossing of tracks %s resolved by %s: %d of %d detections assigned",
                      res.tracks, method, res.n_assigned, res.n_detections)
         return res, assigned
 
     def _multitrack(self, episode: CrossingEpisode, dets: FloatArray, scan_period: float,
-                    q: float) -> NDArray[np.int64] | None:
-        """Owner of each detection through the multi-track graph; None if the match fails."""
+                    q: float) -> tuple[NDArray[np.int64] | None, str]:
+        """Owner of each detection through the multi-track graph, or None and the reason."""
         ctx_t, ctx_z, ctx_m = [], [], []
         for m in episode.members:
             for t, z, _ in episode.context.get(m, []):
@@ -348,7 +355,7 @@ class CrossingResolver:
                 ctx_z.append(z)
                 ctx_m.append(m)
         if not ctx_t:
-            return None
+            return None, "no context"
         t = np.concatenate([np.array(ctx_t), dets[:, 0]])
         z = np.concatenate([np.array(ctx_z), dets[:, 1]])
         truth = np.concatenate([np.array(ctx_m, np.int64), np.full(dets.shape[0], -1, np.int64)])
@@ -367,7 +374,7 @@ class CrossingResolver:
         except (ValueError, RuntimeError) as e:  # RuntimeError: GTSAM's indeterminate system
             logger.warning("multi-track graph failed on the crossing of tracks %s (%s): nearest "
                            "assignment instead", episode.members, " ".join(str(e).split())[:120])
-            return None
+            return None, "graph failed"
         labels = np.empty_like(labels_sorted)
         labels[order] = labels_sorted
         match: dict[int, int] = {}
@@ -375,19 +382,19 @@ class CrossingResolver:
             lab = labels[truth == m]
             lab = lab[lab >= 0]
             if lab.size == 0:
-                return None
+                return None, "no match"
             u, c = np.unique(lab, return_counts=True)
             i = int(np.argmax(c))
             if c[i] < self.min_share * np.sum(truth == m) or int(u[i]) in match:
-                return None
+                return None, "no match"
             match[int(u[i])] = m
         ep_labels = labels[truth < 0]
         owner = np.array([match.get(int(lab), -1) for lab in ep_labels], dtype=np.int64)
         if not self._consistent(episode, dets, owner):
             logger.info("multi-track association of the crossing of tracks %s contradicts their "
                         "motion: nearest assignment instead", episode.members)
-            return None
-        return owner
+            return None, "contradicts motion"
+        return owner, ""
 
     def _consistent(self, episode: CrossingEpisode, dets: FloatArray,
                     owner: NDArray[np.int64]) -> bool:

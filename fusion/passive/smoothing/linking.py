@@ -1,0 +1,89 @@
+"""Segments of the multi-track smoother chained into tracks, shared detections grouped.
+
+- :func:`link_segments` -- one assignment of segment ends to later segment starts (step 3 of
+  :class:`~fusion.passive.smoothing.multitrack.MultiTrackSmoother`).
+- :func:`crossing_clusters` -- shared detections grouped by candidate track and time (one EM
+  per group).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.optimize import linear_sum_assignment
+
+from factors.motion import transition_matrix, wna_covariance
+from fusion.geometry import wrap_angle
+
+__all__ = ["crossing_clusters", "link_segments"]
+
+FloatArray = NDArray[np.float64]
+
+
+def link_segments(ends: list[tuple], scan_times: FloatArray, *, q: float, link_gate: float,
+                  max_gap_scans: int) -> list[list[int]]:
+    """Chain segments by one assignment of segment ends to later segment starts."""
+    n = len(ends)
+    if n == 0:
+        return []
+    period = float(np.median(np.diff(scan_times))) if scan_times.size > 1 else 1.0
+    big = 1e9
+    cost = np.full((n, n), np.inf)
+    for e in range(n):
+        _, _, _, s1, x_e, p_e = ends[e]
+        for s in range(n):
+            s0, x_s, p_s = ends[s][0], ends[s][1], ends[s][2]
+            dt = float(scan_times[s0] - scan_times[s1]) if s0 > s1 else -1.0
+            if s == e or dt <= 0 or dt > max_gap_scans * period:
+                continue
+            f = transition_matrix(dt, 1)
+            cov = f @ p_e @ f.T + wna_covariance(dt, q, 1) + p_s
+            nu = x_s - f @ x_e
+            nu[0] = wrap_angle(nu[0])
+            d2 = float(nu @ np.linalg.solve(cov, nu))
+            if d2 <= link_gate:
+                cost[e, s] = d2 + float(np.log(np.linalg.det(cov)))
+    finite = np.isfinite(cost)
+    if not finite.any():
+        return [[p] for p in range(n)]
+    # admissible links cost less than any pair of non-links: the most links, then the
+    # cheapest
+    shift = cost[finite].min()
+    c = np.where(finite, cost - shift, big)
+    rr, cc = linear_sum_assignment(c)
+    nxt = {int(r): int(s) for r, s in zip(rr, cc, strict=True) if finite[r, s]}
+    has_prev = set(nxt.values())
+    chains = []
+    for p in range(n):
+        if p in has_prev:
+            continue
+        ch = [p]
+        while ch[-1] in nxt:
+            ch.append(nxt[ch[-1]])
+        chains.append(ch)
+    return chains
+
+
+def crossing_clusters(shared_idx: NDArray[np.int64], cands: tuple[tuple[int, ...], ...],
+                      scan_of: NDArray[np.int64], margin_scans: int) -> list[NDArray[np.int64]]:
+    """Group shared detections: same candidate track and < margin scans apart."""
+    if shared_idx.size == 0:
+        return []
+    parent = np.arange(shared_idx.size)
+
+    def find(a: int) -> int:
+        while parent[a] != a:
+            parent[a] = parent[parent[a]]
+            a = parent[a]
+        return a
+
+    last_seen: dict[int, int] = {}
+    for pos, j in enumerate(shared_idx):
+        for m in cands[j]:
+            if m in last_seen and scan_of[j] - scan_of[shared_idx[last_seen[m]]] <= (
+                margin_scans
+            ):
+                parent[find(pos)] = find(last_seen[m])
+            last_seen[m] = pos
+    roots = np.array([find(p) for p in range(shared_idx.size)])
+    return [shared_idx[roots == r] for r in np.unique(roots)]
