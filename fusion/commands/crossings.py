@@ -29,6 +29,7 @@ from fusion.passive.crossing.settings import (
     DEFAULT_CONFIRM,
     DEFAULT_CURVE_ALPHA,
     DEFAULT_HORIZON_S,
+    DEFAULT_LADDER_ALPHA,
     DEFAULT_LEAD_WINDOWS,
     DEFAULT_LEVEL,
     DEFAULT_N_WINDOWS,
@@ -109,14 +110,20 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "overlap, are one event (default: the window)")
     p.add_argument("--max-gap-s", dest="max_gap", type=number(float, gt=0), default=None, metavar="S",
                    help="a gap longer than S s splits a track (default 3*K)")
-    p.add_argument("--bearing-model", choices=("line", "curve"), default="line",
-                   help="line (default): straight lines, the method's regression; curve: a "
-                        "window whose bearings curve (F-test) gets the bearing curve of a "
-                        "constant-velocity contact, with the crossing's interval from that "
-                        "curve's covariance (about 6 times slower; see benchmarks/RESULTS.md)")
+    p.add_argument("--bearing-model", choices=("curve", "line"), default="curve",
+                   help="curve (default): a shortest window whose bearings curve (F-test at "
+                        "--curve-alpha) gets the bearing curve of a constant-velocity contact, "
+                        "the crossing's interval from that curve's covariance; line: straight "
+                        "lines only (the method's regression)")
     p.add_argument("--curve-alpha", type=number(float, gt=0, le=0.5), default=DEFAULT_CURVE_ALPHA,
                    metavar="P", help="level of the F-test that keeps a curve instead of the "
                    f"line (default {DEFAULT_CURVE_ALPHA:g}; smaller keeps fewer curves)")
+    p.add_argument("--ladder-alpha", type=number(float, ge=0, le=0.5),
+                   default=DEFAULT_LADDER_ALPHA, metavar="P",
+                   help="a track enters a longer window of the ladder only if its residual "
+                        "variance there passes the variance-ratio test against the shortest "
+                        f"window at level P (default {DEFAULT_LADDER_ALPHA:g}; 0: every track, "
+                        "the ladder before)")
     p.add_argument("--merge-repeats", action="store_true",
                    help="merge a pair's crossings by time and interval overlap only (before: a "
                         "crossing in the other direction is always the pair's next crossing)")
@@ -156,7 +163,8 @@ def _options(args: argparse.Namespace) -> dict:
     return {"window_s": args.window_s, "horizon_s": args.horizon, "period_s": args.period,
             "J": args.window, "n_windows": args.windows, "lead_windows": args.lead,
             "confirm": args.confirm, "level": args.level,
-            "curve_alpha": args.curve_alpha if args.bearing_model == "curve" else None}
+            "curve_alpha": args.curve_alpha if args.bearing_model == "curve" else None,
+            "ladder_alpha": args.ladder_alpha or None}
 
 
 def _check_spans(args: argparse.Namespace, st: CrossingSettings, spans_s: np.ndarray) -> None:

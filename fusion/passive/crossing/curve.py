@@ -49,6 +49,8 @@ class CurveStats:
         Time unit of `p`, s (the window's span).
     dof : ndarray, shape (n,)
         Residual degrees of freedom of the model kept (``n - 2`` or ``n - 3``).
+    residual_var : ndarray, shape (n,)
+        Residual variance of the model kept, rad^2.
     curved : ndarray of bool, shape (n,)
         Whether the F-test kept the curve.
     """
@@ -58,6 +60,7 @@ class CurveStats:
     cov: NDArray[np.float64]
     scale: NDArray[np.float64]
     dof: NDArray[np.float64]
+    residual_var: NDArray[np.float64]
     curved: NDArray[np.bool_]
 
     def subset(self, index: NDArray[np.int64]) -> CurveStats:
@@ -66,7 +69,7 @@ class CurveStats:
         line = LineStats(*(getattr(ln, f)[index] for f in (
             "value", "slope", "n", "residual_var", "var_value", "var_slope", "cov")))
         return CurveStats(line, self.p[index], self.cov[index], self.scale[index],
-                          self.dof[index], self.curved[index])
+                          self.dof[index], self.residual_var[index], self.curved[index])
 
     def bearing(self, index: NDArray[np.int64], tau: NDArray[np.float64]
                 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -194,7 +197,8 @@ def curve_fits(
     curved = ok & (((rss_cv > 0) & (f_stat > f_quantile(alpha, n - 3.0)))
                    | ((rss_cv <= 0) & (rss_line > 0)))
     return CurveStats(line=line, p=p, cov=cov, scale=scale,
-                      dof=np.where(curved, n - 3.0, n - 2.0), curved=curved)
+                      dof=np.where(curved, n - 3.0, n - 2.0),
+                      residual_var=np.where(curved, s2, line.residual_var), curved=curved)
 
 
 def curved_pair_intervals(

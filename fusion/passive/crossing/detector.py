@@ -21,7 +21,7 @@ from fusion.passive.crossing.curve import (
     curved_candidates,
     curved_pair_intervals,
 )
-from fusion.passive.crossing.interval import t_quantile
+from fusion.passive.crossing.interval import f_ratio_quantile, t_quantile
 from fusion.passive.crossing.pairs import pair_intervals, pairs_in_reach
 from fusion.passive.crossing.types import AlertKind, CrossingAlert
 from fusion.passive.line_fit import LineStats, SlidingLineFit
@@ -117,10 +117,19 @@ class CrossingDetector:
         (:func:`~fusion.passive.crossing.curve.curve_fits`); pairs with a curved track cross at
         the root of the difference polynomial, with the interval from the polynomials'
         covariance. None (default): straight lines only, the method's regression.
+    curve_windows : int, optional
+        Curves are fitted on this many of the shortest windows of the ladder (default 1: the
+        shortest only; a constant-velocity curve over a long window of a manoeuvring vessel
+        mimics a turn and extrapolates it, benchmarks/RESULTS.md).
     split_repeats : bool, optional
         A crossing whose bearing difference changes sign the other way from the pair's
         current event is the pair's next crossing, however close in time (default True;
         False merges by time and interval overlap only).
+    ladder_alpha : float or None, optional
+        Level of the variance-ratio test that admits a track to a longer window of the
+        ladder: its residual variance there must not exceed the shortest window's by more than
+        the upper `ladder_alpha` quantile of F (a track that turned or sped up within the
+        longer window is judged on the shorter ones only). None (default): every track.
 
     Notes
     -----
@@ -174,6 +183,8 @@ class CrossingDetector:
         confirm: int = 1,
         curve_alpha: float | None = None,
         split_repeats: bool = True,
+        ladder_alpha: float | None = None,
+        curve_windows: int = 1,
     ) -> None:
         if int(J) != J or J < 3:
             raise ValueError(f"J (samples per window) must be an integer > 2, got {J!r}")
@@ -208,6 +219,12 @@ class CrossingDetector:
             raise ValueError(f"curve_alpha must lie in (0, 1), got {curve_alpha!r}")
         self.curve_alpha = None if curve_alpha is None else float(curve_alpha)
         self.split_repeats = bool(split_repeats)
+        if ladder_alpha is not None and not 0.0 < ladder_alpha < 1.0:
+            raise ValueError(f"ladder_alpha must lie in (0, 1), got {ladder_alpha!r}")
+        self.ladder_alpha = None if ladder_alpha is None else float(ladder_alpha)
+        if int(curve_windows) != curve_windows or curve_windows < 1:
+            raise ValueError(f"curve_windows must be a positive integer, got {curve_windows!r}")
+        self.curve_windows = int(curve_windows)
         self.reset()
 
     @property
@@ -299,11 +316,11 @@ class CrossingDetector:
         return _Hits(*(getattr(h, f)[keep] for f in h._FIELDS))
 
     # -- pairs -------------------------------------------------------------------------------
-    def _models(self, fit: SlidingLineFit, ids: NDArray[np.int64], t: float
+    def _models(self, fit: SlidingLineFit, ids: NDArray[np.int64], t: float, *, curves: bool
                 ) -> tuple[LineStats, CurveStats | None]:
-        """The windows' lines and, with a curve level, their F-tested quadratics."""
+        """The windows' lines and (`curves`, with a curve level) their F-tested curves."""
         st = fit.stats(ids, t)
-        if self.curve_alpha is None or self.level is None:
+        if not curves or self.curve_alpha is None or self.level is None:
             return st, None
         tau, val, ok = fit.windows(ids, t)
         return st, curve_fits(tau, val, ok, st, alpha=self.curve_alpha)
@@ -334,11 +351,22 @@ class CrossingDetector:
         parts: list[tuple] = []
         models: list[tuple[LineStats, CurveStats | None]] = []
         reach: list[tuple[float, float]] = []
+        admitted = np.ones(ids.size, bool)  # tracks whose longer windows fit as well
+        var_prev = dof_prev = np.zeros(ids.size)
         for level, (fit, J) in enumerate(zip(self._fits, self.windows, strict=True)):
-            model = self._models(fit, ids, t)
+            model = self._models(fit, ids, t, curves=level < self.curve_windows)
             st, cs = model
             models.append(model)
-            sel = np.flatnonzero(st.n >= J)
+            var = st.residual_var if cs is None else cs.residual_var
+            dof = st.n - 2.0 if cs is None else cs.dof
+            use = st.n >= J
+            if level > 0 and self.ladder_alpha is not None:  # it must fit as well as the last
+                with np.errstate(invalid="ignore"):
+                    admitted &= ~(var > f_ratio_quantile(self.ladder_alpha, dof, dof_prev)
+                                  * var_prev)
+                use &= admitted
+            var_prev, dof_prev = var, dof
+            sel = np.flatnonzero(use)
             if sel.size < 2:
                 break
             span = J * self.K

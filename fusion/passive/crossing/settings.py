@@ -20,6 +20,7 @@ __all__ = [
     "DEFAULT_CONFIRM",
     "DEFAULT_CURVE_ALPHA",
     "DEFAULT_HORIZON_S",
+    "DEFAULT_LADDER_ALPHA",
     "DEFAULT_LEAD_WINDOWS",
     "DEFAULT_LEVEL",
     "DEFAULT_N_WINDOWS",
@@ -59,6 +60,8 @@ class CrossingSettings:
     curve_alpha : float or None
         Level of the F-test that replaces a window's line by a constant-velocity bearing curve
         (None: lines only).
+    ladder_alpha : float or None
+        Level of the variance-ratio test that admits a track to a longer window (None: all).
     adjusted : tuple of str
         What was asked and changed, one phrase each (printed by :meth:`describe`).
     """
@@ -73,13 +76,15 @@ class CrossingSettings:
     confirm: int
     level: float
     curve_alpha: float | None = None
+    ladder_alpha: float | None = None
     adjusted: tuple[str, ...] = ()
 
     def detector_options(self) -> dict[str, Any]:
         """Keyword arguments of the detector and of :func:`~fusion.passive.crossing.detect_crossings`."""
         return {"J": self.J, "K": self.period_s, "horizon_s": self.horizon_s,
                 "n_windows": self.n_windows, "lead_windows": self.lead_windows,
-                "confirm": self.confirm, "level": self.level, "curve_alpha": self.curve_alpha}
+                "confirm": self.confirm, "level": self.level, "curve_alpha": self.curve_alpha,
+                "ladder_alpha": self.ladder_alpha}
 
     def describe(self) -> str:
         """One line saying what was chosen."""
@@ -91,6 +96,8 @@ class CrossingSettings:
                 f"level {self.level:g}, "
                 + ("straight lines only" if self.curve_alpha is None else
                    f"curves kept at F-test level {self.curve_alpha:g}")
+                + ("" if self.ladder_alpha is None else
+                   f", longer windows only where they fit (F-test level {self.ladder_alpha:g})")
                 + "".join(f"; ADJUSTED {a}" for a in self.adjusted))
 
 
@@ -102,9 +109,11 @@ DEFAULT_HORIZON_S = 600.0
 DEFAULT_N_WINDOWS = 6
 #: Default reach of predictions, in spans of the window used.
 DEFAULT_LEAD_WINDOWS = 0.5
-#: Default level of the F-test that replaces a window's line by a constant-velocity curve
-#: (used with ``fusion crossings --bearing-model curve``; the command's default model is the line).
-DEFAULT_CURVE_ALPHA = 0.01
+#: Default level of the F-test that replaces the shortest window's line by a constant-velocity
+#: curve (chosen on tuning seeds, benchmarks/RESULTS.md, issue 19).
+DEFAULT_CURVE_ALPHA = 0.001
+#: Default level of the variance-ratio test that admits a track to a longer window (issue 19).
+DEFAULT_LADDER_ALPHA = 0.01
 #: Default number of samples in a row that confirm an alert.
 DEFAULT_CONFIRM = 2
 #: Default nominal level of the Fieller intervals (see :func:`crossing_settings`).
@@ -127,7 +136,8 @@ def crossing_settings(
     lead_windows: float = DEFAULT_LEAD_WINDOWS,
     confirm: int = DEFAULT_CONFIRM,
     level: float = DEFAULT_LEVEL,
-    curve_alpha: float | None = None,
+    curve_alpha: float | None = DEFAULT_CURVE_ALPHA,
+    ladder_alpha: float | None = DEFAULT_LADDER_ALPHA,
 ) -> CrossingSettings:
     """Window, horizon and grid period of a bearing table, in seconds, from the data.
 
@@ -146,7 +156,8 @@ def crossing_settings(
     J : int, optional
         Samples in the shortest window (default ``round(window_s / K)``, at least
         :data:`MIN_SAMPLES_PER_WINDOW`).
-    n_windows, lead_windows, confirm, level, curve_alpha
+    n_windows, lead_windows, confirm, level, curve_alpha, \
+ladder_alpha
         As in :class:`fusion.passive.crossing.CrossingDetector`.
 
     Returns
@@ -174,7 +185,7 @@ def crossing_settings(
     return crossing_settings_from_steps(
         step, track_span, window_s=window_s, horizon_s=horizon_s, period_s=period_s, J=J,
         n_windows=n_windows, lead_windows=lead_windows, confirm=confirm, level=level,
-        curve_alpha=curve_alpha)
+        curve_alpha=curve_alpha, ladder_alpha=ladder_alpha)
 
 
 def crossing_settings_from_steps(
@@ -189,7 +200,8 @@ def crossing_settings_from_steps(
     lead_windows: float = DEFAULT_LEAD_WINDOWS,
     confirm: int = DEFAULT_CONFIRM,
     level: float = DEFAULT_LEVEL,
-    curve_alpha: float | None = None,
+    curve_alpha: float | None = DEFAULT_CURVE_ALPHA,
+    ladder_alpha: float | None = DEFAULT_LADDER_ALPHA,
 ) -> CrossingSettings:
     """:func:`crossing_settings` from the two numbers it takes of the data.
 
@@ -200,7 +212,8 @@ def crossing_settings_from_steps(
         (:func:`~fusion.passive.bearing_grid.estimate_period`).
     track_span_s : float
         Median time span of the tracks, s.
-    window_s, horizon_s, period_s, J, n_windows, lead_windows, confirm, level, curve_alpha
+    window_s, horizon_s, period_s, J, n_windows, lead_windows, confirm, level, curve_alpha, \
+ladder_alpha
         As in :func:`crossing_settings`.
 
     Returns
@@ -243,4 +256,5 @@ def crossing_settings_from_steps(
                             lead_windows=float(lead_windows), confirm=int(confirm),
                             level=float(level),
                             curve_alpha=None if curve_alpha is None else float(curve_alpha),
+                            ladder_alpha=None if ladder_alpha is None else float(ladder_alpha),
                             adjusted=tuple(adjusted))
