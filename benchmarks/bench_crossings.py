@@ -23,6 +23,11 @@ only for scoring. Measured:
 
 Every figure is given as the mean over scenarios (pooled counts) and the worst decile (the
 10th percentile of the per-scenario fraction, the 90th of the per-scenario false-alarm rate).
+``never_crossing_pairs_alerted`` is the fraction of pairs that never cross with any alert.
+
+``--traffic`` scores manoeuvring vessel traffic instead (``fusion simulate bearings --traffic``:
+turns, speed changes, close passes, ferries, loiterers; repeated crossings), seeds
+:data:`TRAFFIC_TUNING_SEEDS` / :data:`TRAFFIC_REPORT_SEEDS`.
 
 Seeds: the defaults of ``fusion crossings`` (window, horizon, ladder, level) were chosen on the
 tuning seeds :data:`TUNING_SEEDS` (``--tune``); the report seeds :data:`REPORT_SEEDS` were drawn
@@ -32,6 +37,7 @@ Prints one JSON line on stdout (human-readable lines on stderr)::
 
     python benchmarks/bench_crossings.py                  # report seeds
     python benchmarks/bench_crossings.py --tune -- --horizon-s 300   # tuning seeds, other options
+    python benchmarks/bench_crossings.py --traffic --skip-timing     # manoeuvring traffic
 """
 
 from __future__ import annotations
@@ -50,7 +56,7 @@ from _realdata import AUTOFERRY
 
 from fusion.cli import main as fusion_main
 from fusion.geometry import wrap_deg
-from fusion.io import read_json, read_table, write_table
+from fusion.io import read_json, read_table
 from fusion.passive.crossing import (
     CrossingAlert,
     CrossingDetector,
@@ -270,22 +276,6 @@ def _true_crossings(table, step: float = 0.01) -> list[float]:
     return [float(grid[i] - d[i] * step / (d[i + 1] - d[i])) for i in s]
 
 
-def _merge_repeats(table) -> dict:
-    """Rows of one track at one time averaged into one (bearings unwrapped per track)."""
-    tid, t, b = table["track_id"], table["time"], table["bearing_deg"]
-    cols: dict[str, list] = {"track_id": [], "time": [], "bearing_deg": []}
-    for k in np.unique(tid):
-        m = tid == k
-        order = np.argsort(t[m], kind="stable")
-        tt = t[m][order]
-        bb = np.degrees(np.unwrap(np.radians(b[m][order])))
-        times, inv = np.unique(tt, return_inverse=True)
-        cols["track_id"] += [int(k)] * times.size
-        cols["time"] += times.tolist()
-        cols["bearing_deg"] += np.mod(np.bincount(inv, weights=bb) / np.bincount(inv), 360).tolist()
-    return {k: np.asarray(v) for k, v in cols.items()}
-
-
 def real(options: list[str]) -> dict:
     """``fusion crossings`` on the Autoferry true-bearing records."""
     out: dict = {}
@@ -300,12 +290,9 @@ def real(options: list[str]) -> dict:
             path = full if full.exists() else root / f"scenario{s}_true_bearings.csv"
             table = read_table(path, required=("track_id", "time", "bearing_deg"),
                                integer=("track_id",))
-            # the full records repeat some (track, time) rows, which the command refuses:
-            # merge them as its message asks (mean of the unwrapped bearings)
-            merged = Path(tmp) / f"s{s}_bearings.csv"
-            write_table(merged, _merge_repeats(table))
+            # the full records repeat some (track, time) rows: the command merges them (issue 19)
             res = Path(tmp) / f"s{s}.csv"
-            line = run_fusion("crossings", "--bearings", str(merged), "--out", str(res), *options)
+            line = run_fusion("crossings", "--bearings", str(path), "--out", str(res), *options)
             alerts = read_alerts(res)
             t_end = float(table["time"].max())
             fmt = [[round(a.time, 2), round(a.t_cross, 2), round(a.t_cross_low, 2),
@@ -317,7 +304,8 @@ def real(options: list[str]) -> dict:
                 "predicted": [f for f, a in zip(fmt, alerts, strict=True) if a.kind == "predicted"],
                 "predicted_beyond_record": sum(a.kind == "predicted" and a.t_cross > t_end
                                                for a in alerts),
-                "settings": line.split(":")[0],
+                "settings": line.splitlines()[-1].split(":")[0],
+                "merged": line.splitlines()[0] if "merged" in line else "",
             }
             log(f"real s{s}: {json.dumps(out[f's{s}'])}")
     out["source"] = str(root)
