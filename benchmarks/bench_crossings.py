@@ -23,6 +23,11 @@ only for scoring. Measured:
 
 Every figure is given as the mean over scenarios (pooled counts) and the worst decile (the
 10th percentile of the per-scenario fraction, the 90th of the per-scenario false-alarm rate).
+``never_crossing_pairs_alerted`` is the fraction of pairs that never cross with any alert.
+
+``--traffic`` scores manoeuvring vessel traffic instead (``fusion simulate bearings --traffic``:
+turns, speed changes, close passes, ferries, loiterers; repeated crossings), seeds
+:data:`TRAFFIC_TUNING_SEEDS` / :data:`TRAFFIC_REPORT_SEEDS`.
 
 Seeds: the defaults of ``fusion crossings`` (window, horizon, ladder, level) were chosen on the
 tuning seeds :data:`TUNING_SEEDS` (``--tune``); the report seeds :data:`REPORT_SEEDS` were drawn
@@ -32,6 +37,7 @@ Prints one JSON line on stdout (human-readable lines on stderr)::
 
     python benchmarks/bench_crossings.py                  # report seeds
     python benchmarks/bench_crossings.py --tune -- --horizon-s 300   # tuning seeds, other options
+    python benchmarks/bench_crossings.py --traffic --skip-timing     # manoeuvring traffic
 """
 
 from __future__ import annotations
@@ -50,7 +56,7 @@ from _realdata import AUTOFERRY
 
 from fusion.cli import main as fusion_main
 from fusion.geometry import wrap_deg
-from fusion.io import read_json, read_table, write_table
+from fusion.io import read_json, read_table
 from fusion.passive.crossing import (
     CrossingAlert,
     CrossingDetector,
@@ -65,8 +71,12 @@ REAL_TRUTH = {2: 1, 3: 2, 5: 0, 16: 0, 17: 0}
 
 #: Seeds the defaults were chosen on.
 TUNING_SEEDS = list(range(0, 20))
-#: Seeds of the reported figures, drawn after the last design change.
-REPORT_SEEDS = list(range(7100, 7140))
+#: Seeds of the reported figures, drawn after the last design change (issue 19: repeated
+#: crossings reported, simultaneous rows merged; 7100-7139 were the report seeds before it).
+REPORT_SEEDS = list(range(9500, 9520))
+#: Manoeuvring traffic (``--traffic``): seeds the design was looked at on, and report seeds.
+TRAFFIC_TUNING_SEEDS = list(range(0, 5))
+TRAFFIC_REPORT_SEEDS = list(range(9600, 9610))
 
 #: Rate-difference bins of the breakdown, deg/min.
 RATE_BINS = (0.3, 1.0, 5.0, np.inf)
@@ -120,10 +130,10 @@ def eligible_crossings(truth: dict) -> list[bool]:
     return out
 
 
-def one_scenario(seed: int, options: list[str], work: Path) -> dict:
-    """Write a varied scenario, run ``fusion crossings`` on it, score the alerts."""
+def one_scenario(seed: int, options: list[str], work: Path, *, traffic: bool = False) -> dict:
+    """Write a varied (or traffic) scenario, run ``fusion crossings`` on it, score the alerts."""
     d = work / f"s{seed}"
-    write_scenario(d, seed=seed, vary=True)
+    write_scenario(d, seed=seed, vary=not traffic, traffic=traffic)
     line = run_fusion("crossings", "--bearings", str(d / "bearings.csv"),
                       "--out", str(d / "alerts.csv"), *options)
     truth = read_json(d / "truth.json")
@@ -144,7 +154,10 @@ def one_scenario(seed: int, options: list[str], work: Path) -> dict:
                     "predicted": s1.n_predicted == 1,
                     "error_s": float(s1.error_s[0]) if s1.n_predicted else None,
                     "lead_s": float(s1.lead_s[0]) if s1.n_predicted else None})
+    alerted = {(a.track_a, a.track_b) for a in alerts}
+    never = [tuple(p) for p in truth["non_crossing_pairs"]]
     return {"seed": seed, "K": K, "line": line, "score": score, "crossings": per,
+            "never_pairs": len(never), "never_alerted": sum(p in alerted for p in never),
             "width_s": [a.t_cross_high - a.t_cross_low for a in alerts]}
 
 
@@ -169,6 +182,8 @@ def summarize(runs: list[dict]) -> dict:
         "false_alerts": sum(s.n_false for s in sc),
         "false_per_crossing": frac(sum(s.n_false for s in sc), n),
         "false_per_crossing_worst_decile": round(float(np.percentile(per_false, 90)), 4),
+        "never_crossing_pairs_alerted": frac(sum(r["never_alerted"] for r in runs),
+                                             sum(r["never_pairs"] for r in runs)),
         "coverage": frac(sum(s.n_covered for s in sc), sum(s.n_on_crossing_pairs for s in sc)),
         "coverage_worst_decile": round(float(np.percentile(per_cov, 10)), 4),
         "interval_width_median_s": round(float(np.median(np.concatenate(
@@ -197,10 +212,11 @@ def summarize(runs: list[dict]) -> dict:
     return out
 
 
-def varied(seeds: list[int], options: list[str]) -> tuple[dict, list[dict]]:
-    """Score ``fusion crossings`` over varied scenarios."""
+def varied(seeds: list[int], options: list[str], *, traffic: bool = False
+           ) -> tuple[dict, list[dict]]:
+    """Score ``fusion crossings`` over varied (or traffic) scenarios."""
     with tempfile.TemporaryDirectory() as tmp:
-        runs = [one_scenario(s, options, Path(tmp)) for s in seeds]
+        runs = [one_scenario(s, options, Path(tmp), traffic=traffic) for s in seeds]
     for r in runs:
         s = r["score"]
         log(f"seed {r['seed']}: {s.n_predicted}/{s.n_crossings} predicted, {s.n_false} false, "
@@ -260,22 +276,6 @@ def _true_crossings(table, step: float = 0.01) -> list[float]:
     return [float(grid[i] - d[i] * step / (d[i + 1] - d[i])) for i in s]
 
 
-def _merge_repeats(table) -> dict:
-    """Rows of one track at one time averaged into one (bearings unwrapped per track)."""
-    tid, t, b = table["track_id"], table["time"], table["bearing_deg"]
-    cols: dict[str, list] = {"track_id": [], "time": [], "bearing_deg": []}
-    for k in np.unique(tid):
-        m = tid == k
-        order = np.argsort(t[m], kind="stable")
-        tt = t[m][order]
-        bb = np.degrees(np.unwrap(np.radians(b[m][order])))
-        times, inv = np.unique(tt, return_inverse=True)
-        cols["track_id"] += [int(k)] * times.size
-        cols["time"] += times.tolist()
-        cols["bearing_deg"] += np.mod(np.bincount(inv, weights=bb) / np.bincount(inv), 360).tolist()
-    return {k: np.asarray(v) for k, v in cols.items()}
-
-
 def real(options: list[str]) -> dict:
     """``fusion crossings`` on the Autoferry true-bearing records."""
     out: dict = {}
@@ -290,12 +290,9 @@ def real(options: list[str]) -> dict:
             path = full if full.exists() else root / f"scenario{s}_true_bearings.csv"
             table = read_table(path, required=("track_id", "time", "bearing_deg"),
                                integer=("track_id",))
-            # the full records repeat some (track, time) rows, which the command refuses:
-            # merge them as its message asks (mean of the unwrapped bearings)
-            merged = Path(tmp) / f"s{s}_bearings.csv"
-            write_table(merged, _merge_repeats(table))
+            # the full records repeat some (track, time) rows: the command merges them (issue 19)
             res = Path(tmp) / f"s{s}.csv"
-            line = run_fusion("crossings", "--bearings", str(merged), "--out", str(res), *options)
+            line = run_fusion("crossings", "--bearings", str(path), "--out", str(res), *options)
             alerts = read_alerts(res)
             t_end = float(table["time"].max())
             fmt = [[round(a.time, 2), round(a.t_cross, 2), round(a.t_cross_low, 2),
@@ -307,7 +304,8 @@ def real(options: list[str]) -> dict:
                 "predicted": [f for f, a in zip(fmt, alerts, strict=True) if a.kind == "predicted"],
                 "predicted_beyond_record": sum(a.kind == "predicted" and a.t_cross > t_end
                                                for a in alerts),
-                "settings": line.split(":")[0],
+                "settings": line.splitlines()[-1].split(":")[0],
+                "merged": line.splitlines()[0] if "merged" in line else "",
             }
             log(f"real s{s}: {json.dumps(out[f's{s}'])}")
     out["source"] = str(root)
@@ -325,15 +323,21 @@ def main(argv: list[str] | None = None) -> dict:
     ap.add_argument("--update-tracks", type=int, default=1000, help="tracks in the timing")
     ap.add_argument("--repeats", type=int, default=20, help="timed updates (default 20)")
     ap.add_argument("--skip-timing", action="store_true", help="no timing, no recorded data")
+    ap.add_argument("--traffic", action="store_true",
+                    help="manoeuvring traffic (`fusion simulate bearings --traffic`) instead of "
+                         "the varied straight-line scenarios")
     args = ap.parse_args(argv)
-    seeds = args.seeds or (TUNING_SEEDS if args.tune else REPORT_SEEDS)
+    if args.traffic:
+        seeds = args.seeds or (TRAFFIC_TUNING_SEEDS if args.tune else TRAFFIC_REPORT_SEEDS)
+    else:
+        seeds = args.seeds or (TUNING_SEEDS if args.tune else REPORT_SEEDS)
     t0 = time.perf_counter()
     res: dict = {"benchmark": "crossings", "seed_set": "tuning" if args.tune else (
         "custom" if args.seeds else "report"), "seeds": [seeds[0], seeds[-1], len(seeds)],
         "tuning_seeds": [TUNING_SEEDS[0], TUNING_SEEDS[-1]],
         "report_seeds": [REPORT_SEEDS[0], REPORT_SEEDS[-1]], "options": options}
-    summary, _ = varied(seeds, options)
-    res["varied"] = summary
+    summary, _ = varied(seeds, options, traffic=args.traffic)
+    res["traffic" if args.traffic else "varied"] = summary
     log(f"varied: {json.dumps(summary)}")
     if not args.skip_timing:
         res.update(timing(args.update_tracks, args.repeats))

@@ -335,8 +335,10 @@ CASES: list[Case] = [
          lambda tmp, inputs: ({**inputs, "bearings": _table_variant("crossings", "bearings",
                                                                      "single")(tmp)},
                               ["--period-s", "10"], "bearings_single.csv")),
-    Case("crossings", "duplicate-time",
-         _replace("bearings", _table_variant("crossings", "bearings", "duplicate-time"))),
+    Case("crossings", "duplicate-time-strict",  # merged unless --strict (issue 19)
+         lambda tmp, inputs: ({**inputs, "bearings": _table_variant(
+             "crossings", "bearings", "duplicate-time")(tmp)}, ["--strict"],
+             "bearings_duplicate-time.csv")),
     Case("crossings", "one-track",
          _replace("bearings", lambda tmp: write_csv(tmp / "one_track.csv", _smooth_bearings()))),
     Case("crossings", "window-zero", _option("--window-samples", "0")),

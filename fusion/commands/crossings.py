@@ -24,9 +24,12 @@ from fusion._progress import track_progress
 from fusion.cli import MAX_SCANS_OPTION, emit, number
 from fusion.io import RowOrderError, iter_bearings, read_bearings, write_table
 from fusion.passive.crossing import CrossingAlert, detect_crossings
+from fusion.passive.crossing.merge import merge_simultaneous
 from fusion.passive.crossing.settings import (
     DEFAULT_CONFIRM,
+    DEFAULT_CURVE_ALPHA,
     DEFAULT_HORIZON_S,
+    DEFAULT_LADDER_ALPHA,
     DEFAULT_LEAD_WINDOWS,
     DEFAULT_LEVEL,
     DEFAULT_N_WINDOWS,
@@ -107,6 +110,26 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "overlap, are one event (default: the window)")
     p.add_argument("--max-gap-s", dest="max_gap", type=number(float, gt=0), default=None, metavar="S",
                    help="a gap longer than S s splits a track (default 3*K)")
+    p.add_argument("--bearing-model", choices=("curve", "line"), default="curve",
+                   help="curve (default): a shortest window whose bearings curve (F-test at "
+                        "--curve-alpha) gets the bearing curve of a constant-velocity contact, "
+                        "the crossing's interval from that curve's covariance; line: straight "
+                        "lines only (the method's regression)")
+    p.add_argument("--curve-alpha", type=number(float, gt=0, le=0.5), default=DEFAULT_CURVE_ALPHA,
+                   metavar="P", help="level of the F-test that keeps a curve instead of the "
+                   f"line (default {DEFAULT_CURVE_ALPHA:g}; smaller keeps fewer curves)")
+    p.add_argument("--ladder-alpha", type=number(float, ge=0, le=0.5),
+                   default=DEFAULT_LADDER_ALPHA, metavar="P",
+                   help="a track enters a longer window of the ladder only if its residual "
+                        "variance there passes the variance-ratio test against the shortest "
+                        f"window at level P (default {DEFAULT_LADDER_ALPHA:g}; 0: every track, "
+                        "the ladder before)")
+    p.add_argument("--merge-repeats", action="store_true",
+                   help="merge a pair's crossings by time and interval overlap only (before: a "
+                        "crossing in the other direction is always the pair's next crossing)")
+    p.add_argument("--strict", action="store_true",
+                   help="refuse two rows of one track at one time (default: merge them, "
+                        "weighted by sigma_bearing_deg if the file has it, and say how many)")
     p.add_argument("--quiet", action="store_true",
                    help="no progress bar (none either when standard error is not a terminal)")
     p.set_defaults(handler=run, inputs=("bearings",))
@@ -139,7 +162,9 @@ def _options(args: argparse.Namespace) -> dict:
     """The settings options of the command line."""
     return {"window_s": args.window_s, "horizon_s": args.horizon, "period_s": args.period,
             "J": args.window, "n_windows": args.windows, "lead_windows": args.lead,
-            "confirm": args.confirm, "level": args.level}
+            "confirm": args.confirm, "level": args.level,
+            "curve_alpha": args.curve_alpha if args.bearing_model == "curve" else None,
+            "ladder_alpha": args.ladder_alpha or None}
 
 
 def _check_spans(args: argparse.Namespace, st: CrossingSettings, spans_s: np.ndarray) -> None:
@@ -179,7 +204,8 @@ def _streamed(args: argparse.Namespace) -> tuple[list[CrossingAlert], CrossingSe
             yield c.table["track_id"], c.table["time"], c.table["bearing_deg"]
 
     options = {"origin_s": summary.t_min_s, "merge_window_s": args.merge_window,
-               "max_gap_s": args.max_gap, **st.detector_options()}
+               "max_gap_s": args.max_gap, "split_repeats": not args.merge_repeats,
+               **st.detector_options()}
     try:
         alerts = detect_crossings_streamed(rows(), **options)
     except GridAssumptionBroken as e:  # one more pass: the knots after long gaps, then exact
@@ -192,7 +218,17 @@ def _streamed(args: argparse.Namespace) -> tuple[list[CrossingAlert], CrossingSe
 
 def _whole_file(args: argparse.Namespace) -> tuple[list[CrossingAlert], CrossingSettings]:
     """The whole table at once (rows sorted by the reader if they were out of order)."""
-    table = read_bearings(args.bearings)
+    table = read_bearings(args.bearings, distinct=args.strict, sigma=not args.strict)
+    if not args.strict:
+        try:
+            cols, n_merged = merge_simultaneous(table.columns)
+        except ValueError as e:
+            raise ValueError(f"{args.bearings}: {e}") from None
+        if n_merged:
+            emit(f"merged {n_merged} simultaneous bearing row(s) of one track "
+                 f"({'weighted by sigma_bearing_deg' if 'sigma_bearing_deg' in cols else 'equal weights'}"
+                 "; --strict refuses them)")
+        table = cols
     tid = table["track_id"]
     known = tid >= 0
     _two_tracks(args, np.unique(tid[known]).size)
@@ -202,7 +238,7 @@ def _whole_file(args: argparse.Namespace) -> tuple[list[CrossingAlert], Crossing
         raise ValueError(f"{args.bearings}: {e}") from None
     _check_spans(args, st, [np.ptp(table["time"][tid == k]) for k in np.unique(tid[known])])
     alerts = detect_crossings(table, merge_window_s=args.merge_window, max_gap_s=args.max_gap,
-                              **st.detector_options())
+                              split_repeats=not args.merge_repeats, **st.detector_options())
     return alerts, st
 
 

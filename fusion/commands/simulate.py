@@ -51,6 +51,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", type=Path, required=True, help="output folder")
     p.add_argument("--vary", action="store_true",
                    help="draw the physical assumptions from the simulator's documented ranges")
+    p.add_argument("--traffic", action="store_true",
+                   help="bearings only: manoeuvring vessel traffic around a fixed sensor (turns, "
+                        "speed changes, close passes, ferries, loiterers; repeated crossings)")
     g = p.add_argument_group("clicks only", "options of `fusion simulate clicks`; they override "
                              "the default (or, with --vary, drawn) values")
     g.add_argument("--duration-s", dest="duration_s", type=number(float, gt=0), default=None,
@@ -83,6 +86,10 @@ def run(args: argparse.Namespace) -> int:
         for dest, (option, _) in CLICK_OPTIONS.items():
             if getattr(args, dest, None) is not None:
                 raise ValueError(f"{option} applies to `fusion simulate clicks` only")
+    if args.traffic and args.kind != "bearings":
+        raise ValueError("--traffic applies to `fusion simulate bearings` only")
+    if args.traffic:
+        extra["traffic"] = True
     paths = writer(args.out, seed=args.seed, **({"vary": True} if args.vary else {}), **extra)
     for path in paths:
         emit(str(path))

@@ -75,15 +75,18 @@ def _in_time_order(
     return table
 
 
-def read_bearings(path: PathLike) -> Table:
+def read_bearings(path: PathLike, *, distinct: bool = True, sigma: bool = False) -> Table:
     """Bearing tracks ``track_id,time,bearing_deg`` (``track_id`` -1: unknown origin).
 
     Rows need not be sorted: each track's rows are put in time order (see
     :func:`_in_time_order`, one warning if a sort was needed). Two rows of one track
-    (``track_id >= 0``) at the same time are an error; rows of track -1 may share times.
+    (``track_id >= 0``) at the same time are an error unless `distinct` is False; rows of
+    track -1 may share times. With `sigma` the optional column ``sigma_bearing_deg`` is read
+    too.
     """
-    t = read_table(path, required=("track_id", "time", "bearing_deg"), integer=("track_id",))
-    return _in_time_order(t, by="track_id", ignore_key=-1)
+    t = read_table(path, required=("track_id", "time", "bearing_deg"),
+                   optional=("sigma_bearing_deg",) if sigma else (), integer=("track_id",))
+    return _in_time_order(t, by="track_id", ignore_key=-1, distinct=distinct)
 
 
 def read_amplitudes(path: PathLike) -> Table:

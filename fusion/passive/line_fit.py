@@ -354,3 +354,25 @@ class SlidingLineFit:
         n, h, J = int(self._n[s]), int(self._head[s]), self.window
         idx = (h - n + np.arange(n)) % J
         return self._bt[s, idx] + self._t0[s], self._by[s, idx].copy()
+
+    def windows(
+        self, track_ids: ArrayLike, time: float
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
+        """Every window of `track_ids` at once, times relative to `time` (unordered).
+
+        Returns
+        -------
+        tau : ndarray, shape (n, J)
+            Sample time minus `time`, s (0 where `valid` is False).
+        value : ndarray, shape (n, J)
+            Unwrapped values on the branch of :meth:`stats` (0 where not valid).
+        valid : ndarray of bool, shape (n, J)
+            Entries holding a sample.
+        """
+        s = self.slots(track_ids)
+        if np.any(s < 0):
+            unknown = np.asarray(track_ids)[s < 0]
+            raise ValueError(f"unknown track id(s) {unknown.tolist()[:5]}")
+        v = self._bv[s].copy()
+        tau = np.where(v, self._bt[s] + (self._t0[s] - float(time))[:, None], 0.0)
+        return tau, np.where(v, self._by[s], 0.0), v

@@ -16,8 +16,8 @@ from numpy.typing import NDArray
 from fusion.report.figures import TQI_COLOURS, bearing_band, new_figure, no_wrap_line
 from fusion.types import Table
 
-__all__ = ["alerts_figure", "alerts_on_tracks_figure", "smoothed_figure", "tqi_bearing_figure",
-           "tqi_figure"]
+__all__ = ["MAX_ALERT_PAIRS", "alerts_figure", "alerts_on_tracks_figure", "smoothed_figure",
+           "tqi_bearing_figure", "tqi_figure"]
 
 #: Marker and colour of each alert kind.
 ALERT_STYLE = {"predicted": ("v", "tab:orange"), "detected": ("x", "tab:red")}
@@ -212,6 +212,10 @@ def tqi_bearing_figure(table: Table, bearings: Table, *, title: str) -> Any:
     return fig
 
 
+#: Most track pairs (rows) in :func:`alerts_figure`.
+MAX_ALERT_PAIRS = 40
+
+
 def alerts_figure(alerts: Table, *, title: str) -> Any:
     """Crossing alerts per track pair: alert time, crossing time and its interval.
 
@@ -225,12 +229,22 @@ def alerts_figure(alerts: Table, *, title: str) -> Any:
     Returns
     -------
     matplotlib Figure
-        One row per pair: a marker at each alert's time, a dot at its crossing time with the
-        interval as a bar, a thin line from one to the other.
+        One row per alerting pair: a marker at each alert's time, a dot at its crossing time
+        with the interval as a bar, a thin line from one to the other. At most
+        :data:`MAX_ALERT_PAIRS` rows (the pairs with the most alerts; the title says how many
+        were left out), so the figure keeps a readable size for any number of pairs.
     """
-    pairs = sorted({(int(a), int(b)) for a, b in zip(alerts["track_a"], alerts["track_b"],
-                                                        strict=True)})
-    fig, ax = new_figure(size=(9.0, max(3.0, 1.2 + 0.35 * len(pairs))))
+    count: dict[tuple[int, int], int] = {}
+    for a, b in zip(alerts["track_a"], alerts["track_b"], strict=True):
+        count[(int(a), int(b))] = count.get((int(a), int(b)), 0) + 1
+    shown = sorted(count, key=lambda p: (-count[p], p))[:MAX_ALERT_PAIRS]
+    if len(shown) < len(count):
+        title = f"{title} ({len(shown)} of {len(count)} alerting pairs: those with most alerts)"
+        keep = [(int(a), int(b)) in set(shown) for a, b in zip(alerts["track_a"],
+                                                                 alerts["track_b"], strict=True)]
+        alerts = alerts.select(np.flatnonzero(keep))
+    pairs = sorted(shown)
+    fig, ax = new_figure(size=(9.0, max(3.0, 1.2 + 0.3 * len(pairs))))
     row = {p: i for i, p in enumerate(pairs)}
     interval = "t_cross_low" in alerts and "t_cross_high" in alerts
     for i in range(len(alerts)):

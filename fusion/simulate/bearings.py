@@ -26,7 +26,10 @@ distributed detections of unknown origin (``track_id`` = -1).
 Files (``write_scenario``): ``bearings.csv`` (``track_id,time,bearing_deg``, bearings in
 [0, 360) deg clockwise from north), ``truth.json`` and ``truth_bearings.csv``. With
 ``vary=True`` the physical assumptions are drawn per scenario from :data:`VARIED_RANGES`
-(:func:`varied_settings`) instead of the fixed defaults.
+(:func:`varied_settings`) instead of the fixed defaults. With ``traffic=True``
+(:func:`simulate_traffic`) the targets are manoeuvring vessels around a fixed sensor instead:
+turns, speed changes, close passes, ferries and loiterers whose bearings cross again and again
+(:data:`TRAFFIC_RANGES`).
 """
 
 from __future__ import annotations
@@ -40,15 +43,18 @@ import numpy as np
 from fusion._validation import check_positive
 from fusion.io import write_json, write_table
 from fusion.simulate._bearing_motion import Builder, Motion, unit
+from fusion.simulate._bearing_traffic import TRAFFIC_RANGES, traffic_positions
 from fusion.simulate._bearing_truth import BearingScenario, TrueCrossing, find_true_crossings
 from fusion.simulate._bearing_varied import VARIED_RANGES, varied_settings
 
 __all__ = [
+    "TRAFFIC_RANGES",
     "VARIED_RANGES",
     "BearingScenario",
     "TrueCrossing",
     "find_true_crossings",
     "simulate_bearings",
+    "simulate_traffic",
     "varied_settings",
     "write_scenario",
 ]
@@ -341,7 +347,75 @@ def simulate_bearings(
     )
 
 
-def write_scenario(out_dir: Path, *, seed: int, vary: bool = False) -> list[Path]:
+def simulate_traffic(*, seed: int) -> BearingScenario:
+    """Manoeuvring vessel traffic seen from a fixed sensor (draws from :data:`TRAFFIC_RANGES`).
+
+    Parameters
+    ----------
+    seed : int
+        Seed of ``np.random.default_rng``.
+
+    Returns
+    -------
+    BearingScenario
+        Measurements (true bearings plus per-track Gaussian noise, detection probability, no
+        clutter), every true crossing and the bearing-rate difference at each.
+
+    Notes
+    -----
+    Vessel kinds and motions are described in :mod:`fusion.simulate._bearing_traffic`. The
+    sensor sits at the origin (``ownship_xy`` zero). Nearly all vessels are in view the whole
+    hour, so most pairs meet at least once and many more than once.
+    """
+    r = TRAFFIC_RANGES
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(r["n_vessels"][0], r["n_vessels"][1] + 1))
+    duration = float(r["duration_s"])
+    period = float(np.round(rng.uniform(*r["sample_period_s"])))
+    noise = np.exp(rng.uniform(*np.log(r["noise_deg"]), size=n))
+    p_detect = float(rng.uniform(*r["p_detect"]))
+    t_fine, pos, _ = traffic_positions(rng, n, duration)
+    theta = np.unwrap(np.arctan2(pos[..., 0], pos[..., 1]), axis=1)  # (n, m) rad
+    rate = np.gradient(theta, t_fine, axis=1)
+
+    def f(k: int):
+        return lambda tt: np.interp(tt, t_fine, theta[k])
+
+    crossings = find_true_crossings([f(k) for k in range(n)], duration_s=duration, step_s=1.0)
+    crossing_pairs = {(c.track_a, c.track_b) for c in crossings}
+    non_crossing = tuple((a, b) for a in range(n) for b in range(a + 1, n)
+                         if (a, b) not in crossing_pairs)
+    t_grid = np.arange(int(np.floor(duration / period + 1e-9)) + 1) * period
+    tb = np.array([np.interp(t_grid, t_fine, theta[k]) for k in range(n)])
+    truth_bearing = np.mod(np.degrees(tb), 360.0)
+    truth_rate = np.degrees(np.array([np.interp(t_grid, t_fine, rate[k]) for k in range(n)]))
+    detected = rng.random((n, t_grid.size)) < p_detect
+    meas = np.mod(truth_bearing + rng.normal(0.0, 1.0, truth_bearing.shape) * noise[:, None],
+                  360.0)
+    tid = np.broadcast_to(np.arange(n)[:, None], detected.shape)[detected]
+    time = np.broadcast_to(t_grid[None, :], detected.shape)[detected]
+    order = np.lexsort((tid, time))
+    target_xy = np.array([[np.interp(t_grid, t_fine, pos[k, :, j]) for j in range(2)]
+                          for k in range(n)]).transpose(0, 2, 1)
+    rate_diff = tuple(float(np.degrees(np.interp(c.t_cross, t_fine, rate[c.track_b])
+                                       - np.interp(c.t_cross, t_fine, rate[c.track_a])) * 60.0)
+                      for c in crossings)
+    return BearingScenario(
+        track_id=tid[order].astype(np.int64), time=time[order],
+        bearing_deg=meas[detected][order], true_bearing_deg=truth_bearing[detected][order],
+        track_ids=np.arange(n, dtype=np.int64), truth_time=t_grid,
+        truth_bearing_deg=truth_bearing, truth_bearing_rate_deg_per_s=truth_rate,
+        ownship_xy=np.zeros((t_grid.size, 2)), target_xy=target_xy,
+        crossings=tuple(crossings), non_crossing_pairs=non_crossing, near_miss_pairs=(),
+        parallel_pairs=(), planned_crossing_pairs=(), planned_crossings=(),
+        sample_period_s=period, noise_deg=float(np.median(noise)), duration_s=duration,
+        seed=int(seed), track_noise_deg=noise, crossing_rate_diff_deg_per_min=rate_diff,
+        gaps=(),
+    )
+
+
+def write_scenario(out_dir: Path, *, seed: int, vary: bool = False,
+                   traffic: bool = False) -> list[Path]:
     """Write a bearing scenario: ``bearings.csv``, ``truth.json``, ``truth_bearings.csv``.
 
     Parameters
@@ -354,6 +428,9 @@ def write_scenario(out_dir: Path, *, seed: int, vary: bool = False) -> list[Path
         Draw the physical assumptions from :data:`VARIED_RANGES` (:func:`varied_settings`)
         instead of the fixed scenario below; ``truth.json`` then records them under
         ``settings``.
+    traffic : bool, optional
+        Manoeuvring vessel traffic around a fixed sensor (:func:`simulate_traffic`) instead;
+        not with `vary`.
 
     Returns
     -------
@@ -368,7 +445,12 @@ def write_scenario(out_dir: Path, *, seed: int, vary: bool = False) -> list[Path
     """
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    if vary:
+    if vary and traffic:
+        raise ValueError("--traffic draws its own settings: not with --vary")
+    if traffic:
+        settings = {"traffic": True}
+        sc = simulate_traffic(seed=seed)
+    elif vary:
         settings = varied_settings(seed)
         sc = simulate_bearings(**settings)
     else:

@@ -19,6 +19,9 @@ Beyond the method text, each alert carries a confidence interval of ``t_c`` from
 of the two window fits (Fieller's interval), an alert is raised only when that interval is
 bounded and no wider than the horizon, and a pair whose bearing-rate difference the J-sample
 window cannot resolve is tried again on windows of 2 J, 4 J, ... samples (``n_windows``).
+With ``curve_alpha`` a window whose bearings curve (an F-test) gets the bearing curve of a
+constant-velocity contact instead of the line (:mod:`~fusion.passive.crossing.curve`), and a
+pair's crossings in opposite directions are separate events (repeated passes are reported).
 
 Pieces:
 
@@ -28,6 +31,9 @@ Pieces:
   inequalities (3)/(4) for all pairs at once;
 - :class:`~fusion.passive.crossing.detector.CrossingDetector` - the streaming component
   (``step``), window ladder and alert de-duplication;
+- :mod:`~fusion.passive.crossing.curve` - constant-velocity bearing curves, their F-test
+  against the line, and the crossing time and interval of two curves;
+- :mod:`~fusion.passive.crossing.merge` - simultaneous bearings of one track merged;
 - :mod:`~fusion.passive.crossing.interval` and :mod:`~fusion.passive.crossing.timing` - the
   confidence interval of ``t_c`` and the terms of equation (2);
 - :mod:`~fusion.passive.crossing.stream` and :mod:`~fusion.passive.crossing.summary` - the
@@ -45,7 +51,9 @@ from fusion.passive.crossing.pairs import evaluate_pairs
 from fusion.passive.crossing.score import CrossingScore, IntervalScore, score_alerts, score_intervals
 from fusion.passive.crossing.settings import (
     DEFAULT_CONFIRM,
+    DEFAULT_CURVE_ALPHA,
     DEFAULT_HORIZON_S,
+    DEFAULT_LADDER_ALPHA,
     DEFAULT_LEAD_WINDOWS,
     DEFAULT_LEVEL,
     DEFAULT_N_WINDOWS,
@@ -60,7 +68,9 @@ from fusion.passive.line_fit import LineStats, SlidingLineFit
 
 __all__ = [
     "DEFAULT_CONFIRM",
+    "DEFAULT_CURVE_ALPHA",
     "DEFAULT_HORIZON_S",
+    "DEFAULT_LADDER_ALPHA",
     "DEFAULT_LEAD_WINDOWS",
     "DEFAULT_LEVEL",
     "DEFAULT_N_WINDOWS",

@@ -36,6 +36,9 @@ def detect_crossings(
     max_interval_s: float | None = None,
     lead_windows: float = 1.0,
     confirm: int = 1,
+    curve_alpha: float | None = None,
+    split_repeats: bool = True,
+    ladder_alpha: float | None = None,
 ) -> list[CrossingAlert]:
     """Crossing alerts of a whole bearing table (batch entry point).
 
@@ -49,7 +52,7 @@ def detect_crossings(
     K : float, optional
         Sample period, s (default: the median time step within tracks).
     horizon_s, min_rate_diff_deg_per_s, merge_window_s, max_gap_s, n_windows, level, \
-max_interval_s, lead_windows, confirm
+max_interval_s, lead_windows, confirm, curve_alpha, split_repeats, ladder_alpha
         As in :class:`CrossingDetector` (`max_gap_s` also bounds interpolation gaps).
 
     Returns
@@ -77,6 +80,7 @@ max_interval_s, lead_windows, confirm
         J=J, K=period, horizon_s=horizon_s, min_rate_diff_deg_per_s=min_rate_diff_deg_per_s,
         merge_window_s=merge_window_s, max_gap_s=max_gap_s, n_windows=n_windows, level=level,
         max_interval_s=max_interval_s, lead_windows=lead_windows, confirm=confirm,
+        curve_alpha=curve_alpha, split_repeats=split_repeats, ladder_alpha=ladder_alpha,
     )
     rs = resample_bearings(
         tid, cols["time"], cols["bearing_deg"], period_s=det.K, max_gap_s=det.max_gap_s

@@ -15,6 +15,13 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from fusion.passive.crossing.curve import (
+    CurveStats,
+    curve_fits,
+    curved_candidates,
+    curved_pair_intervals,
+)
+from fusion.passive.crossing.interval import f_ratio_quantile, t_quantile
 from fusion.passive.crossing.pairs import pair_intervals, pairs_in_reach
 from fusion.passive.crossing.types import AlertKind, CrossingAlert
 from fusion.passive.line_fit import LineStats, SlidingLineFit
@@ -29,18 +36,20 @@ class _Events:
     """Open crossing events, one row per pair, sorted by pair key (internal, mutable).
 
     ``key = slot_a * 2**32 + slot_b`` with the tracks' storage slots; ``t_cross``, ``low``,
-    ``high`` are the latest crossing time and interval seen for the event; ``predicted`` and
-    ``detected`` say which alerts the event has raised.
+    ``high`` are the latest crossing time and interval seen for the event; ``direction`` is the
+    sign of the bearing difference's rate at the crossing (successive crossings of a pair
+    alternate it); ``predicted`` and ``detected`` say which alerts the event has raised.
     """
 
     key: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, np.int64))
     t_cross: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
     low: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
     high: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
+    direction: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
     predicted: NDArray[np.bool_] = field(default_factory=lambda: np.zeros(0, bool))
     detected: NDArray[np.bool_] = field(default_factory=lambda: np.zeros(0, bool))
 
-    _COLUMNS = ("key", "t_cross", "low", "high", "predicted", "detected")
+    _COLUMNS = ("key", "t_cross", "low", "high", "direction", "predicted", "detected")
 
     def keep(self, index: NDArray) -> None:
         for name in self._COLUMNS:
@@ -63,6 +72,9 @@ class _Hits:
     high: NDArray[np.float64]
     predicted: NDArray[np.bool_]
     window_s: NDArray[np.float64]
+    direction: NDArray[np.float64]
+
+    _FIELDS = ("a", "b", "t_cross", "low", "high", "predicted", "window_s", "direction")
 
 
 class CrossingDetector:
@@ -100,6 +112,24 @@ class CrossingDetector:
     confirm : int, optional
         An alert needs its pair to satisfy an inequality (resolved) at this many samples in a
         row (default 1, the method's rule).
+    curve_alpha : float or None, optional
+        Level of the F-test that adds a quadratic term to a track's window fit
+        (:func:`~fusion.passive.crossing.curve.curve_fits`); pairs with a curved track cross at
+        the root of the difference polynomial, with the interval from the polynomials'
+        covariance. None (default): straight lines only, the method's regression.
+    curve_windows : int, optional
+        Curves are fitted on this many of the shortest windows of the ladder (default 1: the
+        shortest only; a constant-velocity curve over a long window of a manoeuvring vessel
+        mimics a turn and extrapolates it, benchmarks/RESULTS.md).
+    split_repeats : bool, optional
+        A crossing whose bearing difference changes sign the other way from the pair's
+        current event is the pair's next crossing, however close in time (default True;
+        False merges by time and interval overlap only).
+    ladder_alpha : float or None, optional
+        Level of the variance-ratio test that admits a track to a longer window of the
+        ladder: its residual variance there must not exceed the shortest window's by more than
+        the upper `ladder_alpha` quantile of F (a track that turned or sped up within the
+        longer window is judged on the shorter ones only). None (default): every track.
 
     Notes
     -----
@@ -120,7 +150,10 @@ class CrossingDetector:
     repeat it at up to J consecutive samples): each pair keeps its current crossing *event*,
     identified by the latest ``t_c`` and interval seen for it. A satisfied inequality whose
     ``t_c`` lies within `merge_window_s` of the event's, or whose interval overlaps the
-    event's, belongs to that event (and updates it); otherwise it opens a new event. Per event
+    event's, belongs to that event (and updates it) -- unless the two cross in opposite
+    directions (the sign of the bearing difference's rate at the crossing): successive
+    crossings of one pair alternate direction, so a repeated pass opens a new event however
+    soon it comes; otherwise it opens a new event. Per event
     at most one ``predicted`` alert (only before any ``detected`` alert of the event) and at
     most one ``detected`` alert are issued.
 
@@ -148,6 +181,10 @@ class CrossingDetector:
         max_interval_s: float | None = None,
         lead_windows: float = 1.0,
         confirm: int = 1,
+        curve_alpha: float | None = None,
+        split_repeats: bool = True,
+        ladder_alpha: float | None = None,
+        curve_windows: int = 1,
     ) -> None:
         if int(J) != J or J < 3:
             raise ValueError(f"J (samples per window) must be an integer > 2, got {J!r}")
@@ -178,6 +215,16 @@ class CrossingDetector:
         if int(confirm) != confirm or confirm < 1:
             raise ValueError(f"confirm must be a positive integer, got {confirm!r}")
         self.confirm = int(confirm)
+        if curve_alpha is not None and not 0.0 < curve_alpha < 1.0:
+            raise ValueError(f"curve_alpha must lie in (0, 1), got {curve_alpha!r}")
+        self.curve_alpha = None if curve_alpha is None else float(curve_alpha)
+        self.split_repeats = bool(split_repeats)
+        if ladder_alpha is not None and not 0.0 < ladder_alpha < 1.0:
+            raise ValueError(f"ladder_alpha must lie in (0, 1), got {ladder_alpha!r}")
+        self.ladder_alpha = None if ladder_alpha is None else float(ladder_alpha)
+        if int(curve_windows) != curve_windows or curve_windows < 1:
+            raise ValueError(f"curve_windows must be a positive integer, got {curve_windows!r}")
+        self.curve_windows = int(curve_windows)
         self.reset()
 
     @property
@@ -266,51 +313,94 @@ class CrossingDetector:
         if self.confirm <= 1:
             return h
         keep = count >= self.confirm
-        return _Hits(*(getattr(h, f)[keep] for f in (
-            "a", "b", "t_cross", "low", "high", "predicted", "window_s")))
+        return _Hits(*(getattr(h, f)[keep] for f in h._FIELDS))
 
     # -- pairs -------------------------------------------------------------------------------
+    def _models(self, fit: SlidingLineFit, ids: NDArray[np.int64], t: float, *, curves: bool
+                ) -> tuple[LineStats, CurveStats | None]:
+        """The windows' lines and (`curves`, with a curve level) their F-tested curves."""
+        st = fit.stats(ids, t)
+        if not curves or self.curve_alpha is None or self.level is None:
+            return st, None
+        tau, val, ok = fit.windows(ids, t)
+        return st, curve_fits(tau, val, ok, st, alpha=self.curve_alpha)
+
     def _judge(
-        self, st: LineStats, ia: NDArray[np.int64], ib: NDArray[np.int64]
-    ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
-        """Crossing time, interval and resolved flag of pairs on one window of the ladder."""
+        self, model: tuple[LineStats, CurveStats | None], ia: NDArray[np.int64],
+        ib: NDArray[np.int64], *, back_s: float, reach_s: float,
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_],
+               NDArray[np.float64]]:
+        """Crossing time, interval, resolved flag and direction of pairs on one window."""
+        st, cs = model
         tau, low, high, ok = pair_intervals(ia, ib, st.value, st, level=self.level)
-        ok &= (high - low) <= self.max_interval_s
-        return tau, low, high, ok
+        direction = np.sign(st.slope[ib] - st.slope[ia])
+        if cs is not None:
+            c = np.flatnonzero(cs.curved[ia] | cs.curved[ib])
+            if c.size:
+                q = t_quantile(self.level, np.minimum(cs.dof[ia[c]], cs.dof[ib[c]]))
+                tc, lc, hc, okc, dc = curved_pair_intervals(
+                    ia[c], ib[c], cs, q=q, reach_s=reach_s, back_s=back_s)
+                tau, low, high, ok, direction = (x.copy() for x in (tau, low, high, ok, direction))
+                tau[c], low[c], high[c], ok[c], direction[c] = tc, lc, hc, okc, dc
+        with np.errstate(invalid="ignore"):
+            ok &= (high - low) <= self.max_interval_s
+        return tau, low, high, ok, direction
 
     def _hits(self, t: float, ids: NDArray[np.int64]) -> _Hits:
         """Pairs satisfying an inequality on the shortest window that resolves them."""
         parts: list[tuple] = []
-        stats: list[LineStats] = []
+        models: list[tuple[LineStats, CurveStats | None]] = []
+        reach: list[tuple[float, float]] = []
+        admitted = np.ones(ids.size, bool)  # tracks whose longer windows fit as well
+        var_prev = dof_prev = np.zeros(ids.size)
         for level, (fit, J) in enumerate(zip(self._fits, self.windows, strict=True)):
-            st = fit.stats(ids, t)
-            stats.append(st)
-            sel = np.flatnonzero(st.n >= J)
+            model = self._models(fit, ids, t, curves=level < self.curve_windows)
+            st, cs = model
+            models.append(model)
+            var = st.residual_var if cs is None else cs.residual_var
+            dof = st.n - 2.0 if cs is None else cs.dof
+            use = st.n >= J
+            if level > 0 and self.ladder_alpha is not None:  # it must fit as well as the last
+                with np.errstate(invalid="ignore"):
+                    admitted &= ~(var > f_ratio_quantile(self.ladder_alpha, dof, dof_prev)
+                                  * var_prev)
+                use &= admitted
+            var_prev, dof_prev = var, dof
+            sel = np.flatnonzero(use)
             if sel.size < 2:
                 break
             span = J * self.K
             lead = min(self.horizon_s, self.lead_windows * span)
+            back = min(span, lead)
+            reach.append((back, lead))
             ia, ib, tau = pairs_in_reach(
                 st.value[sel], st.slope[sel], reach_s=lead,
                 min_rate_diff_rad_per_s=self.min_rate_diff_rad_per_s)
+            if cs is not None and np.any(cs.curved[sel]):
+                ca, cb = curved_candidates(cs.subset(sel), reach_s=max(lead, back))
+                key = np.unique(np.concatenate([ia * sel.size + ib, ca * sel.size + cb]))
+                ia, ib = key // sel.size, key % sel.size
             ia, ib = sel[ia], sel[ib]  # positions among `ids`
             if self.level is None:
                 low = high = np.full(tau.size, np.nan)
                 ok = np.ones(tau.size, bool)
+                direction = np.sign(st.slope[ib] - st.slope[ia])
             else:
-                tau, low, high, ok = self._judge(st, ia, ib)
+                tau, low, high, ok, direction = self._judge(model, ia, ib, back_s=back,
+                                                            reach_s=lead)
                 for lower in range(level):  # judged on the shortest window that resolves it
-                    ok &= ~self._judge(stats[lower], ia, ib)[3]
+                    ok &= ~self._judge(models[lower], ia, ib, back_s=reach[lower][0],
+                                       reach_s=reach[lower][1])[3]
             with np.errstate(invalid="ignore"):
                 pred = ok & (tau > 0.0) & (tau <= lead)  # inequality (3)
-                det = ok & (tau >= -min(span, lead)) & (tau <= 0.0)  # inequality (4)
+                det = ok & (tau >= -back) & (tau <= 0.0)  # inequality (4)
             k = np.flatnonzero(pred | det)
             parts.append((ids[ia[k]], ids[ib[k]], t + tau[k], t + low[k], t + high[k], pred[k],
-                          np.full(k.size, span)))
+                          np.full(k.size, span), direction[k]))
         if not parts:
             z = np.zeros(0)
             return _Hits(np.zeros(0, np.int64), np.zeros(0, np.int64), z, z, z,
-                         np.zeros(0, bool), z)
+                         np.zeros(0, bool), z, z)
         cols = [np.concatenate(c) for c in zip(*parts, strict=True)]
         srt = np.lexsort((cols[1], cols[0]))
         return _Hits(*(c[srt] for c in cols))
@@ -340,6 +430,8 @@ class CrossingDetector:
         near = np.abs(h.t_cross[found] - ev.t_cross[pf]) <= self.merge_window_s
         overlap = (h.low[found] <= ev.high[pf]) & (h.high[found] >= ev.low[pf])  # NaN: False
         same[found] = near | overlap
+        if self.split_repeats:  # a crossing the other way is the pair's next crossing
+            same[found] &= h.direction[found] == ev.direction[pf]
         old_pred = np.zeros(key.size, bool)
         old_det = np.zeros(key.size, bool)
         old_pred[found] = ev.predicted[pf]
@@ -352,12 +444,14 @@ class CrossingDetector:
         ev.t_cross[pf] = h.t_cross[found]
         ev.low[pf] = h.low[found]
         ev.high[pf] = h.high[found]
+        ev.direction[pf] = h.direction[found]
         ev.predicted[pf] = (old_pred | emit_pred)[found]
         ev.detected[pf] = (old_det | emit_det)[found]
         new = ~found
         if np.any(new):
             ev.append(key=key[new], t_cross=h.t_cross[new], low=h.low[new], high=h.high[new],
-                      predicted=emit_pred[new], detected=emit_det[new])
+                      direction=h.direction[new], predicted=emit_pred[new],
+                      detected=emit_det[new])
         emit = np.flatnonzero(emit_pred | emit_det)
         kind_of = (AlertKind.PREDICTED, AlertKind.DETECTED)
         out = [

@@ -15,7 +15,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy import stats as _stats
 
-__all__ = ["crossing_time_interval", "t_quantile", "welch_dof"]
+__all__ = ["crossing_time_interval", "f_ratio_quantile", "t_quantile", "welch_dof"]
 
 _MAX_DOF = 1000
 
@@ -124,3 +124,16 @@ def welch_dof(
         return np.where(var_a + var_b > 0,
                         (var_a + var_b) ** 2 / (var_a * var_a / dof_a + var_b * var_b / dof_b),
                         np.minimum(dof_a, dof_b))
+
+
+def f_ratio_quantile(alpha: float, dof_num: ArrayLike, dof_den: ArrayLike) -> NDArray[np.float64]:
+    """Upper `alpha` quantile of F(dof_num, dof_den) (the variance-ratio test), elementwise.
+
+    Degrees of freedom are rounded down and clipped to 1 .. 1000 (so the quantile errs wide).
+    """
+    dn = np.clip(np.floor(np.nan_to_num(np.asarray(dof_num, dtype=float), nan=1.0)), 1, _MAX_DOF)
+    dd = np.clip(np.floor(np.nan_to_num(np.asarray(dof_den, dtype=float), nan=1.0)), 1, _MAX_DOF)
+    key = dn * (_MAX_DOF + 1) + dd
+    uniq, inv = np.unique(key, return_inverse=True)
+    q = _stats.f.isf(alpha, uniq // (_MAX_DOF + 1), uniq % (_MAX_DOF + 1))
+    return q[inv].reshape(dn.shape)

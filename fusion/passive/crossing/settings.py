@@ -18,7 +18,9 @@ from fusion.passive.bearing_grid import estimate_period
 
 __all__ = [
     "DEFAULT_CONFIRM",
+    "DEFAULT_CURVE_ALPHA",
     "DEFAULT_HORIZON_S",
+    "DEFAULT_LADDER_ALPHA",
     "DEFAULT_LEAD_WINDOWS",
     "DEFAULT_LEVEL",
     "DEFAULT_N_WINDOWS",
@@ -55,6 +57,13 @@ class CrossingSettings:
         Samples in a row a pair must satisfy an inequality before it alerts.
     level : float
         Nominal level of the Fieller intervals.
+    curve_alpha : float or None
+        Level of the F-test that replaces a window's line by a constant-velocity bearing curve
+        (None: lines only).
+    ladder_alpha : float or None
+        Level of the variance-ratio test that admits a track to a longer window (None: all).
+    adjusted : tuple of str
+        What was asked and changed, one phrase each (printed by :meth:`describe`).
     """
 
     period_s: float
@@ -66,12 +75,16 @@ class CrossingSettings:
     lead_windows: float
     confirm: int
     level: float
+    curve_alpha: float | None = None
+    ladder_alpha: float | None = None
+    adjusted: tuple[str, ...] = ()
 
     def detector_options(self) -> dict[str, Any]:
         """Keyword arguments of the detector and of :func:`~fusion.passive.crossing.detect_crossings`."""
         return {"J": self.J, "K": self.period_s, "horizon_s": self.horizon_s,
                 "n_windows": self.n_windows, "lead_windows": self.lead_windows,
-                "confirm": self.confirm, "level": self.level}
+                "confirm": self.confirm, "level": self.level, "curve_alpha": self.curve_alpha,
+                "ladder_alpha": self.ladder_alpha}
 
     def describe(self) -> str:
         """One line saying what was chosen."""
@@ -80,7 +93,12 @@ class CrossingSettings:
                 f"{self.window_s:.4g}-{longest:.4g} s (J={self.J}, {self.n_windows} windows), "
                 f"predictions up to {self.lead_windows:g} window ahead, horizon "
                 f"{self.horizon_s:.4g} s, {self.confirm} sample(s) to confirm, "
-                f"level {self.level:g}")
+                f"level {self.level:g}, "
+                + ("straight lines only" if self.curve_alpha is None else
+                   f"curves kept at F-test level {self.curve_alpha:g}")
+                + ("" if self.ladder_alpha is None else
+                   f", longer windows only where they fit (F-test level {self.ladder_alpha:g})")
+                + "".join(f"; ADJUSTED {a}" for a in self.adjusted))
 
 
 #: Default shortest window, s (chosen on varied scenarios, see benchmarks/RESULTS.md).
@@ -91,6 +109,11 @@ DEFAULT_HORIZON_S = 600.0
 DEFAULT_N_WINDOWS = 6
 #: Default reach of predictions, in spans of the window used.
 DEFAULT_LEAD_WINDOWS = 0.5
+#: Default level of the F-test that replaces the shortest window's line by a constant-velocity
+#: curve (chosen on tuning seeds, benchmarks/RESULTS.md, issue 19).
+DEFAULT_CURVE_ALPHA = 0.001
+#: Default level of the variance-ratio test that admits a track to a longer window (issue 19).
+DEFAULT_LADDER_ALPHA = 0.01
 #: Default number of samples in a row that confirm an alert.
 DEFAULT_CONFIRM = 2
 #: Default nominal level of the Fieller intervals (see :func:`crossing_settings`).
@@ -113,6 +136,8 @@ def crossing_settings(
     lead_windows: float = DEFAULT_LEAD_WINDOWS,
     confirm: int = DEFAULT_CONFIRM,
     level: float = DEFAULT_LEVEL,
+    curve_alpha: float | None = DEFAULT_CURVE_ALPHA,
+    ladder_alpha: float | None = DEFAULT_LADDER_ALPHA,
 ) -> CrossingSettings:
     """Window, horizon and grid period of a bearing table, in seconds, from the data.
 
@@ -131,7 +156,8 @@ def crossing_settings(
     J : int, optional
         Samples in the shortest window (default ``round(window_s / K)``, at least
         :data:`MIN_SAMPLES_PER_WINDOW`).
-    n_windows, lead_windows, confirm, level
+    n_windows, lead_windows, confirm, level, curve_alpha, \
+ladder_alpha
         As in :class:`fusion.passive.crossing.CrossingDetector`.
 
     Returns
@@ -158,7 +184,8 @@ def crossing_settings(
     track_span = float(np.median([np.ptp(tt[tid == k]) for k in ids]))
     return crossing_settings_from_steps(
         step, track_span, window_s=window_s, horizon_s=horizon_s, period_s=period_s, J=J,
-        n_windows=n_windows, lead_windows=lead_windows, confirm=confirm, level=level)
+        n_windows=n_windows, lead_windows=lead_windows, confirm=confirm, level=level,
+        curve_alpha=curve_alpha, ladder_alpha=ladder_alpha)
 
 
 def crossing_settings_from_steps(
@@ -173,6 +200,8 @@ def crossing_settings_from_steps(
     lead_windows: float = DEFAULT_LEAD_WINDOWS,
     confirm: int = DEFAULT_CONFIRM,
     level: float = DEFAULT_LEVEL,
+    curve_alpha: float | None = DEFAULT_CURVE_ALPHA,
+    ladder_alpha: float | None = DEFAULT_LADDER_ALPHA,
 ) -> CrossingSettings:
     """:func:`crossing_settings` from the two numbers it takes of the data.
 
@@ -183,7 +212,8 @@ def crossing_settings_from_steps(
         (:func:`~fusion.passive.bearing_grid.estimate_period`).
     track_span_s : float
         Median time span of the tracks, s.
-    window_s, horizon_s, period_s, J, n_windows, lead_windows, confirm, level
+    window_s, horizon_s, period_s, J, n_windows, lead_windows, confirm, level, curve_alpha, \
+ladder_alpha
         As in :func:`crossing_settings`.
 
     Returns
@@ -210,11 +240,21 @@ def crossing_settings_from_steps(
         K = step
     else:
         K = max(step, span / MAX_SAMPLES_PER_WINDOW)
+    adjusted = []
     if J is None:
         J = max(MIN_SAMPLES_PER_WINDOW, int(round(span / K)))
+        if window_s is not None and abs(J * K - span) > 0.5 * K:
+            why = (f"at least {MIN_SAMPLES_PER_WINDOW} samples of K={K:.4g} s"
+                   if J == MIN_SAMPLES_PER_WINDOW else f"whole samples of K={K:.4g} s")
+            adjusted.append(f"window {span:.4g} s -> {J * K:.4g} s ({why})")
+    elif window_s is not None:
+        adjusted.append(f"window {float(window_s):.4g} s -> {J * K:.4g} s (J={J} samples given)")
     window = J * K
     horizon = max(DEFAULT_HORIZON_S, window) if horizon_s is None else float(horizon_s)
     return CrossingSettings(period_s=K, data_step_s=step, window_s=window, J=int(J),
                             n_windows=int(n_windows), horizon_s=horizon,
                             lead_windows=float(lead_windows), confirm=int(confirm),
-                            level=float(level))
+                            level=float(level),
+                            curve_alpha=None if curve_alpha is None else float(curve_alpha),
+                            ladder_alpha=None if ladder_alpha is None else float(ladder_alpha),
+                            adjusted=tuple(adjusted))

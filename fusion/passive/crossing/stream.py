@@ -35,12 +35,7 @@ from fusion._validation import check_grid
 from fusion.passive.crossing.detector import CrossingDetector
 from fusion.passive.crossing.types import CrossingAlert
 
-__all__ = [
-    "GridAssumptionBroken",
-    "StreamingGrid",
-    "detect_crossings_streamed",
-    "scan_long_gaps",
-]
+__all__ = ["GridAssumptionBroken", "StreamingGrid", "detect_crossings_streamed", "scan_long_gaps"]
 
 logger = logging.getLogger(__name__)
 
@@ -416,6 +411,7 @@ def detect_crossings_streamed(
     max_interval_s: float | None = None,
     lead_windows: float = 1.0,
     confirm: int = 1,
+    **more: float | bool | None,
 ) -> list[CrossingAlert]:
     """Crossing alerts of a bearing table read in chunks (streaming entry point).
 
@@ -433,6 +429,8 @@ def detect_crossings_streamed(
     J, K, horizon_s, min_rate_diff_deg_per_s, merge_window_s, max_gap_s, n_windows, level, \
 max_interval_s, lead_windows, confirm
         As in :func:`~fusion.passive.crossing.detect_crossings` (`K` required).
+    **more
+        ``curve_alpha``, ``split_repeats``, ``ladder_alpha`` of :class:`CrossingDetector`.
 
     Returns
     -------
@@ -465,7 +463,7 @@ max_interval_s, lead_windows, confirm
     det = CrossingDetector(
         J=J, K=K, horizon_s=horizon_s, min_rate_diff_deg_per_s=min_rate_diff_deg_per_s,
         merge_window_s=merge_window_s, max_gap_s=max_gap_s, n_windows=n_windows, level=level,
-        max_interval_s=max_interval_s, lead_windows=lead_windows, confirm=confirm,
+        max_interval_s=max_interval_s, lead_windows=lead_windows, confirm=confirm, **more,
     )
     grid = StreamingGrid(period_s=det.K, origin_s=origin_s, max_gap_s=det.max_gap_s,
                          next_knots=next_knots)
