@@ -170,7 +170,8 @@ class TrackScorer:
         return out
 
     def observe(self, key: Hashable, xy: ArrayLike, cov: ArrayLike | None,
-                hotspots: Hotspots | None = None) -> NDArray[np.float64]:
+                hotspots: Hotspots | None = None, *,
+                clutter: NDArray[np.bool_] | None = None) -> NDArray[np.float64]:
         """Add a receiver's detections of a ping to its intensity estimate; their intensities.
 
         Parameters
@@ -185,6 +186,10 @@ class TrackScorer:
             The clutter map's hotspots: each adds its echo rate per ping and receiver,
             ``cells / (n_pings n_receivers)``, spread as ``N(x; c_h, C_h + R)``, to the
             smooth intensity (an echo at a known hotspot is as likely clutter as target).
+        clutter : ndarray of bool, shape (n,), optional
+            Which detections may be clutter (default all): those a confirmed track took are
+            its target's echoes and are left out of the estimate, which would otherwise rise
+            along every target's path and weigh against its own hits.
 
         Returns
         -------
@@ -200,7 +205,8 @@ class TrackScorer:
         est = self._intensity.get(key)
         if est is None:
             est = self._intensity[key] = self.intensity.empty_copy()
-        est.update(pts, cov)
+        keep = np.ones(pts.shape[0], bool) if clutter is None else np.asarray(clutter, bool)
+        est.update(pts[keep], None if cov is None else np.asarray(cov, float)[keep])
         lam = est.intensity(pts)
         if hotspots is not None and len(hotspots) and pts.shape[0]:
             c = np.zeros((pts.shape[0], 2, 2)) if cov is None else np.asarray(cov, float)
@@ -261,6 +267,7 @@ class TrackScorer:
         scores: NDArray[np.float64] | None, hotspots: Hotspots | None,
         track_xy: NDArray[np.float64], hits: NDArray[np.int64], dets: NDArray[np.int64],
         log_pdf: NDArray[np.float64], confirmed: NDArray[np.bool_],
+        existence: NDArray[np.float64] | None = None,
     ) -> NDArray[np.float64]:
         """Score change of every track on one receiver's scan; learns from the scan.
 
@@ -289,7 +296,9 @@ class TrackScorer:
             :meth:`miss_delta` for tracks without a detection, :meth:`hit_delta` (plus
             :meth:`score_delta` with scores and ``score_evidence``) for the others.
         """
-        clutter = self.observe(key, xy, cov, hotspots)
+        maybe_clutter = np.ones(xy.shape[0], dtype=bool)
+        maybe_clutter[dets[confirmed[hits]]] = False
+        clutter = self.observe(key, xy, cov, hotspots, clutter=maybe_clutter)
         delta = self.miss_delta(key, track_xy)
         with_scores = scores is not None and self.score_evidence
         if hits.size:
@@ -300,7 +309,8 @@ class TrackScorer:
                                                   minlength=_SCORE_BINS)
         if with_scores:
             self._score_all += np.bincount(self._bins(scores), minlength=_SCORE_BINS)
-        self.count_confirmed(key, int(confirmed[hits].sum()), int(confirmed.sum()))
+        w = confirmed.astype(float) if existence is None else np.asarray(existence, float)
+        self.count_confirmed(key, float(w[hits].sum()), float(w.sum()))
         return delta
 
     def count_confirmed(self, key: Hashable, hits: int, pings: int) -> None:

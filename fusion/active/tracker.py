@@ -75,6 +75,9 @@ __all__ = ["Ping", "PingResult", "Tracker", "TrackingResult", "pings_from_table"
 
 logger = logging.getLogger(__name__)
 
+#: Most consecutive missed pings a confirmed track coasts, whatever the detection probability.
+MAX_COAST_MISSES = 20
+
 #: Former name of :func:`fusion.active.types.pings_from_columns` (any named columns will do).
 pings_from_table = pings_from_columns
 
@@ -223,6 +226,9 @@ class Tracker:
         reject_platform_fixed: bool = True,
         confirmed_edge_likelihood: float | None = 0.1,
         intensity_bandwidth_m: float = 1000.0,
+        motion_recent: bool = True,
+        pd_from_tentative: bool = True,
+        coast_probability: float | None = 0.01,
     ) -> None:
         if mode not in ("fuzzy", "kalman"):
             raise ValueError(f"mode must be 'fuzzy' or 'kalman', got {mode!r}")
@@ -256,6 +262,10 @@ class Tracker:
                    if noise == "estimate" else None))
         self.score_threshold = None if score_threshold is None else float(score_threshold)
         self.hotspot_drop = bool(hotspot_drop)
+        self.pd_from_tentative = bool(pd_from_tentative)
+        if coast_probability is not None and not 0.0 < coast_probability < 1.0:
+            raise ValueError(f"coast_probability must lie in (0, 1), got {coast_probability!r}")
+        self.coast_probability = None if coast_probability is None else float(coast_probability)
         self.scorer = (TrackScorer(confirm_llr=confirm_llr, delete_llr=delete_llr,
                                    detection_probability=detection_probability,
                                    clutter_intensity=clutter_intensity,
@@ -263,7 +273,7 @@ class Tracker:
                                    intensity=ClutterIntensity(bandwidth_m=intensity_bandwidth_m))
                        if mode == "fuzzy" and confirm_llr is not None else None)
         self.motion_test = MotionTest(probability=motion_probability,
-                                      min_speed_mps=min_speed_mps)
+                                      min_speed_mps=min_speed_mps, recent=motion_recent)
         self.platform_test = (PlatformTest(probability=motion_probability, min_speed_mps=min_speed_mps)
                               if mode == "fuzzy" and reject_platform_fixed else None)
         self.accel_psd = float(accel_psd)
@@ -355,9 +365,11 @@ class Tracker:
         # Each receiver's detections are a scan of their own at the ping time: a track takes at
         # most one detection per receiver, and a track born from one receiver's echo may take
         # the echoes of the same place from the receivers after it.
+        keys = []
         for key, idx in receiver_groups(ping):
+            keys.append(key)
             self._scan(scan, key, idx)
-        return self._manage(scan, full_index, n0)
+        return self._manage(scan, full_index, n0, keys)
 
     def _scan(self, scan: PingScan, key: tuple[float, ...] | None,
               idx: NDArray[np.int64]) -> None:
@@ -406,7 +418,10 @@ class Tracker:
                 hotspots=self.clutter_map.hotspots() if self.clutter_map is not None else None,
                 log_pdf=(-0.5 * stats.d2[i, j] - np.log(2.0 * np.pi)
                          - 0.5 * np.log(stats.det[i, j])),
-                confirmed=confirmed)
+                confirmed=confirmed,
+                existence=(np.where(confirmed, 1.0, 1.0 / (1.0 + np.exp(
+                    np.clip(self.scorer.confirm_llr - self._llr, -50.0, 50.0))))
+                           if self.pd_from_tentative else None))
 
         # New tentative tracks: free detections (taken by no track, inside no track's gate)
         # away from hotspots.
@@ -427,7 +442,21 @@ class Tracker:
         scan.dets += [[int(j)] for j in idx[new].tolist()]
         scan.rank += [np.nan] * new.size
 
-    def _manage(self, scan: PingScan, full_index: NDArray[np.int64], n0: int) -> PingResult:
+    def coast_misses(self, keys: Sequence[object]) -> int:
+        """Consecutive missed pings that delete a confirmed track on a ping with receivers
+        `keys`: ``max_misses``, or more when the estimated detection probabilities make that
+        many misses of a real target likely: the fewest ``k`` with ``q^k <= coast_probability``,
+        ``q = prod_r (1 - P_D,r)`` the chance that no receiver of the ping detects it (a
+        target seen on a third of the pings by one receiver is held for 12 misses, not 5).
+        """
+        if self.scorer is None or self.coast_probability is None or not keys:
+            return self.max_misses
+        q = float(np.prod([1.0 - self.scorer.pd(k) for k in keys]))
+        need = int(np.ceil(np.log(self.coast_probability) / np.log(q))) if q > 0 else 1
+        return max(self.max_misses, min(need, MAX_COAST_MISSES))
+
+    def _manage(self, scan: PingScan, full_index: NDArray[np.int64], n0: int,
+                keys: Sequence[object] = ()) -> PingResult:
         """Track management after all receivers of a ping; the ping's result."""
         ping = scan.ping
         nt = self._ids.size
@@ -450,8 +479,10 @@ class Tracker:
             score_short=(self._llr < self.scorer.confirm_llr if self.scorer is not None
                          else None),
             platform_test=self.platform_test)
+        coast = self.coast_misses(keys)
         life = [next_lifecycle(lc, h, dropped=d, held=s, m=self.m, n=self.n,
-                               max_misses=self.max_misses, window=self.scorer is None)
+                               max_misses=coast if lc.status == "confirmed" else self.max_misses,
+                               window=self.scorer is None)
                 for lc, h, d, s in zip(self._life[:n0], hit[:n0].tolist(), dropped[:n0].tolist(),
                                        held[:n0].tolist(), strict=True)]
         self._life = life + self._life[n0:]
