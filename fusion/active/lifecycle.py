@@ -53,8 +53,10 @@ if TYPE_CHECKING:
     from fusion.active.platform import PlatformTest
 
 __all__ = [
+    "MAX_COAST_MISSES",
     "Lifecycle",
     "advance_status",
+    "coast_misses",
     "hotspot_drop",
     "next_lifecycle",
     "stationary_hold",
@@ -174,6 +176,47 @@ def next_lifecycle(
                          state.age + 1, state.hits, misses)
     return advance_status(state, hit, m=m, n=n if window else max(n, state.age + 2),
                           max_misses=max_misses)
+
+
+#: Most consecutive missed pings a confirmed track coasts, whatever the detection probability.
+MAX_COAST_MISSES = 20
+
+
+def coast_misses(pds: Sequence[float], *, probability: float, floor: int) -> int:
+    """Consecutive missed pings that delete a confirmed track, matched to the detection
+    probabilities.
+
+    Parameters
+    ----------
+    pds : sequence of float
+        ``P_D`` of each receiver of the ping.
+    probability : float
+        Chance of that many consecutive misses of a real target, in (0, 1).
+    floor : int
+        Fewest misses (``max_misses``).
+
+    Returns
+    -------
+    int
+        The fewest ``k`` with ``q^k <= probability``, ``q = prod_r (1 - P_D,r)`` the chance
+        that no receiver detects the target on a ping, at least `floor` and at most
+        :data:`MAX_COAST_MISSES` (a target one receiver sees on a third of the pings coasts
+        for 12 misses, not 5).
+
+    Examples
+    --------
+    >>> coast_misses([1 / 3], probability=0.01, floor=5)
+    12
+    >>> coast_misses([0.9, 0.9], probability=0.01, floor=5)
+    5
+    """
+    q = float(np.prod([1.0 - p for p in pds])) if len(pds) else 1.0
+    if q <= 0.0:
+        return int(floor)
+    if q >= 1.0:
+        return max(int(floor), MAX_COAST_MISSES)
+    need = int(np.ceil(np.log(probability) / np.log(q)))
+    return max(int(floor), min(need, MAX_COAST_MISSES))
 
 
 def hotspot_drop(near: NDArray[np.bool_], seen: Sequence[Sequence[Sequence[float]]],

@@ -267,7 +267,8 @@ class TrackScorer:
         scores: NDArray[np.float64] | None, hotspots: Hotspots | None,
         track_xy: NDArray[np.float64], hits: NDArray[np.int64], dets: NDArray[np.int64],
         log_pdf: NDArray[np.float64], confirmed: NDArray[np.bool_],
-        existence: NDArray[np.float64] | None = None,
+        teach: NDArray[np.bool_] | None = None,
+        contested: NDArray[np.bool_] | None = None,
     ) -> NDArray[np.float64]:
         """Score change of every track on one receiver's scan; learns from the scan.
 
@@ -288,7 +289,14 @@ class TrackScorer:
         log_pdf : ndarray, shape (k,)
             ``ln N(nu; 0, S)`` of those pairs.
         confirmed : ndarray of bool, shape (t,)
-            Tracks confirmed before the ping (their hits feed ``P_D`` and ``f_T``).
+            Tracks confirmed before the ping (their hits feed ``f_T``; their detections are
+            left out of the clutter intensity).
+        teach : ndarray of bool, shape (t,), optional
+            Tracks whose hits and misses feed ``P_D`` (default `confirmed`).
+        contested : ndarray of bool, shape (t,), optional
+            Tracks without a detection of their own though one in their gate went to another
+            track: not a miss of their target as far as ``P_D`` is concerned (a duplicate of a
+            confirmed track would otherwise teach that targets are missed).
 
         Returns
         -------
@@ -309,8 +317,13 @@ class TrackScorer:
                                                   minlength=_SCORE_BINS)
         if with_scores:
             self._score_all += np.bincount(self._bins(scores), minlength=_SCORE_BINS)
-        w = confirmed.astype(float) if existence is None else np.asarray(existence, float)
-        self.count_confirmed(key, float(w[hits].sum()), float(w.sum()))
+        # P_D counts: a track hidden by the direct blast (a miss scoring 0) is no trial.
+        w = np.asarray(confirmed if teach is None else teach, dtype=float)
+        trial = self.miss_delta(key, track_xy) != 0.0
+        if contested is not None:
+            trial &= ~contested
+        trial[hits] = True
+        self.count_confirmed(key, float(w[hits].sum()), float(w[trial].sum()))
         return delta
 
     def count_confirmed(self, key: Hashable, hits: int, pings: int) -> None:

@@ -24,23 +24,7 @@ each:
 (pairs inside the gate, highest ``L`` wins, same assignment and M-of-N track management), no
 clutter map and no track score.
 
-Choices where the paper is silent, besides those documented in the stage modules:
-
-- The detections of one event are treated as simultaneous, at the time of the event's first row.
-- Each receiver's detections of a ping (one source-receiver geometry,
-  :func:`fusion.active.types.receiver_groups`) are a scan of their own: a track takes at most one
-  detection per receiver and ping, updated receiver after receiver at the ping time, and a track
-  born from one receiver's echo may take the echoes of the same place from the receivers after
-  it. The M-of-N count and the miss count are per ping (a hit: at least one detection).
-- Missing event numbers (pings without any detection) are stepped through as empty pings at
-  interpolated times, so that they count as misses (:func:`fusion.active.types.pings_from_columns`).
-- Each receiver scan is one vectorised pass: the Kalman statistics of all (track, detection) pairs
-  at once (closed-form 2 x 2 inverses), then one call of the fuzzy system on the gated pairs only
-  (two when the aspect angle is computed from geometry and unknown for some tracks, as the
-  engine takes no missing values).
-- Nothing a simulator knows reaches the tracker: the aspect angle comes from the track's heading
-  unless the user declares a column a measurement (``aspect="measured"``); accuracies, clutter
-  intensities and detection probabilities are estimated from the detections or set by the user.
+Choices where the paper is silent: ``docs/tracking.md`` and the stage modules.
 """
 
 from __future__ import annotations
@@ -56,7 +40,7 @@ from fusion.active.association import EDGE_LIKELIHOOD, PairRanker, assign_by_pri
 from fusion.active.bistatic import MeasurementModel
 from fusion.active.clutter import ClutterIntensity, ClutterMapBase, DensityClutterMap
 from fusion.active.kalman import cv_model, gate_threshold, kf_predict, kf_update, pair_statistics
-from fusion.active.lifecycle import Lifecycle, hotspot_drop, next_lifecycle, stationary_hold
+from fusion.active.lifecycle import Lifecycle, coast_misses, hotspot_drop, next_lifecycle, stationary_hold
 from fusion.active.motion import MotionTest
 from fusion.active.noise import NoiseEstimator
 from fusion.active.ping_scan import PingScan, birth_states, ping_result, score_gate
@@ -75,8 +59,6 @@ __all__ = ["Ping", "PingResult", "Tracker", "TrackingResult", "pings_from_table"
 
 logger = logging.getLogger(__name__)
 
-#: Most consecutive missed pings a confirmed track coasts, whatever the detection probability.
-MAX_COAST_MISSES = 20
 
 #: Former name of :func:`fusion.active.types.pings_from_columns` (any named columns will do).
 pings_from_table = pings_from_columns
@@ -189,6 +171,14 @@ class Tracker:
     score_evidence : bool, optional
         The track score weighs each hit's classifier score (default True;
         :meth:`fusion.active.track_score.TrackScorer.score_delta`).
+    motion_recent : bool, optional
+        The motion test also fits the later half of the detections (default True).
+    pd_from_tentative : bool, optional
+        ``P_D`` is also learnt from tentative tracks whose score reached `confirm_llr`
+        (default True; False: confirmed tracks alone).
+    coast_probability : float, optional
+        Confirmed tracks coast for :func:`fusion.active.lifecycle.coast_misses` misses
+        (default 0.01); None: `max_misses`.
     """
 
     def __init__(
@@ -418,10 +408,8 @@ class Tracker:
                 hotspots=self.clutter_map.hotspots() if self.clutter_map is not None else None,
                 log_pdf=(-0.5 * stats.d2[i, j] - np.log(2.0 * np.pi)
                          - 0.5 * np.log(stats.det[i, j])),
-                confirmed=confirmed,
-                existence=(np.where(confirmed, 1.0, 1.0 / (1.0 + np.exp(
-                    np.clip(self.scorer.confirm_llr - self._llr, -50.0, 50.0))))
-                           if self.pd_from_tentative else None))
+                confirmed=confirmed, contested=~hit & gated[:, taken].any(axis=1),
+                teach=confirmed | (self.pd_from_tentative & (self._llr >= self.scorer.confirm_llr)))
 
         # New tentative tracks: free detections (taken by no track, inside no track's gate)
         # away from hotspots.
@@ -441,19 +429,6 @@ class Tracker:
         self._seen += [[scan.rows[j]] for j in idx[new].tolist()]
         scan.dets += [[int(j)] for j in idx[new].tolist()]
         scan.rank += [np.nan] * new.size
-
-    def coast_misses(self, keys: Sequence[object]) -> int:
-        """Consecutive missed pings that delete a confirmed track on a ping with receivers
-        `keys`: ``max_misses``, or more when the estimated detection probabilities make that
-        many misses of a real target likely: the fewest ``k`` with ``q^k <= coast_probability``,
-        ``q = prod_r (1 - P_D,r)`` the chance that no receiver of the ping detects it (a
-        target seen on a third of the pings by one receiver is held for 12 misses, not 5).
-        """
-        if self.scorer is None or self.coast_probability is None or not keys:
-            return self.max_misses
-        q = float(np.prod([1.0 - self.scorer.pd(k) for k in keys]))
-        need = int(np.ceil(np.log(self.coast_probability) / np.log(q))) if q > 0 else 1
-        return max(self.max_misses, min(need, MAX_COAST_MISSES))
 
     def _manage(self, scan: PingScan, full_index: NDArray[np.int64], n0: int,
                 keys: Sequence[object] = ()) -> PingResult:
@@ -479,7 +454,9 @@ class Tracker:
             score_short=(self._llr < self.scorer.confirm_llr if self.scorer is not None
                          else None),
             platform_test=self.platform_test)
-        coast = self.coast_misses(keys)
+        coast = (self.max_misses if self.scorer is None or self.coast_probability is None
+                 else coast_misses([self.scorer.pd(k) for k in keys],
+                                   probability=self.coast_probability, floor=self.max_misses))
         life = [next_lifecycle(lc, h, dropped=d, held=s, m=self.m, n=self.n,
                                max_misses=coast if lc.status == "confirmed" else self.max_misses,
                                window=self.scorer is None)

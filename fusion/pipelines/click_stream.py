@@ -27,8 +27,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from fusion._validation import check_positive
 from fusion.clicks.types import ChannelClicks
-from fusion.geometry import SensorArray
 from fusion.clicks.window import WindowTdoa
+from fusion.geometry import SensorArray
 
 if TYPE_CHECKING:  # pragma: no cover
     from fusion.clicks.detect import ClickDetector

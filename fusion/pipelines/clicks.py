@@ -64,9 +64,9 @@ from fusion.clicks.scm import ClickMapCorrelator, ScmConfig, drift_grid, scm2_ma
 from fusion.clicks.tdoa import TdoaRefiner
 from fusion.clicks.types import ChannelClicks
 from fusion.clicks.validate import TdoaValidator, scm2_features
+from fusion.clicks.window import ClickWindow, WindowTdoa
 from fusion.geometry import SensorArray
 from fusion.pipelines.click_stream import MeasuredWindow, measure_stream, window_starts_count
-from fusion.clicks.window import ClickWindow, WindowTdoa
 
 __all__ = ["ClickFrontEnd", "ClickWindow", "WindowTdoa", "default_validator", "window_starts"]
 
