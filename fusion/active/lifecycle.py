@@ -247,6 +247,7 @@ def stationary_hold(
     candidates: NDArray[np.bool_], lives: Sequence[Lifecycle],
     seen: Sequence[Sequence[Sequence[float]]], *, m: int, motion_test: MotionTest | None,
     score_short: NDArray[np.bool_] | None, platform_test: PlatformTest | None = None,
+    shadowed: NDArray[np.bool_] | None = None,
 ) -> NDArray[np.bool_]:
     """Tentative tracks with a hit that would confirm them but that stay tentative.
 
@@ -268,6 +269,9 @@ def stationary_hold(
         Hold tracks whose detections are steady relative to a sensor that moved
         (:class:`fusion.active.platform.PlatformTest`; the rows then carry the sensor position
         in columns 6-7). None (default): no such hold.
+    shadowed : ndarray of bool, shape (n_tracks,), optional
+        Tracks whose latest detection lies behind a near confirmed track
+        (:class:`fusion.active.shadow.ShadowTest`): held too.
 
     Returns
     -------
@@ -291,4 +295,6 @@ def stationary_hold(
             hold[i] = motion_test.moves(seen[i]) is False
         if not hold[i] and platform_test is not None:
             hold[i] = platform_test.fixed(seen[i]) is True
+        if not hold[i] and shadowed is not None:
+            hold[i] = bool(shadowed[i])
     return hold

@@ -167,6 +167,14 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "target would have probability below P under the estimated detection "
                         "probabilities, at least --max-misses (default 0.01; 0: --max-misses "
                         "alone)")
+    p.add_argument("--no-shadow-test", dest="shadow_test", action="store_false",
+                   help="fuzzy mode: confirm tracks behind a nearer confirmed track too (default: "
+                        "with own_x,own_y and no rcv_x,rcv_y, a tentative track whose latest "
+                        "detection lies behind a nearer confirmed track, within that track's "
+                        "angular extent, is held: multipath ghosts behind a large vessel)")
+    p.add_argument("--shadow-extent-sigmas", type=number(float, gt=0), default=8.0, metavar="K",
+                   help="half-extent of a confirmed track across the line of sight, in RMS "
+                        "cross-range residuals of its own detections (default 8)")
     p.add_argument("--motion-whole-track", action="store_true",
                    help="fuzzy mode: the motion test fits one straight line to all of a "
                         "tentative track's detections (default: also to the later half, so "
@@ -295,7 +303,8 @@ def _tracker(args: argparse.Namespace, st: TrackSettings, system: object | None)
         max_misses=args.max_misses, hold_stationary=not args.confirm_stationary,
         pd_from_tentative=not args.pd_from_confirmed,
         coast_probability=args.coast_probability or None,
-        motion_recent=not args.motion_whole_track,
+        motion_recent=not args.motion_whole_track, shadow=args.shadow_test,
+        shadow_extent_sigmas=args.shadow_extent_sigmas,
         reject_platform_fixed=not args.keep_platform_fixed,
         clutter_map=(ClutterMap(cell_m=args.hotspot_cell, position_sigma_m=sigma)
                      if args.clutter_map == "grid"
