@@ -161,3 +161,33 @@ def test_score_tracks_on_a_grid_cell_run():
     pings = pings_from_columns(sc.detections)
     s = score_tracks(Tracker(**fitted_tracker_options(pings)).run(pings).columns(), sc.truth)
     assert s.coverage >= 0.9 and s.false_tracks <= 1
+
+
+def test_tracks_figure_hides_never_confirmed_tracks_and_draws_the_platform():
+    """The report's tracks figure draws confirmed tracks only (unless asked) and the sensor
+    platform's path from own_x, own_y."""
+    from fusion.io import Table
+    from fusion.report.positions import tracks_figure
+
+    tracks = Table({"track_id": np.array([1, 1, 1, 2, 2]), "event": np.array([0, 1, 2, 0, 1]),
+                    "time": np.array([0.0, 1.0, 2.0, 0.0, 1.0]),
+                    "x": np.array([0.0, 1.0, 2.0, 50.0, 51.0]), "y": np.zeros(5),
+                    "vx": np.ones(5), "vy": np.zeros(5),
+                    "status": np.array(["tentative", "confirmed", "confirmed", "tentative",
+                                        "deleted"])}, "t")
+    det = Table({"event": np.array([0, 1, 2]), "time": np.array([0.0, 1.0, 2.0]),
+                 "x": np.array([0.0, 1.0, 2.0]), "y": np.zeros(3),
+                 "own_x": np.array([-5.0, -4.0, -3.0]), "own_y": np.array([-5.0, -5.0, -5.0])},
+                "d")
+
+    def drawn(fig):
+        ax = fig.axes[0]
+        xs = [line.get_xdata() for line in ax.get_lines() if len(line.get_xdata())]
+        labels = [line.get_label() for line in ax.get_lines()]
+        return xs, labels
+
+    xs, labels = drawn(tracks_figure(tracks, detections=det, title="t"))
+    assert not any(np.any(np.asarray(x, float) == 50.0) for x in xs)
+    assert "sensor platform" in labels
+    xs, _ = drawn(tracks_figure(tracks, detections=det, title="t", tentative=True))
+    assert any(np.any(np.asarray(x, float) == 50.0) for x in xs)
