@@ -23,6 +23,16 @@ Prints ONE JSON line:
   No variant is given the simulator's noise, clutter or detection-probability settings.
 - ``speed``: median wall time of one ping with 200 detections against 20 confirmed tracks
   (target <= 5 ms), detections with source/receiver positions.
+- ``--grid`` (issue 20): the varied scenarios with every receiver's target ``P_D`` fixed at
+  0.4, 0.5, 0.7, 0.9 and the clutter at 2, 10, 15 echoes per receiver and ping
+  (:func:`fusion.simulate.multistatic_varied.simulate_varied` knobs; the rest of each scenario
+  drawn from its seed), ``--seeds`` seeds per cell: coverage and false confirmed tracks per run
+  per cell, for the defaults (``fuzzy``: triplet scales then the pilot run's speed prior,
+  :func:`fusion.active.pilot.fitted_tracker_options`), the issue-20 additions off
+  (``before_issue20``), each addition off alone, M-of-N without the track score and Kalman
+  nearest neighbour. Targets: coverage >= 0.9 with <= 1 false confirmed track per run at every
+  ``P_D`` >= 0.5, coverage >= 0.8 at 0.4. Tuning seeds :data:`GRID_TUNING_SEEDS`, report
+  seeds :data:`GRID_REPORT_SEEDS` (``--grid --report``, run once).
 
 The recorded Autoferry radar is scored through the command line by
 ``benchmarks/bench_autoferry_radar.py`` (``fusion import autoferry`` + ``fusion track`` with its
@@ -34,6 +44,7 @@ Seeds: the design was chosen on :data:`TUNING_SEEDS`; the figures in RESULTS.md 
 on :data:`REPORT_SEEDS` (``--report``), drawn after the last design change. Usage::
 
     python benchmarks/bench_active.py [--seeds 100] [--first-seed S] [--report] [--fixed]
+    python benchmarks/bench_active.py --grid [--seeds 12] [--report] [--no-speed]
 """
 
 from __future__ import annotations

@@ -26,9 +26,19 @@ A tentative track is confirmed once it has its M-of-N hits *and* a score of at l
 ``confirm_llr``; it is deleted when its score falls below ``delete_llr``. The detection
 probability ``P_D`` (that a track gets a detection on a ping) and the clutter intensity are
 settings the user may give; by default both are estimated from the data, per receiver: ``P_D``
-as the hit rate of confirmed tracks (a Beta(7, 3) prior, i.e. 0.7 worth ten pings), ``lambda``
-by a kernel density of the receiver's detections
-(:class:`fusion.active.clutter.intensity.ClutterIntensity`).
+as the hit rate of the tracks the tracker names in ``teach`` (a Beta(7, 3) prior, i.e. 0.7
+worth ten pings; :meth:`TrackScorer.scan_delta`), ``lambda`` by a kernel density of the
+receiver's detections (:class:`fusion.active.clutter.intensity.ClutterIntensity`) that no
+confirmed track took.
+
+Issue 20 (a target seen on four pings in ten): where no track is ever confirmed, a ``P_D``
+learnt from confirmed tracks alone stays at its prior 0.7 and charges every miss ``ln 0.3``, so
+a rarely seen target's score sinks. The tracker therefore also teaches ``P_D`` with tentative
+tracks whose score has reached ``confirm_llr``; a track hidden by the direct blast, or whose
+gated echo went to another track (a duplicate of a confirmed track), is no trial. Weighting
+every tentative track by its existence probability ``1 / (1 + exp(confirm_llr - score))`` was
+tried first: the hundreds of clutter tracks near score 0 each weigh ~0.05 and pulled the
+estimate of a 0.9 receiver down to 0.4-0.6.
 """
 
 from __future__ import annotations
