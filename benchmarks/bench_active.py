@@ -164,23 +164,24 @@ def bench_sim(seeds, *, vary: bool, score_gates=(0.3, 0.5)) -> dict:
 GRID_PD = (0.4, 0.5, 0.7, 0.9)
 GRID_CLUTTER = (2.0, 10.0, 15.0)
 #: ``--grid`` seeds per cell: tuning (issue 20's design was chosen on these) and report (run
-#: once after the last design change, ``--grid --report``).
+#: once after the last design change, ``--grid --report``). 9200-9211 were the report seeds of
+#: the design with ``motion_recent=True``; it cost false tracks there and on the tuning grid,
+#: was turned off, and these new report seeds were drawn.
 GRID_TUNING_SEEDS = (1000, 1011)
-GRID_REPORT_SEEDS = (9200, 9211)
+GRID_REPORT_SEEDS = (9300, 9311)
 
 
 def _grid_variants() -> dict:
     """``--grid`` variants; each setting is a ``fusion track`` option (in the comment)."""
     return {
         "fuzzy": {},
-        # --no-pilot-speed --pd-from-confirmed --coast-probability 0 --motion-whole-track:
-        # before issue 20
+        # --no-pilot-speed --pd-from-confirmed --coast-probability 0: before issue 20
         "before_issue20": {"pd_from_tentative": False, "coast_probability": None,
-                           "motion_recent": False, "triplet_speed": True},
+                           "triplet_speed": True},
         "no_pilot_speed": {"triplet_speed": True},                  # --no-pilot-speed
         "pd_from_confirmed": {"pd_from_tentative": False},          # --pd-from-confirmed
         "no_coast_matching": {"coast_probability": None},           # --coast-probability 0
-        "motion_whole_track": {"motion_recent": False},             # --motion-whole-track
+        "motion_recent_half": {"motion_recent": True},              # --motion-recent-half
         "no_track_score": {"confirm_llr": None},                    # --no-track-score (M-of-N)
         "kalman": {"mode": "kalman", "triplet_speed": True},        # --mode kalman
     }

@@ -155,7 +155,7 @@ class Tracker:
         The track score weighs each hit's classifier score (default True;
         :meth:`fusion.active.track_score.TrackScorer.score_delta`).
     motion_recent : bool, optional
-        The motion test also fits the later half of the detections (default True).
+        The motion test also fits the later half of the detections (default False).
     pd_from_tentative : bool, optional
         ``P_D`` is also learnt from tentative tracks whose score reached `confirm_llr`
         (default True; False: confirmed tracks alone).
@@ -203,7 +203,7 @@ class Tracker:
         reject_platform_fixed: bool = True,
         confirmed_edge_likelihood: float | None = 0.1,
         intensity_bandwidth_m: float = 1000.0,
-        motion_recent: bool = True,
+        motion_recent: bool = False,
         pd_from_tentative: bool = True,
         coast_probability: float | None = 0.01,
         shadow: bool = True,

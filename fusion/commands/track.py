@@ -175,10 +175,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--shadow-extent-sigmas", type=number(float, gt=0), default=8.0, metavar="K",
                    help="half-extent of a confirmed track across the line of sight, in RMS "
                         "cross-range residuals of its own detections (default 8)")
-    p.add_argument("--motion-whole-track", action="store_true",
-                   help="fuzzy mode: the motion test fits one straight line to all of a "
-                        "tentative track's detections (default: also to the later half, so "
-                        "that a turning target is seen to move)")
+    p.add_argument("--motion-recent-half", action="store_true",
+                   help="fuzzy mode: the motion test also fits a straight line to the later "
+                        "half of a tentative track's detections, so that a target that turned "
+                        "back is seen to move (default: one line through all of them)")
     p.add_argument("--min-speed-mps", dest="min_speed", type=number(float, ge=0), default=0.5,
                    help="speeds up to this count as standing still in the motion test, m/s "
                         "(default 0.5)")
@@ -303,7 +303,7 @@ def _tracker(args: argparse.Namespace, st: TrackSettings, system: object | None)
         max_misses=args.max_misses, hold_stationary=not args.confirm_stationary,
         pd_from_tentative=not args.pd_from_confirmed,
         coast_probability=args.coast_probability or None,
-        motion_recent=not args.motion_whole_track, shadow=args.shadow_test,
+        motion_recent=args.motion_recent_half, shadow=args.shadow_test,
         shadow_extent_sigmas=args.shadow_extent_sigmas,
         reject_platform_fixed=not args.keep_platform_fixed,
         clutter_map=(ClutterMap(cell_m=args.hotspot_cell, position_sigma_m=sigma)
