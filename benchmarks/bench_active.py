@@ -23,6 +23,16 @@ Prints ONE JSON line:
   No variant is given the simulator's noise, clutter or detection-probability settings.
 - ``speed``: median wall time of one ping with 200 detections against 20 confirmed tracks
   (target <= 5 ms), detections with source/receiver positions.
+- ``--grid`` (issue 20): the varied scenarios with every receiver's target ``P_D`` fixed at
+  0.4, 0.5, 0.7, 0.9 and the clutter at 2, 10, 15 echoes per receiver and ping
+  (:func:`fusion.simulate.multistatic_varied.simulate_varied` knobs; the rest of each scenario
+  drawn from its seed), ``--seeds`` seeds per cell: coverage and false confirmed tracks per run
+  per cell, for the defaults (``fuzzy``: triplet scales then the pilot run's speed prior,
+  :func:`fusion.active.pilot.fitted_tracker_options`), the issue-20 additions off
+  (``before_issue20``), each addition off alone, M-of-N without the track score and Kalman
+  nearest neighbour. Targets: coverage >= 0.9 with <= 1 false confirmed track per run at every
+  ``P_D`` >= 0.5, coverage >= 0.8 at 0.4. Tuning seeds :data:`GRID_TUNING_SEEDS`, report
+  seeds :data:`GRID_REPORT_SEEDS` (``--grid --report``, run once).
 
 The recorded Autoferry radar is scored through the command line by
 ``benchmarks/bench_autoferry_radar.py`` (``fusion import autoferry`` + ``fusion track`` with its
@@ -34,6 +44,7 @@ Seeds: the design was chosen on :data:`TUNING_SEEDS`; the figures in RESULTS.md 
 on :data:`REPORT_SEEDS` (``--report``), drawn after the last design change. Usage::
 
     python benchmarks/bench_active.py [--seeds 100] [--first-seed S] [--report] [--fixed]
+    python benchmarks/bench_active.py --grid [--seeds 12] [--report] [--no-speed]
 """
 
 from __future__ import annotations
@@ -47,17 +58,25 @@ import time
 import numpy as np
 
 from fusion.active.clutter import ClutterMap
+from fusion.active.pilot import fitted_tracker_options
 from fusion.active.settings import track_settings
 from fusion.active.tracker import Ping, Tracker
 from fusion.active.types import pings_from_columns
 from fusion.io import Table
 from fusion.simulate.multistatic import score_tracks, simulate_multistatic
+from fusion.simulate.multistatic_varied import simulate_varied
 
 #: Seeds the design was chosen on: varied scenarios 1000-1099 (the scales read from the data:
 #: 1000-1059); the fixed scenario 100-119 and 200-299 (earlier versions).
 TUNING_SEEDS = {"varied": (1000, 1099), "fixed": ((100, 119), (200, 299))}
 #: Report seeds (varied), drawn after the last design change and run once (``--report``).
 REPORT_SEEDS = (7300, 7399)
+
+
+def fitted_options(pings) -> dict:
+    """What ``fusion track`` chooses with no option
+    (:func:`fusion.active.pilot.fitted_tracker_options`)."""
+    return fitted_tracker_options(pings)
 
 
 def _variants(score_gates) -> dict:
@@ -104,7 +123,7 @@ def bench_sim(seeds, *, vary: bool, score_gates=(0.3, 0.5)) -> dict:
         sc = simulate_multistatic(seed=s, vary=vary)
         truth = sc.truth
         pings = pings_from_columns(sc.detections)
-        fitted = track_settings(pings).tracker_options()    # what fusion track does
+        fitted = fitted_options(pings)                      # what fusion track does
         for name, kw in variants.items():
             kw = dict(kw)
             base = fitted if kw.pop("fitted", True) else {}
@@ -138,6 +157,65 @@ def bench_sim(seeds, *, vary: bool, score_gates=(0.3, 0.5)) -> dict:
             "identity_switches_worst_decile": round(_worst(a["switches"], True), 3),
             "false_track_origins": a["origins"],
         }
+    return out
+
+
+#: Grid of fixed target P_D (every receiver) and clutter rates per receiver and ping (``--grid``).
+GRID_PD = (0.4, 0.5, 0.7, 0.9)
+GRID_CLUTTER = (2.0, 10.0, 15.0)
+#: ``--grid`` seeds per cell: tuning (issue 20's design was chosen on these) and report (run
+#: once after the last design change, ``--grid --report``). 9200-9211 were the report seeds of
+#: the design with ``motion_recent=True``; it cost false tracks there and on the tuning grid,
+#: was turned off, and these new report seeds were drawn.
+GRID_TUNING_SEEDS = (1000, 1011)
+GRID_REPORT_SEEDS = (9300, 9311)
+
+
+def _grid_variants() -> dict:
+    """``--grid`` variants; each setting is a ``fusion track`` option (in the comment)."""
+    return {
+        "fuzzy": {},
+        # --no-pilot-speed --pd-from-confirmed --coast-probability 0: before issue 20
+        "before_issue20": {"pd_from_tentative": False, "coast_probability": None,
+                           "triplet_speed": True},
+        "no_pilot_speed": {"triplet_speed": True},                  # --no-pilot-speed
+        "pd_from_confirmed": {"pd_from_tentative": False},          # --pd-from-confirmed
+        "no_coast_matching": {"coast_probability": None},           # --coast-probability 0
+        "motion_recent_half": {"motion_recent": True},              # --motion-recent-half
+        "no_track_score": {"confirm_llr": None},                    # --no-track-score (M-of-N)
+        "kalman": {"mode": "kalman", "triplet_speed": True},        # --mode kalman
+    }
+
+
+def bench_grid(seeds) -> dict:
+    """Coverage and false confirmed tracks per (P_D, clutter) cell of the varied scenarios."""
+    variants = _grid_variants()
+    out: dict = {name: {} for name in variants}
+    for pd in GRID_PD:
+        for cl in GRID_CLUTTER:
+            acc = {name: ([], []) for name in variants}
+            for s in seeds:
+                sc = simulate_varied(s, target_pd=pd, clutter_per_receiver=cl)
+                pings = pings_from_columns(sc.detections)
+                fitted = fitted_options(pings)
+                triplet = track_settings(pings).tracker_options()
+                for name, kw in variants.items():
+                    kw = dict(kw)
+                    if kw.pop("triplet_speed", False):
+                        fitted_here = triplet
+                    else:
+                        fitted_here = fitted
+                    score = score_tracks(
+                        Tracker(**{**fitted_here, **kw}).run(pings).columns(), sc.truth)
+                    acc[name][0].append(score.coverage)
+                    acc[name][1].append(score.false_tracks)
+            for name, (cov, false) in acc.items():
+                out[name][f"pd{pd:g}_clutter{cl:g}"] = {
+                    "coverage": round(float(np.mean(cov)), 3),
+                    "coverage_worst_decile": round(_worst(cov, False), 3),
+                    "false_tracks_per_run": round(float(np.mean(false)), 3),
+                    "max_false_tracks": int(np.max(false))}
+            print(f"grid P_D {pd} clutter {cl} done", file=sys.stderr, flush=True)
     return out
 
 
@@ -198,7 +276,28 @@ def main(argv=None) -> None:
     p.add_argument("--score-gates", default="0.3,0.5",
                    help="classifier-score gate variants, comma separated ('' for none)")
     p.add_argument("--no-speed", action="store_true")
+    p.add_argument("--grid", action="store_true",
+                   help=f"issue 20's grid: target P_D {GRID_PD} x clutter {GRID_CLUTTER} per "
+                        f"receiver and ping, --seeds per cell (tuning seeds from "
+                        f"{GRID_TUNING_SEEDS[0]}; with --report {GRID_REPORT_SEEDS[0]}-"
+                        f"{GRID_REPORT_SEEDS[1]})")
     args = p.parse_args(argv)
+    if args.grid:
+        first, n = (GRID_REPORT_SEEDS[0], GRID_REPORT_SEEDS[1] - GRID_REPORT_SEEDS[0] + 1) \
+            if args.report else (GRID_TUNING_SEEDS[0] if args.first_seed ==
+                                 TUNING_SEEDS["varied"][0] else args.first_seed, args.seeds)
+        logging.getLogger("fusion.active.fuzzy").setLevel(logging.ERROR)
+        grid = bench_grid(range(first, first + n))
+        fz = grid["fuzzy"]
+        ok = {k: (v["coverage"] >= (0.8 if k.startswith("pd0.4_") else 0.9)
+                  and v["false_tracks_per_run"] <= 1) for k, v in fz.items()}
+        result = {"scenarios": "varied grid", "seeds_per_cell": [first, first + n - 1],
+                  "grid_tuning_seeds": GRID_TUNING_SEEDS, "grid_report_seeds": GRID_REPORT_SEEDS,
+                  "grid": grid, "targets_met": ok}
+        if not args.no_speed:
+            result["speed"] = bench_speed()
+        print(json.dumps(result))
+        return
     if args.report:
         args.first_seed, args.seeds = REPORT_SEEDS[0], REPORT_SEEDS[1] - REPORT_SEEDS[0] + 1
     logging.getLogger("fusion.active.fuzzy").setLevel(logging.ERROR)

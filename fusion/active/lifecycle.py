@@ -53,8 +53,10 @@ if TYPE_CHECKING:
     from fusion.active.platform import PlatformTest
 
 __all__ = [
+    "MAX_COAST_MISSES",
     "Lifecycle",
     "advance_status",
+    "coast_misses",
     "hotspot_drop",
     "next_lifecycle",
     "stationary_hold",
@@ -176,6 +178,47 @@ def next_lifecycle(
                           max_misses=max_misses)
 
 
+#: Most consecutive missed pings a confirmed track coasts, whatever the detection probability.
+MAX_COAST_MISSES = 20
+
+
+def coast_misses(pds: Sequence[float], *, probability: float, floor: int) -> int:
+    """Consecutive missed pings that delete a confirmed track, matched to the detection
+    probabilities.
+
+    Parameters
+    ----------
+    pds : sequence of float
+        ``P_D`` of each receiver of the ping.
+    probability : float
+        Chance of that many consecutive misses of a real target, in (0, 1).
+    floor : int
+        Fewest misses (``max_misses``).
+
+    Returns
+    -------
+    int
+        The fewest ``k`` with ``q^k <= probability``, ``q = prod_r (1 - P_D,r)`` the chance
+        that no receiver detects the target on a ping, at least `floor` and at most
+        :data:`MAX_COAST_MISSES` (a target one receiver sees on a third of the pings coasts
+        for 12 misses, not 5).
+
+    Examples
+    --------
+    >>> coast_misses([1 / 3], probability=0.01, floor=5)
+    12
+    >>> coast_misses([0.9, 0.9], probability=0.01, floor=5)
+    5
+    """
+    q = float(np.prod([1.0 - p for p in pds])) if len(pds) else 1.0
+    if q <= 0.0:
+        return int(floor)
+    if q >= 1.0:
+        return max(int(floor), MAX_COAST_MISSES)
+    need = int(np.ceil(np.log(probability) / np.log(q)))
+    return max(int(floor), min(need, MAX_COAST_MISSES))
+
+
 def hotspot_drop(near: NDArray[np.bool_], seen: Sequence[Sequence[Sequence[float]]],
                  motion_test: MotionTest) -> NDArray[np.bool_]:
     """Tentative tracks near a hotspot to delete: those whose own detections do not move.
@@ -204,6 +247,7 @@ def stationary_hold(
     candidates: NDArray[np.bool_], lives: Sequence[Lifecycle],
     seen: Sequence[Sequence[Sequence[float]]], *, m: int, motion_test: MotionTest | None,
     score_short: NDArray[np.bool_] | None, platform_test: PlatformTest | None = None,
+    shadowed: NDArray[np.bool_] | None = None,
 ) -> NDArray[np.bool_]:
     """Tentative tracks with a hit that would confirm them but that stay tentative.
 
@@ -225,6 +269,9 @@ def stationary_hold(
         Hold tracks whose detections are steady relative to a sensor that moved
         (:class:`fusion.active.platform.PlatformTest`; the rows then carry the sensor position
         in columns 6-7). None (default): no such hold.
+    shadowed : ndarray of bool, shape (n_tracks,), optional
+        Tracks whose latest detection lies behind a near confirmed track
+        (:class:`fusion.active.shadow.ShadowTest`): held too.
 
     Returns
     -------
@@ -248,4 +295,6 @@ def stationary_hold(
             hold[i] = motion_test.moves(seen[i]) is False
         if not hold[i] and platform_test is not None:
             hold[i] = platform_test.fixed(seen[i]) is True
+        if not hold[i] and shadowed is not None:
+            hold[i] = bool(shadowed[i])
     return hold

@@ -117,7 +117,7 @@ class MotionTest:
 
     def __init__(self, *, probability: float = 0.999,
                  min_detections: int = MOTION_MIN_DETECTIONS,
-                 min_speed_mps: float = 0.0) -> None:
+                 min_speed_mps: float = 0.0, recent: bool = False) -> None:
         if not 0.0 < probability < 1.0:
             raise ValueError(f"motion_probability must lie in (0, 1), got {probability!r}")
         if min_detections < 2:
@@ -127,6 +127,7 @@ class MotionTest:
             raise ValueError(f"min_speed_mps must be >= 0, got {min_speed_mps!r}")
         self.min_detections = int(min_detections)
         self.min_speed_mps = float(min_speed_mps)
+        self.recent = bool(recent)
         self.gate = float(chi2.ppf(self.probability, 2))
 
     def moves(self, rows: Sequence[Sequence[float]]) -> bool | None:
@@ -147,5 +148,11 @@ class MotionTest:
             return None
         seen = np.asarray(rows)
         cov = seen[:, [3, 4, 4, 5]].reshape(-1, 2, 2)
-        return bool(motion_statistic(seen[:, 0], seen[:, 1:3], cov=cov,
+        if motion_statistic(seen[:, 0], seen[:, 1:3], cov=cov,
+                            min_speed_mps=self.min_speed_mps) > self.gate:
+            return True
+        half = len(rows) // 2
+        if not self.recent or half < self.min_detections:
+            return False
+        return bool(motion_statistic(seen[half:, 0], seen[half:, 1:3], cov=cov[half:],
                                      min_speed_mps=self.min_speed_mps) > self.gate)

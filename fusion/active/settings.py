@@ -51,7 +51,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -112,7 +112,11 @@ class TrackSettings:
     moving_triplets : int
         Of those, the ones that move significantly.
     source : dict of str to str
-        Per setting, ``"data"``, ``"given"`` or ``"fallback"`` (too few triplets).
+        Per setting, ``"data"``, ``"given"``, ``"fallback"`` (too few triplets) or
+        ``"tracks"`` (the speed prior from the confirmed tracks of a pilot run,
+        :meth:`with_track_speed`).
+    speed_tracks : int
+        Tracks whose speeds gave the speed prior (0: it did not come from tracks).
     """
 
     period_s: float
@@ -127,12 +131,31 @@ class TrackSettings:
     object_triplets: int
     moving_triplets: int
     source: dict[str, str]
+    speed_tracks: int = 0
+
+    def with_track_speed(self, speed_sigma_mps: float, tracks: int) -> TrackSettings:
+        """These settings with the speed prior measured on confirmed tracks
+        (:func:`fusion.active.pilot.pilot_speed_prior`); the process noise follows it by the
+        same rule as from triplets, unless it was given. A given speed prior stays."""
+        if self.source.get("speed_sigma_mps") == "given":
+            return self
+        source = dict(self.source, speed_sigma_mps="tracks")
+        q = self.accel_psd
+        if source.get("accel_psd") != "given":
+            q = max(speed_sigma_mps, FALLBACK_SPEED_SIGMA_MPS) ** 2 / (MANOEUVRE_SCANS
+                                                                       * self.period_s)
+            source["accel_psd"] = "tracks"
+        return replace(self, speed_sigma_mps=float(speed_sigma_mps), accel_psd=float(q),
+                       source=source, speed_tracks=int(tracks))
 
     def describe(self) -> str:
         """One line saying what was chosen (``*`` marks a setting given by the user, ``?`` a
         fallback for want of data)."""
         def mark(name: str) -> str:
-            return {"given": "*", "fallback": "?"}.get(self.source.get(name, "data"), "")
+            return {"given": "*", "fallback": "?",
+                    "tracks": (f" (from {self.speed_tracks} confirmed track(s))"
+                               if name == "speed_sigma_mps" else "")}.get(
+                        self.source.get(name, "data"), "")
 
         return (f"scan period {self.period_s:.4g} s, position sigma "
                 f"{self.position_sigma_m:.3g} m{mark('position_sigma_m')}, speed sigma "

@@ -26,9 +26,19 @@ A tentative track is confirmed once it has its M-of-N hits *and* a score of at l
 ``confirm_llr``; it is deleted when its score falls below ``delete_llr``. The detection
 probability ``P_D`` (that a track gets a detection on a ping) and the clutter intensity are
 settings the user may give; by default both are estimated from the data, per receiver: ``P_D``
-as the hit rate of confirmed tracks (a Beta(7, 3) prior, i.e. 0.7 worth ten pings), ``lambda``
-by a kernel density of the receiver's detections
-(:class:`fusion.active.clutter.intensity.ClutterIntensity`).
+as the hit rate of the tracks the tracker names in ``teach`` (a Beta(7, 3) prior, i.e. 0.7
+worth ten pings; :meth:`TrackScorer.scan_delta`), ``lambda`` by a kernel density of the
+receiver's detections (:class:`fusion.active.clutter.intensity.ClutterIntensity`) that no
+confirmed track took.
+
+Issue 20 (a target seen on four pings in ten): where no track is ever confirmed, a ``P_D``
+learnt from confirmed tracks alone stays at its prior 0.7 and charges every miss ``ln 0.3``, so
+a rarely seen target's score sinks. The tracker therefore also teaches ``P_D`` with tentative
+tracks whose score has reached ``confirm_llr``; a track hidden by the direct blast, or whose
+gated echo went to another track (a duplicate of a confirmed track), is no trial. Weighting
+every tentative track by its existence probability ``1 / (1 + exp(confirm_llr - score))`` was
+tried first: the hundreds of clutter tracks near score 0 each weigh ~0.05 and pulled the
+estimate of a 0.9 receiver down to 0.4-0.6.
 """
 
 from __future__ import annotations
@@ -170,7 +180,8 @@ class TrackScorer:
         return out
 
     def observe(self, key: Hashable, xy: ArrayLike, cov: ArrayLike | None,
-                hotspots: Hotspots | None = None) -> NDArray[np.float64]:
+                hotspots: Hotspots | None = None, *,
+                clutter: NDArray[np.bool_] | None = None) -> NDArray[np.float64]:
         """Add a receiver's detections of a ping to its intensity estimate; their intensities.
 
         Parameters
@@ -185,6 +196,10 @@ class TrackScorer:
             The clutter map's hotspots: each adds its echo rate per ping and receiver,
             ``cells / (n_pings n_receivers)``, spread as ``N(x; c_h, C_h + R)``, to the
             smooth intensity (an echo at a known hotspot is as likely clutter as target).
+        clutter : ndarray of bool, shape (n,), optional
+            Which detections may be clutter (default all): those a confirmed track took are
+            its target's echoes and are left out of the estimate, which would otherwise rise
+            along every target's path and weigh against its own hits.
 
         Returns
         -------
@@ -200,7 +215,8 @@ class TrackScorer:
         est = self._intensity.get(key)
         if est is None:
             est = self._intensity[key] = self.intensity.empty_copy()
-        est.update(pts, cov)
+        keep = np.ones(pts.shape[0], bool) if clutter is None else np.asarray(clutter, bool)
+        est.update(pts[keep], None if cov is None else np.asarray(cov, float)[keep])
         lam = est.intensity(pts)
         if hotspots is not None and len(hotspots) and pts.shape[0]:
             c = np.zeros((pts.shape[0], 2, 2)) if cov is None else np.asarray(cov, float)
@@ -261,6 +277,8 @@ class TrackScorer:
         scores: NDArray[np.float64] | None, hotspots: Hotspots | None,
         track_xy: NDArray[np.float64], hits: NDArray[np.int64], dets: NDArray[np.int64],
         log_pdf: NDArray[np.float64], confirmed: NDArray[np.bool_],
+        teach: NDArray[np.bool_] | None = None,
+        contested: NDArray[np.bool_] | None = None,
     ) -> NDArray[np.float64]:
         """Score change of every track on one receiver's scan; learns from the scan.
 
@@ -281,7 +299,14 @@ class TrackScorer:
         log_pdf : ndarray, shape (k,)
             ``ln N(nu; 0, S)`` of those pairs.
         confirmed : ndarray of bool, shape (t,)
-            Tracks confirmed before the ping (their hits feed ``P_D`` and ``f_T``).
+            Tracks confirmed before the ping (their hits feed ``f_T``; their detections are
+            left out of the clutter intensity).
+        teach : ndarray of bool, shape (t,), optional
+            Tracks whose hits and misses feed ``P_D`` (default `confirmed`).
+        contested : ndarray of bool, shape (t,), optional
+            Tracks without a detection of their own though one in their gate went to another
+            track: not a miss of their target as far as ``P_D`` is concerned (a duplicate of a
+            confirmed track would otherwise teach that targets are missed).
 
         Returns
         -------
@@ -289,7 +314,9 @@ class TrackScorer:
             :meth:`miss_delta` for tracks without a detection, :meth:`hit_delta` (plus
             :meth:`score_delta` with scores and ``score_evidence``) for the others.
         """
-        clutter = self.observe(key, xy, cov, hotspots)
+        maybe_clutter = np.ones(xy.shape[0], dtype=bool)
+        maybe_clutter[dets[confirmed[hits]]] = False
+        clutter = self.observe(key, xy, cov, hotspots, clutter=maybe_clutter)
         delta = self.miss_delta(key, track_xy)
         with_scores = scores is not None and self.score_evidence
         if hits.size:
@@ -300,7 +327,13 @@ class TrackScorer:
                                                   minlength=_SCORE_BINS)
         if with_scores:
             self._score_all += np.bincount(self._bins(scores), minlength=_SCORE_BINS)
-        self.count_confirmed(key, int(confirmed[hits].sum()), int(confirmed.sum()))
+        # P_D counts: a track hidden by the direct blast (a miss scoring 0) is no trial.
+        w = np.asarray(confirmed if teach is None else teach, dtype=float)
+        trial = self.miss_delta(key, track_xy) != 0.0
+        if contested is not None:
+            trial &= ~contested
+        trial[hits] = True
+        self.count_confirmed(key, float(w[hits].sum()), float(w[trial].sum()))
         return delta
 
     def count_confirmed(self, key: Hashable, hits: int, pings: int) -> None:

@@ -24,23 +24,7 @@ each:
 (pairs inside the gate, highest ``L`` wins, same assignment and M-of-N track management), no
 clutter map and no track score.
 
-Choices where the paper is silent, besides those documented in the stage modules:
-
-- The detections of one event are treated as simultaneous, at the time of the event's first row.
-- Each receiver's detections of a ping (one source-receiver geometry,
-  :func:`fusion.active.types.receiver_groups`) are a scan of their own: a track takes at most one
-  detection per receiver and ping, updated receiver after receiver at the ping time, and a track
-  born from one receiver's echo may take the echoes of the same place from the receivers after
-  it. The M-of-N count and the miss count are per ping (a hit: at least one detection).
-- Missing event numbers (pings without any detection) are stepped through as empty pings at
-  interpolated times, so that they count as misses (:func:`fusion.active.types.pings_from_columns`).
-- Each receiver scan is one vectorised pass: the Kalman statistics of all (track, detection) pairs
-  at once (closed-form 2 x 2 inverses), then one call of the fuzzy system on the gated pairs only
-  (two when the aspect angle is computed from geometry and unknown for some tracks, as the
-  engine takes no missing values).
-- Nothing a simulator knows reaches the tracker: the aspect angle comes from the track's heading
-  unless the user declares a column a measurement (``aspect="measured"``); accuracies, clutter
-  intensities and detection probabilities are estimated from the detections or set by the user.
+Choices where the paper is silent: ``docs/tracking.md`` and the stage modules.
 """
 
 from __future__ import annotations
@@ -56,11 +40,12 @@ from fusion.active.association import EDGE_LIKELIHOOD, PairRanker, assign_by_pri
 from fusion.active.bistatic import MeasurementModel
 from fusion.active.clutter import ClutterIntensity, ClutterMapBase, DensityClutterMap
 from fusion.active.kalman import cv_model, gate_threshold, kf_predict, kf_update, pair_statistics
-from fusion.active.lifecycle import Lifecycle, hotspot_drop, next_lifecycle, stationary_hold
+from fusion.active.lifecycle import Lifecycle, coast_misses, hotspot_drop, next_lifecycle, stationary_hold
 from fusion.active.motion import MotionTest
 from fusion.active.noise import NoiseEstimator
 from fusion.active.ping_scan import PingScan, birth_states, ping_result, score_gate
 from fusion.active.platform import PlatformTest, sensor_positions
+from fusion.active.shadow import ShadowTest
 from fusion.active.track_score import TrackScorer
 from fusion.active.types import (
     Columns,
@@ -74,6 +59,7 @@ from fusion.active.types import (
 __all__ = ["Ping", "PingResult", "Tracker", "TrackingResult", "pings_from_table"]
 
 logger = logging.getLogger(__name__)
+
 
 #: Former name of :func:`fusion.active.types.pings_from_columns` (any named columns will do).
 pings_from_table = pings_from_columns
@@ -89,9 +75,7 @@ class Tracker:
     system : FuzzySystem, optional
         Rule base (default :func:`fusion.active.rulebase.default_association_system`).
     clues : iterable of str, optional
-        Which of :data:`fusion.active.association.CLUE_NAMES` may be used (default all); those
-        absent from the data are left out anyway. ``aspect_deg`` covers both a given column and
-        the angle computed from source/receiver positions.
+        Which of :data:`fusion.active.association.CLUE_NAMES` may be used (default all).
     position_sigma_m : float, optional
         Standard deviation of each position coordinate of a detection without source/receiver
         positions (or with ``position_errors="isotropic"``), m (default 100).
@@ -110,17 +94,13 @@ class Tracker:
         Likelihood ratio at the edge of the acceptance region used by the derived threshold
         (default :data:`fusion.active.association.EDGE_LIKELIHOOD` = 0.25).
     confirmed_edge_likelihood : float, optional
-        The same for confirmed tracks (default 0.1, where "unlikely" is full; None: as
-        `edge_likelihood`): a confirmed track keeps a turning target whose echoes fall further
-        from its straight-line prediction, where a new track would wait for the next ping.
+        The same for confirmed tracks (default 0.1; None: as `edge_likelihood`).
     confirm_hits, confirm_window : int, optional
         M-of-N confirmation (default 3 of 4).
     max_misses : int, optional
         Consecutive misses that delete a confirmed track (default 5).
     init_exclusion_m : float, optional
-        Detections closer than this to a hotspot region start no track (fuzzy mode; default 0:
-        only those inside a region; a track score that counts hotspot echoes as clutter keeps
-        hotspot tracks from confirming without a larger exclusion).
+        Detections closer than this to a hotspot region start no track (fuzzy mode; default 0).
     hotspot_drop : bool, optional
         Fuzzy mode: delete a tentative track within ``init_exclusion_m`` of a hotspot region
         unless its own detections move significantly (default False).
@@ -128,14 +108,10 @@ class Tracker:
         Confidence of the motion test (stationary hold and hotspot drop), default 0.999, in
         (0, 1); see :func:`fusion.active.motion.motion_statistic`. Fuzzy mode only.
     min_speed_mps : float, optional
-        Speeds up to this count as standing still in the motion test, m/s (default 0.5, a
-        quarter of the slowest submarine speed of interest): a bottom feature whose echoes
-        scatter more than their stated errors does not pass for a slow target.
+        Speeds up to this count as standing still in the motion test, m/s (default 0.5).
     hold_stationary : bool, optional
-        Fuzzy mode: a track that reaches ``confirm_hits`` hits while its own detections do not
-        move significantly (:func:`fusion.active.motion.motion_statistic` at
-        ``motion_probability``) stays tentative until they do (default True); such a held
-        track is deleted after ``max_misses`` consecutive misses.
+        Fuzzy mode: a track whose own detections do not move significantly stays tentative
+        (default True; :func:`fusion.active.lifecycle.stationary_hold`).
     reject_platform_fixed : bool, optional
         Fuzzy mode: hold tracks steady relative to a sensor that moved (default True;
         :class:`fusion.active.platform.PlatformTest` at ``motion_probability``, ``min_speed_mps``).
@@ -147,45 +123,49 @@ class Tracker:
         error ellipse of :func:`fusion.active.bistatic.bistatic_covariance`; ``isotropic``:
         every detection gets ``position_sigma_m`` per axis.
     range_sum_sigma_m : float, optional
-        Accuracy (standard deviation) of the bistatic range sum, m (default 100), >= 0: the
-        prior of the per-receiver estimate (``noise="estimate"``) or the value used for every
-        receiver (``noise="fixed"``).
+        Accuracy of the bistatic range sum, m (default 100): the prior of the per-receiver
+        estimate (``noise="estimate"``) or the value for every receiver (``noise="fixed"``).
     bearing_sigma_deg : float, optional
         Accuracy of the bearing at the receiver, deg (default 1.5), >= 0; as
         `range_sum_sigma_m`.
     noise : {"estimate", "fixed"}, optional
-        ``estimate`` (default): each receiver's range-sum and bearing accuracy is learnt from
-        the echoes that recur between its pings (:class:`fusion.active.noise.NoiseEstimator`,
-        starting from the two values above); ``fixed``: the two values for every receiver.
+        ``estimate`` (default): accuracies learnt per receiver
+        (:class:`fusion.active.noise.NoiseEstimator`); ``fixed``: the two values above.
     aspect : {"geometry", "measured"}, optional
-        Source of the equivalent aspect angle: ``geometry`` (default) computes it from the
-        track's heading and the source/receiver positions and ignores an ``aspect_deg``
-        column; ``measured`` uses that column as a measurement
-        (:class:`fusion.active.association.PairRanker`).
+        Equivalent aspect angle from the track heading and the geometry (default) or from an
+        ``aspect_deg`` column (:class:`fusion.active.association.PairRanker`).
     score_threshold : float, optional
         Classifier-score gate (Section 2.2 of the paper: only detections whose score passes a
         threshold go on): detections with ``score`` below it start no track and join none; the
         clutter map still sees every detection. None (default, chosen on varied scenarios, see
         RESULTS) or data without a ``score`` column: no gate.
     confirm_llr : float, optional
-        Fuzzy mode: besides its M-of-N hits, a tentative track needs a track score (log-
-        likelihood ratio of target against clutter, :mod:`fusion.active.track_score`) of at least
-        this to be confirmed (default 3); until then it is held like a stationary track, and
-        the M-of-N window no longer deletes it (its score and ``max_misses`` do). None: M-of-N
-        alone (the paper).
+        Fuzzy mode: besides its M-of-N hits, a tentative track needs a track score
+        (:mod:`fusion.active.track_score`) of at least this (default 3); its score and
+        ``max_misses`` delete it, not the M-of-N window. None: M-of-N alone (the paper).
     delete_llr : float, optional
         A tentative track whose score falls below this is deleted (default -4).
     detection_probability : float, optional
-        Probability that a receiver detects a track on a ping, for the track score; None
-        (default): estimated per receiver from the confirmed tracks' hits.
+        ``P_D`` of a receiver per ping, for the track score; None (default): estimated.
     clutter_intensity : float, optional
-        Clutter detections per m^2 per ping and receiver, for the track score; None (default):
-        estimated per receiver over the field from its detections
-        (:class:`fusion.active.clutter.ClutterIntensity` with a kernel of
-        ``intensity_bandwidth_m``, default 1000 m), hotspots included.
+        Clutter detections per m^2 per ping and receiver; None (default): estimated per
+        receiver (:class:`fusion.active.clutter.ClutterIntensity`, kernel
+        ``intensity_bandwidth_m`` = 1000 m).
     score_evidence : bool, optional
         The track score weighs each hit's classifier score (default True;
         :meth:`fusion.active.track_score.TrackScorer.score_delta`).
+    motion_recent : bool, optional
+        The motion test also fits the later half of the detections (default False).
+    pd_from_tentative : bool, optional
+        ``P_D`` is also learnt from tentative tracks whose score reached `confirm_llr`
+        (default True; False: confirmed tracks alone).
+    coast_probability : float, optional
+        Confirmed tracks coast for :func:`fusion.active.lifecycle.coast_misses` misses
+        (default 0.01); None: `max_misses`.
+    shadow : bool, optional
+        Fuzzy mode, monostatic sensors (detections with ``own_x, own_y`` and no ``rcv_x,
+        rcv_y``): hold tentative tracks behind a near confirmed track (default True;
+        :class:`fusion.active.shadow.ShadowTest` at `shadow_extent_sigmas`, default 8).
     """
 
     def __init__(
@@ -223,6 +203,11 @@ class Tracker:
         reject_platform_fixed: bool = True,
         confirmed_edge_likelihood: float | None = 0.1,
         intensity_bandwidth_m: float = 1000.0,
+        motion_recent: bool = False,
+        pd_from_tentative: bool = True,
+        coast_probability: float | None = 0.01,
+        shadow: bool = True,
+        shadow_extent_sigmas: float = 8.0,
     ) -> None:
         if mode not in ("fuzzy", "kalman"):
             raise ValueError(f"mode must be 'fuzzy' or 'kalman', got {mode!r}")
@@ -233,15 +218,15 @@ class Tracker:
         if not 1 <= confirm_hits <= confirm_window:
             raise ValueError("need 1 <= confirm_hits <= confirm_window, got "
                              f"{confirm_hits} and {confirm_window}")
-        if max_misses < 1:
-            raise ValueError(f"max_misses must be >= 1, got {max_misses!r}")
+        if max_misses < 1 or not (coast_probability is None or 0.0 < coast_probability < 1.0):
+            raise ValueError(f"need max_misses >= 1 and coast_probability in (0, 1), got "
+                             f"{max_misses!r}, {coast_probability!r}")
         if noise not in ("estimate", "fixed"):
             raise ValueError(f"noise must be 'estimate' or 'fixed', got {noise!r}")
         if score_threshold is not None and not 0.0 <= score_threshold <= 1.0:
             raise ValueError(f"score_threshold must lie in [0, 1], got {score_threshold!r}")
         if mode == "fuzzy" and system is None:
             from fusion.active.rulebase import default_association_system
-
             system = default_association_system()
         self.mode = mode
         self.system = system
@@ -256,6 +241,8 @@ class Tracker:
                    if noise == "estimate" else None))
         self.score_threshold = None if score_threshold is None else float(score_threshold)
         self.hotspot_drop = bool(hotspot_drop)
+        self.pd_from_tentative = bool(pd_from_tentative)
+        self.coast_probability = coast_probability
         self.scorer = (TrackScorer(confirm_llr=confirm_llr, delete_llr=delete_llr,
                                    detection_probability=detection_probability,
                                    clutter_intensity=clutter_intensity,
@@ -263,7 +250,10 @@ class Tracker:
                                    intensity=ClutterIntensity(bandwidth_m=intensity_bandwidth_m))
                        if mode == "fuzzy" and confirm_llr is not None else None)
         self.motion_test = MotionTest(probability=motion_probability,
-                                      min_speed_mps=min_speed_mps)
+                                      min_speed_mps=min_speed_mps, recent=motion_recent)
+        self.shadow_test = (ShadowTest(position_sigma_m=position_sigma_m,
+                                       extent_sigmas=shadow_extent_sigmas)
+                            if mode == "fuzzy" and shadow else None)
         self.platform_test = (PlatformTest(probability=motion_probability, min_speed_mps=min_speed_mps)
                               if mode == "fuzzy" and reject_platform_fixed else None)
         self.accel_psd = float(accel_psd)
@@ -302,6 +292,8 @@ class Tracker:
             self.measurement_model.noise.reset()
         if self.scorer is not None:
             self.scorer.reset()
+        if self.shadow_test is not None:
+            self.shadow_test.reset()
 
     def threshold(self, present: Iterable[str]) -> float:
         """Lowest associable rank for pairs whose rank used the inputs ``present``
@@ -355,9 +347,11 @@ class Tracker:
         # Each receiver's detections are a scan of their own at the ping time: a track takes at
         # most one detection per receiver, and a track born from one receiver's echo may take
         # the echoes of the same place from the receivers after it.
+        keys = []
         for key, idx in receiver_groups(ping):
+            keys.append(key)
             self._scan(scan, key, idx)
-        return self._manage(scan, full_index, n0)
+        return self._manage(scan, full_index, n0, keys)
 
     def _scan(self, scan: PingScan, key: tuple[float, ...] | None,
               idx: NDArray[np.int64]) -> None:
@@ -387,6 +381,10 @@ class Tracker:
         hit = det_of >= 0
         taken = np.zeros(nd, dtype=bool)
         taken[det_of[hit]] = True
+        if self.shadow_test is not None and "rcv_x" not in ping.clues and (hit & confirmed).any():
+            c = np.flatnonzero(hit & confirmed)
+            self.shadow_test.learn(self._ids[c], self._x[c, :2], xy[det_of[c]],
+                                   [scan.rows[idx[j]][6:8] for j in det_of[c].tolist()])
         if hit.any():
             self._x[hit], self._P[hit] = kf_update(self._x[hit], self._P[hit], xy[det_of[hit]],
                                                    R[det_of[hit]])
@@ -406,7 +404,8 @@ class Tracker:
                 hotspots=self.clutter_map.hotspots() if self.clutter_map is not None else None,
                 log_pdf=(-0.5 * stats.d2[i, j] - np.log(2.0 * np.pi)
                          - 0.5 * np.log(stats.det[i, j])),
-                confirmed=confirmed)
+                confirmed=confirmed, contested=~hit & gated[:, taken].any(axis=1),
+                teach=confirmed | (self.pd_from_tentative & (self._llr >= self.scorer.confirm_llr)))
 
         # New tentative tracks: free detections (taken by no track, inside no track's gate)
         # away from hotspots.
@@ -427,7 +426,8 @@ class Tracker:
         scan.dets += [[int(j)] for j in idx[new].tolist()]
         scan.rank += [np.nan] * new.size
 
-    def _manage(self, scan: PingScan, full_index: NDArray[np.int64], n0: int) -> PingResult:
+    def _manage(self, scan: PingScan, full_index: NDArray[np.int64], n0: int,
+                keys: Sequence[object] = ()) -> PingResult:
         """Track management after all receivers of a ping; the ping's result."""
         ping = scan.ping
         nt = self._ids.size
@@ -449,9 +449,16 @@ class Tracker:
                          else None),
             score_short=(self._llr < self.scorer.confirm_llr if self.scorer is not None
                          else None),
-            platform_test=self.platform_test)
+            platform_test=self.platform_test, shadowed=None if self.shadow_test is None else
+            self.shadow_test.shadowed([h[-1][1:3] if h else (np.nan, np.nan) for h in self._seen],
+                                      [h[-1][6:8] if h else (np.nan, np.nan) for h in self._seen],
+                                      self._ids[confirmed], self._x[confirmed, :2]))
+        coast = (self.max_misses if self.scorer is None or self.coast_probability is None
+                 else coast_misses([self.scorer.pd(k) for k in keys],
+                                   probability=self.coast_probability, floor=self.max_misses))
         life = [next_lifecycle(lc, h, dropped=d, held=s, m=self.m, n=self.n,
-                               max_misses=self.max_misses, window=self.scorer is None)
+                               max_misses=coast if lc.status == "confirmed" else self.max_misses,
+                               window=self.scorer is None)
                 for lc, h, d, s in zip(self._life[:n0], hit[:n0].tolist(), dropped[:n0].tolist(),
                                        held[:n0].tolist(), strict=True)]
         self._life = life + self._life[n0:]

@@ -153,6 +153,32 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--clutter-density", type=number(float, gt=0), default=None,
                    help="clutter detections per m^2 per ping and receiver, for the track score "
                         "(default: estimated over the field from the detections)")
+    p.add_argument("--no-pilot-speed", dest="pilot_speed", action="store_false",
+                   help="the speed prior (when --speed-sigma-mps is not given) stays the one of "
+                        "straight-line triplets of detections (default: the median speed of the "
+                        "consistent moving tracks a pilot run over the --fit-pings confirms)")
+    p.add_argument("--pd-from-confirmed", action="store_true",
+                   help="estimate each receiver's detection probability from confirmed tracks "
+                        "alone (default: also from tentative tracks whose score has reached "
+                        "--confirm-llr)")
+    p.add_argument("--coast-probability", type=number(float, ge=0, le=0.5), default=0.01,
+                   metavar="P",
+                   help="a confirmed track coasts until that many missed pings of a real "
+                        "target would have probability below P under the estimated detection "
+                        "probabilities, at least --max-misses (default 0.01; 0: --max-misses "
+                        "alone)")
+    p.add_argument("--no-shadow-test", dest="shadow_test", action="store_false",
+                   help="fuzzy mode: confirm tracks behind a nearer confirmed track too (default: "
+                        "with own_x,own_y and no rcv_x,rcv_y, a tentative track whose latest "
+                        "detection lies behind a nearer confirmed track, within that track's "
+                        "angular extent, is held: multipath ghosts behind a large vessel)")
+    p.add_argument("--shadow-extent-sigmas", type=number(float, gt=0), default=8.0, metavar="K",
+                   help="half-extent of a confirmed track across the line of sight, in RMS "
+                        "cross-range residuals of its own detections (default 8)")
+    p.add_argument("--motion-recent-half", action="store_true",
+                   help="fuzzy mode: the motion test also fits a straight line to the later "
+                        "half of a tentative track's detections, so that a target that turned "
+                        "back is seen to move (default: one line through all of them)")
     p.add_argument("--min-speed-mps", dest="min_speed", type=number(float, ge=0), default=0.5,
                    help="speeds up to this count as standing still in the motion test, m/s "
                         "(default 0.5)")
@@ -251,13 +277,48 @@ class _Summary:
                 f"tentative: {' or '.join(why) or 'deleted before confirmation'}")
 
 
+def _tracker(args: argparse.Namespace, st: TrackSettings, system: object | None) -> Tracker:
+    """The tracker these options and settings configure."""
+    from fusion.active.clutter import ClutterMap, DensityClutterMap
+    from fusion.active.tracker import Tracker
+
+    sigma = st.position_sigma_m
+    return Tracker(
+        mode=args.mode, system=system, position_sigma_m=sigma,
+        position_errors=args.position_errors, range_sum_sigma_m=args.range_sum_sigma,
+        bearing_sigma_deg=args.bearing_sigma, noise=args.noise,
+        aspect="measured" if args.aspect_column == "measured" else "geometry",
+        score_threshold=args.score_threshold,
+        confirm_llr=None if args.no_track_score else args.confirm_llr,
+        delete_llr=args.delete_llr, score_evidence=not args.no_score_evidence,
+        detection_probability=args.detection_probability,
+        clutter_intensity=args.clutter_density, min_speed_mps=args.min_speed,
+        motion_probability=args.motion_probability, gate_probability=args.gate_probability,
+        accel_psd=st.accel_psd, speed_sigma_mps=st.speed_sigma_mps,
+        init_exclusion_m=st.init_exclusion_m, hotspot_drop=args.hotspot_drop,
+        intensity_bandwidth_m=st.intensity_bandwidth_m, min_rank=args.min_rank,
+        edge_likelihood=args.edge_likelihood,
+        confirmed_edge_likelihood=args.confirmed_edge_likelihood,
+        confirm_hits=args.confirm[0], confirm_window=args.confirm[1],
+        max_misses=args.max_misses, hold_stationary=not args.confirm_stationary,
+        pd_from_tentative=not args.pd_from_confirmed,
+        coast_probability=args.coast_probability or None,
+        motion_recent=args.motion_recent_half, shadow=args.shadow_test,
+        shadow_extent_sigmas=args.shadow_extent_sigmas,
+        reject_platform_fixed=not args.keep_platform_fixed,
+        clutter_map=(ClutterMap(cell_m=args.hotspot_cell, position_sigma_m=sigma)
+                     if args.clutter_map == "grid"
+                     else DensityClutterMap(position_sigma_m=sigma,
+                                            feature_sigma_m=st.feature_sigma_m,
+                                            memory_pings=args.map_memory_pings)),
+    )
+
+
 def _build(args: argparse.Namespace, prefix: list[Ping],
            system: object | None) -> tuple[TrackSettings, Tracker]:
     """The settings read from the first pings and the tracker they configure."""
-    from fusion.active.clutter import ClutterMap, DensityClutterMap
     from fusion.active.rulebase import default_association_system
     from fusion.active.settings import track_settings
-    from fusion.active.tracker import Tracker
 
     try:
         st = track_settings(prefix, position_sigma_m=args.position_sigma,
@@ -270,32 +331,16 @@ def _build(args: argparse.Namespace, prefix: list[Ping],
                             max_speed_mps=args.max_speed)
         if args.mode == "fuzzy" and system is None:
             system = default_association_system(hotspot_near_m=st.hotspot_near_m)
-        sigma = st.position_sigma_m
-        tracker = Tracker(
-            mode=args.mode, system=system, position_sigma_m=sigma,
-            position_errors=args.position_errors, range_sum_sigma_m=args.range_sum_sigma,
-            bearing_sigma_deg=args.bearing_sigma, noise=args.noise,
-            aspect="measured" if args.aspect_column == "measured" else "geometry",
-            score_threshold=args.score_threshold,
-            confirm_llr=None if args.no_track_score else args.confirm_llr,
-            delete_llr=args.delete_llr, score_evidence=not args.no_score_evidence,
-            detection_probability=args.detection_probability,
-            clutter_intensity=args.clutter_density, min_speed_mps=args.min_speed,
-            motion_probability=args.motion_probability, gate_probability=args.gate_probability,
-            accel_psd=st.accel_psd, speed_sigma_mps=st.speed_sigma_mps,
-            init_exclusion_m=st.init_exclusion_m, hotspot_drop=args.hotspot_drop,
-            intensity_bandwidth_m=st.intensity_bandwidth_m, min_rank=args.min_rank,
-            edge_likelihood=args.edge_likelihood,
-            confirmed_edge_likelihood=args.confirmed_edge_likelihood,
-            confirm_hits=args.confirm[0], confirm_window=args.confirm[1],
-            max_misses=args.max_misses, hold_stationary=not args.confirm_stationary,
-            reject_platform_fixed=not args.keep_platform_fixed,
-            clutter_map=(ClutterMap(cell_m=args.hotspot_cell, position_sigma_m=sigma)
-                         if args.clutter_map == "grid"
-                         else DensityClutterMap(position_sigma_m=sigma,
-                                                feature_sigma_m=st.feature_sigma_m,
-                                                memory_pings=args.map_memory_pings)),
-        )
+        tracker = _tracker(args, st, system)
+        if args.speed_sigma_mps is None and args.pilot_speed and prefix and args.mode == "fuzzy":
+            from fusion.active.pilot import pilot_speed_prior
+
+            logging.getLogger("fusion.active.fuzzy").setLevel(logging.ERROR)
+
+            pilot = pilot_speed_prior(prefix, tracker, min_speed_mps=args.min_speed)
+            if pilot.speed_sigma_mps is not None:
+                st = st.with_track_speed(pilot.speed_sigma_mps, len(pilot.speeds_mps))
+                tracker = _tracker(args, st, system)
     except ValueError as e:
         raise ValueError(f"bad option: {e}") from None
     if args.mode == "fuzzy":

@@ -105,7 +105,7 @@ def _hotspots(detections: Table, map_settings: dict[str, float] | None = None) -
 
 
 def tracks_figure(tracks: Table, *, detections: Table | None = None, title: str,
-                  map_settings: dict[str, float] | None = None) -> Any:
+                  map_settings: dict[str, float] | None = None, tentative: bool = False) -> Any:
     """Multistatic tracks in plan view, over the clutter map of the detections when given.
 
     Parameters
@@ -121,11 +121,16 @@ def tracks_figure(tracks: Table, *, detections: Table | None = None, title: str,
         Scales of the density clutter map whose hotspots are drawn (``position_sigma_m``,
         ``feature_sigma_m``: those ``fusion track`` chose, :func:`track_map_settings`); the
         map's defaults when None.
+    tentative : bool, optional, keyword-only
+        Also draw the tracks that were never confirmed, faint (default False: a run in clutter
+        starts hundreds, which bury the map; the title counts them).
 
     Returns
     -------
     matplotlib Figure
-        Confirmed stretches solid, tentative ones dotted, a cross where a track was deleted.
+        Confirmed stretches solid, the tentative stretches of confirmed tracks faint and
+        dotted, a cross where a confirmed track was deleted; the sensor platform's path
+        (``own_x, own_y`` of the detections) as a black line.
     """
     fig, ax = new_figure(size=(9.0, 8.0))
     if detections is not None and len(detections):
@@ -134,7 +139,7 @@ def tracks_figure(tracks: Table, *, detections: Table | None = None, title: str,
                            vmax=1.0, shading="flat", alpha=0.8)
         fig.colorbar(im, ax=ax, label="fraction of pings with a detection in the cell",
                      shrink=0.7)
-        ax.plot(detections["x"], detections["y"], ".", color="0.55", ms=1.5, label="detections")
+        ax.plot(detections["x"], detections["y"], ".", color="0.7", ms=1.0, label="detections")
         hot = _hotspots(detections, map_settings)
         for k in range(len(hot)):
             covariance_ellipse(ax, hot.positions[k], hot.covariances[k], n_sigma=hot.gate,
@@ -146,28 +151,36 @@ def tracks_figure(tracks: Table, *, detections: Table | None = None, title: str,
             rcv = np.unique(np.c_[detections["rcv_x"], detections["rcv_y"]], axis=0)
             ax.plot(src[:, 0], src[:, 1], "*", color="k", ms=12, label="source")
             ax.plot(rcv[:, 0], rcv[:, 1], "^", color="k", mfc="w", ms=8, label="receivers")
+        if "own_x" in detections and "own_y" in detections:
+            ax.plot(detections["own_x"], detections["own_y"], "-", color="k", lw=1.5,
+                    label="sensor platform")
+            ax.plot(detections["own_x"][-1], detections["own_y"][-1], ">", color="k", ms=7)
     n_confirmed = 0
     for tid, rows in _tracks(tracks):
         x, y, status = tracks["x"][rows], tracks["y"][rows], tracks["status"][rows]
         conf = status == "confirmed"
         n_confirmed += bool(conf.any())
-        line, = ax.plot(x, y, ":", lw=0.8)
+        if not (conf.any() or tentative):
+            continue
+        line, = ax.plot(x, y, ":", lw=0.6, alpha=0.35 if conf.any() else 0.2)
         if conf.any():
             ax.plot(np.where(conf, x, np.nan), np.where(conf, y, np.nan), "-", lw=2.0,
                     color=line.get_color())
             k = int(np.flatnonzero(conf)[-1])
             ax.annotate(str(tid), (x[k], y[k]), fontsize=8, xytext=(3, 3),
                         textcoords="offset points")
-        if status[-1] == "deleted":
+        if status[-1] == "deleted" and conf.any():
             ax.plot(x[-1], y[-1], "x", color=line.get_color(), ms=6)
     ax.plot([], [], "-", color="0.2", lw=2.0, label="confirmed track")
-    ax.plot([], [], ":", color="0.2", lw=0.8, label="tentative")
+    ax.plot([], [], ":", color="0.2", lw=0.6, alpha=0.35, label="tentative stretch")
     ax.plot([], [], "x", color="0.2", label="deleted")
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_xlabel("x east, m")
     ax.set_ylabel("y north, m")
     ax.legend(fontsize=7, loc="best")
-    ax.set_title(f"{title}\n{n_confirmed} confirmed of {len(np.unique(tracks['track_id']))} tracks")
+    n_all = len(np.unique(tracks["track_id"]))
+    ax.set_title(f"{title}\n{n_confirmed} confirmed of {n_all} tracks"
+                 + ("" if tentative else f" ({n_all - n_confirmed} never confirmed, not drawn)"))
     return fig
 
 

@@ -115,7 +115,9 @@ def _ellipse_frame(
 
 
 def simulate_varied(seed: int, *, n_pings: int = 22, area_half_width_m: float = 10000.0,
-                    detection_threshold_db: float = 10.0, blanking_m: float = 1000.0):
+                    detection_threshold_db: float = 10.0, blanking_m: float = 1000.0,
+                    target_pd: float | None = None,
+                    clutter_per_receiver: float | None = None):
     """Simulate one varied multistatic run (see the module docstring for the draws).
 
     Parameters
@@ -130,6 +132,13 @@ def simulate_varied(seed: int, *, n_pings: int = 22, area_half_width_m: float = 
         Lowest SNR of a detection, dB.
     blanking_m : float, optional
         Echoes with ``rho - |s - r|`` below this are lost in the direct blast, m.
+    target_pd : float, optional
+        Every receiver's probability of detecting the target per ping, in (0, 1]; None
+        (default): drawn per receiver in [0.4, 0.9]. The draws happen either way, so the rest
+        of the scenario is the same as without it.
+    clutter_per_receiver : float, optional
+        Mean random clutter echoes per receiver and ping, >= 0; None (default): drawn per
+        receiver in [2, 15] (drawn either way, as `target_pd`).
 
     Returns
     -------
@@ -138,6 +147,10 @@ def simulate_varied(seed: int, *, n_pings: int = 22, area_half_width_m: float = 
     """
     if n_pings < 2:
         raise ValueError(f"n_pings must be >= 2, got {n_pings}")
+    if target_pd is not None and not 0.0 < target_pd <= 1.0:
+        raise ValueError(f"target_pd must lie in (0, 1], got {target_pd!r}")
+    if clutter_per_receiver is not None and not clutter_per_receiver >= 0.0:
+        raise ValueError(f"clutter_per_receiver must be >= 0, got {clutter_per_receiver!r}")
     rng = np.random.default_rng(seed)
     n_rx = int(rng.integers(2, 6))
     interval = float(rng.uniform(60.0, 120.0))
@@ -162,6 +175,10 @@ def simulate_varied(seed: int, *, n_pings: int = 22, area_half_width_m: float = 
     clutter_excess_db = rng.uniform(2.0, 5.0)
     aspect_noise_deg = rng.uniform(10.0, 30.0)
     conc = rng.uniform(5.0, 9.0)
+    if target_pd is not None:
+        pd_target = np.full(n_rx, float(target_pd))
+    if clutter_per_receiver is not None:
+        clutter_rate = np.full(n_rx, float(clutter_per_receiver))
     mean_score = {"target": rng.uniform(0.58, 0.75), "hotspot": rng.uniform(0.35, 0.5),
                   "clutter": rng.uniform(0.28, 0.45)}
 

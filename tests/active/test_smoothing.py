@@ -9,7 +9,7 @@ from filterpy.common import Q_continuous_white_noise
 from filterpy.kalman import KalmanFilter, rts_smoother
 from numpy.testing import assert_allclose
 
-from fusion.active.settings import track_settings
+from fusion.active.pilot import fitted_tracker_options
 from fusion.active.smoothing import (
     TrackSmoother,
     position_factor,
@@ -223,8 +223,8 @@ def test_cli_smooth_appends_sigmas(tmp_path, run_cli):
     smooth = read_table(tmp_path / "smooth.csv", required=(*cols, "sigma_x", "sigma_y"),
                         text=("status",))
     assert len(plain) == len(smooth)
-    # The command's tracker: the scales read from the detections.
-    tracker = Tracker(**track_settings(pings_from_columns(sc.detections)).tracker_options())
+    # The command's tracker: the scales read from the detections, the pilot speed prior.
+    tracker = Tracker(**fitted_tracker_options(pings_from_columns(sc.detections)))
     result = tracker.run(sc.detections)
     want = smooth_tracks(result, TrackSmoother(accel_psd=tracker.accel_psd,
                                                speed_sigma_mps=tracker.speed_sigma_mps)).columns

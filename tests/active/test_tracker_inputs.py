@@ -8,7 +8,7 @@ import pytest
 from numpy.testing import assert_allclose
 
 from fusion.active.kalman import fuse_positions
-from fusion.active.settings import track_settings
+from fusion.active.pilot import fitted_tracker_options
 from fusion.active.tracker import Ping, Tracker
 from fusion.active.types import pings_from_columns
 from fusion.io import Table, read_detections, read_table, write_table
@@ -107,8 +107,8 @@ def test_cli_options(tmp_path, run_cli):
     src = tmp_path / "d.csv"
     write_table(src, cols)
     table = read_detections(src)
-    # The command's scales, read from the detections (fusion.active.settings).
-    fitted = track_settings(pings_from_columns(table)).tracker_options()
+    # The command's scales, read from the detections (fusion.active.settings, the speed prior
+    # from a pilot run: fusion.active.pilot).
     runs = {
         "default": ((), {}),
         "measured": (("--aspect-column", "measured"), {"aspect": "measured"}),
@@ -123,6 +123,7 @@ def test_cli_options(tmp_path, run_cli):
         code, _, err = run_cli("track", "--detections", src, "--out", out, *flags)
         assert code == 0, err
         got = read_table(out, required=("track_id", "x"), text=("status",))
+        fitted = fitted_tracker_options(pings_from_columns(table), **kw)
         want = Tracker(**{**fitted, **kw}).run(table).columns()
         assert_allclose(got["x"], want["x"], rtol=1e-6, atol=1e-3)
     code, _, err = run_cli("track", "--detections", src, "--out", tmp_path / "g.csv",
