@@ -304,8 +304,29 @@ class SourceTracker:
             linear.push_back(gtsam.JacobianFactor(keys[k], -r[k] @ f, keys[k + 1], r[k],
                                                   -r[k] @ e0, unit))
         graph = gtsam.LinearContainerFactor.ConvertLinearGraph(linear, point)
-        result = gtsam.GaussNewtonOptimizer(graph, point).optimize()
-        marginals = gtsam.Marginals(graph, result)
-        states = np.array([result.atVector(k) for k in keys])
-        pcov = np.array([marginals.marginalCovariance(k)[:3, :3] for k in keys])
+        try:
+            result = gtsam.GaussNewtonOptimizer(graph, point).optimize()
+            marginals = gtsam.Marginals(graph, result)
+            states = np.array([result.atVector(k) for k in keys])
+            pcov = np.array([marginals.marginalCovariance(k)[:3, :3] for k in keys])
+        except RuntimeError:  # Cholesky refuses: fixes metres wide beside a stiff motion model
+            states, pcov = _dense_solve(linear, keys, x0)
         return Track(track_id, t, states[:, :3], states[:, 3:], pcov, z, win, src)
+
+
+def _dense_solve(linear: gtsam.GaussianFactorGraph, keys: list[int], x0: NDArray
+                 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The linear smoothing problem solved by QR of its dense whitened Jacobian: states
+    ``x0 + dx`` (n, 6) and position covariances (n, 3, 3), where GTSAM's Cholesky refuses."""
+    order = gtsam.Ordering()
+    for k in keys:
+        order.push_back(k)
+    a, b = linear.jacobian(order)
+    q, r = np.linalg.qr(a)
+    dx = np.linalg.solve(r, q.T @ b)
+    r_inv = np.linalg.solve(r, np.eye(r.shape[0]))
+    cov = r_inv @ r_inv.T
+    n = len(keys)
+    states = x0 + dx.reshape(n, 6)
+    pcov = np.array([cov[6 * k:6 * k + 3, 6 * k:6 * k + 3] for k in range(n)])
+    return states, pcov

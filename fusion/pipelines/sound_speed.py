@@ -44,6 +44,14 @@ MERGE_M = 5.0
 CLUSTER_M = 30.0
 #: A teaching fix whose RMS whitened residual exceeds this many times the median is left out.
 OUTLIER_RATIO = 5.0
+#: Largest standard deviation of an estimated speed that is used, m/s (0.2 %): a wider one means
+#: the fixes disagree on the speed (sensor positions off by metres, fixes of wrong TDOAs), and
+#: re-solving at it would move every fix by an error of the same size as the one it corrects.
+MAX_SIGMA_MPS = 3.0
+#: Largest relative change from the file's speed that is used: the effective speeds of a sea's
+#: paths differ from one value by about 1 %; a larger change is sensor positions metres off
+#: (which a kilometre-scale array's delays confuse with the speed) or wrong fixes.
+MAX_CHANGE = 0.015
 #: Added in quadrature to every TDOA sigma, s, as the window's own solve does
 #: (:class:`fusion.pipelines.localization.ClickLocalization`'s ``sigma_floor_s``).
 SIGMA_FLOOR_S = 1e-6
@@ -222,6 +230,18 @@ def calibrate_speed(windows: Iterable[dict], sensors: ArrayLike, nominal_mps: fl
         if not good.all() and good.sum() >= MIN_CALIBRATION_FIXES:
             fixes = [f for f, g in zip(fixes, good, strict=True) if g]
             est = estimate_sound_speed(fixes, nominal_mps=nominal_mps, n_real_sensors=len(s))
+        if abs(est.speed_mps - nominal_mps) > MAX_CHANGE * nominal_mps:
+            return SpeedCalibration(nominal_mps, None, (
+                f"sound speed: the array file's {nominal_mps:g} m/s (the fixes point to "
+                f"{est.speed_mps:.1f} m/s, more than {100 * MAX_CHANGE:g} % from it: a sea's "
+                "paths differ from one speed by about 1 %; sensor positions off, or fixes of "
+                "wrong TDOAs)"), s)
+        if not est.sigma_mps <= MAX_SIGMA_MPS:
+            return SpeedCalibration(nominal_mps, None, (
+                f"sound speed: the array file's {nominal_mps:g} m/s (the fixes disagree: "
+                f"{est.speed_mps:.1f} +- {est.sigma_mps:.2g} m/s from {est.n_fixes} fixes, "
+                f"residuals {np.sqrt(est.variance_factor):.3g} x the TDOA sigmas; sensor "
+                "positions off, or fixes of wrong TDOAs)"), s)
     except ValueError as e:
         return SpeedCalibration(nominal_mps, None, (
             f"sound speed: the array file's {nominal_mps:g} m/s (not estimated: {e})"), s)

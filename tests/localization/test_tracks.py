@@ -81,6 +81,37 @@ def test_smoother_equals_rts_on_linear_gaussian_data():
     assert_allclose(tr.covariances, ps[:, :3, :3], rtol=1e-4)
 
 
+def test_dense_fallback_equals_rts_where_gtsam_refuses(monkeypatch):
+    """Where GTSAM's Cholesky refuses (fixes hundreds of metres wide beside a stiff motion
+    model), the smoother solves the same linear problem by dense QR: the same answer as
+    filterpy's Kalman filter + RTS smoother."""
+    import fusion.localization.tracks as tracks_module
+
+    def refuse(*args, **kwargs):
+        raise RuntimeError("Indeterminate linear system")
+
+    rng = np.random.default_rng(8)
+    n, q = 9, 0.02
+    t = np.cumsum(rng.uniform(1.5, 2.5, n))
+    covs = [np.diag(rng.uniform(2.0, 10.0, 3)) * 1e4 for _ in range(n)]
+    z = np.array([[1.0 * k, 0.5 * k, -800.0] for k in t]) + rng.normal(0, 40.0, (n, 3))
+    windows = [WindowSources(t[k], (fix(z[k], covs[k]),)) for k in range(n)]
+    monkeypatch.setattr(tracks_module.gtsam, "Marginals", refuse)
+    (tr,) = SourceTracker(q=q, max_speed=500.0).track(windows)
+    kf = KalmanFilter(dim_x=6, dim_z=3)
+    kf.x = np.r_[z[0], 0.0, 0.0, 0.0]
+    kf.P = np.eye(6) * 1e10
+    kf.H = np.hstack([np.eye(3), np.zeros((3, 3))])
+    dts = np.r_[1.0, np.diff(t)]
+    fs = [transition_matrix(d, 3) for d in dts]
+    qs = [wna_covariance(d, q, 3) for d in dts]
+    fs[0], qs[0] = np.eye(6), np.zeros((6, 6))
+    mu, cov, _, _ = kf.batch_filter(list(z), Fs=fs, Qs=qs, Rs=covs)
+    xs, ps, _, _ = kf.rts_smoother(mu, cov, Fs=fs, Qs=qs)
+    assert_allclose(tr.positions, xs[:, :3], atol=1e-3)
+    assert_allclose(tr.covariances, ps[:, :3, :3], rtol=1e-3)
+
+
 def test_tdoa_links_connect_sources_the_gate_would_split():
     """Jumps beyond the position gate: linked TDOAs keep two tracks, gating alone makes many."""
     n = 6

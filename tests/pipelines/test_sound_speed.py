@@ -138,3 +138,19 @@ def test_a_source_split_by_the_wrong_speed_is_merged_after_the_re_solve():
                              "owned_tdoas": list(range(10, 20)),
                              "paths": ["direct"] * 10}]}
     assert len(cal.apply(two)["sources"]) == 2
+
+
+def test_fixes_that_disagree_keep_the_file_speed():
+    """Sensor positions metres off (a survey error shared by every fix): the speed the fixes
+    point to is too uncertain to use; the file's speed is kept and the line says why."""
+    windows = [_window(p, 1500.0, 1500.0, 2.0 * k) for k, p in enumerate(TRUE)]
+    wrong = SENSORS + np.random.default_rng(1).normal(0.0, 3.0, SENSORS.shape)
+    cal = calibrate_speed(windows, wrong, 1500.0)  # points to 1,541 m/s: 2.8 % off
+    assert cal.estimate is None and cal.speed_mps == 1500.0
+    assert "more than 1.5 % from it" in cal.note and "sensor positions off" in cal.note
+    assert cal.apply(windows[0]) is windows[0]
+    # fixes spread over the array whose delays disagree with any one speed: the sigma tells
+    spread = [_window(p, 1500.0, 1500.0, 2.0 * k) for k, p in enumerate(
+        [[800.0, 600, -900], [-1200, 1500, -700], [1300, -400, -1100], [-900, -1500, -800]])]
+    jitter = SENSORS + np.random.default_rng(5).normal(0.0, 8.0, SENSORS.shape)
+    assert calibrate_speed(spread, jitter, 1500.0).estimate is None
