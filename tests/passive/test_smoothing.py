@@ -12,6 +12,7 @@ from numpy.testing import assert_allclose
 from factors.bearing import bearing_factor
 from factors.motion import constant_velocity_factor, wna_covariance
 from fusion.cli import main
+from fusion.metrics.crossings import crossing_outcomes, identity_swaps
 from fusion.passive.smoothing import (
     BearingSmoother,
     MultiTrackSmoother,
@@ -19,9 +20,7 @@ from fusion.passive.smoothing import (
     OnlineBearingSmoother,
     OnlineBearingSmootherSet,
     TrackPrior,
-    crossing_outcomes,
     crossing_time,
-    identity_swaps,
     rts_reference,
 )
 from fusion.passive.smoothing.graph import _Measurements, _Model, _solve
