@@ -63,7 +63,8 @@ from fusion.active.settings import track_settings
 from fusion.active.tracker import Ping, Tracker
 from fusion.active.types import pings_from_columns
 from fusion.io import Table
-from fusion.simulate.multistatic import score_tracks, simulate_multistatic
+from fusion.metrics.multistatic import score_tracks
+from fusion.simulate.multistatic import simulate_multistatic
 from fusion.simulate.multistatic_varied import simulate_varied
 
 #: Seeds the design was chosen on: varied scenarios 1000-1099 (the scales read from the data:

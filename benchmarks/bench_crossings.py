@@ -57,11 +57,11 @@ from _realdata import AUTOFERRY
 from fusion.cli import main as fusion_main
 from fusion.geometry import wrap_deg
 from fusion.io import read_json, read_table
+from fusion.metrics.crossings import score_intervals
 from fusion.passive.crossing import (
     CrossingAlert,
     CrossingDetector,
     crossing_settings,
-    score_intervals,
 )
 from fusion.simulate.bearings import write_scenario
 

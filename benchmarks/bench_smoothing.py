@@ -19,16 +19,19 @@ import time
 import numpy as np
 from _realdata import AUTOFERRY as REALDATA
 
-from fusion.metrics.crossings import crossing_bearing_errors, crossing_window_identity
-from fusion.passive.smoothing import (
+from fusion.metrics.crossings import (
     CROSSING_OUTCOMES,
+    crossing_bearing_errors,
+    crossing_outcomes,
+    crossing_window_identity,
+)
+from fusion.passive.smoothing import (
     BearingSmoother,
     MultiTrackSmoother,
     NearestNeighbourTracker,
     OnlineBearingSmoother,
     OnlineBearingSmootherSet,
     TrackPrior,
-    crossing_outcomes,
     rts_reference,
 )
 from fusion.passive.smoothing.settings import fit_smooth_settings

@@ -11,7 +11,8 @@ from __future__ import annotations
 import argparse
 
 from fusion.active.tracker import Tracker
-from fusion.simulate.multistatic import score_tracks, simulate_multistatic
+from fusion.metrics.multistatic import score_tracks
+from fusion.simulate.multistatic import simulate_multistatic
 
 
 def main(argv: list[str] | None = None) -> dict[str, tuple[float, int]]:

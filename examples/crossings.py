@@ -13,7 +13,8 @@ import argparse
 
 import numpy as np
 
-from fusion.passive.crossing import CrossingDetector, score_alerts
+from fusion.metrics.crossings import score_alerts
+from fusion.passive.crossing import CrossingDetector
 from fusion.simulate.bearings import simulate_bearings
 
 

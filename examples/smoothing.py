@@ -16,7 +16,8 @@ import logging
 
 import numpy as np
 
-from fusion.passive.smoothing import MultiTrackSmoother, crossing_outcomes
+from fusion.metrics.crossings import crossing_outcomes
+from fusion.passive.smoothing import MultiTrackSmoother
 from fusion.simulate.bearings import simulate_bearings
 
 logger = logging.getLogger("examples.smoothing")

@@ -179,7 +179,6 @@ def test_old_import_paths_still_work():
     from fusion.passive.smoothing import (  # noqa: F401
         BearingSmoother,
         MultiTrackSmoother,
-        crossing_outcomes,
         crossing_time,
     )
     from fusion.passive.tma import BearingsOnlyTMA, OwnshipTrack  # noqa: F401
@@ -203,6 +202,13 @@ DEPRECATED_PATHS = {
     ("fusion.clicks.competition", "CompetitionSettings"): "fusion.localization.competition",
     ("fusion.clicks.surfaces", "SearchRegion"): "fusion.localization.surfaces",
     ("fusion.clicks.scoring", "score_clicks"): "fusion.metrics.detections",
+    ("fusion.passive.crossing", "score_alerts"): "fusion.metrics.crossings",
+    ("fusion.passive.crossing", "CrossingScore"): "fusion.metrics.crossings",
+    ("fusion.passive.crossing.score", "score_intervals"): "fusion.metrics.crossings",
+    ("fusion.passive.smoothing", "crossing_outcomes"): "fusion.metrics.crossings",
+    ("fusion.passive.smoothing", "identity_swaps"): "fusion.metrics.crossings",
+    ("fusion.simulate.multistatic", "score_tracks"): "fusion.metrics.multistatic",
+    ("fusion.simulate.multistatic", "TrackScore"): "fusion.metrics.multistatic",
 }
 
 
@@ -399,3 +405,67 @@ def test_private_modules_stay_in_their_package():
                         offenders.append(f"{path.relative_to(ROOT)} imports {name}")
                     break
     assert offenders == []
+
+
+#: Packages that may import :mod:`fusion.metrics`: the metrics themselves, the demo and the
+#: commands (tests, benchmarks and examples are outside fusion/ and free to).
+METRICS_USERS = ("fusion.metrics", "fusion.demos", "fusion.commands")
+#: A parameter with one of these names carries truth into a function: scoring against truth.
+_TRUTH_PARAMETER = re.compile(r"^(truth|true)(_|$)")
+
+
+def _scoring_outside_metrics() -> list[str]:
+    """Modules of fusion/ outside METRICS_USERS that import fusion.metrics, and functions or
+    classes outside fusion/metrics that score against truth: a parameter named ``truth``,
+    ``truth_*``, ``true`` or ``true_*``, or a class named ``*Score``."""
+    offenders = []
+    for path in _py("fusion"):
+        me = _module_name(path)
+        where = str(path.relative_to(ROOT))
+        in_metrics = f"{me}.".startswith("fusion.metrics.")
+        may_import = any(f"{me}.".startswith(f"{p}.") for p in METRICS_USERS)
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.Import):
+                names = [a.name for a in node.names]
+            elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+                names = [node.module] + [f"{node.module}.{a.name}" for a in node.names]
+            else:
+                names = []
+            if not may_import and any(f"{n}.".startswith("fusion.metrics.") for n in names):
+                offenders.append(f"{where} imports fusion.metrics")
+            if in_metrics:
+                continue
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                a = node.args
+                params = [p.arg for p in a.posonlyargs + a.args + a.kwonlyargs]
+                if any(_TRUTH_PARAMETER.match(p) for p in params):
+                    offenders.append(f"{where}: {node.name}() takes truth")
+            elif isinstance(node, ast.ClassDef) and node.name.endswith("Score"):
+                offenders.append(f"{where}: class {node.name}")
+    return sorted(set(offenders))
+
+
+def test_metrics_only_in_fusion_metrics():
+    """Scoring against truth lives in fusion.metrics only, and no estimator, pipeline or simulator
+    imports it (old import paths forward to it lazily, through fusion._deprecated)."""
+    assert _scoring_outside_metrics() == []
+
+
+def test_scoring_finder_sees_scores_outside_metrics(tmp_path, monkeypatch):
+    """The check above can fail: a simulator scoring against truth and a stage importing a metric."""
+    for folder in ("fusion/metrics", "fusion/simulate", "fusion/passive", "fusion/demos"):
+        (tmp_path / folder).mkdir(parents=True)
+        (tmp_path / folder / "__init__.py").write_text("")
+    (tmp_path / "fusion" / "__init__.py").write_text("")
+    (tmp_path / "fusion/metrics/tracks.py").write_text("def score(est, truth):\n    pass\n")
+    (tmp_path / "fusion/demos/show.py").write_text("from fusion.metrics.tracks import score\n")
+    (tmp_path / "fusion/simulate/writer.py").write_text(
+        "class TrackScore:\n    pass\n\n\ndef rate(columns, truth_xy):\n    pass\n")
+    (tmp_path / "fusion/passive/stage.py").write_text(
+        "def f():\n    from fusion.metrics import tracks\n")
+    monkeypatch.setattr(sys.modules[__name__], "ROOT", tmp_path)
+    assert _scoring_outside_metrics() == [
+        "fusion/passive/stage.py imports fusion.metrics",
+        "fusion/simulate/writer.py: class TrackScore",
+        "fusion/simulate/writer.py: rate() takes truth",
+    ]

@@ -31,7 +31,7 @@ validator). Private helpers stay inside: ``_click_peaks``, ``_detect_statistic``
 ``_tdoa_stats`` (refinement), ``_consensus`` (delay track).
 
 The localization modules that lived here (``localize``, ``tracks``, ``events``, ...) are in
-:mod:`fusion.localization`, and ``scoring`` is :mod:`fusion.metrics.clicks`; their old import
+:mod:`fusion.localization`, and ``scoring`` is :mod:`fusion.metrics.detections`; their old import
 paths here still work for one release, with a DeprecationWarning.
 """
 

@@ -202,7 +202,11 @@ _SUFFIXES = (".wav", ".flac")
 
 def _recordings(args: argparse.Namespace, n_sensors: int) -> list:
     """(AudioSource, output path) of each recording to localize."""
-    from fusion.pipelines.click_chunks import open_audio
+    from fusion.io import check_audio_files
+    from fusion.pipelines.click_chunks import AudioSource
+
+    def open_audio(paths: list, n: int) -> AudioSource:  # the checks live in fusion.io
+        return AudioSource.of(check_audio_files(paths, n))
 
     if not getattr(args, "out_is_dir", False):
         return [(open_audio(list(args.audio), n_sensors), args.out)]

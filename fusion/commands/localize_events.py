@@ -115,17 +115,12 @@ def run_events(args: argparse.Namespace) -> int:
     Reads ``args.audio`` (list of paths), ``args.array``, ``args.events``, ``args.out`` and the
     options of :func:`add_event_options` (their defaults when absent).
     """
-    from fusion.audio_files import read_audio_files
-    from fusion.io import read_array, read_audio, write_json
+    from fusion.io import read_array, read_audio_files, write_json
     from fusion.localization.events import EventLocalizer
 
     array = read_array(args.array)
     events = read_events(Path(args.events))
-    paths = [Path(p) for p in args.audio]
-    if len(paths) == 1:
-        audio, fs = read_audio(paths[0], n_channels=array.n_sensors)
-    else:
-        audio, fs = read_audio_files(paths, array.n_sensors)
+    audio, fs = read_audio_files([Path(p) for p in args.audio], array.n_sensors)
     floor = float(getattr(args, "event_band_floor", 10.0))
     default_band = getattr(args, "event_default_band", None)
     if default_band is not None and not default_band[0] < default_band[1]:

@@ -7,8 +7,8 @@ from pathlib import Path
 import numpy as np
 
 from fusion.io import write_table
+from fusion.metrics.multistatic import score_tracks
 from fusion.simulate.multistatic import simulate_multistatic, write_scenario
-from fusion.simulate.multistatic_scoring import score_tracks
 
 
 def run_demo(out_dir: Path, *, seed: int) -> dict:

@@ -34,7 +34,7 @@ def run_demo(out_dir: Path, *, seed: int) -> dict:
     import matplotlib.pyplot as plt
 
     from fusion.io import atomic_output
-    from fusion.passive.crossing import score_alerts
+    from fusion.metrics.crossings import score_alerts
     from fusion.passive.quality import TrackQuality
     from fusion.simulate.bearings import simulate_bearings
 

@@ -14,7 +14,8 @@ Formats (``docs/formats.md``):
 
 - sensor array ``array.json``: ``{"sound_speed": c, "sensors": [{"id", "x", "y", "z"}, ...]}``;
   sensors at distinct positions;
-- audio, WAV or FLAC, channel ``i`` = ``sensors[i]``;
+- audio, WAV or FLAC, channel ``i`` = ``sensors[i]`` (or one mono file per sensor, in array
+  order; :func:`check_audio_files` is the one check of a recording's files);
 - CSV tables with a header line; extra columns are ignored, missing required columns are errors;
 - beam/frequency/time cubes ``.npz`` with ``power``, ``freqs``, ``scan_period``, ``aperture``,
   ``sound_speed``, all real numbers;
@@ -57,7 +58,14 @@ from fusion.io._files import (
     PathLike,
 )
 from fusion.io.arrays import MIN_SENSOR_SEPARATION_M, read_array, write_array
-from fusion.io.audio import iter_audio_blocks, read_audio, write_audio
+from fusion.io.audio import (
+    AudioFiles,
+    check_audio_files,
+    iter_audio_blocks,
+    read_audio,
+    read_audio_files,
+    write_audio,
+)
 from fusion.io.cubes import read_cube, write_cube
 from fusion.io.json_files import read_json, settings_path, write_json, write_settings
 from fusion.io.results import (
@@ -110,6 +118,8 @@ __all__ = [
     "write_localization",
     "Table",
     "atomic_output",
+    "AudioFiles",
+    "check_audio_files",
     "iter_audio_blocks",
     "iter_amplitudes",
     "iter_bearings",
@@ -122,6 +132,7 @@ __all__ = [
     "read_amplitudes",
     "read_array",
     "read_audio",
+    "read_audio_files",
     "read_bearings",
     "read_cube",
     "read_detections",

@@ -1,10 +1,20 @@
-"""Audio files (WAV, FLAC): whole reads, windowed reads of long recordings, atomic writes."""
+"""Audio files (WAV, FLAC): the checks of a recording's files, whole reads (one multichannel file
+or one mono file per sensor), windowed reads of long recordings, atomic writes.
+
+:func:`check_audio_files` is the one home of the checks every audio reader makes (the file exists
+and is readable, channel and file counts match the array, one sample rate, samples present,
+lengths trimmed to the shortest with one warning); the readers here and the chunked localization
+of ``fusion localize`` (:class:`fusion.pipelines.click_chunks.AudioSource`) start from it.
+"""
 
 from __future__ import annotations
 
 import errno
+import logging
 import math
-from collections.abc import Iterator
+import os
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -13,7 +23,10 @@ from numpy.typing import ArrayLike, NDArray
 from fusion._output import atomic_output
 from fusion.io._files import MAX_AUDIO_SAMPLES, PathLike, _check_file
 
-__all__ = ["iter_audio_blocks", "read_audio", "write_audio"]
+__all__ = ["AudioFiles", "check_audio_files", "iter_audio_blocks", "read_audio", "read_audio_files",
+           "write_audio"]
+
+logger = logging.getLogger(__name__)
 
 
 def _sf():
@@ -32,6 +45,144 @@ def _audio_info(p: Path):
         return sf.info(str(p))
     except (RuntimeError, sf.LibsndfileError) as e:  # LibsndfileError is a RuntimeError
         raise ValueError(f"{p}: not a readable WAV/FLAC audio file ({_sf_message(e)})") from None
+
+
+@dataclass(frozen=True)
+class AudioFiles:
+    """A recording's audio files, checked by :func:`check_audio_files`.
+
+    Attributes
+    ----------
+    paths : tuple of Path
+        One multichannel file, or one mono file per sensor in array order.
+    fs : float
+        The common sample rate, Hz.
+    frames : int
+        Samples per channel: the shortest file's.
+    channels : int
+        Channels of the recording (of the one file, or the number of files).
+    """
+
+    paths: tuple[Path, ...]
+    fs: float
+    frames: int
+    channels: int
+
+
+def check_audio_files(
+    paths: Sequence[str | os.PathLike[str]], n_channels: int | None = None
+) -> AudioFiles:
+    """Check a recording's audio files without reading their samples.
+
+    Parameters
+    ----------
+    paths : sequence of path-like
+        One multichannel file (channel ``k`` = sensor ``k``), or one mono file per sensor in
+        array order.
+    n_channels : int, optional
+        Number of sensors of the array; without it one file may have any channel count and
+        several files must be mono.
+
+    Returns
+    -------
+    AudioFiles
+        The paths, their common sample rate and the shortest file's length. Files of different
+        lengths are trimmed to the shortest by the readers, announced here by one logged warning
+        naming the lengths (files of one recorder start on the same sample).
+
+    Raises
+    ------
+    FileNotFoundError
+        A file does not exist.
+    ValueError
+        No file, a folder, a file that is not a readable WAV/FLAC file, a channel count other than
+        `n_channels` (one file), a file count other than `n_channels` or a file that is not mono
+        (several files), sample rates that differ (the message lists every file with its rate),
+        a file without samples.
+
+    Examples
+    --------
+    >>> import tempfile, soundfile
+    >>> d = Path(tempfile.mkdtemp())
+    >>> soundfile.write(d / "a.wav", np.zeros((100, 2)), 8000)
+    >>> check_audio_files([d / "a.wav"], 2).frames
+    100
+    """
+    if n_channels is not None and (isinstance(n_channels, bool) or int(n_channels) != n_channels
+                                   or n_channels < 1):
+        raise ValueError(f"n_channels must be a positive integer, got {n_channels!r}")
+    files = [Path(p) for p in paths]
+    if not files:
+        raise ValueError("no audio file given")
+    if len(files) > 1 and n_channels is not None and len(files) != n_channels:
+        raise ValueError(f"{len(files)} audio files for {n_channels} sensors (give one "
+                         "multichannel file, or one mono file per sensor in array order)")
+    infos = [_audio_info(_check_file(p)) for p in files]
+    if len(files) == 1:
+        channels = infos[0].channels
+        if n_channels is not None and channels != n_channels:
+            raise ValueError(f"{files[0]}: audio has {channels} channel(s) but the array has "
+                             f"{n_channels} sensors")
+    else:
+        channels = len(files)
+        for p, info in zip(files, infos, strict=True):
+            if info.channels != 1:
+                raise ValueError(f"{p}: expected a mono file (one per sensor), got "
+                                 f"{info.channels} channels")
+    rates = [float(info.samplerate) for info in infos]
+    if len(set(rates)) > 1:
+        listing = ", ".join(f"{p} ({r:g} Hz)" for p, r in zip(files, rates, strict=True))
+        raise ValueError(f"audio files have different sample rates: {listing}")
+    lengths = [int(info.frames) for info in infos]
+    for p, n in zip(files, lengths, strict=True):
+        if n == 0:
+            raise ValueError(f"{p}: audio file has no samples")
+    if len(set(lengths)) > 1:
+        logger.warning("audio files differ in length (%s samples); trimmed to the shortest, %d "
+                       "samples", ", ".join(str(k) for k in lengths), min(lengths))
+    return AudioFiles(tuple(files), rates[0], min(lengths), channels)
+
+
+def read_audio_files(
+    paths: Sequence[str | os.PathLike[str]], n_channels: int
+) -> tuple[NDArray[np.float64], float]:
+    """Read a recording -- one multichannel file, or one mono file per sensor -- into one array.
+
+    Parameters
+    ----------
+    paths : sequence of path-like
+        One file with `n_channels` channels, or `n_channels` mono files in array order.
+    n_channels : int
+        Number of sensors of the array.
+
+    Returns
+    -------
+    samples : ndarray, shape (n_samples, n_channels)
+        float64 samples in [-1, 1], column ``k`` from ``paths[k]`` (or channel ``k`` of the one
+        file), trimmed to the shortest file.
+    fs : float
+        The common sample rate, Hz.
+
+    Raises
+    ------
+    FileNotFoundError, ValueError
+        As :func:`check_audio_files` and :func:`read_audio`.
+
+    Examples
+    --------
+    >>> import tempfile, soundfile
+    >>> d = Path(tempfile.mkdtemp())
+    >>> for k, n in enumerate((100, 103)):
+    ...     soundfile.write(d / f"h{k}.wav", np.zeros(n), 8000)
+    >>> x, fs = read_audio_files([d / "h0.wav", d / "h1.wav"], 2)
+    >>> x.shape, fs
+    ((100, 2), 8000.0)
+    """
+    files = check_audio_files(paths, n_channels)
+    if len(files.paths) == 1:
+        return read_audio(files.paths[0], n_channels=n_channels)
+    columns = [read_audio(p, n_channels=1)[0][:, 0] for p in files.paths]
+    return np.stack([c[: files.frames] for c in columns], axis=1), files.fs
 
 
 def read_audio(
@@ -60,17 +211,11 @@ def read_audio(
         no samples, wrong channel count, more than :data:`MAX_AUDIO_SAMPLES` samples (read such
         a file with :func:`iter_audio_blocks`), NaN/inf samples.
     """
-    p = _check_file(path)
-    info = _audio_info(p)
-    if n_channels is not None and info.channels != n_channels:
-        raise ValueError(
-            f"{p}: audio has {info.channels} channel(s) but the array has {n_channels} sensors"
-        )
-    if info.frames == 0:
-        raise ValueError(f"{p}: audio file has no samples")
-    if info.frames * info.channels > MAX_AUDIO_SAMPLES:
-        raise ValueError(f"{p}: {info.frames} frames x {info.channels} channels is more than "
-                         f"{MAX_AUDIO_SAMPLES} samples; read it in blocks")
+    checked = check_audio_files([path], n_channels)
+    p = checked.paths[0]
+    if checked.frames * checked.channels > MAX_AUDIO_SAMPLES:
+        raise ValueError(f"{p}: {checked.frames} frames x {checked.channels} channels is more "
+                         f"than {MAX_AUDIO_SAMPLES} samples; read it in blocks")
     sf = _sf()
     try:
         data, fs = sf.read(str(p), dtype="float64", always_2d=True)
@@ -114,13 +259,8 @@ def iter_audio_blocks(
     """
     if not (math.isfinite(block_s) and math.isfinite(hop_s)) or block_s <= 0 or hop_s <= 0:
         raise ValueError("window length and hop must be positive")
-    p = _check_file(path)
-    info = _audio_info(p)
-    if n_channels is not None and info.channels != n_channels:
-        raise ValueError(
-            f"{p}: audio has {info.channels} channel(s) but the array has {n_channels} sensors"
-        )
-    fs = float(info.samplerate)
+    checked = check_audio_files([path], n_channels)
+    p, fs = checked.paths[0], checked.fs
     block, hop = int(round(block_s * fs)), int(round(hop_s * fs))
     if block < 1 or hop < 1:
         raise ValueError(f"window {block_s:g} s and hop {hop_s:g} s must each span at least one "

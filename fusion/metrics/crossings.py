@@ -3,8 +3,8 @@
 :func:`crossing_outcomes` says, per true crossing, whether the estimated tracks kept, swapped or
 lost the two targets' identities (:data:`CROSSING_OUTCOMES`); :func:`identity_swaps` is its swap
 column. The crossing detector's alert and interval scores (:func:`score_alerts`,
-:func:`score_intervals`, defined with the detector in :mod:`fusion.passive.crossing.score`) are
-listed here too, so every crossing metric is found in one place.
+:func:`score_intervals`, defined in :mod:`fusion.metrics.crossing_alerts`) are listed here too,
+so every crossing metric is found in one place.
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from fusion.passive.crossing.score import (
+from fusion.metrics.crossing_alerts import (
     CrossingScore,
     IntervalScore,
     score_alerts,

@@ -25,11 +25,11 @@ Examples
 The chunks of a recording, run here one after the other (``fusion localize`` hands the same
 calls to :func:`fusion.scale.run_tasks`, on Dask with ``--workers``)::
 
-    from fusion.io import read_array
+    from fusion.io import check_audio_files, read_array
     from fusion.pipelines.localization import ClickLocalization
 
     array = read_array("array.json")
-    source = open_audio(["audio.flac"], array.n_sensors)
+    source = AudioSource.of(check_audio_files(["audio.flac"], array.n_sensors))
     pipe = ClickLocalization()
     parts = [localize_chunk((pipe, array), task) for task in plan_chunks(source, pipe)]
     write_document("result.json", parts)
@@ -38,7 +38,6 @@ calls to :func:`fusion.scale.run_tasks`, on Dask with ``--workers``)::
 from __future__ import annotations
 
 import json
-import logging
 import math
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass
@@ -54,10 +53,7 @@ from fusion.pipelines.click_stream import stream_start, window_starts_count
 from fusion.pipelines.localization import ClickLocalization, LocalizedWindow, result_document
 
 __all__ = ["FEW_TDOAS", "AudioSource", "ChunkTask", "DocumentSummary", "localize_chunk",
-           "open_audio", "plan_chunks", "source_flags", "write_document"]
-
-logger = logging.getLogger(__name__)
-
+           "plan_chunks", "source_flags", "write_document"]
 
 @dataclass(frozen=True)
 class AudioSource:
@@ -82,6 +78,16 @@ class AudioSource:
         """Length, s."""
         return self.frames / self.fs
 
+    @classmethod
+    def of(cls, files) -> AudioSource:
+        """The source of a recording whose files :func:`fusion.io.check_audio_files` checked.
+
+        `files` gives ``paths``, ``fs`` and ``frames`` (the shortest file's length: longer files
+        are read only that far). The checks themselves live in :mod:`fusion.io` alone.
+        """
+        return cls(tuple(str(Path(p).resolve()) for p in files.paths), float(files.fs),
+                   int(files.frames))
+
     def blocks(self, *, block: int, start: int = 0) -> Iterator[tuple[float, NDArray[np.float32]]]:
         """Consecutive blocks ``(t0, samples (n, channels))`` of `block` samples from `start`.
 
@@ -103,48 +109,6 @@ class AudioSource:
         except (RuntimeError, sf.LibsndfileError) as e:
             raise ValueError(f"{self.paths[0]}: audio could not be decoded near "
                              f"{first / self.fs:g} s ({e})") from None
-
-
-def open_audio(paths: Sequence[str | Path], n_channels: int) -> AudioSource:
-    """Check one multichannel file or `n_channels` mono files; their common rate and length.
-
-    Files of different lengths are trimmed to the shortest (one warning).
-
-    Raises
-    ------
-    ValueError
-        An unreadable file, a wrong channel or file count, different sample rates, no samples.
-    """
-    import soundfile as sf
-
-    paths = [Path(p) for p in paths]
-    infos = []
-    for p in paths:
-        try:
-            infos.append(sf.info(str(p)))
-        except (RuntimeError, sf.LibsndfileError) as e:
-            raise ValueError(f"{p}: not a readable WAV/FLAC audio file ({e})") from None
-    if len(paths) == 1:
-        if infos[0].channels != n_channels:
-            raise ValueError(f"{paths[0]}: audio has {infos[0].channels} channel(s) but the "
-                             f"array has {n_channels} sensors")
-    else:
-        if len(paths) != n_channels:
-            raise ValueError(f"{len(paths)} audio files for {n_channels} sensors (give one "
-                             "multichannel file or one mono file per sensor)")
-        for p, info in zip(paths, infos, strict=True):
-            if info.channels != 1:
-                raise ValueError(f"{p}: expected a mono file, got {info.channels} channels")
-    rates = {float(i.samplerate) for i in infos}
-    if len(rates) != 1:
-        listing = ", ".join(f"{p} {i.samplerate} Hz" for p, i in zip(paths, infos, strict=True))
-        raise ValueError(f"audio files have different sample rates: {listing}")
-    frames = min(i.frames for i in infos)
-    if frames == 0:
-        raise ValueError(f"{paths[0]}: audio file has no samples")
-    if len({i.frames for i in infos}) > 1:
-        logger.warning("audio files differ in length; trimmed to the shortest (%d samples)", frames)
-    return AudioSource(tuple(str(p.resolve()) for p in paths), rates.pop(), int(frames))
 
 
 @dataclass(frozen=True)

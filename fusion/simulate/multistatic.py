@@ -35,7 +35,8 @@ Truth: the target state at every ping and the origin of each detection
 
 ``vary=True`` draws the scenario's assumptions instead
 (:mod:`fusion.simulate.multistatic_varied`); scoring against the truth is in
-:mod:`fusion.simulate.multistatic_scoring`.
+:mod:`fusion.metrics.multistatic` (``score_tracks``, ``TrackScore``; their old import path here
+warns and forwards for one release).
 """
 
 from __future__ import annotations
@@ -46,21 +47,25 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from fusion._deprecated import moved_names
 from fusion.io import Table, write_json, write_table
 from fusion.simulate._multistatic_types import KNOT, MultistaticScenario
-from fusion.simulate.multistatic_scoring import TrackScore, score_tracks
 from fusion.simulate.multistatic_varied import simulate_varied
 
 __all__ = [
     "MultistaticScenario",
-    "TrackScore",
     "bistatic_position",
-    "score_tracks",
     "simulate_multistatic",
     "write_scenario",
 ]
 
 logger = logging.getLogger(__name__)
+
+#: Scores against the truth, moved to :mod:`fusion.metrics.multistatic`; served here with a
+#: DeprecationWarning for one release.
+__getattr__ = moved_names(__name__, "fusion.metrics.multistatic", ["TrackScore", "score_tracks"],
+                          shown="fusion.metrics.multistatic")
+
 
 def bistatic_position(
     source: ArrayLike, receiver: ArrayLike, range_sum: ArrayLike, bearing: ArrayLike

@@ -16,7 +16,7 @@ from fusion.active.shadow import ShadowTest
 from fusion.active.track_score import TrackScorer
 from fusion.active.tracker import Ping, Tracker
 from fusion.active.types import pings_from_columns
-from fusion.simulate.multistatic import score_tracks
+from fusion.metrics.multistatic import score_tracks
 from fusion.simulate.multistatic_varied import simulate_varied
 
 KEY = (0.0, 0.0, 5000.0, 0.0)

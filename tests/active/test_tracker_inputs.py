@@ -12,7 +12,8 @@ from fusion.active.pilot import fitted_tracker_options
 from fusion.active.tracker import Ping, Tracker
 from fusion.active.types import pings_from_columns
 from fusion.io import Table, read_detections, read_table, write_table
-from fusion.simulate.multistatic import score_tracks, simulate_multistatic
+from fusion.metrics.multistatic import score_tracks
+from fusion.simulate.multistatic import simulate_multistatic
 
 
 def _with(table: Table, **cols) -> Table:

@@ -13,10 +13,9 @@ import pytest
 import soundfile as sf
 
 from factors.tdoa_model import predicted_tdoas
-from fusion.audio_files import read_audio_files
 from fusion.commands.localize_events import add_event_options, event_document, run_events
 from fusion.geometry import SensorArray
-from fusion.io import read_array, write_json
+from fusion.io import read_array, read_audio_files, write_json
 from fusion.localization.event_tdoa import bandpass, closure_screen, estimate_band, pair_tdoas
 from fusion.localization.events import Event, EventFix, EventLocalizer
 
@@ -189,7 +188,7 @@ def test_read_audio_files_trims_to_shortest_with_warning(tmp_path, caplog):
     """Mono files of different lengths are stacked in order, trimmed, with one warning."""
     cols = [_write(tmp_path / f"h{k}.wav", n, 8000, seed=k)
             for k, n in enumerate((1003, 1000, 1001))]
-    with caplog.at_level(logging.WARNING, logger="fusion.audio_files"):
+    with caplog.at_level(logging.WARNING, logger="fusion.io.audio"):
         x, fs = read_audio_files([tmp_path / f"h{k}.wav" for k in range(3)], 3)
     assert fs == 8000.0 and x.shape == (1000, 3)
     np.testing.assert_array_equal(x, np.column_stack([c[:1000, 0] for c in cols]))
@@ -203,7 +202,7 @@ def test_read_audio_files_errors(tmp_path):
     _write(tmp_path / "s.wav", 100, 8000, channels=2)
     with pytest.raises(ValueError, match=r"different sample rates: .*a\.wav \(8000 Hz\).*b\.wav"):
         read_audio_files([tmp_path / "a.wav", tmp_path / "b.wav"], 2)
-    with pytest.raises(ValueError, match="1 audio file"):
+    with pytest.raises(ValueError, match=r"1 channel\(s\) but the array has 2 sensors"):
         read_audio_files([tmp_path / "a.wav"], 2)
     with pytest.raises(ValueError, match="expected a mono file"):
         read_audio_files([tmp_path / "a.wav", tmp_path / "s.wav"], 2)

@@ -11,6 +11,7 @@ from numpy.testing import assert_allclose
 
 from fusion.cli import main
 from fusion.io import read_table, write_table
+from fusion.metrics.crossings import score_alerts
 from fusion.passive.crossing import (
     AlertKind,
     CrossingDetector,
@@ -19,7 +20,6 @@ from fusion.passive.crossing import (
     detect_crossings,
     evaluate_pairs,
     resample_bearings,
-    score_alerts,
 )
 from fusion.simulate.bearings import simulate_bearings
 

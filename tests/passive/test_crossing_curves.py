@@ -189,7 +189,7 @@ def test_ladder_test_halves_false_alarms_on_manoeuvring_traffic():
     """Manoeuvring traffic (tuning seed 0): with the variance-ratio test a turning vessel stays
     off the long windows of the ladder, and the false alarms fall by more than half (290 to 62
     when measured), with as many crossings predicted within 10 % (192 and 179)."""
-    from fusion.passive.crossing import score_intervals
+    from fusion.metrics.crossings import score_intervals
     from fusion.simulate.bearings import simulate_traffic
 
     sc = simulate_traffic(seed=0)

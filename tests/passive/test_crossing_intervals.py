@@ -7,13 +7,13 @@ import pytest
 from numpy.testing import assert_allclose
 from scipy import stats
 
+from fusion.metrics.crossings import score_intervals
 from fusion.passive.bearing_grid import resample_bearings
 from fusion.passive.crossing import (
     CrossingAlert,
     CrossingDetector,
     crossing_settings,
     detect_crossings,
-    score_intervals,
 )
 from fusion.passive.crossing.pairs import crossing_time_interval, pair_intervals, t_quantile
 from fusion.passive.line_fit import SlidingLineFit

@@ -18,10 +18,9 @@ from hypothesis import given
 from hypothesis import strategies as st
 from threadpoolctl import threadpool_limits
 
-from fusion.io import read_array, write_json
+from fusion.io import check_audio_files, read_array, write_json
 from fusion.pipelines.click_chunks import (
     AudioSource,
-    open_audio,
     plan_chunks,
     track_document_sources,
 )
@@ -85,7 +84,7 @@ def test_stream_start_invariants(window_start, block, guard):
 def test_measure_refuses_a_start_without_guards(recording):
     """A stream that starts less than two guards before final_from is refused."""
     pipe = ClickLocalization(localizer=None)
-    src = open_audio([recording / "audio.flac"], 4)
+    src = AudioSource.of(check_audio_files([recording / "audio.flac"], 4))
     with pytest.raises(ValueError, match="two detector guards"):
         next(pipe.front_end.measure(src.blocks(block=192000, start=192000), fs=src.fs,
                                     sensors=read_array(recording / "array.json"),
@@ -95,7 +94,7 @@ def test_measure_refuses_a_start_without_guards(recording):
 def test_chunks_cover_each_window_once(recording):
     """The plan reports every window once, in order; each chunk measures its two neighbours."""
     pipe = ClickLocalization(localizer=None)
-    src = open_audio([recording / "audio.flac"], 4)
+    src = AudioSource.of(check_audio_files([recording / "audio.flac"], 4))
     tasks = plan_chunks(src, pipe, chunk_s=4.0)
     assert [(t.first_window, t.stop_window) for t in tasks] == [(0, 2), (2, 4), (4, 5)]
     assert [(t.measure_first, t.measure_stop) for t in tasks] == [(0, 3), (1, 5), (3, 5)]
@@ -271,7 +270,7 @@ def test_dask_client_options():
 
 def test_audio_blocks_on_a_grid_from_any_start(recording):
     """Blocks from a start sample are the same samples as a read from the beginning."""
-    src = open_audio([recording / "audio.flac"], 4)
+    src = AudioSource.of(check_audio_files([recording / "audio.flac"], 4))
     assert isinstance(src, AudioSource) and src.frames == 20 * 96000
     whole, _ = sf.read(str(recording / "audio.flac"), dtype="float32", always_2d=True)
     start = 7 * 1000

@@ -7,9 +7,9 @@ import pytest
 from numpy.testing import assert_allclose
 
 from fusion.io import read_detections, read_json, read_table
+from fusion.metrics.multistatic import score_tracks
 from fusion.simulate.multistatic import (
     bistatic_position,
-    score_tracks,
     simulate_multistatic,
     write_scenario,
 )

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from fusion.io import read_json
+from fusion.metrics.multistatic import identity_switches, score_tracks
 from fusion.simulate.multistatic import simulate_multistatic, write_scenario
-from fusion.simulate.multistatic_scoring import identity_switches, score_tracks
 
 
 def _excess(xy, src, rcv):

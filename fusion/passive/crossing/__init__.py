@@ -4,9 +4,10 @@ This package takes bearing tracks -- a bearing table, or the live tracks' bearin
 and raises alerts for pairs of tracks that are about to cross or have crossed. It uses only
 :mod:`fusion.geometry`, :mod:`fusion.passive.line_fit` and :mod:`fusion.passive.bearing_grid`
 (no I/O, no pipeline). A user calls :func:`detect_crossings` (batch), :class:`CrossingDetector`
-(streaming, ``step``), :func:`crossing_settings` (windows in seconds from the data) and
-:func:`score_alerts` / :func:`score_intervals` (alerts against true crossings); streaming over
-chunked files lives in :mod:`fusion.passive.crossing.stream`.
+(streaming, ``step``) and :func:`crossing_settings` (windows in seconds from the data); streaming
+over chunked files lives in :mod:`fusion.passive.crossing.stream`. Alerts are scored against true
+crossings in :mod:`fusion.metrics.crossings` (``score_alerts``, ``score_intervals``; their old
+import path here warns and forwards for one release).
 
 Implements *Target Track Crossing Prediction/Detection* (the method text of that title): every
 K seconds each track's bearing rate ``B'`` and bearing intercept ``B0`` come from a least-squares
@@ -40,15 +41,14 @@ Pieces:
   detector over chunked tables, and per-pair summaries;
 - :func:`~fusion.passive.crossing.batch.detect_crossings` - the batch entry point for a bearing
   table sampled irregularly, and :func:`~fusion.passive.crossing.settings.crossing_settings` -
-  window, horizon and period in seconds from the data;
-- :mod:`~fusion.passive.crossing.score` - alerts scored against true crossings.
+  window, horizon and period in seconds from the data.
 """
 
+from fusion._deprecated import moved_names
 from fusion.passive.bearing_grid import ResampledBearings, estimate_period, resample_bearings
 from fusion.passive.crossing.batch import detect_crossings
 from fusion.passive.crossing.detector import CrossingDetector
 from fusion.passive.crossing.pairs import evaluate_pairs
-from fusion.passive.crossing.score import CrossingScore, IntervalScore, score_alerts, score_intervals
 from fusion.passive.crossing.settings import (
     DEFAULT_CONFIRM,
     DEFAULT_CURVE_ALPHA,
@@ -81,9 +81,7 @@ __all__ = [
     "AlertKind",
     "CrossingAlert",
     "CrossingDetector",
-    "CrossingScore",
     "CrossingSettings",
-    "IntervalScore",
     "LineStats",
     "PairCheck",
     "ResampledBearings",
@@ -93,9 +91,15 @@ __all__ = [
     "estimate_period",
     "evaluate_pairs",
     "resample_bearings",
-    "score_alerts",
-    "score_intervals",
 ]
 
 #: Short name of :class:`CrossingAlert`.
 Alert = CrossingAlert
+
+#: Scores of alerts against true crossings, moved to :mod:`fusion.metrics.crossings`; served here
+#: with a DeprecationWarning for one release.
+__getattr__ = moved_names(
+    __name__, "fusion.metrics.crossing_alerts",
+    ["CrossingScore", "IntervalScore", "score_alerts", "score_intervals"],
+    shown="fusion.metrics.crossings",
+)

@@ -1,7 +1,7 @@
 """Data types of crossing prediction/detection: alert kinds, alerts and per-sample pair checks.
 
 Shared by the detector (:mod:`fusion.passive.crossing`), the pair evaluation
-(:mod:`fusion.passive.crossing.pairs`) and the scoring (:mod:`fusion.passive.crossing.score`).
+(:mod:`fusion.passive.crossing.pairs`) and the scoring (:mod:`fusion.metrics.crossing_alerts`).
 """
 
 from __future__ import annotations

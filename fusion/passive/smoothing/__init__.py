@@ -44,11 +44,11 @@ Modules, one role each:
 Crossings are predicted with equation (2) of "Target Track Crossing Prediction/Detection"
 (:func:`fusion.passive.crossing.timing.crossing_time`, the one copy of that equation, re-exported
 here as :func:`crossing_time`). The identity scores :func:`crossing_outcomes` and
-:func:`identity_swaps` live in :mod:`fusion.metrics.crossings` and are re-exported here so that
-older imports keep working.
+:func:`identity_swaps` live in :mod:`fusion.metrics.crossings`; their old import path here warns
+and forwards for one release.
 """
 
-from fusion.metrics.crossings import CROSSING_OUTCOMES, crossing_outcomes, identity_swaps
+from fusion._deprecated import moved_names
 from fusion.passive.crossing.timing import crossing_time
 from fusion.passive.smoothing.batch import BearingSmoother, rts_reference
 from fusion.passive.smoothing.graph import ROBUST_LOSSES
@@ -64,7 +64,6 @@ from fusion.passive.smoothing.types import (
 )
 
 __all__ = [
-    "CROSSING_OUTCOMES",
     "ROBUST_LOSSES",
     "BearingSmoother",
     "MultiTrackResult",
@@ -75,9 +74,14 @@ __all__ = [
     "SmoothedTrack",
     "TrackPrior",
     "TrackerResult",
-    "crossing_outcomes",
     "crossing_time",
-    "identity_swaps",
     "rts_reference",
     "smooth_bearings",
 ]
+
+#: Identity scores, moved to :mod:`fusion.metrics.crossings`; served here with a DeprecationWarning
+#: for one release.
+__getattr__ = moved_names(
+    __name__, "fusion.metrics.crossings", ["CROSSING_OUTCOMES", "crossing_outcomes", "identity_swaps"],
+    shown="fusion.metrics.crossings",
+)

@@ -225,7 +225,15 @@ class MultiTrackSmoother:
         scan_times = tr.scan_times
         scan_of = np.searchsorted(scan_times, t)
         segments = self._segments(tr, z, scan_of)
+        self._failed_fits: list[tuple[int, int, str]] = []
+        self._n_fits = 0
         ends = [self._segment_ends(seg, z, scan_of, scan_times) for seg in segments]
+        if self._failed_fits:  # a changed result is said at the default level, with a count
+            spans = ", ".join(f"{a}-{b}" for a, b, _ in self._failed_fits[:5])
+            logger.warning("segment-end fit failed (%s) on %d of %d fits (scans %s%s); those ends "
+                           "keep their initial line with weak covariances",
+                           self._failed_fits[0][2], len(self._failed_fits), self._n_fits, spans,
+                           ", ..." if len(self._failed_fits) > 5 else "")
         chains = link_segments(ends, scan_times, q=self.model.q, link_gate=self.link_gate,
                                max_gap_scans=self.max_gap_scans)
         # hard labels per track, drop short tracks
@@ -374,13 +382,14 @@ class MultiTrackSmoother:
             prior = TrackPrior(bearing=float(x0[0, 0]), rate=float(x0[0, 1]),
                                sigma_bearing=10.0 * self.model.sigma_bearing,
                                sigma_rate=self.tracker.init_sigma_rate)
+            self._n_fits += 1
             try:
                 states, covs = _solve_cov(times_ab, meas, prior, self.model, x0,
                                           (0, b - a))
             except RuntimeError as err:  # gtsam: too few bearings for the scans spanned
-                # The segment's end keeps its initial line with weak covariances; said, not hidden.
-                logger.warning("segment of scans %d-%d: fit failed (%s); its end states keep the "
-                               "initial line with weak covariances", a, b, err)
+                # The segment's end keeps its initial line with weak covariances; counted and
+                # said once per run (a WARNING, see run), not hidden.
+                self._failed_fits.append((a, b, str(err)))
                 weak = np.diag([self.model.sigma_bearing**2, self.tracker.init_sigma_rate**2])
                 states, covs = x0, [weak, weak]
             out.append((states, covs))

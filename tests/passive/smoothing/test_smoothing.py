@@ -12,6 +12,7 @@ from numpy.testing import assert_allclose
 from factors.bearing import bearing_factor
 from factors.motion import constant_velocity_factor, wna_covariance
 from fusion.cli import main
+from fusion.metrics.crossings import crossing_outcomes, identity_swaps
 from fusion.passive.smoothing import (
     BearingSmoother,
     MultiTrackSmoother,
@@ -19,9 +20,7 @@ from fusion.passive.smoothing import (
     OnlineBearingSmoother,
     OnlineBearingSmootherSet,
     TrackPrior,
-    crossing_outcomes,
     crossing_time,
-    identity_swaps,
     rts_reference,
 )
 from fusion.passive.smoothing.graph import _Measurements, _Model, _solve
@@ -388,7 +387,10 @@ def test_failed_segment_fit_is_reported(monkeypatch, caplog):
     the RuntimeError used to be swallowed silently)."""
     import fusion.passive.smoothing.multitrack as multitrack
 
+    calls = []
+
     def fail(*args, **kwargs):
+        calls.append(1)
         raise RuntimeError("Indeterminant linear system")
 
     monkeypatch.setattr(multitrack, "_solve_cov", fail)
@@ -398,3 +400,7 @@ def test_failed_segment_fit_is_reported(monkeypatch, caplog):
         ms.run(t, z)
     assert any(r.levelno == logging.WARNING and "fit failed (Indeterminant linear system)" in r.message
                for r in caplog.records)
+    # one warning per run, counting every failed fit (here all of them)
+    failed = [r.getMessage() for r in caplog.records if "fit failed" in r.getMessage()]
+    assert len(calls) > 1 and len(failed) == 1
+    assert f"on {len(calls)} of {len(calls)} fits" in failed[0]

@@ -1,5 +1,5 @@
-"""Scoring of multistatic tracker output against the simulated target: coverage, false tracks,
-identity switches.
+"""Multistatic tracker output scored against the simulated target: coverage, false tracks,
+identity switches (the scenarios of :mod:`fusion.simulate.multistatic`).
 """
 
 from __future__ import annotations
@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from fusion.io import Table
+from fusion.types import Table
 
 __all__ = ["TrackScore", "identity_switches", "score_tracks"]
 
