@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fusion.commands.crossings import alert_columns
+from fusion.pipelines.bearing_crossings import alert_columns
 from fusion.geometry import wrap_deg
 from fusion.io import write_table
 from fusion.passive.crossing import detect_crossings
