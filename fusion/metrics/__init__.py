@@ -14,3 +14,13 @@ One module per kind of result, used by tests, benchmarks, examples and the demo:
 
 Importing this package imports none of them; import the module you need.
 """
+
+# The package imports none of its modules (each loads only its own dependencies when
+# imported); `from fusion.metrics import *` imports them all.
+__all__ = [
+    "crossings",
+    "detections",
+    "localization",
+    "tqi",
+    "tracks",
+]

@@ -7,3 +7,22 @@
 Import the pipeline modules themselves; this package imports nothing, so that loading one
 pipeline does not load the others' dependencies.
 """
+
+# The package imports none of its modules (each loads only its own dependencies when
+# imported); `from fusion.pipelines import *` imports them all.
+__all__ = [
+    "bearing_crossings",
+    "bearing_smoothing",
+    "click_chunks",
+    "click_stream",
+    "click_training",
+    "clicks",
+    "from_recording",
+    "localization",
+    "passive",
+    "passive_measure",
+    "passive_scoring",
+    "passive_types",
+    "sound_speed",
+    "track_quality",
+]
