@@ -10,6 +10,9 @@ from __future__ import annotations
 import importlib
 import importlib.util
 import json
+import os
+import re
+import shlex
 import subprocess
 import sys
 from pathlib import Path
@@ -170,3 +173,26 @@ def test_radians_on_any_branch_within_one_turn_pass():
     assert fusion.check_radians([-2 * np.pi, 2 * np.pi]).shape == (2,)
     with pytest.raises(ValueError, match="radians"):
         fusion.check_radians([0.0, 2 * np.pi + 1e-3])
+
+
+def test_readme_library_section_runs(tmp_path):
+    """The blocks of the README's "Using the library" run, in order, in an empty folder."""
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    section = text.split("## Using the library", 1)[1].split("\n## ", 1)[0]
+    blocks = re.findall(r"```(bash|python)\n(.*?)```", section, flags=re.S)
+    assert any(lang == "python" and "fusion.smooth_bearings" in b for lang, b in blocks)
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    for lang, block in blocks:
+        if lang == "bash":
+            for line in block.splitlines():
+                if line.strip() and not line.startswith("#"):
+                    argv = shlex.split(line)
+                    assert argv[0] == "fusion"
+                    subprocess.run([sys.executable, "-m", "fusion", *argv[1:]], cwd=tmp_path,
+                                   env=env, check=True, capture_output=True)
+        else:
+            r = subprocess.run([sys.executable, "-c", block], cwd=tmp_path, env=env,
+                               capture_output=True, text=True)
+            assert r.returncode == 0, r.stderr
+    assert (tmp_path / "smoothed.csv").read_text().startswith(
+        "track_id,time,bearing_deg,bearing_rate_deg_per_min,sigma_bearing_deg")
