@@ -196,3 +196,16 @@ def test_readme_library_section_runs(tmp_path):
             assert r.returncode == 0, r.stderr
     assert (tmp_path / "smoothed.csv").read_text().startswith(
         "track_id,time,bearing_deg,bearing_rate_deg_per_min,sigma_bearing_deg")
+
+
+def test_file_bearings_beyond_one_turn_are_wrapped_not_refused(run_cli, tmp_path):
+    """A file's degrees beyond 360 are wrapped by the entry point (the command gives what it
+    gave before the degree guard): 400..403 deg smooth as 40..43 deg do."""
+    rows = {"track_id": np.zeros(4, np.int64), "time": TIMES * 10.0,
+            "bearing_deg": np.array([400.0, 401.0, 402.2, 402.9])}
+    write_table(tmp_path / "b.csv", rows)
+    code, _, err = run_cli("smooth", "--bearings", tmp_path / "b.csv", "--out", tmp_path / "s.csv")
+    assert code == 0, err
+    wrapped = fusion.smooth_bearings({**rows, "bearing_deg": rows["bearing_deg"] - 360.0})
+    assert read_bearings(tmp_path / "s.csv")["bearing_deg"] == pytest.approx(
+        wrapped.columns()["bearing_deg"], abs=1e-5)

@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from fusion.geometry import wrap_angle
 from fusion.passive.smoothing import BearingSmoother, MultiTrackSmoother, SmoothedTrack
 from fusion.passive.smoothing import smooth_bearings as smooth_rows
 from fusion.passive.smoothing.grid import on_grid
@@ -66,6 +67,17 @@ class SmoothingResult:
         return smoothed_columns(self.tracks, to_360=self.to_360)
 
 
+def _radians(bearing_deg: Any) -> NDArray[np.float64]:
+    """Bearings in radians; those beyond one turn (|deg| > 360) wrapped into [-pi, pi) first,
+    the rest converted as they are (the smoothers take any branch within one turn)."""
+    deg = np.asarray(bearing_deg, dtype=float)
+    z = np.radians(deg)
+    beyond = np.abs(deg) > 360.0
+    if beyond.any():
+        z[beyond] = wrap_angle(z[beyond])
+    return z
+
+
 def check_track_lengths(table: Mapping[str, Any] | Any) -> None:
     """Refuse labelled tracks with fewer than 2 distinct times (no rate can be estimated).
 
@@ -101,7 +113,7 @@ def fit_smoothing(table: Mapping[str, Any] | Any, *, merge_deg: float = 1.0,
     """
     ids = np.asarray(table["track_id"])
     times = np.asarray(table["time"], dtype=float)
-    z = np.radians(np.asarray(table["bearing_deg"], dtype=float))
+    z = _radians(table["bearing_deg"])
     merge = float(np.radians(merge_deg))
     unk = ids < 0
     if unk.any() and merge > 0:  # settings from the detections the tracker will see
@@ -176,7 +188,7 @@ def smooth_bearings(
                                max_misses=st.max_misses, max_gap_scans=st.max_gap_scans)
     bearing_deg = np.asarray(table["bearing_deg"], dtype=float)
     times = np.asarray(table["time"], dtype=float)
-    tracks = smooth_rows(np.asarray(table["track_id"]), times, np.radians(bearing_deg),
+    tracks = smooth_rows(np.asarray(table["track_id"]), times, _radians(bearing_deg),
                          single=single, multi=multi, merge_within=float(np.radians(merge_deg)),
                          twin_within=float(np.radians(twin_deg)), on_rows=on_rows)
     if output_times == "grid":
