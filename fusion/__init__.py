@@ -12,9 +12,10 @@ used, so ``import fusion`` (and ``fusion --help``) import neither GTSAM nor SciP
 Entry points taking a table (from the readers, or a mapping of numpy arrays), estimating the
 settings not given from the data exactly as the command of the same job does:
 :func:`smooth_bearings` (``fusion smooth``), :func:`find_crossings` (``fusion crossings``),
-:func:`track_quality` (``fusion tqi``). Angles: files and these entry points use degrees
-(``*_deg`` columns and options), the smoothers and geometry below them radians; the smoothers
-refuse bearings beyond 2 pi (:func:`check_radians`).
+:func:`track_quality` (``fusion tqi``), :func:`track_detections` (``fusion track``).
+Angles: files and these entry points use degrees (``*_deg`` columns and options), the smoothers
+and geometry below them radians; the smoothers refuse bearings beyond 2 pi
+(:func:`check_radians`).
 
 Sub-packages group the pipelines: :mod:`fusion.passive` (narrowband acquisition, bearing
 tracking, track quality, crossings, smoothing, target motion analysis), :mod:`fusion.active`
@@ -40,6 +41,9 @@ _LAZY = {
     "find_crossings": "fusion.pipelines.bearing_crossings",
     "CrossingsResult": "fusion.pipelines.bearing_crossings",
     "track_quality": "fusion.pipelines.track_quality",
+    "track_detections": "fusion.pipelines.active_tracking",
+    "TrackOptions": "fusion.pipelines.active_tracking",
+    "TrackingRun": "fusion.pipelines.active_tracking",
     "PassivePipeline": "fusion.pipelines.passive",
     # the smoothers themselves (radians, scales given)
     "BearingSmoother": "fusion.passive.smoothing",

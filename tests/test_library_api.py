@@ -209,3 +209,40 @@ def test_file_bearings_beyond_one_turn_are_wrapped_not_refused(run_cli, tmp_path
     wrapped = fusion.smooth_bearings({**rows, "bearing_deg": rows["bearing_deg"] - 360.0})
     assert read_bearings(tmp_path / "s.csv")["bearing_deg"] == pytest.approx(
         wrapped.columns()["bearing_deg"], abs=1e-5)
+
+
+@pytest.fixture(scope="module")
+def detections(tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("multistatic")
+    get_writer("multistatic")(out, seed=5)
+    return out / "detections.csv"
+
+
+@pytest.mark.parametrize("argv, options", [
+    ((), {}),  # the command streams, the library reads the whole table: same rows
+    (("--smooth", "--confirmed-only", "--position-sigma-m", "80"),
+     {"smooth": True, "confirmed_only": True, "position_sigma_m": 80.0}),
+], ids=["default", "smooth"])
+def test_track_detections_equals_fusion_track(run_cli, detections, tmp_path, argv, options):
+    code, _, err = run_cli("track", "--detections", detections, "--out", tmp_path / "cli.csv",
+                           "--quiet", *argv)
+    assert code == 0, err
+    run = fusion.track_detections(fusion.read_detections(detections), **options)
+    write_table(tmp_path / "lib.csv", run.columns)
+    _same_file(tmp_path / "cli.csv", tmp_path / "lib.csv")
+    assert run.settings.describe() in err
+    meta = json.loads((tmp_path / "cli.settings.json").read_text())
+    assert meta["settings"] == json.loads(json.dumps(run.settings.metadata()))
+    assert meta["confirmed_tracks"] == len(run.result.confirmed_ids()) > 0
+
+
+def test_track_options_defaults_are_the_command_defaults():
+    """One set of defaults: the parser's defaults, mapped to the library's names, are
+    :class:`fusion.TrackOptions`'s."""
+    from fusion.cli import build_parser
+    from fusion.commands.track import track_options
+
+    args = build_parser("track").parse_args(["track", "--detections", "d.csv", "--out", "t.csv"])
+    assert track_options(args) == fusion.TrackOptions()
+    with pytest.raises(ValueError, match="M must not exceed N"):
+        fusion.TrackOptions(confirm=(4, 3))
