@@ -18,7 +18,9 @@ A tentative track whose detections stand still relative to the sensor (``rcv_x, 
 confirmed (:mod:`fusion.active.platform`; ``--keep-platform-fixed`` turns this off).
 
 Scales not given are read from the first ``--fit-pings`` pings
-(:func:`fusion.active.settings.track_settings`): scan period, position scatter, speed prior,
+(:func:`fusion.active.settings.track_settings`, through
+:func:`fusion.pipelines.active_tracking.build_tracker`, as the library's
+:func:`fusion.track_detections` does): scan period, position scatter, speed prior,
 process noise, clutter density, start exclusion and the hotspot lengths. One line on stderr says
 what was chosen; the same goes to ``T.settings.json`` beside ``T.csv`` (not with ``--out -``),
 with a line saying why when no track was confirmed. The file is read and written in chunks,
