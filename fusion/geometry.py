@@ -32,6 +32,7 @@ __all__ = [
     "beamwidth_cos",
     "beamwidth_deg",
     "bearing_from_beam",
+    "check_radians",
     "bearing_rate_from_beam_rate",
     "compass_bearing_deg",
     "propagation_delay",
@@ -43,6 +44,32 @@ __all__ = [
 #: Relative tolerance below which an array's sensors count as collinear (smallest to largest
 #: singular value of the centred positions).
 COLLINEAR_RTOL = 1e-6
+
+
+#: Largest magnitude, rad, of an angle the library takes as radians: one turn either way plus a
+#: rounding margin. Beyond it the values are almost surely degrees (a file's ``*_deg`` column
+#: passed without :func:`numpy.radians`).
+RADIANS_LIMIT = 2.0 * np.pi + 1e-6
+
+
+def check_radians(angles: ArrayLike, name: str = "bearings") -> NDArray[np.float64]:
+    """`angles` as a float array if they look like radians (every ``|value| <= 2 pi``).
+
+    Degrees of a source at more than about 6.3 deg off zero fail; degrees that all lie within
+    6.3 deg of zero cannot be told from radians and pass.
+
+    Raises
+    ------
+    ValueError
+        ``"<name> must be in radians: |value| up to 182.5 > 2*pi (degrees? use numpy.radians)"``.
+    """
+    a = np.asarray(angles, dtype=float)
+    finite = a[np.isfinite(a)]
+    if finite.size and float(np.max(np.abs(finite))) > RADIANS_LIMIT:
+        big = float(np.max(np.abs(finite)))
+        raise ValueError(f"{name} must be in radians: |value| up to {big:.6g} > 2*pi "
+                         "(degrees? use numpy.radians)")
+    return a
 
 
 def wrap_deg(a: ArrayLike) -> NDArray[np.float64] | float:

@@ -20,3 +20,27 @@ One module per role, bottom up:
   detections, the speed prior from a pilot run's confirmed tracks;
 - :mod:`~fusion.active.smoothing`: confirmed tracks refined on a GTSAM factor graph.
 """
+
+# The package imports none of its modules (each loads only its own dependencies when
+# imported); `from fusion.active import *` imports them all.
+__all__ = [
+    "association",
+    "bistatic",
+    "clutter",
+    "data",
+    "fuzzy",
+    "kalman",
+    "lifecycle",
+    "motion",
+    "noise",
+    "pilot",
+    "ping_scan",
+    "platform",
+    "rulebase",
+    "settings",
+    "shadow",
+    "smoothing",
+    "track_score",
+    "tracker",
+    "types",
+]

@@ -22,3 +22,22 @@ refuses it before any work.
 Errors are ValueError/OSError with a message naming the file or option; ``fusion.cli.main`` prints
 them as one line with exit code 2.
 """
+
+# The package imports none of its modules (each loads only its own dependencies when
+# imported); `from fusion.commands import *` imports them all.
+__all__ = [
+    "acquire",
+    "crossings",
+    "demo",
+    "import_data",
+    "localize",
+    "localize_events",
+    "passive",
+    "report",
+    "simulate",
+    "smooth",
+    "tma",
+    "tqi",
+    "track",
+    "train_validator",
+]

@@ -23,8 +23,7 @@ import numpy as np
 from fusion._progress import track_progress
 from fusion.cli import MAX_SCANS_OPTION, emit, number
 from fusion.io import RowOrderError, iter_bearings, read_bearings, write_table
-from fusion.passive.crossing import CrossingAlert, detect_crossings
-from fusion.passive.crossing.merge import merge_simultaneous
+from fusion.passive.crossing import CrossingAlert
 from fusion.passive.crossing.settings import (
     DEFAULT_CONFIRM,
     DEFAULT_CURVE_ALPHA,
@@ -37,7 +36,6 @@ from fusion.passive.crossing.settings import (
     MAX_SAMPLES_PER_WINDOW,
     MIN_SAMPLES_PER_WINDOW,
     CrossingSettings,
-    crossing_settings,
     crossing_settings_from_steps,
 )
 from fusion.passive.crossing.stream import (
@@ -46,6 +44,12 @@ from fusion.passive.crossing.stream import (
     scan_long_gaps,
 )
 from fusion.passive.crossing.summary import BearingStats, BearingSummary
+from fusion.pipelines.bearing_crossings import (  # alert_columns: imported from here before
+    alert_columns,
+    check_spans,
+    crossing_setup,
+    detect_with,
+)
 
 #: Most windows in the ladder: each doubles the last, and the memory with it (16: the longest
 #: window is 32,768 times the first, about 170 MB on a small file; 100,000 asked for 40 GiB).
@@ -168,12 +172,10 @@ def _options(args: argparse.Namespace) -> dict:
 
 
 def _check_spans(args: argparse.Namespace, st: CrossingSettings, spans_s: np.ndarray) -> None:
-    n_samples = np.floor(np.asarray(spans_s) / st.period_s + 1e-9).astype(int) + 1
-    if np.sum(n_samples >= st.J) < 2:
-        raise ValueError(
-            f"{args.bearings}: fewer than two tracks span --window-samples J={st.J} samples at "
-            f"K={st.period_s:g} s (longest: {int(n_samples.max())}); no crossing can be tested"
-        )
+    try:
+        check_spans(st, spans_s)
+    except ValueError as e:
+        raise ValueError(f"{args.bearings}: {e}") from None
 
 
 def _streamed(args: argparse.Namespace) -> tuple[list[CrossingAlert], CrossingSettings]:
@@ -217,39 +219,20 @@ def _streamed(args: argparse.Namespace) -> tuple[list[CrossingAlert], CrossingSe
 
 
 def _whole_file(args: argparse.Namespace) -> tuple[list[CrossingAlert], CrossingSettings]:
-    """The whole table at once (rows sorted by the reader if they were out of order)."""
+    """The whole table at once (rows sorted by the reader if they were out of order), as
+    :func:`fusion.pipelines.bearing_crossings.find_crossings` does."""
     table = read_bearings(args.bearings, distinct=args.strict, sigma=not args.strict)
-    if not args.strict:
-        try:
-            cols, n_merged = merge_simultaneous(table.columns)
-        except ValueError as e:
-            raise ValueError(f"{args.bearings}: {e}") from None
+
+    def said(cols: dict, n_merged: int) -> None:
         if n_merged:
             emit(f"merged {n_merged} simultaneous bearing row(s) of one track "
                  f"({'weighted by sigma_bearing_deg' if 'sigma_bearing_deg' in cols else 'equal weights'}"
                  "; --strict refuses them)")
-        table = cols
-    tid = table["track_id"]
-    known = tid >= 0
-    _two_tracks(args, np.unique(tid[known]).size)
+
     try:
-        st = crossing_settings(tid, table["time"], **_options(args))
+        cols, st, _ = crossing_setup(table, strict=args.strict, on_merged=said, **_options(args))
     except ValueError as e:
         raise ValueError(f"{args.bearings}: {e}") from None
-    _check_spans(args, st, [np.ptp(table["time"][tid == k]) for k in np.unique(tid[known])])
-    alerts = detect_crossings(table, merge_window_s=args.merge_window, max_gap_s=args.max_gap,
-                              split_repeats=not args.merge_repeats, **st.detector_options())
+    alerts = detect_with(cols, st, merge_window_s=args.merge_window, max_gap_s=args.max_gap,
+                         merge_repeats=args.merge_repeats)
     return alerts, st
-
-
-def alert_columns(alerts: list[CrossingAlert]) -> dict[str, np.ndarray]:
-    """Columns of the alerts file (formats.md section 4, with the optional interval columns)."""
-    return {
-        "time": np.array([a.time for a in alerts], dtype=float),
-        "track_a": np.array([a.track_a for a in alerts], dtype=np.int64),
-        "track_b": np.array([a.track_b for a in alerts], dtype=np.int64),
-        "t_cross": np.array([a.t_cross for a in alerts], dtype=float),
-        "kind": np.array([a.kind.value for a in alerts], dtype=str),
-        "t_cross_low": np.array([a.t_cross_low for a in alerts], dtype=float),
-        "t_cross_high": np.array([a.t_cross_high for a in alerts], dtype=float),
-    }

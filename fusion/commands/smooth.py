@@ -8,9 +8,10 @@ sorted (one warning); two rows of one labelled track at the same time are an err
 ``track_id,time,bearing_deg,bearing_rate_deg_per_min,sigma_bearing_deg``, bearings in [0, 360)
 when every input bearing is >= 0, else in [-180, 180).
 
-Settings not given are fitted to the input (:func:`fusion.passive.smoothing.settings.
-fit_smooth_settings`): scan period, bearing noise, clutter density, detection probability,
-bearing acceleration PSD and the track rules that follow from them. One line says what was
+Settings not given are fitted to the input (:func:`fusion.pipelines.bearing_smoothing.
+fit_smoothing`, as the library's :func:`fusion.smooth_bearings` does): scan period, bearing
+noise, clutter density, detection probability, bearing acceleration PSD and the track rules
+that follow from them. One line says what was
 chosen; the same goes to ``S.settings.json`` beside ``S.csv`` (not with ``--out -``).
 
 With ``--output-times grid`` each track is written on the regular grid of the period
@@ -25,16 +26,11 @@ import argparse
 import logging
 from pathlib import Path
 
-import numpy as np
-
 from fusion._progress import progress
 from fusion.cli import MAX_SCANS_OPTION, emit, number
 from fusion.io import read_bearings, write_settings, write_table
-from fusion.passive.smoothing import BearingSmoother, MultiTrackSmoother, smooth_bearings
-from fusion.passive.smoothing.grid import on_grid
-from fusion.passive.smoothing.merge import merge_scan_detections
 from fusion.passive.smoothing.multitrack import ASSOCIATIONS
-from fusion.passive.smoothing.settings import fit_smooth_settings
+from fusion.pipelines.bearing_smoothing import check_track_lengths, fit_smoothing, smooth_bearings
 
 logger = logging.getLogger(__name__)
 
@@ -105,48 +101,33 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Read, smooth, write."""
+    """Read, smooth, write (:func:`fusion.pipelines.bearing_smoothing.smooth_bearings`)."""
     table = read_bearings(args.bearings)
-    ids, times = table["track_id"], table["time"]
-    short = [int(k) for k in np.unique(ids[ids >= 0]) if np.unique(times[ids == k]).size < 2]
-    if short:
-        listed = ", ".join(map(str, short[:5])) + (", ..." if len(short) > 5 else "")
-        raise ValueError(f"{args.bearings}: track(s) {listed} have fewer than 2 distinct times; "
-                         "a bearing rate needs at least 2 samples per track")
+    try:
+        check_track_lengths(table)
+    except ValueError as e:
+        raise ValueError(f"{args.bearings}: {e}") from None
     # work in rows, twice: once when the settings are fitted to them, once when smoothed (a
     # file of one long track is not 0 % until the end, the fit is half the work)
-    bar = progress(2 * len(ids), quiet=args.quiet, desc="smooth", unit="row")
-    z = np.radians(table["bearing_deg"])
-    merge = float(np.radians(args.merge_deg))
-    unk = ids < 0
-    if unk.any() and merge > 0:  # settings from the detections the tracker will see
-        order = np.argsort(times[unk], kind="stable")
-        tm, zm, _ = merge_scan_detections(times[unk][order], z[unk][order], within=merge)
-        fit_ids = np.r_[ids[~unk], np.full(tm.size, -1)]
-        fit_t, fit_z = np.r_[times[~unk], tm], np.r_[z[~unk], zm]
-    else:
-        fit_ids, fit_t, fit_z = ids, times, z
+    n_rows = len(table["track_id"])
+    bar = progress(2 * n_rows, quiet=args.quiet, desc="smooth", unit="row")
     try:
-        st = _fit(args, fit_ids, fit_t, fit_z)
+        st = fit_smoothing(
+            table, merge_deg=args.merge_deg, max_miss_s=args.max_miss_s,
+            sigma_bearing_deg=args.sigma_bearing_deg, period_s=args.period_s,
+            q_deg2_per_s3=args.q_deg2_per_s3, clutter_density=args.clutter_density,
+            p_detect=args.p_detect, init_sigma_rate_deg_per_s=args.init_sigma_rate_deg_per_s,
+            max_misses=args.max_misses, max_gap_scans=args.max_gap_scans,
+            min_length=args.min_length)
     except BaseException:
         bar.close()
         raise
-    bar.update(len(ids))
-    sigma = np.radians(st.sigma_bearing_deg)
-    q = st.q_deg2_per_s3 * np.radians(1.0) ** 2
-    single = BearingSmoother(sigma_bearing=sigma, q=q, robust=args.robust)
-    # the association's clutter density: given, or counted by the tracker from the detections
-    # its tracks leave (closer to the truth than the pair-scatter estimate, issue 18)
-    multi = MultiTrackSmoother(sigma_bearing=sigma, q=q, clutter_density=args.clutter_density,
-                               p_detect=st.p_detect, min_length=st.min_length,
-                               association=args.association,
-                               init_sigma_rate=np.radians(st.init_sigma_rate_deg_per_s),
-                               max_misses=st.max_misses, max_gap_scans=st.max_gap_scans)
-    bearing_deg = table["bearing_deg"]
+    bar.update(n_rows)
     try:
-        tracks = smooth_bearings(table["track_id"], table["time"], np.radians(bearing_deg),
-                                 single=single, multi=multi, merge_within=merge,
-                                 twin_within=float(np.radians(args.twin_deg)),
+        result = smooth_bearings(table, settings=st, robust=args.robust,
+                                 association=args.association,
+                                 clutter_density=args.clutter_density, merge_deg=args.merge_deg,
+                                 twin_deg=args.twin_deg, output_times=args.output_times,
                                  on_rows=bar.update)
     except RuntimeError as e:  # gtsam: an ill-posed graph
         bar.close()
@@ -154,22 +135,9 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(f"{args.bearings}: the smoothing graph is ill-conditioned ({first}); "
                          "a larger --accel-psd-deg2-per-s3 or --bearing-sigma-deg may help") from None
     bar.close()
-    if args.output_times == "grid":
-        tracks = tuple(on_grid(tr, period=st.period_s, q=q, max_gap_s=st.max_gap_scans * st.period_s,
-                               origin=float(np.min(table["time"]))) for tr in tracks)
-    to_360 = bool(np.all(bearing_deg >= 0))
-    cols: dict[str, list[np.ndarray]] = {k: [] for k in (
-        "track_id", "time", "bearing_deg", "bearing_rate_deg_per_min", "sigma_bearing_deg")}
-    for tr in tracks:
-        b = np.degrees(tr.bearing)
-        cols["track_id"].append(np.full(len(tr), tr.track_id, np.int64))
-        cols["time"].append(tr.times)
-        cols["bearing_deg"].append(np.mod(b, 360.0) if to_360 else b)
-        cols["bearing_rate_deg_per_min"].append(np.degrees(tr.rate) * 60.0)
-        cols["sigma_bearing_deg"].append(np.degrees(tr.sigma_bearing))
-    out = {k: (np.concatenate(v) if v else np.zeros(0)) for k, v in cols.items()}
-    write_table(args.out, out)
-    counted = getattr(multi, "used_clutter_density", None)
+    tracks = result.tracks
+    write_table(args.out, result.columns())
+    counted = result.association_clutter_density
     assoc = {"association": args.association, "output_times": args.output_times}
     if counted is not None:
         assoc["association_clutter_density"] = float(counted)
@@ -181,13 +149,3 @@ def run(args: argparse.Namespace) -> int:
     emit(f"fusion smooth: {st.describe()}{note}: {len(tracks)} track(s) -> {args.out}")
     logger.info("wrote %d tracks to %s", len(tracks), args.out)
     return 0
-
-
-def _fit(args: argparse.Namespace, ids: np.ndarray, t: np.ndarray, z: np.ndarray):
-    """The smoothing settings: those given, the others fitted to the rows."""
-    return fit_smooth_settings(
-        ids, t, z, sigma_bearing_deg=args.sigma_bearing_deg, max_miss_s=args.max_miss_s,
-        period_s=args.period_s,
-        q_deg2_per_s3=args.q_deg2_per_s3, clutter_density=args.clutter_density,
-        p_detect=args.p_detect, init_sigma_rate_deg_per_s=args.init_sigma_rate_deg_per_s,
-        max_misses=args.max_misses, max_gap_scans=args.max_gap_scans, min_length=args.min_length)

@@ -20,7 +20,6 @@ from __future__ import annotations
 import argparse
 import logging
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -35,6 +34,12 @@ from fusion.io import (
     write_table_chunks,
 )
 from fusion.passive.quality import LABELS, TQIMemory, TrackQualityIndicator
+from fusion.pipelines.track_quality import (
+    DIAGNOSTICS,
+    INPUT_COLUMNS,
+    quality_columns,
+    update_grid,
+)
 
 logger = logging.getLogger(__name__)
 
@@ -112,9 +117,8 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-_INPUT = ("track_id", "time", "amplitude", "residual")
-_DIAGNOSTICS = {"sllr0": "sllr0", "sllr1": "sllr1", "smoothed_residual": "residual_deg",
-                "err_max": "err_max_deg"}  # output column: TQIMemory field
+_INPUT = INPUT_COLUMNS
+_DIAGNOSTICS = DIAGNOSTICS  # output column: TQIMemory field
 
 
 def _indicator(args: argparse.Namespace) -> TrackQualityIndicator:
@@ -169,7 +173,7 @@ class _StreamedTQI:
     def columns(self, chunk: TableChunk) -> dict[str, np.ndarray]:
         """Output columns (input columns, ``tqi``, diagnostics) of one chunk of rows."""
         table = chunk.table
-        tracks, row_k, col, amp, res, valid = _update_grid(table)
+        tracks, row_k, col, amp, res, valid = update_grid(table)
         slots = self._slots(tracks)
         shape = amp.shape
         fields = list(TQIMemory.__dataclass_fields__)
@@ -192,40 +196,8 @@ class _StreamedTQI:
         return out
 
 
-def _update_grid(table: Any) -> tuple[np.ndarray, ...]:
-    """Rows laid out as (update, track): the k-th row of a track is its k-th update.
-
-    Returns ``tracks`` (sorted ids), ``row_k`` and ``col`` (each row's update and track index)
-    and the ``amp``, ``res`` and ``valid`` grids of shape (most updates of a track, tracks).
-    Rows of a track must be in time order (checked by the readers).
-    """
-    tracks, col = np.unique(table["track_id"], return_inverse=True)
-    order = np.argsort(col, kind="stable")
-    counts = np.bincount(col, minlength=tracks.size)
-    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
-    row_k = np.empty(len(table), dtype=np.int64)
-    row_k[order] = np.arange(len(table)) - np.repeat(starts, counts)
-    shape = (int(counts.max()), tracks.size)
-    amp = np.full(shape, np.nan)
-    res = np.full(shape, np.nan)
-    valid = np.zeros(shape, dtype=bool)
-    amp[row_k, col] = table["amplitude"]
-    res[row_k, col] = table["residual"]
-    valid[row_k, col] = True
-    return tracks, row_k, col, amp, res, valid
-
-
 def _whole_file(args: argparse.Namespace, tqi: TrackQualityIndicator) -> tuple[int, int]:
     """The TQI of the whole table at once (rows sorted by the reader if they were out of order)."""
     table = read_amplitudes(args.amplitudes)
-    tracks, row_k, col, amp, res, valid = _update_grid(table)
-    hist = tqi.run(amp, res, valid=valid)
-    columns = {name: table[name] for name in ("track_id", "time", "amplitude", "residual")}
-    columns["tqi"] = hist.labels()[row_k, col]
-    if args.diagnostics:
-        columns["sllr0"] = hist.sllr0[row_k, col]
-        columns["sllr1"] = hist.sllr1[row_k, col]
-        columns["smoothed_residual"] = hist.residual_deg[row_k, col]
-        columns["err_max"] = hist.err_max_deg[row_k, col]
-    write_table(args.out, columns)
-    return int(tracks.size), len(table)
+    write_table(args.out, quality_columns(table, tqi, diagnostics=args.diagnostics))
+    return int(np.unique(table["track_id"]).size), len(table)

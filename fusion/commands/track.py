@@ -18,7 +18,9 @@ A tentative track whose detections stand still relative to the sensor (``rcv_x, 
 confirmed (:mod:`fusion.active.platform`; ``--keep-platform-fixed`` turns this off).
 
 Scales not given are read from the first ``--fit-pings`` pings
-(:func:`fusion.active.settings.track_settings`): scan period, position scatter, speed prior,
+(:func:`fusion.active.settings.track_settings`, through
+:func:`fusion.pipelines.active_tracking.build_tracker`, as the library's
+:func:`fusion.track_detections` does): scan period, position scatter, speed prior,
 process noise, clutter density, start exclusion and the hotspot lengths. One line on stderr says
 what was chosen; the same goes to ``T.settings.json`` beside ``T.csv`` (not with ``--out -``),
 with a line saying why when no track was confirmed. The file is read and written in chunks,
@@ -29,13 +31,12 @@ whole run or the rows are not in event order (then the whole-file reader sorts t
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import itertools
 import logging
 from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING
-
-import numpy as np
 
 from fusion._progress import track_progress
 from fusion.cli import MAX_SCANS_OPTION, emit, number
@@ -47,6 +48,13 @@ from fusion.io import (
     write_table,
     write_table_chunks,
 )
+from fusion.pipelines.active_tracking import (
+    FIT_PINGS,
+    MAP_MEMORY_PINGS,
+    TrackOptions,
+    build_tracker,
+    track_pings,
+)
 
 if TYPE_CHECKING:
     from fusion.active.settings import TrackSettings
@@ -57,10 +65,6 @@ logger = logging.getLogger(__name__)
 
 _POSITIONS = ("src_x", "src_y", "rcv_x", "rcv_y")
 _HEADER = ("track_id", "event", "time", "x", "y", "vx", "vy", "status")
-#: Pings whose detections the settings are read from, by default.
-FIT_PINGS = 500
-#: Pings the density clutter map remembers by default (bounded memory on long runs).
-MAP_MEMORY_PINGS = 200
 #: Pings per written chunk when streaming.
 _PINGS_PER_CHUNK = 256
 
@@ -277,72 +281,43 @@ class _Summary:
                 f"tentative: {' or '.join(why) or 'deleted before confirmation'}")
 
 
-def _tracker(args: argparse.Namespace, st: TrackSettings, system: object | None) -> Tracker:
-    """The tracker these options and settings configure."""
-    from fusion.active.clutter import ClutterMap, DensityClutterMap
-    from fusion.active.tracker import Tracker
-
-    sigma = st.position_sigma_m
-    return Tracker(
-        mode=args.mode, system=system, position_sigma_m=sigma,
-        position_errors=args.position_errors, range_sum_sigma_m=args.range_sum_sigma,
-        bearing_sigma_deg=args.bearing_sigma, noise=args.noise,
-        aspect="measured" if args.aspect_column == "measured" else "geometry",
-        score_threshold=args.score_threshold,
-        confirm_llr=None if args.no_track_score else args.confirm_llr,
-        delete_llr=args.delete_llr, score_evidence=not args.no_score_evidence,
-        detection_probability=args.detection_probability,
-        clutter_intensity=args.clutter_density, min_speed_mps=args.min_speed,
-        motion_probability=args.motion_probability, gate_probability=args.gate_probability,
-        accel_psd=st.accel_psd, speed_sigma_mps=st.speed_sigma_mps,
-        init_exclusion_m=st.init_exclusion_m, hotspot_drop=args.hotspot_drop,
-        intensity_bandwidth_m=st.intensity_bandwidth_m, min_rank=args.min_rank,
-        edge_likelihood=args.edge_likelihood,
-        confirmed_edge_likelihood=args.confirmed_edge_likelihood,
-        confirm_hits=args.confirm[0], confirm_window=args.confirm[1],
-        max_misses=args.max_misses, hold_stationary=not args.confirm_stationary,
-        pd_from_tentative=not args.pd_from_confirmed,
-        coast_probability=args.coast_probability or None,
-        motion_recent=args.motion_recent_half, shadow=args.shadow_test,
-        shadow_extent_sigmas=args.shadow_extent_sigmas,
-        reject_platform_fixed=not args.keep_platform_fixed,
-        clutter_map=(ClutterMap(cell_m=args.hotspot_cell, position_sigma_m=sigma)
-                     if args.clutter_map == "grid"
-                     else DensityClutterMap(position_sigma_m=sigma,
-                                            feature_sigma_m=st.feature_sigma_m,
-                                            memory_pings=args.map_memory_pings)),
-    )
+#: Options of the command whose dest differs from the :class:`TrackOptions` field: dest ->
+#: field (a ``no_*`` dest is the field negated).
+_FIELDS = {"position_sigma": "position_sigma_m", "accel_psd": "accel_psd_m2_per_s3",
+           "hotspot_near": "hotspot_near_m", "feature_sigma": "feature_sigma_m",
+           "intensity_bandwidth": "intensity_bandwidth_m", "max_speed": "max_speed_mps",
+           "range_sum_sigma": "range_sum_sigma_m", "bearing_sigma": "bearing_sigma_deg",
+           "no_track_score": "track_score", "no_score_evidence": "score_evidence",
+           "min_speed": "min_speed_mps", "hotspot_cell": "hotspot_cell_m"}
 
 
-def _build(args: argparse.Namespace, prefix: list[Ping],
+def track_options(args: argparse.Namespace) -> TrackOptions:
+    """The library's options (:class:`~fusion.pipelines.active_tracking.TrackOptions`) of the
+    command line."""
+    fields = {f.name for f in dataclasses.fields(TrackOptions)}
+    values = {}
+    for dest, value in vars(args).items():
+        name = _FIELDS.get(dest, dest)
+        if name not in fields:
+            continue
+        if dest.startswith("no_"):
+            value = not value
+        elif isinstance(value, list):
+            value = tuple(value)
+        values[name] = value
+    return TrackOptions(**values)
+
+
+def _build(args: argparse.Namespace, opts: TrackOptions, prefix: list[Ping],
            system: object | None) -> tuple[TrackSettings, Tracker]:
     """The settings read from the first pings and the tracker they configure."""
-    from fusion.active.rulebase import default_association_system
-    from fusion.active.settings import track_settings
+    st, tracker = build_tracker(prefix, opts, system)
+    _note(args, prefix)
+    return st, tracker
 
-    try:
-        st = track_settings(prefix, position_sigma_m=args.position_sigma,
-                            speed_sigma_mps=args.speed_sigma_mps, accel_psd=args.accel_psd,
-                            init_exclusion_m=args.init_exclusion_m,
-                            feature_sigma_m=args.feature_sigma,
-                            hotspot_near_m=(None if args.hotspot_near is None
-                                            else tuple(args.hotspot_near)),
-                            intensity_bandwidth_m=args.intensity_bandwidth,
-                            max_speed_mps=args.max_speed)
-        if args.mode == "fuzzy" and system is None:
-            system = default_association_system(hotspot_near_m=st.hotspot_near_m)
-        tracker = _tracker(args, st, system)
-        if args.speed_sigma_mps is None and args.pilot_speed and prefix and args.mode == "fuzzy":
-            from fusion.active.pilot import pilot_speed_prior
 
-            logging.getLogger("fusion.active.fuzzy").setLevel(logging.ERROR)
-
-            pilot = pilot_speed_prior(prefix, tracker, min_speed_mps=args.min_speed)
-            if pilot.speed_sigma_mps is not None:
-                st = st.with_track_speed(pilot.speed_sigma_mps, len(pilot.speeds_mps))
-                tracker = _tracker(args, st, system)
-    except ValueError as e:
-        raise ValueError(f"bad option: {e}") from None
+def _note(args: argparse.Namespace, prefix: list[Ping]) -> None:
+    """Say which clue columns the file lacks (fuzzy mode), once."""
     if args.mode == "fuzzy":
         present = set(prefix[0].clues) if prefix else set()
         absent = [c for c in ("score", "snr_db") if c not in present]
@@ -356,17 +331,16 @@ def _build(args: argparse.Namespace, prefix: list[Ping],
                  "the rules reading them are left out of the rank", err=True)
         # The note above replaces the fuzzy engine's own warning.
         logging.getLogger("fusion.active.fuzzy").setLevel(logging.ERROR)
-    return st, tracker
 
 
-def _streamed(args: argparse.Namespace, system: object | None,
+def _streamed(args: argparse.Namespace, opts: TrackOptions, system: object | None,
               summary: _Summary) -> TrackSettings:
     """Read, track and write ping by ping (bounded memory); returns the settings."""
     from fusion.active.types import TrackingResult, iter_pings
 
     pings = iter_pings(chunk.table for chunk in iter_detections(args.detections))
     prefix = list(itertools.islice(pings, args.fit_pings))
-    st, tracker = _build(args, prefix, system)
+    st, tracker = _build(args, opts, prefix, system)
 
     def chunks() -> Iterator[dict]:
         results = []
@@ -384,39 +358,26 @@ def _streamed(args: argparse.Namespace, system: object | None,
     return st
 
 
-def _whole(args: argparse.Namespace, system: object | None, summary: _Summary) -> TrackSettings:
-    """Read the whole file (sorted by event), track, write; returns the settings."""
-    from fusion.active.types import TrackingResult, pings_from_columns
+def _whole(args: argparse.Namespace, opts: TrackOptions, system: object | None,
+           summary: _Summary) -> TrackSettings:
+    """Read the whole file (sorted by event), track, write; returns the settings
+    (:func:`fusion.pipelines.active_tracking.track_pings`, as the library's
+    :func:`fusion.track_detections`)."""
+    from fusion.active.types import pings_from_columns
 
     pings = pings_from_columns(read_detections(args.detections))
-    st, tracker = _build(args, pings[:args.fit_pings], system)
-    tracker.reset()
-    results = []
-    for p in track_progress(pings, quiet=args.quiet, desc="track", unit="ping",
-                            total=len(pings)):
-        results.append(tracker.step(p))
-        summary.add(p.n, results[-1])
-    result = TrackingResult(tuple(results))
-    cols = result.columns()
-    if args.smooth:
-        from fusion.active.smoothing import TrackSmoother, smooth_tracks
-
-        smoother = TrackSmoother(accel_psd=tracker.accel_psd,
-                                 speed_sigma_mps=tracker.speed_sigma_mps)
-        cols = smooth_tracks(result, smoother).columns
-    if args.confirmed_only:
-        keep = np.isin(cols["track_id"], result.confirmed_ids())
-        cols = {k: v[keep] for k, v in cols.items()}
-    write_table(args.out, cols)
-    return st
+    run = track_pings(
+        pings, opts, system=system, on_built=lambda _: _note(args, pings[:opts.fit_pings]),
+        on_ping=lambda p, r: summary.add(p.n, r),
+        each=lambda ps: track_progress(ps, quiet=args.quiet, desc="track", unit="ping",
+                                       total=len(ps)))
+    write_table(args.out, run.columns)
+    return run.settings
 
 
 def run(args: argparse.Namespace) -> int:
     """Track the detections and write the tracks, the settings and one line of summary."""
-    if args.confirm[0] > args.confirm[1]:
-        raise ValueError(f"--confirm: M must not exceed N, got {args.confirm[0]} {args.confirm[1]}")
-    if args.smooth and args.accel_psd is not None and args.accel_psd <= 0:
-        raise ValueError("--smooth needs --accel-psd-m2-per-s3 > 0")
+    opts = track_options(args)  # checks --confirm and --smooth
     system = None
     if args.mode == "fuzzy" and args.rules is not None:
         from fusion.active.fuzzy import load_system
@@ -426,12 +387,12 @@ def run(args: argparse.Namespace) -> int:
     streamed = not (args.smooth or args.confirmed_only)
     if streamed:
         try:
-            st = _streamed(args, system, summary)
+            st = _streamed(args, opts, system, summary)
         except RowOrderError as e:  # rows out of event order: the whole-file reader sorts them
             logger.debug("%s; reading the whole file", e)
             summary, streamed = _Summary(), False
     if not streamed:
-        st = _whole(args, system, summary)
+        st = _whole(args, opts, system, summary)
     why = summary.why_none(args, st)
     write_settings(args.out, {"command": "track", "settings": st.metadata(),
                               "pings": summary.pings, "detections": summary.detections,

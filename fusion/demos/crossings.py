@@ -6,11 +6,11 @@ from pathlib import Path
 
 import numpy as np
 
-from fusion.commands.crossings import alert_columns
 from fusion.geometry import wrap_deg
 from fusion.io import write_table
 from fusion.passive.crossing import detect_crossings
 from fusion.passive.crossing.settings import crossing_settings
+from fusion.pipelines.bearing_crossings import alert_columns
 
 
 def run_demo(out_dir: Path, *, seed: int) -> dict:

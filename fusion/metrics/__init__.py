@@ -21,3 +21,13 @@ Nothing outside this package scores against truth, and no estimator imports it
 
 Importing this package imports none of them; import the module you need.
 """
+
+# The package imports none of its modules (each loads only its own dependencies when
+# imported); `from fusion.metrics import *` imports them all.
+__all__ = [
+    "crossings",
+    "detections",
+    "localization",
+    "tqi",
+    "tracks",
+]

@@ -3,7 +3,31 @@
 - :mod:`fusion.pipelines.passive` -- passive narrowband beam/frequency/time scans: acquisition,
   fixed-lag bearing graphs, track quality, crossings (:class:`~fusion.pipelines.passive.
   PassivePipeline`), a package with one module per part.
+- :mod:`fusion.pipelines.bearing_smoothing`, :mod:`~fusion.pipelines.bearing_crossings`,
+  :mod:`~fusion.pipelines.track_quality`, :mod:`~fusion.pipelines.active_tracking` -- one table
+  in, the settings its command estimates fitted to it, results out: the functions ``fusion
+  smooth``, ``crossings``, ``tqi`` and ``track`` call, exported as :func:`fusion.smooth_bearings`,
+  :func:`fusion.find_crossings`, :func:`fusion.track_quality`, :func:`fusion.track_detections`.
 
 Import the pipeline modules themselves; this package imports nothing, so that loading one
 pipeline does not load the others' dependencies.
 """
+
+# The package imports none of its modules (each loads only its own dependencies when
+# imported); `from fusion.pipelines import *` imports them all.
+__all__ = [
+    "bearing_crossings",
+    "bearing_smoothing",
+    "click_chunks",
+    "click_stream",
+    "click_training",
+    "clicks",
+    "from_recording",
+    "localization",
+    "passive",
+    "passive_measure",
+    "passive_scoring",
+    "passive_types",
+    "sound_speed",
+    "track_quality",
+]

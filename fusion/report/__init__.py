@@ -8,3 +8,15 @@ figures (:func:`~fusion.report.build.make_report`); the families: :mod:`~fusion.
 :mod:`~fusion.report.figures` holds the pieces they and the demo share. matplotlib is imported
 only when a figure is made (Agg canvas, no pyplot state).
 """
+
+# The package imports none of its modules (each loads only its own dependencies when
+# imported); `from fusion.report import *` imports them all.
+__all__ = [
+    "acquisition",
+    "bearing_time",
+    "build",
+    "figures",
+    "kinds",
+    "localization",
+    "positions",
+]

@@ -11,6 +11,8 @@ import importlib
 from collections.abc import Callable
 from pathlib import Path
 
+__all__ = ["SIMULATORS", "get_writer"]
+
 #: Scenario kind -> "module:function" of its writer.
 SIMULATORS: dict[str, str] = {
     "cube": "fusion.simulate.cube:write_scenario",

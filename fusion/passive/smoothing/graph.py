@@ -32,7 +32,7 @@ from factors.angles import nearest_branch
 from factors.bearing import linear_bearing_factors
 from factors.motion import constant_velocity_chain
 from factors.weighted import sqrt_weights, weighted_factor
-from fusion.geometry import wrap_angle
+from fusion.geometry import check_radians, wrap_angle
 from fusion.passive.smoothing.types import TrackPrior
 
 __all__ = ["ROBUST_LOSSES"]
@@ -73,6 +73,7 @@ def _check_detections(times: ArrayLike, bearings: ArrayLike) -> tuple[FloatArray
         raise ValueError("no bearings given")
     if not (np.all(np.isfinite(t)) and np.all(np.isfinite(z))):
         raise ValueError("times and bearings must be finite")
+    check_radians(z)
     if np.any(np.diff(t) < 0):
         raise ValueError("times must be non-decreasing")
     return t, z

@@ -15,7 +15,7 @@ from numpy.typing import NDArray
 from factors.bearing import linear_bearing_factors, state_bearing_noise
 from factors.motion import constant_velocity_steps
 from fusion._validation import check_positive
-from fusion.geometry import wrap_angle
+from fusion.geometry import check_radians, wrap_angle
 from fusion.passive.smoothing.graph import _check_loss, _Model, _robust_noise
 from fusion.passive.smoothing.types import SmoothedTrack, TrackPrior
 
@@ -147,6 +147,7 @@ class OnlineBearingSmootherSet:
         z = np.concatenate(zs) if zs else np.zeros(0)
         if not np.all(np.isfinite(z)):
             raise ValueError("bearings must be finite")
+        check_radians(z)
         graph = gtsam.NonlinearFactorGraph()
         values = gtsam.Values()
         dt = time - self._times[-1]

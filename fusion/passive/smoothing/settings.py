@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from fusion.geometry import wrap_angle
+from fusion.geometry import check_radians, wrap_angle
 from fusion.passive.smoothing.diffusion import lag_diffusion, rate_diffusion
 
 __all__ = [
@@ -270,7 +270,8 @@ def fit_smooth_settings(
     times : array_like, shape (n,)
         Times, s.
     bearings : array_like, shape (n,)
-        Bearings, rad.
+        Bearings, rad (degrees, any ``|value| > 2 pi``, are refused: the options below are in
+        the units their names give, the bearings are not a file's ``bearing_deg``).
     sigma_bearing_deg, period_s, q_deg2_per_s3, clutter_density, p_detect, \
 init_sigma_rate_deg_per_s, max_misses, max_gap_scans, min_length : optional, keyword-only
         Given values (``None``: estimate); see :class:`SmoothSettings`.
@@ -304,7 +305,7 @@ init_sigma_rate_deg_per_s, max_misses, max_gap_scans, min_length : optional, key
     """
     ids = np.asarray(track_id)
     t = np.asarray(times, float)
-    z = np.asarray(bearings, float)
+    z = check_radians(bearings)
     est: list[str] = []
     if period_s is None:
         period = scan_period(t, ids)

@@ -10,6 +10,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from fusion.geometry import check_radians
+
 __all__ = ["MultiTrackResult", "SmoothedTrack", "TrackPrior", "TrackerResult"]
 
 FloatArray = NDArray[np.float64]
@@ -22,7 +24,7 @@ class TrackPrior:
     Attributes
     ----------
     bearing : float
-        Bearing, rad.
+        Bearing, rad (``|bearing| > 2 pi``, degrees, is refused).
     rate : float
         Bearing rate, rad/s.
     sigma_bearing : float
@@ -40,6 +42,7 @@ class TrackPrior:
         for name in ("bearing", "rate"):
             if not np.isfinite(getattr(self, name)):
                 raise ValueError(f"prior {name} must be finite")
+        check_radians(self.bearing, "prior bearing")
         for name in ("sigma_bearing", "sigma_rate"):
             v = getattr(self, name)
             if not (np.isfinite(v) and v > 0):
