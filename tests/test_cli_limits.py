@@ -7,6 +7,7 @@ a ZeroDivisionError, an OverflowError, terabytes of allocation or hours of empty
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 
 import numpy as np
@@ -160,3 +161,36 @@ def test_huge_sensor_coordinate_is_refused_without_a_numpy_warning(tmp_path, rec
     with pytest.raises(ValueError, match=r"sensor 0: 'x' = 1e\+308 is beyond"):
         read_array(p)
     assert not [w for w in recwarn if issubclass(w.category, RuntimeWarning)]
+
+
+@pytest.mark.parametrize(("option", "value", "words"), [
+    ("--workers", "0", ("--workers", ">= 1")),
+    ("--workers", "99999999999999", ("--workers", "<=")),
+    ("--workers", "max+1", ("--workers", "<=")),
+    ("--candidates", "0", ("--candidates", ">= 1")),
+    ("--candidates", "257", ("--candidates", "<= 256")),
+    ("--candidates", "1000000000000", ("--candidates", "<= 256")),
+])
+def test_localize_workers_and_candidates_out_of_bounds_are_one_line(run_cli, tmp_path, option,
+                                                                     value, words):
+    """--workers above 4 per core (was: any number of Dask processes started) and --candidates
+    above 256 (was: every local maximum of the volume competing, K^2 pairs an iteration) are
+    usage errors, before any file is read."""
+    from fusion.commands.localize import MAX_WORKERS_PER_CORE, max_workers
+
+    assert max_workers() == MAX_WORKERS_PER_CORE * (os.cpu_count() or 1)
+    value = str(max_workers() + 1) if value == "max+1" else value
+    _one_line_exit_2(run_cli, "localize", "--audio", tmp_path / "a.wav", "--array",
+                     tmp_path / "a.json", "--out", tmp_path / "r.json", option, value,
+                     words=words)
+    assert not list(tmp_path.iterdir())
+
+
+def test_localize_workers_and_candidates_at_their_bounds_are_accepted():
+    from fusion.cli import build_parser
+    from fusion.commands.localize import MAX_CANDIDATES, max_workers
+
+    args = build_parser("localize").parse_args(
+        ["localize", "--audio", "a.wav", "--array", "a.json", "--out", "r.json", "--workers",
+         str(max_workers()), "--candidates", str(MAX_CANDIDATES)])
+    assert (args.workers, args.candidates) == (max_workers(), MAX_CANDIDATES)

@@ -54,6 +54,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import dataclasses
+import os
 from pathlib import Path
 
 from fusion.cli import emit, number
@@ -61,6 +62,17 @@ from fusion.cli import emit, number
 #: Default of --max-tdoa-rate (fusion.clicks.scm.MAX_TDOA_RATE, not imported here: --help stays
 #: light).
 MAX_TDOA_RATE = 1.6e-3
+#: Most candidates per window (--candidates): each is a graph re-solved in every iteration of the
+#: competition and compared with every other one (K^2 pairs an iteration); 16 times the default.
+MAX_CANDIDATES = 256
+#: Most local Dask worker processes per core (--workers): each holds its own audio blocks and
+#: models; past a few per core they add memory, not speed.
+MAX_WORKERS_PER_CORE = 4
+
+
+def max_workers() -> int:
+    """The largest ``--workers`` on this machine: :data:`MAX_WORKERS_PER_CORE` per core."""
+    return MAX_WORKERS_PER_CORE * (os.cpu_count() or 1)
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -127,8 +139,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="height of the sea floor, m (z up, e.g. -1700; at or below every sensor): "
                         "sources are searched between it and the surface (default: 30 m under "
                         "the deepest sensor when the sensors hear bottom echoes, else unknown)")
-    p.add_argument("--candidates", type=number(int, ge=1), default=None, metavar="N",
-                   help="candidates per window (default 16 reading surface paths, 8 direct)")
+    p.add_argument("--candidates", type=number(int, ge=1, le=MAX_CANDIDATES), default=None,
+                   metavar="N", help="candidates per window, at most "
+                   f"{MAX_CANDIDATES} (default 16 reading surface paths, 8 direct)")
     p.add_argument("--min-source-tdoas", type=number(float, gt=0), default=None, metavar="W",
                    help="smallest total TDOA weight of a source (default 5.5 reading surface "
                         "paths, 3.5 direct)")
@@ -140,9 +153,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="audio per task, s: consecutive windows processed (and recorded for "
                         "resuming) together (default 60)")
     where = p.add_mutually_exclusive_group()
-    where.add_argument("--workers", type=number(int, ge=1), default=None,
+    where.add_argument("--workers", type=number(int, ge=1, le=max_workers()), default=None,
                        help="run the chunks on a local Dask cluster of this many worker "
-                            "processes (default: serially in this process, no Dask)")
+                            f"processes, at most {MAX_WORKERS_PER_CORE} per core ({max_workers()} "
+                            "here) (default: serially in this process, no Dask)")
     where.add_argument("--scheduler", default=None, metavar="ADDRESS",
                        help="run the chunks on the Dask scheduler at ADDRESS (tcp://host:8786); "
                             "its workers must read the same audio paths")
