@@ -19,8 +19,9 @@ smoothers; the design notes ("Factor graphs", bearing-rate graph) describe the m
 
 from __future__ import annotations
 
+import functools
 import logging
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import gtsam
@@ -31,6 +32,7 @@ from factors.angles import nearest_branch
 from factors.bearing import linear_bearing_factors
 from factors.motion import constant_velocity_chain
 from factors.weighted import weighted_factor
+from fusion._stack import with_deep_stack
 from fusion.geometry import wrap_angle
 from fusion.passive.smoothing.types import TrackPrior
 
@@ -45,6 +47,9 @@ ROBUST_LOSSES = ("none", "huber", "cauchy")
 
 #: Solves of one graph at most, re-centring the bearings on the previous solution each time.
 _MAX_RECENTRE = 5
+#: Graphs of more states than this are solved on a deep stack (:mod:`fusion._stack`): GTSAM
+#: recurses once per state of the chain (100,000 states overflowed the main thread's stack).
+_DEEP_CHAIN = 5_000
 
 
 def _robust_noise(base: gtsam.noiseModel.Base, loss: str, k: float) -> gtsam.noiseModel.Base:
@@ -239,6 +244,19 @@ def _initial_states(times: FloatArray, meas: _Measurements, prior: TrackPrior | 
     return np.column_stack([theta, rate])
 
 
+def _deep_for_long_chains(fn: Callable) -> Callable:
+    """Run `fn(times, ...)` on a deep stack when the chain has more than _DEEP_CHAIN states."""
+
+    @functools.wraps(fn)
+    def wrapper(times, *args, **kwargs):
+        if np.size(times) > _DEEP_CHAIN:
+            return with_deep_stack(fn, times, *args, **kwargs)
+        return fn(times, *args, **kwargs)
+
+    return wrapper
+
+
+@_deep_for_long_chains
 def _solve(
     times: FloatArray,
     meas: _Measurements,
@@ -262,6 +280,7 @@ def _solve(
     return states, np.sqrt(var)
 
 
+@_deep_for_long_chains
 def _solve_cov(
     times: FloatArray,
     meas: _Measurements,
