@@ -108,6 +108,21 @@ def test_time_far_from_the_data_is_refused(run_cli, tmp_path, command, time):
     assert not (tmp_path / "o.csv").exists()
 
 
+@pytest.mark.parametrize("time", [-1e12, 9e11])
+def test_time_far_from_the_data_out_of_time_order_is_refused_by_crossings(run_cli, tmp_path,
+                                                                           time):
+    """The far row out of time order (crossings then reads the whole file instead of streaming
+    it): the same one line (was: a MemoryError traceback, 671-745 GiB; found by the property
+    test)."""
+    rows = _bearings(tmp_path / "b.csv", []).read_text().splitlines()
+    rows.insert(5, f"0,{time!r},50.0")
+    (tmp_path / "b.csv").write_text("\n".join(rows) + "\n")
+    err = _one_line_exit_2(run_cli, "crossings", "--bearings", tmp_path / "b.csv", "--out",
+                           tmp_path / "o.csv", words=("b.csv", "more than 10,000,000", "track 0"))
+    assert "Traceback" not in err
+    assert not (tmp_path / "o.csv").exists()
+
+
 @pytest.mark.parametrize("event", [1_000_000_000_000, 100_000_000, 200_000])
 def test_event_id_far_past_the_others_is_refused(run_cli, tmp_path, event):
     rows = [(e, 10.0 * e, 100.0 * k, 50.0 * e) for e in range(20) for k in range(3)]
