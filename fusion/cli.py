@@ -58,6 +58,7 @@ from fusion._options import (  # noqa: F401 (re-exported)
     DB_RANGE,
     MAX_OPTION_ABS,
     MAX_SCANS_OPTION,
+    MIN_POSITIVE_OPTION,
     add_old_spellings,
     number,
     old_spelling_warnings,

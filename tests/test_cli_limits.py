@@ -209,3 +209,35 @@ def test_localize_workers_and_candidates_at_their_bounds_are_accepted():
         ["localize", "--audio", "a.wav", "--array", "a.json", "--out", "r.json", "--workers",
          str(max_workers()), "--candidates", str(MAX_CANDIDATES)])
     assert (args.workers, args.candidates) == (max_workers(), MAX_CANDIDATES)
+
+
+@pytest.mark.parametrize("argv", [
+    ("tma", "--bearings", "B", "--ownship", "O", "--bearing-sigma-deg", "4.374969934613653e-268"),
+    ("tma", "--bearings", "B", "--ownship", "O", "--accel-psd-m2-per-s3", "5e-324"),
+    ("smooth", "--bearings", "B", "--bearing-sigma-deg", "1e-300"),
+    ("tqi", "--amplitudes", "A", "--residual-smoothing", "9e-13"),
+])
+def test_positive_option_below_1e_12_is_a_usage_error(run_cli, tmp_path, argv):
+    """A positive float option below 1e-12 (``gt=0``): one line, exit 2 (was, for tma
+    --bearing-sigma-deg 4e-268: a ZeroDivisionError traceback, its square 0; found by the
+    property test)."""
+    files = {"B": tmp_path / "b.csv", "O": tmp_path / "o.csv", "A": tmp_path / "a.csv"}
+    for f in files.values():
+        f.write_text("x\n1\n")
+    argv = [str(files.get(a, a)) for a in argv]
+    err = _one_line_exit_2(run_cli, *argv, "--out", tmp_path / "r.csv", words=(argv[-2],))
+    assert ">= 1e-12" in err
+    assert not (tmp_path / "r.csv").exists()
+
+
+def test_positive_option_bound_is_inclusive():
+    import argparse
+
+    from fusion.cli import MIN_POSITIVE_OPTION, number
+
+    assert number(float, gt=0)("1e-12") == MIN_POSITIVE_OPTION
+    assert number(float, gt=0)("0.5") == 0.5
+    assert number(float, ge=0)("5e-324") == 5e-324  # zero allowed: tiny too
+    for text, words in (("-1", "> 0"), ("0", "> 0"), ("5e-324", ">= 1e-12")):
+        with pytest.raises(argparse.ArgumentTypeError, match=words):
+            number(float, gt=0)(text)
