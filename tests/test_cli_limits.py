@@ -241,3 +241,19 @@ def test_positive_option_bound_is_inclusive():
     for text, words in (("-1", "> 0"), ("0", "> 0"), ("5e-324", ">= 1e-12")):
         with pytest.raises(argparse.ArgumentTypeError, match=words):
             number(float, gt=0)(text)
+
+
+@pytest.mark.parametrize("command", ["localize", "train-validator"])
+@pytest.mark.parametrize("hop", ["1e-6", "0.0009"])
+def test_hop_below_the_click_map_resolution_is_a_usage_error(run_cli, tmp_path, command, hop):
+    """--hop-s below 1 ms (3 samples of the click map): one line, before any work (was: a hop of
+    1 us ran a 3-s recording's 3 million windows for hours)."""
+    from fusion.clicks.scm import ScmConfig
+    from fusion.commands.localize import MIN_HOP_S
+
+    assert MIN_HOP_S * ScmConfig().fs_hz >= 3
+    argv = (["localize", "--audio", tmp_path / "a.wav", "--array", tmp_path / "a.json"]
+            if command == "localize" else ["train-validator", "--recording", tmp_path])
+    _one_line_exit_2(run_cli, *argv, "--out", tmp_path / "r.out", "--hop-s", hop,
+                     words=("--hop-s", ">= 0.001"))
+    assert not (tmp_path / "r.out").exists()

@@ -65,6 +65,10 @@ MAX_TDOA_RATE = 1.6e-3
 #: Most candidates per window (--candidates): each is a graph re-solved in every iteration of the
 #: competition and compared with every other one (K^2 pairs an iteration); 16 times the default.
 MAX_CANDIDATES = 256
+#: Shortest update period (--hop-s, also of train-validator), s: 3 samples of the 3 kHz click map;
+#: windows closer than that repeat one map (and a hop of 1 us made 3 million windows of a 3-s
+#: recording, hours of work).
+MIN_HOP_S = 1e-3
 #: Most local Dask worker processes per core (--workers): each holds its own audio blocks and
 #: models; past a few per core they add memory, not speed.
 MAX_WORKERS_PER_CORE = 4
@@ -98,8 +102,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="result JSON (a folder of them for a folder of recordings)")
     p.add_argument("--window-s", dest="window", type=number(float, gt=0), default=12.0,
                    help="processing window, s (default 12)")
-    p.add_argument("--hop-s", dest="hop", type=number(float, gt=0), default=2.0,
-                   help="update period, s (default 2)")
+    p.add_argument("--hop-s", dest="hop", type=number(float, ge=MIN_HOP_S), default=2.0,
+                   help=f"update period, s, at least {MIN_HOP_S:g} (default 2)")
     p.add_argument("--band-hz", dest="band", type=number(float, gt=0), nargs=2, metavar=("LOW", "HIGH"),
                    default=(14000.0, 40000.0), help="click detection band, Hz (default 14000 40000)")
     p.add_argument("--min-centre-freq-hz", dest="min_centre_freq", type=number(float, ge=0), default=20000.0,

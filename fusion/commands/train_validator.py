@@ -24,6 +24,7 @@ import numpy as np
 
 from fusion._progress import track_progress
 from fusion.cli import emit, number
+from fusion.commands.localize import MIN_HOP_S
 
 logger = logging.getLogger(__name__)
 
@@ -58,8 +59,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--seed", type=number(int, ge=0), default=0, help="fitting seed (default 0)")
     p.add_argument("--window-s", dest="window", type=number(float, gt=0), default=12.0,
                    help="processing window, s (default 12)")
-    p.add_argument("--hop-s", dest="hop", type=number(float, gt=0), default=2.0,
-                   help="update period, s (default 2)")
+    p.add_argument("--hop-s", dest="hop", type=number(float, ge=MIN_HOP_S), default=2.0,
+                   help=f"update period, s, at least {MIN_HOP_S:g} (default 2)")
     p.add_argument("--quiet", action="store_true",
                    help="no progress bar (none either when standard error is not a terminal)")
     p.set_defaults(handler=run, inputs=("recording", "audio", "array", "labels"),
