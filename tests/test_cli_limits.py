@@ -134,6 +134,20 @@ def test_event_id_far_past_the_others_is_refused(run_cli, tmp_path, event):
     assert not (tmp_path / "t.csv").exists()
 
 
+@pytest.mark.parametrize("event", [900_000_000_000, 200_000])
+def test_event_id_far_past_the_others_out_of_order_is_refused(run_cli, tmp_path, event):
+    """The far event out of event order (track then reads the whole file instead of streaming
+    it): the same one line (was: a MemoryError traceback, 6.55 TiB; found by the property
+    test)."""
+    rows = [(e, 10.0 * e, 100.0 * k, 50.0 * e) for e in range(20) for k in range(3)]
+    rows.insert(7, (event, 10.0 * 21, 0.0, 0.0))
+    src = tmp_path / "d.csv"
+    src.write_text("event,time,x,y\n" + "".join(f"{e},{t},{x},{y}\n" for e, t, x, y in rows))
+    _one_line_exit_2(run_cli, "track", "--detections", src, "--out", tmp_path / "t.csv",
+                     words=("d.csv", f"event {event} after event 19", "more than 100,000"))
+    assert not (tmp_path / "t.csv").exists()
+
+
 def test_failing_run_prints_only_its_error_line(run_cli, tmp_path):
     """The sort note of out-of-order rows is dropped when the run then fails."""
     b = tmp_path / "b.csv"
