@@ -159,6 +159,23 @@ def test_failing_run_prints_only_its_error_line(run_cli, tmp_path):
     assert "sorted" not in err
 
 
+def test_failing_track_prints_only_its_error_line_not_its_note(run_cli, tmp_path):
+    """track's note on missing clue columns waits for the tracks to be written: a run that
+    then fails prints its error line only (was: the note first; found by the property test)."""
+    src = tmp_path / "d.csv"
+    src.write_text("event,time,x,y\n2,0,0,0\n0,0,105,0\n1,30,10,50\n")
+    err = _one_line_exit_2(run_cli, "track", "--detections", src, "--out", tmp_path / "t.csv",
+                           words=("error:", "goes back"))
+    assert "note:" not in err
+    ok = tmp_path / "ok.csv"
+    ok.write_text("event,time,x,y\n" + "".join(f"{e},{10 * e},{100 * k},{50 * e}\n"
+                                                 for e in range(12) for k in range(2)))
+    code, _, err = run_cli("track", "--detections", ok, "--out", tmp_path / "t.csv",
+                           "--fit-pings", 5)
+    assert code == 0, err
+    assert err.count("note: ") == 1 and "left out of the rank" in err, err
+
+
 def test_numpy_warning_of_a_successful_run_is_one_line(run_cli, tmp_path, monkeypatch):
     """A numpy overflow in a run that succeeds (options no longer overflow: --snr0-db 1e300 is
     refused, so the overflow is planted in the command)."""
