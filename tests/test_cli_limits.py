@@ -288,3 +288,14 @@ def test_hop_below_the_click_map_resolution_is_a_usage_error(run_cli, tmp_path, 
     _one_line_exit_2(run_cli, *argv, "--out", tmp_path / "r.out", "--hop-s", hop,
                      words=("--hop-s", ">= 0.001"))
     assert not (tmp_path / "r.out").exists()
+
+
+@pytest.mark.parametrize("options", [("--period-s", "1.192092896e-07", "--window-s", "2"),
+                                     ("--period-s", "1.192092896e-07", "--horizon-s", "2")])
+def test_crossing_windows_beyond_a_million_samples_are_refused(run_cli, tmp_path, options):
+    """A ladder of windows over 10^6 samples (a tiny --period-s): one line, before any
+    allocation (was: a MemoryError traceback, 4-36 GiB; found by the property test)."""
+    src = _bearings(tmp_path / "b.csv", [])
+    _one_line_exit_2(run_cli, "crossings", "--bearings", src, "--out", tmp_path / "o.csv",
+                     *options, words=("longest window", "more than 1,000,000"))
+    assert not (tmp_path / "o.csv").exists()
