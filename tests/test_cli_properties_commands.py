@@ -59,7 +59,7 @@ class Command:
     skip: tuple[str, ...] = ()
 
 
-_OUT_DIR_SKIP = ("--workers", "--scheduler")  # start Dask: bounds are drawn in test_localize_*
+_DASK = ("--workers", "--scheduler")  # start a Dask cluster; bounds: tests/test_cli_limits.py
 #: command key -> a valid run on the session's inputs (in/...), writing into out...
 COMMANDS: dict[str, Command] = {
     "simulate-clicks": Command(("simulate", "clicks", "--duration-s", "1", "--sensors", "4",
@@ -80,11 +80,11 @@ COMMANDS: dict[str, Command] = {
                         "--out", "out", "--quiet"), 5),
     "localize": Command(("localize", "--audio", "in/rec/audio.flac", "--array", "in/rec/array.json",
                          "--window-s", "2", "--hop-s", "1", "--replica", "generic", "--out",
-                         "out.json", "--quiet"), 6, _OUT_DIR_SKIP),
+                         "out.json", "--quiet"), 6, _DASK),
     "localize-events": Command(("localize", "--audio", *(f"in/xav/cut1_AMAR173.{i}.flac"
                                                          for i in range(1, 7)),
                                 "--array", "in/xav/array.json", "--events", "in/xav/events.csv",
-                                "--out", "out.json", "--quiet"), 12, _OUT_DIR_SKIP),
+                                "--out", "out.json", "--quiet"), 12, _DASK),
     "train-validator": Command(("train-validator", "--recording", "in/rec", "--window-s", "2",
                                 "--hop-s", "1", "--components", "2", "--out", "v.npz",
                                 "--quiet"), 5, ("--simulated",)),  # minutes per scenario
