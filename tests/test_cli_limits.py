@@ -299,3 +299,18 @@ def test_crossing_windows_beyond_a_million_samples_are_refused(run_cli, tmp_path
     _one_line_exit_2(run_cli, "crossings", "--bearings", src, "--out", tmp_path / "o.csv",
                      *options, words=("longest window", "more than 1,000,000"))
     assert not (tmp_path / "o.csv").exists()
+
+
+@pytest.mark.parametrize("command", ["acquire", "passive"])
+def test_cube_power_beyond_1e100_is_refused(run_cli, tmp_path, cube, command):
+    """One cube cell of 1e308: one line naming the file and the cell (was, for passive: a
+    GTSAM 'Indeterminate linear system' traceback; found by the property test)."""
+    arrays = dict(cube)
+    arrays["power"] = arrays["power"].copy()
+    arrays["power"][0, 2, 3] = 1e308
+    bad = tmp_path / "c.npz"
+    np.savez(bad, **arrays)
+    argv = (["acquire", "--cube", bad, "--beam", 1, "--freq-hz", 300] if command == "acquire"
+            else ["passive", "--cube", bad, "--auto", "--out", tmp_path / "o", "--quiet"])
+    _one_line_exit_2(run_cli, *argv, words=("c.npz", "1e+308", "(0, 2, 3)", "implausible"))
+    assert not (tmp_path / "o").exists()
