@@ -40,7 +40,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import soundfile as sf
-from hypothesis import event, given, settings
+from hypothesis import event, given, note, settings
 from hypothesis import strategies as st
 
 from fusion.cli import build_parser, main
@@ -128,12 +128,7 @@ def inputs(tmp_path_factory) -> Path:
     shutil.copy(sim / "tma/bearings.csv", d / "tma_bearings.csv")
     shutil.copy(sim / "tma/ownship.csv", d / "ownship.csv")
     shutil.copy(sim / "cube/cube.npz", d / "cube.npz")
-    with np.load(sim / "passive/cube.npz") as z:  # the first 90 scans (clicks at scan 59)
-        arrays = {k: z[k] for k in z.files}
-    n_scans = arrays["power"].shape[-1]
-    arrays = {k: (v[..., :90] if v.ndim and v.shape[-1] == n_scans else v)
-              for k, v in arrays.items()}
-    np.savez(d / "pcube.npz", **arrays)
+    shutil.copy(sim / "passive/cube.npz", d / "pcube.npz")  # 400 scans of 64 beams, 32 bins
     shutil.copy(sim / "passive/clicks.csv", d / "clicks.csv")
     (d / "xav").mkdir()
     for i in range(1, 7):
@@ -342,12 +337,16 @@ def damaged_npz(draw, path: Path) -> dict:
         arrays = {k: z[k] for k in z.files}
     key = draw(st.sampled_from(sorted(arrays)))
     what = draw(st.sampled_from(["delete", "nan", "scalar", "empty", "shape", "negative"]))
+    note(f"{path.name}: {what} {key!r}")
     a = arrays[key]
     if what == "delete":
         del arrays[key]
     elif what == "nan" and a.dtype.kind == "f" and a.size:
         a = a.copy()
-        a.flat[draw(st.integers(0, a.size - 1))] = draw(st.sampled_from([np.nan, np.inf, 1e308]))
+        v = draw(st.sampled_from([np.nan, np.inf, 1e308]))
+        k = draw(st.integers(0, a.size - 1))
+        a.flat[k] = v
+        note(f"{path.name}: {key!r} at {np.unravel_index(k, a.shape)} = {v}")
         arrays[key] = a
     elif what == "scalar":
         arrays[key] = np.array(draw(st.sampled_from([0.0, -1.0, 1e308, 5e-324, np.nan, 1e12])))
