@@ -10,12 +10,16 @@ import argparse
 import math
 from collections.abc import Callable
 
-__all__ = ["DB_RANGE", "MAX_OPTION_ABS", "MAX_SCANS_OPTION", "OLD_SPELLINGS", "add_old_spellings", "number",
-           "old_spelling_warnings"]
+__all__ = ["DB_RANGE", "MAX_OPTION_ABS", "MAX_SCANS_OPTION", "MIN_POSITIVE_OPTION", "OLD_SPELLINGS",
+           "add_old_spellings", "number", "old_spelling_warnings"]
 
 #: Largest magnitude of any number option without a tighter bound (as of CSV values): beyond
 #: it a value is a unit error, and 1e300 overflows whatever it is multiplied with.
 MAX_OPTION_ABS = 1e12
+#: Smallest value of a positive number option (``gt=0``: a noise sigma, a PSD, a period, a
+#: tolerance): below it a value is a unit error, and its square underflows (``--bearing-sigma-deg
+#: 4e-268`` divided by zero).
+MIN_POSITIVE_OPTION = 1e-12
 #: Bounds of decibel options (SNRs): 10**(100/10) = 1e10 is as strong as a signal gets.
 DB_RANGE = (-100.0, 100.0)
 #: Largest count of scans, pings or windows an option may set (a track rule, a window, a map
@@ -35,10 +39,13 @@ def number(
     ``number(float, gt=0)`` accepts positive floats; ``number(int, ge=1)`` positive integers. A
     bad value becomes the one-line usage error ``argument --opt: must be > 0, got '-1'``. Every
     number is at most :data:`MAX_OPTION_ABS` in magnitude (``le`` and ``ge`` tighten it):
-    ``--snr0-db 1e300`` is refused, not overflowed.
+    ``--snr0-db 1e300`` is refused, not overflowed; a positive float (``gt=0``) is at least
+    :data:`MIN_POSITIVE_OPTION`: ``--bearing-sigma-deg 5e-324`` is refused, not squared to 0.
     """
     ge = -MAX_OPTION_ABS if ge is None and gt is None else ge
     le = MAX_OPTION_ABS if le is None else le
+    if kind is float and gt == 0 and ge is None:
+        ge = MIN_POSITIVE_OPTION
 
     def convert(text: str):
         try:

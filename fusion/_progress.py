@@ -8,10 +8,10 @@ logs). tqdm is imported only when a bar is shown, so short commands pay nothing 
 from __future__ import annotations
 
 import sys
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from typing import Any, TypeVar
 
-__all__ = ["progress", "track_progress"]
+__all__ = ["RowShare", "progress", "track_progress"]
 
 T = TypeVar("T")
 
@@ -67,3 +67,43 @@ class _NoBar:
 
     def close(self) -> None:
         """Nothing to close."""
+
+
+class RowShare:
+    """Rows of work handed to a progress callback ``on_rows(n)`` in parts as the work goes on.
+
+    `rows` in all, each handed out once: :meth:`half` hands out half of what is left (one
+    solver iteration, of an unknown count), :meth:`upto` all but the part of the rows not yet
+    done (a fraction of known work), :meth:`rest` what is left. With `on_rows` None nothing is
+    called.
+
+    >>> seen = []
+    >>> share = RowShare(10, seen.append)
+    >>> share.half(); share.upto(0.8); share.rest()
+    >>> seen
+    [5, 3, 2]
+    """
+
+    def __init__(self, rows: int, on_rows: Callable[[int], None] | None) -> None:
+        self.rows = self.left = int(rows)
+        self.on_rows = on_rows
+
+    def give(self, n: int) -> None:
+        """Hand out `n` more rows (at most those left)."""
+        n = min(int(n), self.left)
+        if n > 0:
+            self.left -= n
+            if self.on_rows is not None:
+                self.on_rows(n)
+
+    def half(self) -> None:
+        """Hand out half of the rows left."""
+        self.give(self.left // 2)
+
+    def upto(self, fraction: float) -> None:
+        """Hand out rows until `fraction` of all of them have been."""
+        self.give(int(self.rows * fraction) - (self.rows - self.left))
+
+    def rest(self) -> None:
+        """Hand out every row left."""
+        self.give(self.left)

@@ -58,6 +58,7 @@ from fusion._options import (  # noqa: F401 (re-exported)
     DB_RANGE,
     MAX_OPTION_ABS,
     MAX_SCANS_OPTION,
+    MIN_POSITIVE_OPTION,
     add_old_spellings,
     number,
     old_spelling_warnings,
@@ -105,13 +106,33 @@ def emit(text: str, *, err: bool = False) -> None:
     print(text, file=sys.stderr if err or _data_on_stdout else sys.stdout)
 
 
+def path_argument(text: str) -> Path:
+    """The value of a path option (``type=Path``): ``Path(text)``, but ``./-`` stays a file.
+
+    ``Path("./-")`` is ``Path("-")``, which names standard output (``--out -``); the file called
+    ``-`` that ``./-`` names is kept as its absolute path.
+
+    >>> path_argument("./-") == Path.cwd() / "-", path_argument("-"), path_argument("a/b.csv")
+    (True, PosixPath('-'), PosixPath('a/b.csv'))
+    """
+    p = Path(text)
+    if os.fspath(p) == STDOUT and text != STDOUT:
+        return Path(os.path.abspath(text))
+    return p
+
+
 class Parser(argparse.ArgumentParser):
     """An argument parser whose errors are one line, and which rejects NaN/inf option values.
 
     argparse prints a usage block and then the error; users of a command-line tool expect the one
     error line (``fusion CMD: error: ...``), with ``--help`` for the usage. Subparsers inherit the
-    class, so every subcommand behaves the same.
+    class, so every subcommand behaves the same. Options of ``type=Path`` are read by
+    :func:`path_argument` (``./-`` is a file called ``-``, not standard output).
     """
+
+    def __init__(self, *args, **kwargs) -> None:
+        super().__init__(*args, **kwargs)
+        self.register("type", Path, path_argument)
 
     def error(self, message: str):  # type: ignore[override]
         """Print ``PROG: error: MESSAGE`` as one line and exit with code 2."""

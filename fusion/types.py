@@ -44,6 +44,9 @@ def frozen_array(a: ArrayLike, dtype: Any = float) -> NDArray[Any]:
     return out
 
 _REAL_KINDS = "fiu"  # numpy dtype kinds of real numbers (no bool, complex, text or objects)
+#: Largest cube power (1000 dB in any unit): beyond it a sum or a normalisation overflows (a cell
+#: of 1e308 made a track graph indeterminate, a GTSAM traceback).
+MAX_CUBE_POWER = 1e100
 
 
 @dataclass(frozen=True)
@@ -135,6 +138,10 @@ class Cube:
             raise ValueError("cube contains NaN or infinite values")
         if np.any(power < 0):
             raise ValueError("power has negative values")
+        if power.max() > MAX_CUBE_POWER:
+            where = tuple(int(i) for i in np.unravel_index(int(np.argmax(power)), power.shape))
+            raise ValueError(f"power {power.max():g} at (scan, beam, bin) {where} is beyond "
+                             f"{MAX_CUBE_POWER:g}, implausible (check units)")
         if freqs.size > 1 and np.any(np.diff(freqs) <= 0):
             raise ValueError("freqs must be strictly increasing")
         for name in ("scan_period", "aperture", "sound_speed"):

@@ -262,6 +262,21 @@ def test_out_dash_writes_the_table_to_stdout(run_cli, tmp_path):
     assert not (tmp_path / "-").exists()
 
 
+@pytest.mark.parametrize("cmd", sorted(INPUTS))
+def test_out_dot_slash_dash_writes_a_file_called_dash(cmd, run_cli, tmp_path, monkeypatch):
+    """``--out ./-`` names a file called ``-``, as documented, also where ``--out`` is a
+    ``Path`` option (was: ``Path("./-")`` is ``Path("-")``: the table went to stdout and no file
+    was written; found by the property test)."""
+    inputs = make_inputs(cmd, tmp_path)
+    code, _, err = run_cli(*argv(cmd, inputs, tmp_path / "o.csv"))
+    assert code == 0, err
+    monkeypatch.chdir(tmp_path)
+    code, stdout, err = run_cli(*argv(cmd, inputs, "./-"))
+    assert code == 0, err
+    assert (tmp_path / "-").read_text() == (tmp_path / "o.csv").read_text()
+    assert "track_id" not in stdout and "time," not in stdout
+
+
 @pytest.mark.parametrize("cmd", ["simulate", "demo"])
 def test_out_dash_refused_for_folder_outputs(cmd, run_cli, tmp_path, monkeypatch):
     """Commands that write a folder refuse ``--out -`` before any work."""

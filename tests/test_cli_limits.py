@@ -7,6 +7,7 @@ a ZeroDivisionError, an OverflowError, terabytes of allocation or hours of empty
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 
 import numpy as np
@@ -107,10 +108,39 @@ def test_time_far_from_the_data_is_refused(run_cli, tmp_path, command, time):
     assert not (tmp_path / "o.csv").exists()
 
 
+@pytest.mark.parametrize("time", [-1e12, 9e11])
+def test_time_far_from_the_data_out_of_time_order_is_refused_by_crossings(run_cli, tmp_path,
+                                                                           time):
+    """The far row out of time order (crossings then reads the whole file instead of streaming
+    it): the same one line (was: a MemoryError traceback, 671-745 GiB; found by the property
+    test)."""
+    rows = _bearings(tmp_path / "b.csv", []).read_text().splitlines()
+    rows.insert(5, f"0,{time!r},50.0")
+    (tmp_path / "b.csv").write_text("\n".join(rows) + "\n")
+    err = _one_line_exit_2(run_cli, "crossings", "--bearings", tmp_path / "b.csv", "--out",
+                           tmp_path / "o.csv", words=("b.csv", "more than 10,000,000", "track 0"))
+    assert "Traceback" not in err
+    assert not (tmp_path / "o.csv").exists()
+
+
 @pytest.mark.parametrize("event", [1_000_000_000_000, 100_000_000, 200_000])
 def test_event_id_far_past_the_others_is_refused(run_cli, tmp_path, event):
     rows = [(e, 10.0 * e, 100.0 * k, 50.0 * e) for e in range(20) for k in range(3)]
     rows.append((event, 10.0 * 21, 0.0, 0.0))
+    src = tmp_path / "d.csv"
+    src.write_text("event,time,x,y\n" + "".join(f"{e},{t},{x},{y}\n" for e, t, x, y in rows))
+    _one_line_exit_2(run_cli, "track", "--detections", src, "--out", tmp_path / "t.csv",
+                     words=("d.csv", f"event {event} after event 19", "more than 100,000"))
+    assert not (tmp_path / "t.csv").exists()
+
+
+@pytest.mark.parametrize("event", [900_000_000_000, 200_000])
+def test_event_id_far_past_the_others_out_of_order_is_refused(run_cli, tmp_path, event):
+    """The far event out of event order (track then reads the whole file instead of streaming
+    it): the same one line (was: a MemoryError traceback, 6.55 TiB; found by the property
+    test)."""
+    rows = [(e, 10.0 * e, 100.0 * k, 50.0 * e) for e in range(20) for k in range(3)]
+    rows.insert(7, (event, 10.0 * 21, 0.0, 0.0))
     src = tmp_path / "d.csv"
     src.write_text("event,time,x,y\n" + "".join(f"{e},{t},{x},{y}\n" for e, t, x, y in rows))
     _one_line_exit_2(run_cli, "track", "--detections", src, "--out", tmp_path / "t.csv",
@@ -127,6 +157,23 @@ def test_failing_run_prints_only_its_error_line(run_cli, tmp_path):
     err = _one_line_exit_2(run_cli, "tma", "--bearings", b, "--ownship", own, "--out",
                            tmp_path / "t.csv", words=("own-ship",))
     assert "sorted" not in err
+
+
+def test_failing_track_prints_only_its_error_line_not_its_note(run_cli, tmp_path):
+    """track's note on missing clue columns waits for the tracks to be written: a run that
+    then fails prints its error line only (was: the note first; found by the property test)."""
+    src = tmp_path / "d.csv"
+    src.write_text("event,time,x,y\n2,0,0,0\n0,0,105,0\n1,30,10,50\n")
+    err = _one_line_exit_2(run_cli, "track", "--detections", src, "--out", tmp_path / "t.csv",
+                           words=("error:", "goes back"))
+    assert "note:" not in err
+    ok = tmp_path / "ok.csv"
+    ok.write_text("event,time,x,y\n" + "".join(f"{e},{10 * e},{100 * k},{50 * e}\n"
+                                                 for e in range(12) for k in range(2)))
+    code, _, err = run_cli("track", "--detections", ok, "--out", tmp_path / "t.csv",
+                           "--fit-pings", 5)
+    assert code == 0, err
+    assert err.count("note: ") == 1 and "left out of the rank" in err, err
 
 
 def test_numpy_warning_of_a_successful_run_is_one_line(run_cli, tmp_path, monkeypatch):
@@ -160,3 +207,110 @@ def test_huge_sensor_coordinate_is_refused_without_a_numpy_warning(tmp_path, rec
     with pytest.raises(ValueError, match=r"sensor 0: 'x' = 1e\+308 is beyond"):
         read_array(p)
     assert not [w for w in recwarn if issubclass(w.category, RuntimeWarning)]
+
+
+@pytest.mark.parametrize(("option", "value", "words"), [
+    ("--workers", "0", ("--workers", ">= 1")),
+    ("--workers", "99999999999999", ("--workers", "<=")),
+    ("--workers", "max+1", ("--workers", "<=")),
+    ("--candidates", "0", ("--candidates", ">= 1")),
+    ("--candidates", "257", ("--candidates", "<= 256")),
+    ("--candidates", "1000000000000", ("--candidates", "<= 256")),
+])
+def test_localize_workers_and_candidates_out_of_bounds_are_one_line(run_cli, tmp_path, option,
+                                                                     value, words):
+    """--workers above 4 per core (was: any number of Dask processes started) and --candidates
+    above 256 (was: every local maximum of the volume competing, K^2 pairs an iteration) are
+    usage errors, before any file is read."""
+    from fusion.commands.localize import MAX_WORKERS_PER_CORE, max_workers
+
+    assert max_workers() == MAX_WORKERS_PER_CORE * (os.cpu_count() or 1)
+    value = str(max_workers() + 1) if value == "max+1" else value
+    _one_line_exit_2(run_cli, "localize", "--audio", tmp_path / "a.wav", "--array",
+                     tmp_path / "a.json", "--out", tmp_path / "r.json", option, value,
+                     words=words)
+    assert not list(tmp_path.iterdir())
+
+
+def test_localize_workers_and_candidates_at_their_bounds_are_accepted():
+    from fusion.cli import build_parser
+    from fusion.commands.localize import MAX_CANDIDATES, max_workers
+
+    args = build_parser("localize").parse_args(
+        ["localize", "--audio", "a.wav", "--array", "a.json", "--out", "r.json", "--workers",
+         str(max_workers()), "--candidates", str(MAX_CANDIDATES)])
+    assert (args.workers, args.candidates) == (max_workers(), MAX_CANDIDATES)
+
+
+@pytest.mark.parametrize("argv", [
+    ("tma", "--bearings", "B", "--ownship", "O", "--bearing-sigma-deg", "4.374969934613653e-268"),
+    ("tma", "--bearings", "B", "--ownship", "O", "--accel-psd-m2-per-s3", "5e-324"),
+    ("smooth", "--bearings", "B", "--bearing-sigma-deg", "1e-300"),
+    ("tqi", "--amplitudes", "A", "--residual-smoothing", "9e-13"),
+])
+def test_positive_option_below_1e_12_is_a_usage_error(run_cli, tmp_path, argv):
+    """A positive float option below 1e-12 (``gt=0``): one line, exit 2 (was, for tma
+    --bearing-sigma-deg 4e-268: a ZeroDivisionError traceback, its square 0; found by the
+    property test)."""
+    files = {"B": tmp_path / "b.csv", "O": tmp_path / "o.csv", "A": tmp_path / "a.csv"}
+    for f in files.values():
+        f.write_text("x\n1\n")
+    argv = [str(files.get(a, a)) for a in argv]
+    err = _one_line_exit_2(run_cli, *argv, "--out", tmp_path / "r.csv", words=(argv[-2],))
+    assert ">= 1e-12" in err
+    assert not (tmp_path / "r.csv").exists()
+
+
+def test_positive_option_bound_is_inclusive():
+    import argparse
+
+    from fusion.cli import MIN_POSITIVE_OPTION, number
+
+    assert number(float, gt=0)("1e-12") == MIN_POSITIVE_OPTION
+    assert number(float, gt=0)("0.5") == 0.5
+    assert number(float, ge=0)("5e-324") == 5e-324  # zero allowed: tiny too
+    for text, words in (("-1", "> 0"), ("0", "> 0"), ("5e-324", ">= 1e-12")):
+        with pytest.raises(argparse.ArgumentTypeError, match=words):
+            number(float, gt=0)(text)
+
+
+@pytest.mark.parametrize("command", ["localize", "train-validator"])
+@pytest.mark.parametrize("hop", ["1e-6", "0.0009"])
+def test_hop_below_the_click_map_resolution_is_a_usage_error(run_cli, tmp_path, command, hop):
+    """--hop-s below 1 ms (3 samples of the click map): one line, before any work (was: a hop of
+    1 us ran a 3-s recording's 3 million windows for hours)."""
+    from fusion.clicks.scm import ScmConfig
+    from fusion.commands.localize import MIN_HOP_S
+
+    assert MIN_HOP_S * ScmConfig().fs_hz >= 3
+    argv = (["localize", "--audio", tmp_path / "a.wav", "--array", tmp_path / "a.json"]
+            if command == "localize" else ["train-validator", "--recording", tmp_path])
+    _one_line_exit_2(run_cli, *argv, "--out", tmp_path / "r.out", "--hop-s", hop,
+                     words=("--hop-s", ">= 0.001"))
+    assert not (tmp_path / "r.out").exists()
+
+
+@pytest.mark.parametrize("options", [("--period-s", "1.192092896e-07", "--window-s", "2"),
+                                     ("--period-s", "1.192092896e-07", "--horizon-s", "2")])
+def test_crossing_windows_beyond_a_million_samples_are_refused(run_cli, tmp_path, options):
+    """A ladder of windows over 10^6 samples (a tiny --period-s): one line, before any
+    allocation (was: a MemoryError traceback, 4-36 GiB; found by the property test)."""
+    src = _bearings(tmp_path / "b.csv", [])
+    _one_line_exit_2(run_cli, "crossings", "--bearings", src, "--out", tmp_path / "o.csv",
+                     *options, words=("longest window", "more than 1,000,000"))
+    assert not (tmp_path / "o.csv").exists()
+
+
+@pytest.mark.parametrize("command", ["acquire", "passive"])
+def test_cube_power_beyond_1e100_is_refused(run_cli, tmp_path, cube, command):
+    """One cube cell of 1e308: one line naming the file and the cell (was, for passive: a
+    GTSAM 'Indeterminate linear system' traceback; found by the property test)."""
+    arrays = dict(cube)
+    arrays["power"] = arrays["power"].copy()
+    arrays["power"][0, 2, 3] = 1e308
+    bad = tmp_path / "c.npz"
+    np.savez(bad, **arrays)
+    argv = (["acquire", "--cube", bad, "--beam", 1, "--freq-hz", 300] if command == "acquire"
+            else ["passive", "--cube", bad, "--auto", "--out", tmp_path / "o", "--quiet"])
+    _one_line_exit_2(run_cli, *argv, words=("c.npz", "1e+308", "(0, 2, 3)", "implausible"))
+    assert not (tmp_path / "o").exists()

@@ -3,23 +3,21 @@
 For every CSV reader through a command that reads it (``tqi``, ``crossings``, ``smooth``,
 ``tma``, ``track``, ``passive --clicks``, ``localize --events``) and for argument sets of a few
 commands: success with the output written, or exit code 2 with exactly one stderr line, no
-traceback, no output and no temporaries written, the inputs unchanged. Examples: the ``ci``
+traceback, no output and no temporaries written, the inputs unchanged (``check_cli_run``
+of ``tests/conftest.py``). Every command's options and other inputs:
+``tests/test_cli_properties_commands.py``. Examples: the ``ci``
 profile of ``tests/conftest.py`` (deterministic, ``FUSION_HYPOTHESIS_EXAMPLES``, default 200,
 shared here among the readers: a tenth each).
 """
 
 from __future__ import annotations
 
-import contextlib
-import io
 import os
 import tempfile
 from pathlib import Path
 
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
-from fusion.cli import EXIT_BAD_INPUT, main
 
 _EACH = max(10, settings().max_examples // 10)
 
@@ -66,37 +64,6 @@ def mutated(draw, header: str, row) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _files(folder: Path) -> dict[str, bytes]:
-    return {str(p.relative_to(folder)): p.read_bytes()
-            for p in sorted(folder.rglob("*")) if p.is_file()}
-
-
-def check_run(folder: Path, argv: list[str], out: Path) -> int:
-    """Run ``fusion ARGV``: exit 0 with `out` written, or exit 2, one line, nothing changed.
-
-    Returns the exit code (0 or 2) once those are checked."""
-    before = _files(folder)
-    err = io.StringIO()
-    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
-        try:
-            code = main(argv)
-        except SystemExit as e:
-            code = int(e.code or 0)
-    text = err.getvalue()
-    assert "Traceback" not in text, text
-    after = _files(folder)
-    assert not [n for n in after if "fusion-tmp" in n or "fusion-lock" in n], after
-    if code == 0:
-        assert out.exists(), text
-        assert {k: v for k, v in after.items() if k in before} == before
-    else:
-        assert code == EXIT_BAD_INPUT, (code, text)
-        lines = [ln for ln in text.splitlines() if ln.strip()]
-        assert len(lines) == 1 and ": error: " in lines[0], text
-        assert after == before, "a failed run changed the files"
-    return code
-
-
 def _ownship(folder: Path) -> Path:
     p = folder / "own.csv"
     rows = [f"{10 * i},{5.0 * i if i < 15 else 75 + 5 * (i - 15)},{0 if i < 15 else 5 * (i - 15)}"
@@ -110,14 +77,14 @@ def _reader_case(kind: str):
 
     @settings(max_examples=_EACH)
     @given(text=mutated(header, row))
-    def test(text):
+    def test(text, check_cli_run):
         with tempfile.TemporaryDirectory() as d:
             folder = Path(d)
             src = folder / f"{kind}.csv"
             src.write_text(text)
             args = [str(_ownship(folder)) if a == "OWN" else a for a in command]
             out = folder / "o.csv"
-            assert check_run(folder, [*args, option, str(src), "--out", str(out)], out) in (0, 2)
+            assert check_cli_run(folder, [*args, option, str(src), "--out", str(out)]) in (0, 2)
 
     test.__name__ = f"test_reader_{kind}"
     return test
@@ -138,7 +105,7 @@ option_values = st.one_of(st.sampled_from(["0", "-1", "1e308", "1e-300", "nan", 
                                              "--ts", "--lh", "--sh", "--omega-per-deg", "--t-err",
                                              "--residual-smoothing", "--sllr0-max"]),
                             option_values, max_size=4))
-def test_tqi_options(opts):
+def test_tqi_options(opts, check_cli_run):
     with tempfile.TemporaryDirectory() as d:
         folder = Path(d)
         src = folder / "a.csv"
@@ -148,7 +115,7 @@ def test_tqi_options(opts):
         argv = ["tqi", "--amplitudes", str(src), "--out", str(out)]
         for k, v in opts.items():
             argv += [f"{k}={v}"]
-        assert check_run(folder, argv, out) in (0, 2)
+        assert check_cli_run(folder, argv) in (0, 2)
 
 
 @settings(max_examples=_EACH)
@@ -156,7 +123,7 @@ def test_tqi_options(opts):
                                              "--confirm", "--level", "--period-s", "--window-samples",
                                              "--merge-window-s", "--max-gap-s"]),
                             option_values, max_size=3))
-def test_crossings_options(opts):
+def test_crossings_options(opts, check_cli_run):
     with tempfile.TemporaryDirectory() as d:
         folder = Path(d)
         src = folder / "b.csv"
@@ -166,7 +133,7 @@ def test_crossings_options(opts):
         argv = ["crossings", "--bearings", str(src), "--out", str(out)]
         for k, v in opts.items():
             argv += [f"{k}={v}"]
-        assert check_run(folder, argv, out) in (0, 2)
+        assert check_cli_run(folder, argv) in (0, 2)
 
 
 def test_examples_setting_is_read_from_the_environment():

@@ -101,18 +101,10 @@ def test_progress_on_a_terminal_counts_weights(monkeypatch, capsys):
 
 
 
-def test_smooth_of_one_long_track_shows_progress_before_the_end(inputs, tmp_path, monkeypatch,
-                                                                 run_cli):
-    """One labelled track: the bar moves (settings fitted) before the track's smoothing ends.
-
-    It counts rows twice, as fitted and as smoothed (was: one update, 0 % then 100 %).
-    """
+def _smooth_updates(run_cli, monkeypatch, tmp_path, src: Path) -> tuple[int, list[int]]:
+    """(total, updates) of ``fusion smooth``'s bar on `src`, closed once at the end."""
     import fusion.commands.smooth as smooth
 
-    lines = (inputs / "bearings/bearings.csv").read_text().splitlines()
-    one = tmp_path / "one.csv"
-    rows = [r for r in lines[1:] if r.startswith("0,")]
-    one.write_text("\n".join([lines[0], *rows]) + "\n")
     seen = []
 
     class Bar:
@@ -126,7 +118,63 @@ def test_smooth_of_one_long_track_shows_progress_before_the_end(inputs, tmp_path
             seen.append(("close", None))
 
     monkeypatch.setattr(smooth, "progress", Bar)
-    code, _, err = run_cli("smooth", "--bearings", one, "--out", tmp_path / "s.csv")
+    code, _, err = run_cli("smooth", "--bearings", src, "--out", tmp_path / "s.csv")
     assert code == 0, err
-    assert seen == [("total", 2 * len(rows)), ("update", len(rows)), ("update", len(rows)),
-                    ("close", None)]
+    assert seen[0][0] == "total" and seen[-1] == ("close", None)
+    assert [k for k, _ in seen[1:-1]] == ["update"] * (len(seen) - 2)
+    return seen[0][1], [n for _, n in seen[1:-1]]
+
+
+def test_smooth_of_one_long_track_shows_progress_before_the_end(inputs, tmp_path, monkeypatch,
+                                                                 run_cli):
+    """One labelled track: the bar moves while the track is smoothed, not once at its end.
+
+    It counts rows twice, as fitted and as smoothed; the smoothing's half moves after each
+    Levenberg-Marquardt iteration and each block of marginals (was: one update per track, so a
+    file of one track showed 50 % until the end)."""
+    lines = (inputs / "bearings/bearings.csv").read_text().splitlines()
+    one = tmp_path / "one.csv"
+    rows = [r for r in lines[1:] if r.startswith("0,")]
+    one.write_text("\n".join([lines[0], *rows]) + "\n")
+    total, updates = _smooth_updates(run_cli, monkeypatch, tmp_path, one)
+    assert total == 2 * len(rows) and sum(updates) == total
+    assert updates[0] == len(rows)  # the settings fitted
+    smoothing = updates[1:]
+    assert len(smoothing) >= 4 and max(smoothing) <= len(rows) // 2, smoothing
+
+
+def test_smooth_of_unknown_origin_rows_shows_progress_per_scan_and_track(inputs, tmp_path,
+                                                                          monkeypatch, run_cli):
+    """Rows of unknown origin (track -1): the bar moves over the tracker's scans and after each
+    track formed (was: one update for all of them)."""
+    lines = (inputs / "bearings/bearings.csv").read_text().splitlines()
+    unk = tmp_path / "unk.csv"
+    unk.write_text("\n".join([lines[0], *("-1" + r[r.index(","):] for r in lines[1:])]) + "\n")
+    total, updates = _smooth_updates(run_cli, monkeypatch, tmp_path, unk)
+    n = len(lines) - 1
+    assert total == 2 * n and sum(updates) == total
+    assert updates[0] == n and len(updates[1:]) >= 10 and max(updates[1:]) < n // 2, updates
+
+
+@pytest.mark.parametrize("robust", ["none", "huber", "cauchy"])
+def test_progress_of_the_smoothing_changes_no_number(inputs, robust):
+    """The smoothed tracks are the same bit for bit with the progress callback as without."""
+    import numpy as np
+
+    from fusion.io import read_bearings
+    from fusion.passive.smoothing import BearingSmoother, MultiTrackSmoother
+    from fusion.passive.smoothing.table import smooth_bearings
+
+    t = read_bearings(inputs / "bearings/bearings.csv")
+    ids = np.where(t["track_id"] == 1, -1, t["track_id"])  # one track of unknown origin
+    z = np.radians(t["bearing_deg"])
+    kw = {"single": BearingSmoother(sigma_bearing=0.01, q=1e-8, robust=robust),
+          "multi": MultiTrackSmoother(sigma_bearing=0.01, q=1e-8)}
+    counted = []
+    plain = smooth_bearings(ids, t["time"], z, **kw)
+    shown = smooth_bearings(ids, t["time"], z, **kw, on_rows=counted.append)
+    assert sum(counted) == ids.size and len(counted) > 3
+    assert len(plain) == len(shown)
+    for a, b in zip(plain, shown, strict=True):
+        for name in ("times", "bearing", "rate", "sigma_bearing", "sigma_rate"):
+            np.testing.assert_array_equal(getattr(a, name), getattr(b, name))

@@ -61,3 +61,37 @@ def test_recording_without_labels_is_one_line_exit_2(recording, tmp_path, capsys
     err = capsys.readouterr().err
     assert len(err.strip().splitlines()) == 1 and "Traceback" not in err, err
     assert not out.exists()
+
+
+@pytest.mark.parametrize("labels", ["far", "none"])
+def test_training_that_fails_after_reading_prints_only_its_error(recording, tmp_path, capsys,
+                                                                  labels):
+    """Training that fails once the recordings are read (no candidate labelled valid, or no
+    candidate at all): the error is the only stderr line (was: each recording's count line
+    ``rec/audio.flac: 53 candidate TDOAs, 0 valid so far`` first), no model written."""
+    rec = tmp_path / "rec"
+    rec.mkdir()
+    for name in ("audio.flac", "array.json", "tdoa_labels.csv"):
+        (rec / name).write_bytes((recording / name).read_bytes())
+    if labels == "far":  # every label 1 s off any candidate's delay: nothing valid
+        lines = (rec / "tdoa_labels.csv").read_text().splitlines()
+        head = lines[0].split(",")
+        k = head.index("tau")
+        rows = [r.split(",") for r in lines[1:]]
+        for r in rows:
+            r[k] = "1.0"
+        (rec / "tdoa_labels.csv").write_text("\n".join([lines[0], *map(",".join, rows)]) + "\n")
+        extra = ()
+    else:  # silence: no click, no candidate at all
+        import soundfile as sf
+
+        audio, fs = sf.read(rec / "audio.flac")
+        sf.write(rec / "audio.flac", np.zeros_like(audio), fs)
+        extra = ()
+    out = tmp_path / "v.npz"
+    capsys.readouterr()
+    assert _cli("train-validator", "--recording", rec, "--out", out, "--quiet",
+                *extra) == EXIT_BAD_INPUT
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "error:" in err and "so far" not in err, err
+    assert not out.exists()

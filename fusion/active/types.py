@@ -131,6 +131,11 @@ def pings_from_columns(columns: Columns | Mapping[str, ArrayLike]) -> list[Ping]
     uniq, start = np.unique(ev, return_index=True)
     stop = np.append(start[1:], ev.size)
     t_event = t[start]
+    gaps = np.diff(uniq) - 1
+    if gaps.size and gaps.max() > 0:  # as iter_pings: the longest run of pings without detections
+        k = int(np.argmax(gaps))
+        check_grid(int(gaps[k]), f"event {uniq[k + 1]} after event {uniq[k]}: pings without "
+                   "detections", limit=MAX_EMPTY_PINGS)
     all_events = np.arange(uniq[0], uniq[-1] + 1)
     all_times = np.interp(all_events, uniq, t_event)
     by_event = {int(e): (a, b) for e, a, b in zip(uniq, start, stop, strict=True)}

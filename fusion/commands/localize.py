@@ -55,6 +55,7 @@ import argparse
 import contextlib
 import dataclasses
 import json
+import os
 from pathlib import Path
 
 from fusion.cli import emit, number
@@ -62,6 +63,21 @@ from fusion.cli import emit, number
 #: Default of --max-tdoa-rate (fusion.clicks.scm.MAX_TDOA_RATE, not imported here: --help stays
 #: light).
 MAX_TDOA_RATE = 1.6e-3
+#: Most candidates per window (--candidates): each is a graph re-solved in every iteration of the
+#: competition and compared with every other one (K^2 pairs an iteration); 16 times the default.
+MAX_CANDIDATES = 256
+#: Shortest update period (--hop-s, also of train-validator), s: 3 samples of the 3 kHz click map;
+#: windows closer than that repeat one map (and a hop of 1 us made 3 million windows of a 3-s
+#: recording, hours of work).
+MIN_HOP_S = 1e-3
+#: Most local Dask worker processes per core (--workers): each holds its own audio blocks and
+#: models; past a few per core they add memory, not speed.
+MAX_WORKERS_PER_CORE = 4
+
+
+def max_workers() -> int:
+    """The largest ``--workers`` on this machine: :data:`MAX_WORKERS_PER_CORE` per core."""
+    return MAX_WORKERS_PER_CORE * (os.cpu_count() or 1)
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -87,8 +103,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="result JSON (a folder of them for a folder of recordings)")
     p.add_argument("--window-s", dest="window", type=number(float, gt=0), default=12.0,
                    help="processing window, s (default 12)")
-    p.add_argument("--hop-s", dest="hop", type=number(float, gt=0), default=2.0,
-                   help="update period, s (default 2)")
+    p.add_argument("--hop-s", dest="hop", type=number(float, ge=MIN_HOP_S), default=2.0,
+                   help=f"update period, s, at least {MIN_HOP_S:g} (default 2)")
     p.add_argument("--band-hz", dest="band", type=number(float, gt=0), nargs=2, metavar=("LOW", "HIGH"),
                    default=(14000.0, 40000.0), help="click detection band, Hz (default 14000 40000)")
     p.add_argument("--min-centre-freq-hz", dest="min_centre_freq", type=number(float, ge=0), default=20000.0,
@@ -134,8 +150,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="estimate (default): one sound speed for the recording, estimated on a "
                         "factor graph from all its fixes, and every fix re-solved at it (the "
                         "array file's speed only starts it); array: the array file's speed")
-    p.add_argument("--candidates", type=number(int, ge=1), default=None, metavar="N",
-                   help="candidates per window (default 16 reading surface paths, 8 direct)")
+    p.add_argument("--candidates", type=number(int, ge=1, le=MAX_CANDIDATES), default=None,
+                   metavar="N", help="candidates per window, at most "
+                   f"{MAX_CANDIDATES} (default 16 reading surface paths, 8 direct)")
     p.add_argument("--min-source-tdoas", type=number(float, gt=0), default=None, metavar="W",
                    help="smallest total TDOA weight of a source (default 5.5 reading surface "
                         "paths, 3.5 direct)")
@@ -147,9 +164,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="audio per task, s: consecutive windows processed (and recorded for "
                         "resuming) together (default 60)")
     where = p.add_mutually_exclusive_group()
-    where.add_argument("--workers", type=number(int, ge=1), default=None,
+    where.add_argument("--workers", type=number(int, ge=1, le=max_workers()), default=None,
                        help="run the chunks on a local Dask cluster of this many worker "
-                            "processes (default: serially in this process, no Dask)")
+                            f"processes, at most {MAX_WORKERS_PER_CORE} per core ({max_workers()} "
+                            "here) (default: serially in this process, no Dask)")
     where.add_argument("--scheduler", default=None, metavar="ADDRESS",
                        help="run the chunks on the Dask scheduler at ADDRESS (tcp://host:8786); "
                             "its workers must read the same audio paths")

@@ -326,9 +326,11 @@ def _note(args: argparse.Namespace, prefix: list[Ping]) -> None:
             absent.append("src_x, src_y, rcv_x, rcv_y (aspect_deg from the track heading)"
                           if args.aspect_column == "ignored" else
                           "aspect_deg (or src_x, src_y, rcv_x, rcv_y)")
-        if absent and prefix:
-            emit(f"fusion track: note: {args.detections} has no {', '.join(absent)}; "
-                 "the rules reading them are left out of the rank", err=True)
+        if absent and prefix:  # printed by run() once the tracks are written: a failing run
+            # prints its error line only (and a run read twice, streamed then whole, one note)
+            args.track_note = (f"fusion track: note: {args.detections} has no "
+                               f"{', '.join(absent)}; the rules reading them are left out of "
+                               "the rank")
         # The note above replaces the fuzzy engine's own warning.
         logging.getLogger("fusion.active.fuzzy").setLevel(logging.ERROR)
 
@@ -399,6 +401,8 @@ def run(args: argparse.Namespace) -> int:
                               "tracks": len(summary.hits),
                               "confirmed_tracks": len(summary.confirmed), "no_track_reason": why},
                    inputs=(args.detections, args.rules))
+    if getattr(args, "track_note", None):
+        emit(args.track_note, err=True)
     emit(f"fusion track: {st.describe()}: {len(summary.confirmed)} confirmed track(s) of "
          f"{len(summary.hits)} -> {args.out}", err=True)
     if why is not None:

@@ -24,6 +24,7 @@ import numpy as np
 
 from fusion._progress import track_progress
 from fusion.cli import emit, number
+from fusion.commands.localize import MIN_HOP_S
 
 logger = logging.getLogger(__name__)
 
@@ -58,8 +59,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--seed", type=number(int, ge=0), default=0, help="fitting seed (default 0)")
     p.add_argument("--window-s", dest="window", type=number(float, gt=0), default=12.0,
                    help="processing window, s (default 12)")
-    p.add_argument("--hop-s", dest="hop", type=number(float, gt=0), default=2.0,
-                   help="update period, s (default 2)")
+    p.add_argument("--hop-s", dest="hop", type=number(float, ge=MIN_HOP_S), default=2.0,
+                   help=f"update period, s, at least {MIN_HOP_S:g} (default 2)")
     p.add_argument("--quiet", action="store_true",
                    help="no progress bar (none either when standard error is not a terminal)")
     p.set_defaults(handler=run, inputs=("recording", "audio", "array", "labels"),
@@ -129,6 +130,7 @@ def run(args: argparse.Namespace) -> int:
     front = ClickFrontEnd(validator=False, refiner=False, hop_s=args.hop,
                           correlator=ClickMapCorrelator(config=ScmConfig(window_s=args.window)))
     zs, ys, ss, replica_parts = [], [], [], []
+    counts = []  # lines printed once the model is written: a failing run prints its error only
     recordings = _checked(_recordings(args))  # every check before any work
     for k, (audio_p, array, labels) in enumerate(track_progress(
             recordings, quiet=args.quiet, desc="recordings", unit="rec", total=len(recordings))):
@@ -142,8 +144,8 @@ def run(args: argparse.Namespace) -> int:
                 ss.append(np.full(y.size, k))
         if args.replica_out is not None:
             replica_parts.append((audio, fs, windows))
-        emit(f"{audio_p}: {sum(len(w.tdoas) for w in windows)} candidate TDOAs, "
-             f"{int(sum(y.sum() for y in ys))} valid so far", err=True)
+        counts.append(f"{audio_p}: {sum(len(w.tdoas) for w in windows)} candidate TDOAs, "
+                      f"{int(sum(y.sum() for y in ys))} valid so far")
     if args.simulated:
         seeds = track_progress(range(args.simulated), quiet=args.quiet, desc="simulated",
                                unit="rec", total=args.simulated)
@@ -152,8 +154,8 @@ def run(args: argparse.Namespace) -> int:
         zs.append(sim.z)
         ys.append(sim.valid)
         ss.append(-1 - sim.seed)
-        emit(f"{args.simulated} simulated scenarios: {sim.valid.size} candidate TDOAs, "
-             f"{int(sim.valid.sum())} valid", err=True)
+        counts.append(f"{args.simulated} simulated scenarios: {sim.valid.size} candidate "
+                      f"TDOAs, {int(sim.valid.sum())} valid")
     if not zs:
         raise ValueError("the recordings gave no candidate TDOAs (no clicks detected?)")
     data = CandidateSet(np.concatenate(zs), np.concatenate(ys), np.concatenate(ss))
@@ -172,6 +174,8 @@ def run(args: argparse.Namespace) -> int:
         model.save(tmps[0])
         if replica is not None:
             write_replica(tmps[1], replica)
+    for line in counts:
+        emit(line, err=True)
     emit(f"validator: {int(data.valid.sum())} valid / {int((~data.valid).sum())} invalid "
          f"candidates, threshold {model.threshold:.3g} -> {args.out}", err=True)
     if replica is not None:

@@ -13,6 +13,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from fusion._validation import check_grid
+
 __all__ = ["ResampledBearings", "estimate_period", "resample_bearings"]
 
 
@@ -127,6 +129,8 @@ def resample_bearings(
         k_hi = int(np.floor((ts[-1] - t0) / period_s + 1e-9))
         if k_hi < k_lo:
             continue
+        check_grid(k_hi + 1 - k_lo, f"track {k}: a time grid of {period_s:g} s steps from "
+                   f"{ts[0]:g} s to {ts[-1]:g} s")
         grid = t0 + np.arange(k_lo, k_hi + 1) * period_s
         grid = np.clip(grid, ts[0], ts[-1]) if ts.size > 1 else grid
         if ts.size == 1:

@@ -28,6 +28,11 @@ from fusion.passive.line_fit import LineStats, SlidingLineFit
 
 __all__ = ["CrossingDetector"]
 
+#: Most samples in the longest window of the ladder (``J * 2**(n_windows - 1)``): each track
+#: slot holds that many samples per window (16 slots to begin with: 272 MB at this limit;
+#: ``--period-s 1.2e-7`` made windows of 33 million samples, 4-36 GiB).
+MAX_WINDOW_SAMPLES = 1_000_000
+
 logger = logging.getLogger(__name__)
 
 
@@ -210,6 +215,13 @@ class CrossingDetector:
         self.max_gap_s = 3.0 * self.K if max_gap_s is None else float(max_gap_s)
         self.level = None if level is None else float(level)
         self.n_windows = int(n_windows) if self.level is not None else 1
+        longest = self.J * 2 ** (self.n_windows - 1)
+        if longest > MAX_WINDOW_SAMPLES:
+            raise ValueError(
+                f"the longest window, J = {self.J} samples of K = {self.K:g} s doubled "
+                f"{self.n_windows - 1} times, has {longest:,} samples, more than "
+                f"{MAX_WINDOW_SAMPLES:,}: use a longer --period-s, a shorter --window-s or "
+                "fewer --window-samples or --windows")
         self.max_interval_s = self.horizon_s if max_interval_s is None else float(max_interval_s)
         self.lead_windows = float(lead_windows)
         if int(confirm) != confirm or confirm < 1:

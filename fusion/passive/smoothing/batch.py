@@ -8,6 +8,8 @@ solve for Gaussian noise, Levenberg-Marquardt for a robust loss), with covarianc
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 from filterpy.kalman import KalmanFilter, rts_smoother
 from numpy.typing import ArrayLike, NDArray
@@ -94,6 +96,7 @@ class BearingSmoother:
         *,
         prior: TrackPrior | None = None,
         track_id: int = 0,
+        on_rows: Callable[[int], None] | None = None,
     ) -> SmoothedTrack:
         """Smooth one track.
 
@@ -108,6 +111,9 @@ class BearingSmoother:
             rate with ``prior_sigma_rate``.
         track_id : int, optional
             Identifier copied to the result.
+        on_rows : callable, optional
+            ``on_rows(n)`` as the solve goes on, with the rows it covered (``len(times)`` in
+            all, in parts: a progress bar's ``update``).
 
         Returns
         -------
@@ -120,7 +126,8 @@ class BearingSmoother:
         if prior is None:
             x0 = _initial_states(state_times, meas, None)[0]
             prior = _default_prior(x0[0], self.model, self.prior_sigma_rate)
-        states, sig = _solve(state_times, meas, prior, self.model, marginals=True)
+        states, sig = _solve(state_times, meas, prior, self.model, marginals=True,
+                             on_rows=on_rows)
         return SmoothedTrack(
             track_id=int(track_id),
             times=state_times,

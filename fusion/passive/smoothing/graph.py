@@ -20,8 +20,9 @@ smoothers; the design notes ("Factor graphs", bearing-rate graph) describe the m
 
 from __future__ import annotations
 
+import functools
 import logging
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import gtsam
@@ -32,6 +33,8 @@ from factors.angles import nearest_branch
 from factors.bearing import linear_bearing_factors
 from factors.motion import constant_velocity_chain
 from factors.weighted import sqrt_weights, weighted_factor
+from fusion._progress import RowShare
+from fusion._stack import with_deep_stack
 from fusion.geometry import check_radians, wrap_angle
 from fusion.passive.smoothing.types import TrackPrior
 
@@ -46,6 +49,11 @@ ROBUST_LOSSES = ("none", "huber", "cauchy")
 
 #: Solves of one graph at most, re-centring the bearings on the previous solution each time.
 _MAX_RECENTRE = 5
+#: Graphs of more states than this are solved on a deep stack (:mod:`fusion._stack`): GTSAM
+#: recurses once per state of the chain (100,000 states overflowed the main thread's stack).
+_DEEP_CHAIN = 5_000
+#: States per step of the progress of a track's marginals (:func:`_solve`'s ``on_rows``).
+_MARGINAL_BLOCK = 1_000
 
 
 def _robust_noise(base: gtsam.noiseModel.Base, loss: str, k: float) -> gtsam.noiseModel.Base:
@@ -217,13 +225,15 @@ def _optimize(
     loss: str,
     weights: FloatArray | None,
     states: FloatArray,
+    on_iteration: Callable[[], None] | None = None,
 ) -> tuple[gtsam.NonlinearFactorGraph | gtsam.GaussianFactorGraph, gtsam.Values, FloatArray]:
     """Minimise the graph built at `states`; rebuilt at the solution and solved again while the
     solution moved a bearing or motion residual onto another branch.
 
     Without a robust loss every factor is linear, so one Gauss-Newton step (one sparse linear
     solve) reaches the minimum and the linear graph is returned for the marginals; a robust
-    loss is minimised by Levenberg-Marquardt.
+    loss is minimised by Levenberg-Marquardt, calling `on_iteration()` after each of its
+    iterations (GTSAM's iteration hook: the iterations are unchanged).
     """
     for _ in range(_MAX_RECENTRE):
         graph = _build_graph(times, meas, prior, model, loss, weights, states)
@@ -234,9 +244,10 @@ def _optimize(
             graph = graph.linearize(values)
             values = values.retract(_solve_linear(graph))  # x = x_0 + argmin ||A dx - b||^2
         else:
-            values = gtsam.LevenbergMarquardtOptimizer(
-                graph, values, _lm_params(model.max_iterations)
-            ).optimize()
+            params = _lm_params(model.max_iterations)
+            if on_iteration is not None:
+                params.iterationHook = lambda *_: on_iteration()
+            values = gtsam.LevenbergMarquardtOptimizer(graph, values, params).optimize()
         new = np.array([values.atVector(k) for k in range(times.size)])
         same = np.all(np.abs(_branches(times, meas, prior, new)
                              - _branches(times, meas, prior, states)) < np.pi)
@@ -294,6 +305,19 @@ def _initial_states(times: FloatArray, meas: _Measurements, prior: TrackPrior | 
     return np.column_stack([theta, rate])
 
 
+def _deep_for_long_chains(fn: Callable) -> Callable:
+    """Run `fn(times, ...)` on a deep stack when the chain has more than _DEEP_CHAIN states."""
+
+    @functools.wraps(fn)
+    def wrapper(times, *args, **kwargs):
+        if np.size(times) > _DEEP_CHAIN:
+            return with_deep_stack(fn, times, *args, **kwargs)
+        return fn(times, *args, **kwargs)
+
+    return wrapper
+
+
+@_deep_for_long_chains
 def _solve(
     times: FloatArray,
     meas: _Measurements,
@@ -303,20 +327,34 @@ def _solve(
     init: FloatArray | None = None,
     weights: FloatArray | None = None,
     marginals: bool = False,
+    on_rows: Callable[[int], None] | None = None,
 ) -> tuple[FloatArray, FloatArray | None]:
-    """Minimise one track graph (:func:`_optimize`); states (n, 2) and optionally sigmas (n, 2)."""
+    """Minimise one track graph (:func:`_optimize`); states (n, 2) and optionally sigmas (n, 2).
+
+    `on_rows(n)` (a progress bar's ``update``) is handed the graph's measurement rows in parts
+    as the work goes on: half of them over the minimisation (half of what is left after each
+    Levenberg-Marquardt iteration), the other half once the marginals are done (all of them
+    over the minimisation without marginals).
+    """
     states = np.asarray(_initial_states(times, meas, prior) if init is None else init, float)
     losses = [model.loss] if model.loss != "cauchy" else ["huber", "cauchy"]
+    rows = int(meas.state.size)
+    solve = RowShare(rows - (rows // 2 if marginals else 0), on_rows)
     graph = values = None
     for loss in losses:  # a redescending loss starts from the convex Huber solution
-        graph, values, states = _optimize(times, meas, prior, model, loss, weights, states)
+        graph, values, states = _optimize(times, meas, prior, model, loss, weights, states,
+                                          solve.half if on_rows is not None else None)
+    solve.rest()
     if not marginals:
         return states, None
+    share = RowShare(rows // 2, on_rows)
     lin = graph if isinstance(graph, gtsam.GaussianFactorGraph) else graph.linearize(values)
     var = np.array([c.diagonal() for c in _chain_marginals(lin, times.size)])
+    share.rest()
     return states, np.sqrt(var)
 
 
+@_deep_for_long_chains
 def _solve_cov(
     times: FloatArray,
     meas: _Measurements,

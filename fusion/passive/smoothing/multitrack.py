@@ -11,6 +11,7 @@ graphs stay small (one per track and crossing cluster).
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -206,7 +207,8 @@ class MultiTrackSmoother:
         nu = wrap_angle(z - theta)
         return np.exp(-0.5 * (nu / s) ** 2) / (np.sqrt(2 * np.pi) * s)
 
-    def run(self, times: ArrayLike, bearings: ArrayLike) -> MultiTrackResult:
+    def run(self, times: ArrayLike, bearings: ArrayLike, *,
+            on_progress: Callable[[float], None] | None = None) -> MultiTrackResult:
         """Form, associate and smooth tracks.
 
         Parameters
@@ -215,13 +217,18 @@ class MultiTrackSmoother:
             Detection times, s, non-decreasing; equal times form a scan.
         bearings : array_like, shape (n,)
             Bearings, rad.
+        on_progress : callable, optional, keyword-only
+            ``on_progress(f)`` as the work goes on, with the fraction done: the tracker's pass
+            over the scans is the first half (after each scan), the tracks' smoothing the
+            second (after each track).
 
         Returns
         -------
         MultiTrackResult
         """
         t, z = _check_detections(times, bearings)
-        tr = self.tracker.run(t, z)
+        tr = self.tracker.run(t, z, on_scan=None if on_progress is None
+                              else (lambda f: on_progress(0.5 * f)))
         scan_times = tr.scan_times
         scan_of = np.searchsorted(scan_times, t)
         segments = self._segments(tr, z, scan_of)
@@ -296,6 +303,8 @@ class MultiTrackSmoother:
                                  marginals=True)
             tracks.append(SmoothedTrack(m, times_m, np.asarray(wrap_angle(states[:, 0])),
                                         states[:, 1].copy(), sig[:, 0], sig[:, 1]))
+            if on_progress is not None:
+                on_progress(0.5 + 0.5 * (m + 1) / n_tracks)
         # final labels: the most probable origin of each shared detection (a track, or clutter
         # with probability 1 - sum of its weights)
         out_labels = labels.copy()

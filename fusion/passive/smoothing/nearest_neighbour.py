@@ -9,6 +9,8 @@ MultiTrackSmoother` starts from its tracks.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 from filterpy.kalman import KalmanFilter
 from numpy.typing import ArrayLike
@@ -93,7 +95,8 @@ class NearestNeighbourTracker:
         kf.R = np.array([[self.sigma_bearing**2]])
         return kf
 
-    def run(self, times: ArrayLike, bearings: ArrayLike) -> TrackerResult:
+    def run(self, times: ArrayLike, bearings: ArrayLike, *,
+            on_scan: Callable[[float], None] | None = None) -> TrackerResult:
         """Track unlabeled detections.
 
         Parameters
@@ -102,6 +105,8 @@ class NearestNeighbourTracker:
             Detection times, s, non-decreasing; detections with equal time form a scan.
         bearings : array_like, shape (n,)
             Bearings, rad.
+        on_scan : callable, optional, keyword-only
+            ``on_scan(f)`` after each scan, with the fraction of the detections done (progress).
 
         Returns
         -------
@@ -117,6 +122,8 @@ class NearestNeighbourTracker:
         tracks: list[dict] = []  # kf, first, states, hits, misses, confirmed, dets
         s2 = self.sigma_bearing**2
         for k, tk in enumerate(scan_times):
+            if on_scan is not None and k:
+                on_scan(starts[k] / t.size)  # the scans before this one are done
             idx = np.arange(starts[k], stops[k])
             live = [i for i, tr in enumerate(tracks) if tr["alive"]]
             for i in live:  # predict
@@ -195,6 +202,8 @@ class NearestNeighbourTracker:
                 labels[idx[c]] = len(tracks)
                 tracks.append({"kf": kf, "t": tk, "first": k, "last": k, "states": [kf.x.copy()],
                                "hits": 1, "misses": 0, "confirmed": False, "alive": True})
+        if on_scan is not None:
+            on_scan(1.0)
         # keep confirmed tracks, drop trailing coasted states after the last hit
         keep = [i for i, tr in enumerate(tracks) if tr["confirmed"]]
         remap = np.full(len(tracks) + 1, -1, np.int64)

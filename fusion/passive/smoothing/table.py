@@ -12,6 +12,7 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import ArrayLike
 
+from fusion._progress import RowShare
 from fusion.passive.smoothing.batch import BearingSmoother
 from fusion.passive.smoothing.merge import merge_scan_detections
 from fusion.passive.smoothing.multitrack import MultiTrackSmoother
@@ -56,8 +57,10 @@ def smooth_bearings(
         twin_groups`): their detections are smoothed together by `single` (Gaussian loss
         replaced by its robust one), rad (0: none).
     on_rows : callable, keyword-only
-        ``on_rows(n)`` after each piece of work, with the rows it covered (a labelled track,
-        then all unknown-origin rows at once): a progress bar's ``update``. None: not called.
+        ``on_rows(n)`` as the work goes on, with the rows it covered (each row once, in
+        parts: a labelled track's over its solver's iterations and marginals, the
+        unknown-origin rows' over the tracker's scans and the tracks formed): a progress
+        bar's ``update``. None: not called.
 
     Returns
     -------
@@ -73,9 +76,7 @@ def smooth_bearings(
     for tid in np.unique(ids[ids >= 0]):
         sel = np.flatnonzero(ids == tid)
         sel = sel[np.argsort(t[sel], kind="stable")]
-        out.append(single.smooth(t[sel], z[sel], track_id=int(tid)))
-        if on_rows is not None:
-            on_rows(sel.size)
+        out.append(single.smooth(t[sel], z[sel], track_id=int(tid), on_rows=on_rows))
     unk = np.flatnonzero(ids < 0)
     if unk.size:
         unk = unk[np.argsort(t[unk], kind="stable")]
@@ -83,7 +84,8 @@ def smooth_bearings(
         tu, zu = t[unk], z[unk]
         if merge_within > 0:
             tu, zu, _ = merge_scan_detections(tu, zu, within=merge_within)
-        res = multi.run(tu, zu)
+        share = RowShare(unk.size, on_rows)
+        res = multi.run(tu, zu, on_progress=None if on_rows is None else share.upto)
         groups = (twin_groups(res.tracks, within=twin_within) if twin_within > 0
                   else [[k] for k in range(len(res.tracks))])
         for new_id, group in enumerate(groups):
@@ -94,6 +96,5 @@ def smooth_bearings(
                 tr = single.smooth(tu[own], zu[own], track_id=new_id)
             out.append(SmoothedTrack(new_id + offset, tr.times, tr.bearing, tr.rate,
                                      tr.sigma_bearing, tr.sigma_rate))
-        if on_rows is not None:
-            on_rows(unk.size)
+        share.rest()
     return tuple(out)
