@@ -314,3 +314,15 @@ def test_cube_power_beyond_1e100_is_refused(run_cli, tmp_path, cube, command):
             else ["passive", "--cube", bad, "--auto", "--out", tmp_path / "o", "--quiet"])
     _one_line_exit_2(run_cli, *argv, words=("c.npz", "1e+308", "(0, 2, 3)", "implausible"))
     assert not (tmp_path / "o").exists()
+
+
+def test_simulate_clicks_duration_is_bounded(tmp_path, capsys):
+    """`fusion simulate clicks --duration-s 1e12` is one usage line, nothing written (was: a
+    MemoryError traceback allocating 1.3 EiB; found by the property test)."""
+    from fusion.cli import main
+
+    assert main(["simulate", "clicks", "--duration-s", "999999999999",
+                 "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--duration-s" in err[0]
+    assert not (tmp_path / "o").exists()

@@ -56,8 +56,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "speed changes, close passes, ferries, loiterers; repeated crossings)")
     g = p.add_argument_group("clicks only", "options of `fusion simulate clicks`; they override "
                              "the default (or, with --vary, drawn) values")
-    g.add_argument("--duration-s", dest="duration_s", type=number(float, gt=0), default=None,
-                   metavar="SECONDS", help="audio length, s (default 30)")
+    g.add_argument("--duration-s", dest="duration_s", type=number(float, gt=0, le=3600.0),
+                   default=None, metavar="SECONDS",
+                   help="audio length, s, at most 3600 (held in memory; default 30)")
     g.add_argument("--whales", type=number(int, ge=1), default=None, metavar="N",
                    help="number of whales, 1-5 (default 2)")
     g.add_argument("--sensors", type=number(int, ge=1), default=None, metavar="N",

@@ -52,8 +52,6 @@ _MAX_RECENTRE = 5
 #: Graphs of more states than this are solved on a deep stack (:mod:`fusion._stack`): GTSAM
 #: recurses once per state of the chain (100,000 states overflowed the main thread's stack).
 _DEEP_CHAIN = 5_000
-#: States per step of the progress of a track's marginals (:func:`_solve`'s ``on_rows``).
-_MARGINAL_BLOCK = 1_000
 
 
 def _robust_noise(base: gtsam.noiseModel.Base, loss: str, k: float) -> gtsam.noiseModel.Base:
