@@ -42,10 +42,10 @@ import numpy as np
 
 from fusion._validation import check_positive
 from fusion.io import write_json, write_table
-from fusion.simulate._bearing_motion import Builder, Motion, unit
-from fusion.simulate._bearing_traffic import TRAFFIC_RANGES, traffic_positions
-from fusion.simulate._bearing_truth import BearingScenario, TrueCrossing, find_true_crossings
-from fusion.simulate._bearing_varied import VARIED_RANGES, varied_settings
+from fusion.simulate.bearing_scene.motion import Builder, Motion, unit
+from fusion.simulate.bearing_scene.traffic import TRAFFIC_RANGES, traffic_positions
+from fusion.simulate.bearing_scene.truth import BearingScenario, TrueCrossing, find_true_crossings
+from fusion.simulate.bearing_scene.varied import VARIED_RANGES, varied_settings
 
 __all__ = [
     "TRAFFIC_RANGES",
@@ -363,7 +363,7 @@ def simulate_traffic(*, seed: int) -> BearingScenario:
 
     Notes
     -----
-    Vessel kinds and motions are described in :mod:`fusion.simulate._bearing_traffic`. The
+    Vessel kinds and motions are described in :mod:`fusion.simulate.bearing_scene.traffic`. The
     sensor sits at the origin (``ownship_xy`` zero). Nearly all vessels are in view the whole
     hour, so most pairs meet at least once and many more than once.
     """

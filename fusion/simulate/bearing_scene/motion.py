@@ -1,6 +1,6 @@
 """Straight-line relative motions and the rejection sampler behind :mod:`fusion.simulate.bearings`.
 
-Private to the bearing simulator: :class:`Motion` is a target's straight-line motion relative to
+Part of the bearing simulator: :class:`Motion` is a target's straight-line motion relative to
 the platform (compass bearing and bearing rate at any time) and :class:`Builder` draws motions
 under the scenario's constraints (crossing, near-miss and parallel pairs, free tracks).
 """

@@ -1,6 +1,6 @@
 """Manoeuvring vessel traffic around a fixed sensor (``fusion simulate bearings --traffic``).
 
-Private to :mod:`fusion.simulate.bearings`. Unlike the straight-line scenarios, vessels here
+Part of :mod:`fusion.simulate.bearings`. Unlike the straight-line scenarios, vessels here
 turn, change speed, pass close to the sensor and cross other vessels' bearings again and again,
 the physics a constant-velocity bearing model ignores:
 
