@@ -95,14 +95,19 @@ def _clusters(sources: list[dict]) -> list[dict]:
             out.append(src)
             continue
         q = out[near]
-        extra = [(k, h) for k, h in zip(src["owned_tdoas"], src["paths"], strict=True)
-                 if k not in q["owned_tdoas"]]
-        out[near] = {**q, "owned_tdoas": q["owned_tdoas"] + [k for k, _ in extra],
-                     "paths": q["paths"] + [h for _, h in extra],
-                     "observable": bool(q.get("observable", True) or src.get("observable", True)),
-                     "mirror_ambiguous": bool(q.get("mirror_ambiguous")
-                                              and src.get("mirror_ambiguous"))}
+        out[near] = {**_joined(q, src), "observable": bool(q.get("observable", True)
+                                                            or src.get("observable", True))}
     return out
+
+
+def _joined(q: dict, src: dict) -> dict:
+    """Source `q` holding also the TDOAs of `src` it does not hold yet (with their paths);
+    mirror-ambiguous only when both were."""
+    extra = [(k, h) for k, h in zip(src["owned_tdoas"], src["paths"], strict=True)
+             if k not in q["owned_tdoas"]]
+    return {**q, "owned_tdoas": q["owned_tdoas"] + [k for k, _ in extra],
+            "paths": q["paths"] + [h for _, h in extra],
+            "mirror_ambiguous": bool(q.get("mirror_ambiguous") and src.get("mirror_ambiguous"))}
 
 
 def _teaches(source: dict, fix: FixTdoas | None) -> bool:
@@ -185,14 +190,7 @@ class SpeedCalibration:
                 first.append(k)
                 continue
             first[near] = min(first[near], k)
-            q = kept[near]
-            extra = [(k, h) for k, h in zip(src["owned_tdoas"], src["paths"], strict=True)
-                     if k not in q["owned_tdoas"]]
-            union = {**q, "owned_tdoas": q["owned_tdoas"] + [k for k, _ in extra],
-                     "paths": q["paths"] + [h for _, h in extra],
-                     "mirror_ambiguous": bool(q.get("mirror_ambiguous") and
-                                              src.get("mirror_ambiguous"))}
-            kept[near] = self._solved(window, union)
+            kept[near] = self._solved(window, _joined(kept[near], src))
         return {**window, "sources": [kept[j] for j in np.argsort(first, kind="stable")]}
 
 
