@@ -94,17 +94,7 @@ def crossing_outcomes(
         raise ValueError("true_labels, est_labels and times must be 1-D of equal length")
 
     def follower(trk: int, sel_t: NDArray[np.bool_]) -> int | None:
-        sel = (tl == trk) & sel_t
-        n = int(sel.sum())
-        if n == 0:
-            return None
-        lab = el[sel]
-        lab = lab[lab >= 0]
-        if lab.size == 0:
-            return -1
-        u, c = np.unique(lab, return_counts=True)
-        i = int(np.argmax(c))
-        return int(u[i]) if c[i] >= min_fraction * n else -1
+        return _follower(tl, el, trk, sel_t, min_fraction)
 
     out = []
     for a, b, tc in crossings:
