@@ -53,6 +53,22 @@ def test_linear_motion_recovered_and_smoothed_better_than_raw():
                       np.trace(np.diag([25.0, 25.0, 100.0])))
 
 
+def _rts(t, z, covs, q):
+    """filterpy's Kalman filter + RTS smoother of 3-D positions (white-noise acceleration,
+    diffuse prior): smoothed states (n, 6) and covariances (n, 6, 6)."""
+    kf = KalmanFilter(dim_x=6, dim_z=3)
+    kf.x = np.r_[z[0], 0.0, 0.0, 0.0]
+    kf.P = np.eye(6) * 1e10
+    kf.H = np.hstack([np.eye(3), np.zeros((3, 3))])
+    dts = np.r_[1.0, np.diff(t)]
+    fs = [transition_matrix(d, 3) for d in dts]
+    qs = [wna_covariance(d, q, 3) for d in dts]
+    fs[0], qs[0] = np.eye(6), np.zeros((6, 6))  # the first update is at the first time
+    mu, cov, _, _ = kf.batch_filter(list(z), Fs=fs, Qs=qs, Rs=covs)
+    xs, ps, _, _ = kf.rts_smoother(mu, cov, Fs=fs, Qs=qs)
+    return xs, ps
+
+
 def test_smoother_equals_rts_on_linear_gaussian_data():
     """The factor-graph smoother equals filterpy's Kalman filter + RTS smoother (diffuse prior)."""
     rng = np.random.default_rng(7)
@@ -66,16 +82,7 @@ def test_smoother_equals_rts_on_linear_gaussian_data():
     windows = [WindowSources(t[k], (fix(z[k], covs[k]),)) for k in range(n)]
     (tr,) = SourceTracker(q=q, max_speed=50.0).track(windows)
 
-    kf = KalmanFilter(dim_x=6, dim_z=3)
-    kf.x = np.r_[z[0], 0.0, 0.0, 0.0]
-    kf.P = np.eye(6) * 1e10
-    kf.H = np.hstack([np.eye(3), np.zeros((3, 3))])
-    dts = np.r_[1.0, np.diff(t)]
-    fs = [transition_matrix(d, 3) for d in dts]
-    qs = [wna_covariance(d, q, 3) for d in dts]
-    fs[0], qs[0] = np.eye(6), np.zeros((6, 6))  # the first update is at the first time
-    mu, cov, _, _ = kf.batch_filter(list(z), Fs=fs, Qs=qs, Rs=covs)
-    xs, ps, _, _ = kf.rts_smoother(mu, cov, Fs=fs, Qs=qs)
+    xs, ps = _rts(t, z, covs, q)
     assert_allclose(tr.positions, xs[:, :3], atol=1e-5)
     assert_allclose(tr.velocities, xs[:, 3:], atol=1e-5)  # 1e10 diffuse prior: ~1e-6 rounding
     assert_allclose(tr.covariances, ps[:, :3, :3], rtol=1e-4)
@@ -98,16 +105,7 @@ def test_dense_fallback_equals_rts_where_gtsam_refuses(monkeypatch):
     windows = [WindowSources(t[k], (fix(z[k], covs[k]),)) for k in range(n)]
     monkeypatch.setattr(tracks_module.gtsam, "Marginals", refuse)
     (tr,) = SourceTracker(q=q, max_speed=500.0).track(windows)
-    kf = KalmanFilter(dim_x=6, dim_z=3)
-    kf.x = np.r_[z[0], 0.0, 0.0, 0.0]
-    kf.P = np.eye(6) * 1e10
-    kf.H = np.hstack([np.eye(3), np.zeros((3, 3))])
-    dts = np.r_[1.0, np.diff(t)]
-    fs = [transition_matrix(d, 3) for d in dts]
-    qs = [wna_covariance(d, q, 3) for d in dts]
-    fs[0], qs[0] = np.eye(6), np.zeros((6, 6))
-    mu, cov, _, _ = kf.batch_filter(list(z), Fs=fs, Qs=qs, Rs=covs)
-    xs, ps, _, _ = kf.rts_smoother(mu, cov, Fs=fs, Qs=qs)
+    xs, ps = _rts(t, z, covs, q)
     assert_allclose(tr.positions, xs[:, :3], atol=1e-3)
     assert_allclose(tr.covariances, ps[:, :3, :3], rtol=1e-3)
 
