@@ -68,6 +68,9 @@ WHALE_MIN_TDOAS = 5.5
 
 #: Height of the sea surface in the project's convention (z up, formats section 2), m.
 SEA_SURFACE_Z = 0.0
+#: Added in quadrature to every TDOA sigma by default, s (:class:`ClickLocalization`): what the
+#: measured sigma does not hold -- sensor positions, sound speed, the drift model.
+SIGMA_FLOOR_S = 1e-6
 
 #: With the paths decided from the data, a window whose direct-path sources explain (own with
 #: weight > 1/2) at least this fraction of its valid TDOAs is not read along surface paths.
@@ -263,7 +266,7 @@ class ClickLocalization:
         front_end: ClickFrontEnd | None = None,
         localizer: MultiSourceLocalizer | LocalizerSettings | None | bool = True,
         min_tdoas: int = 3,
-        sigma_floor_s: float = 1e-6,
+        sigma_floor_s: float = SIGMA_FLOOR_S,
     ) -> None:
         self.front_end = front_end if front_end is not None else ClickFrontEnd()
         if localizer is True:

@@ -32,7 +32,7 @@ from fusion.localization.sound_speed import (
     refit_fix,
 )
 from fusion.localization.surface_paths import PATHS
-from fusion.pipelines.localization import SEA_SURFACE_Z, UNBOUNDED_M2
+from fusion.pipelines.localization import SEA_SURFACE_Z, SIGMA_FLOOR_S, UNBOUNDED_M2
 
 __all__ = ["SpeedCalibration", "calibrate_speed", "fix_tdoas"]
 
@@ -52,9 +52,6 @@ MAX_SIGMA_MPS = 3.0
 #: paths differ from one value by about 1 %; a larger change is sensor positions metres off
 #: (which a kilometre-scale array's delays confuse with the speed) or wrong fixes.
 MAX_CHANGE = 0.015
-#: Added in quadrature to every TDOA sigma, s, as the window's own solve does
-#: (:class:`fusion.pipelines.localization.ClickLocalization`'s ``sigma_floor_s``).
-SIGMA_FLOOR_S = 1e-6
 
 
 def fix_tdoas(window: dict, source: dict, sensors: ArrayLike, c: float,
