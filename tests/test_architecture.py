@@ -250,7 +250,6 @@ MOVED_NAMES = {
     "FEATURE_NAMES": ("fusion.clicks.validate", "fusion.clicks.validate_features"),
     "TdoaPeak": ("fusion.clicks.scm", "fusion.clicks.scm_types"),
     "ScmCorrelation": ("fusion.clicks.scm", "fusion.clicks.scm_types"),
-    "tdoa_factor": ("factors.tdoa", "factors.tdoa_factors"),
     "tdoa_vector_factor": ("factors.tdoa", "factors.tdoa_factors"),
     "weighted_tdoa_vector_factor": ("factors.tdoa", "factors.tdoa_factors"),
     "AcquisitionResult": ("fusion.passive.acquisition.acquire", "fusion.passive.acquisition.result"),

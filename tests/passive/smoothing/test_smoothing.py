@@ -9,8 +9,7 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from factors.bearing import bearing_factor
-from factors.motion import constant_velocity_factor, wna_covariance
+from factors.motion import wna_covariance
 from fusion.cli import main
 from fusion.metrics.crossings import crossing_outcomes, identity_swaps
 from fusion.passive.smoothing import (
@@ -258,20 +257,21 @@ def test_batch_equals_rts_to_1e9(seed):
     assert_allclose(res.sigma_bearing, np.sqrt(ps[:, 0, 0]), rtol=1e-9)
 
 
-def _scalar_reference(t, z, prior, loss, init):
-    """The scalar-CustomFactor graph (wrapped at every evaluation) solved from `init`."""
+def _wrapped_reference(wrapped_track, t, z, prior, loss, init):
+    """The wrapped model's graph (the tests' CustomFactors, wrapped at every evaluation)
+    solved from `init`."""
     g = gtsam.NonlinearFactorGraph()
     g.add(gtsam.PriorFactorVector(0, prior.mean,
                                   gtsam.noiseModel.Gaussian.Covariance(prior.covariance)))
     for k, dt in enumerate(np.diff(t)):
-        g.add(constant_velocity_factor(
+        g.add(wrapped_track.motion(
             gtsam.noiseModel.Gaussian.Covariance(wna_covariance(dt, Q, 1)), k, k + 1, dt))
     noise = gtsam.noiseModel.Isotropic.Sigma(1, SIG)
     if loss == "huber":
         noise = gtsam.noiseModel.Robust.Create(gtsam.noiseModel.mEstimator.Huber.Create(1.345),
                                                noise)
     for k, zk in enumerate(z):
-        g.add(bearing_factor(noise, k, float(zk)))
+        g.add(wrapped_track.bearing(noise, k, float(zk)))
     v = gtsam.Values()
     for k, x in enumerate(init):
         v.insert(k, np.asarray(x, float))
@@ -282,10 +282,10 @@ def _scalar_reference(t, z, prior, loss, init):
     return np.array([res.atVector(k) for k in range(t.size)])
 
 
-def test_recentring_follows_a_bearing_across_the_branch_cut():
+def test_recentring_follows_a_bearing_across_the_branch_cut(wrapped_track):
     """Started 0.5 rad off, the Huber solution moves a near-opposite outlier's residual past
     -pi: the graph is re-centred and solved again, ending at the optimum of the wrapped
-    (scalar-factor) model."""
+    model."""
     rng = np.random.default_rng(4)
     n = 30
     t = np.arange(n) * 5.0
@@ -296,14 +296,14 @@ def test_recentring_follows_a_bearing_across_the_branch_cut():
     start = np.column_stack([np.full(n, 0.7), np.zeros(n)])
     states, _ = _solve(t, _Measurements(state=np.arange(n), bearing=z), prior, model,
                        init=start)
-    ref = _scalar_reference(t, z, prior, "huber", np.column_stack([np.full(n, 0.2),
-                                                                   np.zeros(n)]))
+    ref = _wrapped_reference(wrapped_track, t, z, prior, "huber",
+                             np.column_stack([np.full(n, 0.2), np.zeros(n)]))
     assert_allclose(states, ref, atol=1e-6)
     assert np.angle(np.exp(1j * (states[10, 0] - z[10]))) > 2.0  # outlier on the far side
 
 
-def test_robust_batch_equals_scalar_factor_path():
-    """Huber smoothing with outliers across +-180 deg reaches the scalar-factor graph's optimum
+def test_robust_batch_equals_wrapped_model(wrapped_track):
+    """Huber smoothing with outliers across +-180 deg reaches the wrapped model's optimum
     (to the optimiser's tolerance)."""
     rng = np.random.default_rng(21)
     t = np.arange(40) * 5.0
@@ -312,8 +312,8 @@ def test_robust_batch_equals_scalar_factor_path():
     z[[5, 17, 30]] += [1.0, -2.0, 2.5]
     prior = TrackPrior(bearing=z[0], rate=0.0, sigma_bearing=0.05, sigma_rate=0.01)
     res = BearingSmoother(sigma_bearing=SIG, q=Q, robust="huber").smooth(t, z, prior=prior)
-    ref = _scalar_reference(t, z, prior, "huber",
-                            np.column_stack([res.bearing, res.rate]))
+    ref = _wrapped_reference(wrapped_track, t, z, prior, "huber",
+                             np.column_stack([res.bearing, res.rate]))
     # Levenberg-Marquardt stops at a relative cost change of 1e-12: states agree to ~1e-7
     assert_allclose(np.angle(np.exp(1j * (res.bearing - ref[:, 0]))), 0.0, atol=1e-6)
     assert_allclose(res.rate, ref[:, 1], atol=1e-8)
