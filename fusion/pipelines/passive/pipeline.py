@@ -10,7 +10,7 @@ Per scan (:meth:`PassivePipeline.step`; :meth:`PassivePipeline.run` steps throug
    ends the track (after this scan's state); ``uncertain`` widens its process noise for this
    step by ``uncertain_q_factor``.
 3. **Graphs**: each track's (bearing, bearing rate) lives on its own GTSAM fixed-lag smoother of
-   linear factors (:class:`~fusion.pipelines.passive.tracks.FixedLagBearingTrack`): a motion
+   linear factors (:class:`~fusion.passive.smoothing.fixed_lag.FixedLagBearingTrack`): a motion
    factor to the new state, and the measured bearing if it passes the innovation gate and the
    track is not in a crossing episode.
 4. **Crossings**: every ``K`` s the crossing detector (*Target Track Crossing
@@ -45,13 +45,14 @@ from fusion.geometry import beam_from_bearing, beam_tolerance, beamwidth_cos, be
 from fusion.passive.acquisition import Acquisition, AcquisitionResult
 from fusion.passive.crossing import AlertKind, CrossingAlert, CrossingDetector
 from fusion.passive.quality import LABELS, TQIMemory, TrackQuality, TrackQualityIndicator
+from fusion.passive.smoothing.fixed_lag import FixedLagBearingTrack
 from fusion.pipelines.passive.crossing import (
     CrossingResolution,
     CrossingResolver,
     EpisodeBook,
 )
 from fusion.pipelines.passive.measure import BearingMeasurement, LineStarter, PeakMeasurer
-from fusion.pipelines.passive.tracks import AcquisitionPrior, FixedLagBearingTrack
+from fusion.pipelines.passive.tracks import AcquisitionPrior
 from fusion.pipelines.passive.types import (
     Click,
     PassiveResult,
