@@ -191,7 +191,8 @@ def test_old_import_paths_still_work():
 #: and localization left fusion.clicks -> where the name lives now. They work for one release,
 #: with a DeprecationWarning.
 DEPRECATED_PATHS = {
-    ("fusion.pipelines.passive_measure", "LineStarter"): "fusion.pipelines.passive",
+    ("fusion.pipelines.passive_measure", "LineStarter"): "fusion.passive.acquisition",
+    ("fusion.pipelines.passive_measure", "PeakMeasurer"): "fusion.passive.measurement",
     ("fusion.pipelines.passive_types", "Click"): "fusion.pipelines.passive",
     ("fusion.pipelines.passive_scoring", "ScoredTrack"): "fusion.metrics.tracks",
     ("fusion.pipelines.passive_scoring", "score_tracks"): "fusion.metrics.tracks",

@@ -4,7 +4,7 @@ Per scan (:meth:`PassivePipeline.step`; :meth:`PassivePipeline.run` steps throug
 
 1. **Measure** every live track: predict its state to the scan time from its graph; in the
    track's frequency band read the cell at the predicted beam (amplitude ``A(k)``) and the peak
-   near it (bearing, residual) -- :class:`~fusion.pipelines.passive.measure.PeakMeasurer`.
+   near it (bearing, residual) -- :class:`~fusion.passive.measurement.PeakMeasurer`.
 2. **Track quality**: one update of the TQI with hysteresis for all live tracks from their
    amplitudes and residuals (:class:`~fusion.passive.quality.TrackQualityIndicator`). ``lost``
    ends the track (after this scan's state); ``uncertain`` widens its process noise for this
@@ -21,11 +21,11 @@ Per scan (:meth:`PassivePipeline.step`; :meth:`PassivePipeline.run` steps throug
    the association-weighted multi-track graph (EM,
    :class:`~fusion.pipelines.passive.crossing.CrossingResolver`) and each track receives the
    bearings assigned to it on the states of their scans.
-5. **Starts**: an operator click (beam, frequency) -- or, with a :class:`~fusion.pipelines.
-   passive.measure.LineStarter`, a line found automatically -- is acquired over the last
+5. **Starts**: an operator click (beam, frequency) -- or, with a :class:`~fusion.passive.
+   acquisition.starts.LineStarter`, a line found automatically -- is acquired over the last
    ``acquisition_scans`` scans (:class:`~fusion.passive.acquisition.Acquisition`) and starts a
    track whose first state carries the acquisition's estimate as a prior with its uncertainty
-   (:class:`~fusion.pipelines.passive.tracks.AcquisitionPrior`).
+   (:class:`~fusion.passive.acquisition.prior.AcquisitionPrior`).
 
 The pipeline chains these parts and holds no algorithm of its own.
 """
@@ -42,8 +42,14 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fusion.geometry import beam_from_bearing, beam_tolerance, beamwidth_cos, beamwidth_deg
-from fusion.passive.acquisition import Acquisition, AcquisitionResult
+from fusion.passive.acquisition import (
+    Acquisition,
+    AcquisitionPrior,
+    AcquisitionResult,
+    LineStarter,
+)
 from fusion.passive.crossing import AlertKind, CrossingAlert, CrossingDetector
+from fusion.passive.measurement import BearingMeasurement, PeakMeasurer
 from fusion.passive.quality import LABELS, TQIMemory, TrackQuality, TrackQualityIndicator
 from fusion.passive.smoothing.fixed_lag import FixedLagBearingTrack
 from fusion.pipelines.passive.crossing import (
@@ -51,8 +57,6 @@ from fusion.pipelines.passive.crossing import (
     CrossingResolver,
     EpisodeBook,
 )
-from fusion.pipelines.passive.measure import BearingMeasurement, LineStarter, PeakMeasurer
-from fusion.pipelines.passive.tracks import AcquisitionPrior
 from fusion.pipelines.passive.types import (
     Click,
     PassiveResult,

@@ -1,8 +1,8 @@
-"""The acquisition prior of a passive track.
+"""The prior of a track started by an acquisition: :class:`AcquisitionPrior`.
 
-:class:`AcquisitionPrior` turns an :class:`~fusion.passive.acquisition.AcquisitionResult` into a
-Gaussian prior on the track's first state, with an uncertainty derived from the acquisition's
-own SNR, beamwidth and trace length. The track itself grows on
+It turns an :class:`~fusion.passive.acquisition.result.AcquisitionResult` into a Gaussian prior
+on the track's first state (a :class:`fusion.passive.smoothing.TrackPrior`), with an uncertainty
+derived from the acquisition's own SNR, beamwidth and trace length. The track itself grows on
 :class:`fusion.passive.smoothing.fixed_lag.FixedLagBearingTrack`.
 """
 
@@ -16,7 +16,7 @@ from numpy.typing import NDArray
 
 from fusion._validation import check_positive
 from fusion.geometry import beam_from_bearing, beamwidth_cos, beamwidth_deg, bearing_from_beam
-from fusion.passive.acquisition import AcquisitionResult
+from fusion.passive.acquisition.result import AcquisitionResult
 from fusion.passive.smoothing import TrackPrior
 
 __all__ = ["AcquisitionPrior"]

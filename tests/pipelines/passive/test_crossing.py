@@ -1,21 +1,14 @@
-"""Tests of the passive pipeline's parts: prior, measurement, starts, crossings."""
+"""Tests of the passive pipeline's crossing episodes."""
 
 from __future__ import annotations
 
 import math
 
 import numpy as np
-import pytest
 from numpy.testing import assert_allclose
-from scipy import stats
 
-from fusion.geometry import beamwidth_deg, bearing_from_beam
-from fusion.passive.acquisition import Acquisition
 from fusion.passive.smoothing import TrackPrior
 from fusion.pipelines.passive.crossing import CrossingEpisode, CrossingResolver, EpisodeBook
-from fusion.pipelines.passive.measure import LineStarter, PeakMeasurer
-from fusion.pipelines.passive.tracks import AcquisitionPrior
-from fusion.simulate.cube import simulate_cube
 
 Q = math.radians(2.0 / 3600.0) ** 2  # rad^2/s^3: 2 deg/min^2 per 1 s scan
 SIGMA = 0.015  # rad
@@ -26,63 +19,6 @@ def _bearings(n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
     rng = np.random.default_rng(seed)
     t = np.arange(n, dtype=float)
     return t, 1.0 + 6e-4 * t + 1e-6 * t**2 + SIGMA * rng.standard_normal(n)
-
-
-def test_acquisition_prior_model():
-    """The prior's sigmas follow the line-fit formulas; a walk off the click gives defaults."""
-    sc = simulate_cube(seed=3, bearing0_deg=80.0, bearing_rate_deg_per_min=10.0, snr_db=9.0)
-    res = Acquisition().acquire(sc.cube, beam=sc.click_beam, freq_hz=sc.click_freq)
-    model = AcquisitionPrior()
-    wl = 1500.0 / sc.click_freq
-    p = model.prior(res, click_beam=sc.click_beam, n_beams=64, wavelength=wl, aperture=50.0,
-                    scan_period=1.0)
-    n = res.best_line.n_scans_used
-    bw = math.radians(float(beamwidth_deg(res.bearing_deg, wavelength=wl, aperture=50.0)))
-    s1 = bw / math.sqrt(2.0 * res.snr_ibw)
-    assert p.bearing == pytest.approx(math.radians(res.bearing_deg))
-    assert p.sigma_bearing == pytest.approx(s1 * math.sqrt((4 * n - 2) / (n * (n + 1))), rel=1e-6)
-    assert p.sigma_rate == pytest.approx(s1 * math.sqrt(12 / (n * (n * n - 1))), rel=1e-6)
-    far = model.prior(res, click_beam=sc.click_beam + 8, n_beams=64, wavelength=wl,
-                      aperture=50.0, scan_period=1.0)
-    assert far.bearing == pytest.approx(float(bearing_from_beam(sc.click_beam + 8, 64)))
-    assert far.rate == 0.0
-    assert far.sigma_rate == pytest.approx(math.radians(10.0) / 60.0)
-
-
-def test_peak_measurer_known_answer():
-    """A symmetric line between two beams is measured between them; the amplitude is the cell
-    at the prediction; a stronger flank just outside the search is not a local peak."""
-    row = np.ones(32)
-    row[[14, 15]] = 11.0  # centroid of 13..15 weighted by power above 1 -> 14.5
-    m = PeakMeasurer(beam_sigma=0.5)
-    pred = float(bearing_from_beam(16.0, 32))
-    out = m.measure(row, pred, search_beams=2)
-    assert out.beam == pytest.approx(14.5)
-    assert out.amplitude == 1.0
-    assert out.residual_deg == pytest.approx(math.degrees(bearing_from_beam(14.5, 32) - pred))
-    assert out.local_peak
-    assert out.sigma == pytest.approx(0.5 * 2.0 / (31 * math.sin(pred)))
-    flank = np.ones(32)
-    flank[20:23] = [3.0, 5.0, 9.0]
-    assert not m.measure(flank, float(bearing_from_beam(19.0, 32)), search_beams=2).local_peak
-
-
-def test_line_starter_threshold_and_exclusion():
-    """The threshold is the gamma quantile of a noise mean; a planted line is proposed unless a
-    track holds it."""
-    st = LineStarter(window_scans=20, false_alarm=1e-3)
-    assert st.threshold == pytest.approx(stats.gamma.isf(1e-3, 20, scale=1 / 20))
-    rng = np.random.default_rng(0)
-    hist = rng.exponential(size=(20, 48, 16))
-    hist[:, 30, 7] += 4.0
-    lobes = np.full(16, 2.8)
-    got = st.candidates(hist, held=[], lobe_beams=lobes)
-    assert (got[0].beam, got[0].bin) == (30, 7)
-    assert all(c.mean_power > st.threshold for c in got)
-    held = st.candidates(hist, held=[(31.0, 8)], lobe_beams=lobes)
-    assert all((c.beam, c.bin) != (30, 7) for c in held)
-    with pytest.raises(ValueError, match="history"):
-        st.candidates(hist[:5], held=[], lobe_beams=lobes)
 
 
 def test_episode_book_opens_on_merge_and_closes_when_apart():
