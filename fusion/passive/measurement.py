@@ -58,6 +58,18 @@ class BearingMeasurement:
     residual_deg: float
     local_peak: bool
 
+    def innovation_std(self, predicted_variance: float) -> float:
+        """Standard deviation of the innovation against a prediction of variance
+        `predicted_variance` (rad^2): ``sqrt(P + sigma^2)``, rad."""
+        return math.sqrt(predicted_variance + self.sigma**2)
+
+    def in_gate(self, predicted: float, predicted_variance: float, gate: float) -> bool:
+        """Whether the measurement may update a track predicted at `predicted` (rad) with
+        variance `predicted_variance`: a local peak within `gate` innovation standard
+        deviations of the prediction."""
+        return self.local_peak and abs(self.bearing - predicted) <= gate * self.innovation_std(
+            predicted_variance)
+
 
 class PeakMeasurer:
     """Bearing measurement near a predicted bearing in one beam row of a scan.

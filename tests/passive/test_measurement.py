@@ -27,3 +27,22 @@ def test_peak_measurer_known_answer():
     flank = np.ones(32)
     flank[20:23] = [3.0, 5.0, 9.0]
     assert not m.measure(flank, float(bearing_from_beam(19.0, 32)), search_beams=2).local_peak
+
+
+def test_innovation_gate_known_answer():
+    """The innovation std is sqrt(P + sigma^2); the gate takes a local peak within `gate` of
+    them and refuses one beyond it, or a flank (not a local peak) even at the prediction."""
+    row = np.ones(32)
+    row[[14, 15]] = 11.0
+    m = PeakMeasurer(beam_sigma=0.5).measure(row, float(bearing_from_beam(16.0, 32)),
+                                             search_beams=2)
+    p = 0.02**2
+    s = math.sqrt(p + m.sigma**2)
+    assert m.innovation_std(p) == pytest.approx(s, rel=1e-15)
+    assert m.in_gate(m.bearing + 2.9 * s, p, 3.0)
+    assert not m.in_gate(m.bearing - 3.1 * s, p, 3.0)
+    flank = np.ones(32)
+    flank[20:23] = [3.0, 5.0, 9.0]
+    f = PeakMeasurer(beam_sigma=0.5).measure(flank, float(bearing_from_beam(19.0, 32)),
+                                             search_beams=2)
+    assert not f.in_gate(f.bearing, p, 3.0)

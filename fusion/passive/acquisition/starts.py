@@ -99,6 +99,25 @@ class LineStarter:
         #: Threshold on the mean BTR (noise mean 1).
         self.threshold = float(stats.gamma.isf(self.false_alarm, shape, scale=1.0 / shape))
 
+    def excluded(
+        self, beam: float, bin: int, *, held: list[tuple[float, int]], lobe_beams: FloatArray
+    ) -> bool:
+        """Whether the cell ``(beam, bin)`` lies in the exclusion zone of a held line.
+
+        Parameters
+        ----------
+        beam : float
+            Beam, possibly fractional (an acquisition's estimate).
+        bin : int
+            Frequency bin.
+        held : list of (float, int)
+            ``(beam, bin)`` of every line held.
+        lobe_beams : ndarray, shape (n_bins,)
+            Main-lobe width of each bin in beams.
+        """
+        reach = self.exclusion_lobes * float(lobe_beams[bin])
+        return any(abs(beam - hb) <= reach and abs(bin - hf) <= self.bin_guard for hb, hf in held)
+
     def candidates(
         self,
         history: FloatArray,
@@ -135,8 +154,7 @@ class LineStarter:
         taken = list(held)
         out: list[StartCandidate] = []
         for b, f in zip(beams[order].tolist(), bins[order].tolist(), strict=True):
-            reach = self.exclusion_lobes * float(lobe_beams[f])
-            if any(abs(b - hb) <= reach and abs(f - hf) <= self.bin_guard for hb, hf in taken):
+            if self.excluded(b, f, held=taken, lobe_beams=lobe_beams):
                 continue
             out.append(StartCandidate(beam=b, bin=f, mean_power=float(mean[b, f])))
             taken.append((float(b), f))

@@ -279,10 +279,10 @@ class PassivePipeline:
             lost = state == TrackQuality.LOST
             q_scale = self.smoother.uncertain_q_factor if state == TrackQuality.UNCERTAIN else 1.0
             x_pred, p_pred = preds[i] if q_scale == 1.0 else tr.graph.predict(t, q_scale=q_scale)
-            s_innov = math.sqrt(p_pred[0, 0] + m.sigma**2)
+            s_innov = m.innovation_std(p_pred[0, 0])
             episode = self._episodes.member_of(tr.track_id)
-            use = (not lost and episode is None and m.local_peak
-                   and abs(m.bearing - x_pred[0]) <= self.smoother.gate * s_innov)
+            use = (not lost and episode is None
+                   and m.in_gate(x_pred[0], p_pred[0, 0], self.smoother.gate))
             if episode is not None:
                 episode.record(tr.track_id, t, bearing=m.bearing, sigma=m.sigma,
                                predicted=float(x_pred[0]), innovation_std=s_innov,
@@ -401,9 +401,7 @@ class PassivePipeline:
             if res.default_used:
                 continue
             beam = float(beam_from_bearing(math.radians(res.bearing_deg), g.n_beams))
-            reach = self.starter.exclusion_lobes * float(lobe[c.bin])
-            if any(abs(beam - hb) <= reach and abs(c.bin - hf) <= self.starter.bin_guard
-                   for hb, hf in self._held()):
+            if self.starter.excluded(beam, c.bin, held=self._held(), lobe_beams=lobe):
                 continue  # the acquisition walked onto a held line
             starts.append(self._start(scan, res, beam=c.beam, freq_hz=float(g.freqs[c.bin]),
                                       source="auto"))

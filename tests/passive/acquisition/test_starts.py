@@ -25,3 +25,16 @@ def test_line_starter_threshold_and_exclusion():
     assert all((c.beam, c.bin) != (30, 7) for c in held)
     with pytest.raises(ValueError, match="history"):
         st.candidates(hist[:5], held=[], lobe_beams=lobes)
+
+
+def test_exclusion_zone_known_answer():
+    """A cell is excluded within exclusion_lobes main lobes (in beams) and bin_guard bins of a
+    held line, and not beyond either."""
+    st = LineStarter(exclusion_lobes=2.0, bin_guard=1)
+    lobes = np.full(16, 2.5)  # reach 5 beams
+    held = [(30.0, 7)]
+    assert st.excluded(35.0, 8, held=held, lobe_beams=lobes)
+    assert st.excluded(25.5, 6, held=held, lobe_beams=lobes)
+    assert not st.excluded(35.01, 7, held=held, lobe_beams=lobes)
+    assert not st.excluded(30.0, 9, held=held, lobe_beams=lobes)
+    assert not st.excluded(30.0, 7, held=[], lobe_beams=lobes)
