@@ -39,12 +39,12 @@ import numpy as np
 from sklearn.metrics import roc_auc_score
 from threadpoolctl import threadpool_limits
 
-from fusion.pipelines.click_training import (
+from fusion.pipelines.clicks import ClickFrontEnd
+from fusion.pipelines.clicks.training import (
     label_windows,
     scenario_labels,
     varied_scenario,
 )
-from fusion.pipelines.clicks import ClickFrontEnd
 
 
 def seeds_arg(text: str) -> list[int]:

@@ -194,6 +194,7 @@ DEPRECATED_PATHS = {
     ("fusion.pipelines.passive_measure", "LineStarter"): "fusion.passive.acquisition",
     ("fusion.pipelines.passive_measure", "PeakMeasurer"): "fusion.passive.measurement",
     ("fusion.pipelines.passive_types", "Click"): "fusion.pipelines.passive",
+    ("fusion.pipelines.click_training", "scenario_labels"): "fusion.pipelines.clicks.training",
     ("fusion.pipelines.passive_scoring", "ScoredTrack"): "fusion.metrics.tracks",
     ("fusion.pipelines.passive_scoring", "score_tracks"): "fusion.metrics.tracks",
     ("fusion.clicks.localize", "MultiSourceLocalizer"): "fusion.localization.localize",

@@ -98,7 +98,7 @@ def _recordings(args: argparse.Namespace) -> list[tuple[Path, Path, Path]]:
 def _checked(recordings: list[tuple[Path, Path, Path]]) -> list:
     """(audio path, array, labels) of each recording, its array and labels read and checked."""
     from fusion.io import read_array, read_table
-    from fusion.pipelines.click_training import TdoaLabels
+    from fusion.pipelines.clicks.training import TdoaLabels
 
     checked = []
     for audio_p, array_p, labels_p in recordings:
@@ -119,13 +119,13 @@ def run(args: argparse.Namespace) -> int:
     from fusion.clicks.replica import estimate_replica, load_replica, write_replica
     from fusion.clicks.scm import ClickMapCorrelator, ScmConfig
     from fusion.io import read_audio
-    from fusion.pipelines.click_training import (
+    from fusion.pipelines.clicks import ClickFrontEnd
+    from fusion.pipelines.clicks.training import (
         CandidateSet,
         label_windows,
         simulated_training_set,
         train_from_candidates,
     )
-    from fusion.pipelines.clicks import ClickFrontEnd
 
     front = ClickFrontEnd(validator=False, refiner=False, hop_s=args.hop,
                           correlator=ClickMapCorrelator(config=ScmConfig(window_s=args.window)))
