@@ -9,7 +9,7 @@ mono file per sensor in array order; files of different lengths are trimmed to t
 warning), a sample-rate mismatch is an error. A progress bar shows on a terminal (``--quiet``
 turns it off).
 
-Long recordings (:mod:`fusion.pipelines.click_chunks`, :mod:`fusion.scale`): the windows are
+Long recordings (:mod:`fusion.pipelines.clicks.chunks`, :mod:`fusion.scale`): the windows are
 processed in chunks of ``--chunk-s`` seconds of consecutive windows (default 60); each chunk's task
 reads its own audio (its windows, one neighbour window on each side and the detector's guards)
 from the file(s) with soundfile and localizes its windows, and the chunks are stitched in order.

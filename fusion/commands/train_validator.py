@@ -43,7 +43,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--labels", type=Path, default=None, help="labels CSV time,i,j,tau[,source]")
     p.add_argument("--simulated", type=number(int, ge=1), default=0, metavar="N",
                    help="also train on N varied simulated scenarios (seeds 0..N-1 of "
-                        "fusion.pipelines.click_training.varied_scenario; the shipped model is "
+                        "fusion.pipelines.clicks.training.varied_scenario; the shipped model is "
                         "--simulated 40)")
     p.add_argument("--out", type=Path, required=True, help="validator model .npz")
     p.add_argument("--replica-out", type=Path, default=None,

@@ -2,23 +2,10 @@
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from numpy.testing import assert_allclose
 
-from fusion.passive.smoothing import TrackPrior
 from fusion.pipelines.passive.crossing import CrossingEpisode, CrossingResolver, EpisodeBook
-
-Q = math.radians(2.0 / 3600.0) ** 2  # rad^2/s^3: 2 deg/min^2 per 1 s scan
-SIGMA = 0.015  # rad
-PRIOR = TrackPrior(bearing=1.0, rate=5e-4, sigma_bearing=0.02, sigma_rate=3e-4)
-
-
-def _bearings(n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
-    rng = np.random.default_rng(seed)
-    t = np.arange(n, dtype=float)
-    return t, 1.0 + 6e-4 * t + 1e-6 * t**2 + SIGMA * rng.standard_normal(n)
 
 
 def test_episode_book_opens_on_merge_and_closes_when_apart():
