@@ -8,7 +8,7 @@ acquires over that window (:class:`fusion.passive.acquisition.Acquisition`) and 
 whose first state carries
 
 - the acquisition's bearing and bearing rate, with the prior of
-  :class:`fusion.pipelines.passive.tracks.AcquisitionPrior`, or
+  :class:`fusion.passive.acquisition.AcquisitionPrior`, or
 - the default start: the clicked beam's bearing and bearing rate 0 (half a beamwidth, 10 deg/min),
 
 then tracks it through the next ``--track-scans`` scans on its fixed-lag graph while the track
@@ -45,12 +45,11 @@ import numpy as np
 
 from fusion.geometry import beamwidth_deg, bearing_from_beam
 from fusion.io import Cube
-from fusion.passive.acquisition import Acquisition, AcquisitionResult
+from fusion.passive.acquisition import Acquisition, AcquisitionPrior, AcquisitionResult
 from fusion.passive.crossing import CrossingDetector
 from fusion.passive.quality import TrackQualityIndicator
 from fusion.passive.smoothing import TrackPrior
 from fusion.pipelines.passive import PassivePipeline
-from fusion.pipelines.passive.tracks import AcquisitionPrior
 from fusion.pipelines.passive.types import Click
 from fusion.simulate.cube import simulate_cube
 

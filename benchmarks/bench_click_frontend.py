@@ -1,7 +1,7 @@
 """Click front end end to end: TDOA accuracy vs the CRB, validation, association, throughput.
 
 Runs :class:`fusion.pipelines.clicks.ClickFrontEnd` (defaults, shipped validator) on varied
-simulated recordings (:func:`fusion.pipelines.click_training.varied_scenario`: 1-3 whales, 3-8
+simulated recordings (:func:`fusion.pipelines.clicks.training.varied_scenario`: 1-3 whales, 3-8
 sensors, SNR 12-36 dB, ICI 0.25-0.6 s with 0-20 % jitter, surface echo 0 to -0.95, 0-20
 transients). Truth is used only to score.
 
@@ -39,12 +39,12 @@ import numpy as np
 from sklearn.metrics import roc_auc_score
 from threadpoolctl import threadpool_limits
 
-from fusion.pipelines.click_training import (
+from fusion.pipelines.clicks import ClickFrontEnd
+from fusion.pipelines.clicks.training import (
     label_windows,
     scenario_labels,
     varied_scenario,
 )
-from fusion.pipelines.clicks import ClickFrontEnd
 
 
 def seeds_arg(text: str) -> list[int]:

@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from fusion.pipelines.click_training import scenario_labels
+from fusion.pipelines.clicks.training import scenario_labels
 from fusion.pipelines.localization import ClickLocalization
 from fusion.simulate.clicks import simulate_clicks
 

@@ -4,14 +4,11 @@ The state is a GTSAM ``Vector`` whose first component is the bearing (rad), e.g.
 ``[bearing, bearing rate]`` state of a bearing-time track. A measured bearing ``z`` gives the
 residual ``e = wrap(x[0] - z)`` (rad), wrapped into [-pi, pi) by
 :func:`factors.angles.wrap_angle` so that a track and its measurement on either side of ±180°
-are a small residual apart. The Jacobian is the row ``[1, 0, ..., 0]``. Three forms:
+are a small residual apart. The Jacobian is the row ``[1, 0, ..., 0]``.
 
-- :func:`bearing_factor` -- one ``CustomFactor`` per bearing (the reference form; a Python
-  callback per bearing and evaluation).
-- :func:`bearing_batch_factor` -- one ``CustomFactor`` for a batch of bearings of one track's
-  states, one vector residual (one callback per batch).
-- :func:`linear_bearing_factors` -- built-in ``PriorFactorVector`` factors, evaluated and
-  linearised in C++: apart from the wrap the model is linear. The wrap is handled by moving each
+:func:`linear_bearing_factors` (and :func:`linear_bearing_factor`, one of them) build it as
+built-in ``PriorFactorVector`` factors, evaluated and linearised in C++: apart from the wrap the
+model is linear. The wrap is handled by moving each
   measurement onto the branch nearest the estimate the factor is built at
   (:func:`factors.angles.nearest_branch`); the caller rebuilds (re-centres) the factors if the
   solution moves a residual out of [-pi, pi).
@@ -25,66 +22,13 @@ import gtsam
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from factors.angles import nearest_branch, wrap_angle
+from factors.angles import nearest_branch
 
 __all__ = [
-    "bearing_batch_factor",
-    "bearing_factor",
     "linear_bearing_factor",
     "linear_bearing_factors",
     "state_bearing_noise",
 ]
-
-
-def bearing_factor(noise: gtsam.noiseModel.Base, key: int, bearing: float) -> gtsam.CustomFactor:
-    """Factor tying the first component of a ``Vector`` state to a measured bearing.
-
-    Parameters
-    ----------
-    noise : gtsam.noiseModel.Base
-        One-dimensional noise model, rad (e.g. ``Isotropic.Sigma(1, sigma)`` or a
-        ``noiseModel.Robust`` around it for outlier bearings).
-    key : int
-        Key of the ``Vector(n)`` state, ``n >= 1``, whose component 0 is the bearing, rad.
-    bearing : float
-        Measured bearing, rad (any branch; it is wrapped).
-
-    Returns
-    -------
-    gtsam.CustomFactor
-        Error ``wrap(x[0] - bearing)``, shape (1,), rad; Jacobian ``[[1, 0, ..., 0]]``, shape
-        (1, n).
-
-    Notes
-    -----
-    The bearing measurement factor of the project's bearing-rate graph (design notes, "Factor
-    graphs": bearing measurement factors, wrap angles).
-
-    Examples
-    --------
-    >>> f = bearing_factor(gtsam.noiseModel.Isotropic.Sigma(1, 0.01), 0, np.pi - 0.01)
-    >>> v = gtsam.Values(); v.insert(0, np.array([-np.pi + 0.01, 0.0]))
-    >>> round(float(f.unwhitenedError(v)[0]), 6)
-    0.02
-    """
-    if int(noise.dim()) != 1:
-        raise ValueError(f"bearing noise model must be 1-dimensional, got dimension {noise.dim()}")
-    z = float(bearing)
-    if not np.isfinite(z):
-        raise ValueError(f"bearing must be finite, got {bearing!r}")
-
-    def error_func(
-        this: gtsam.CustomFactor, values: gtsam.Values, jacobians: list[np.ndarray] | None
-    ) -> np.ndarray:
-        x = values.atVector(this.keys()[0])
-        error = np.array([wrap_angle(x[0] - z)])  # e = wrap(theta - z), rad
-        if jacobians is not None:
-            H = np.zeros((1, x.shape[0]))
-            H[0, 0] = 1.0
-            jacobians[0] = H
-        return error
-
-    return gtsam.CustomFactor(noise, [int(key)], error_func)
 
 
 def _check_bearings(keys: Sequence[int], bearings: ArrayLike) -> tuple[list[int], NDArray]:
@@ -97,71 +41,6 @@ def _check_bearings(keys: Sequence[int], bearings: ArrayLike) -> tuple[list[int]
     if len(key_list) != z.size:
         raise ValueError(f"{len(key_list)} keys for {z.size} bearings: give one key per bearing")
     return key_list, z
-
-
-def bearing_batch_factor(
-    noise: gtsam.noiseModel.Base, keys: Sequence[int], bearings: ArrayLike
-) -> gtsam.CustomFactor:
-    """One factor for a batch of bearings of one track's states: one vector residual.
-
-    Parameters
-    ----------
-    noise : gtsam.noiseModel.Base
-        Noise model of dimension ``m`` (the number of bearings), rad: e.g.
-        ``Isotropic.Sigma(m, sigma)``. For a robust loss per bearing use ``noiseModel.Robust``
-        with an m-estimator created with ``ReweightScheme.Scalar`` (the default ``Block``
-        scheme weights the whole vector by its norm, a different model).
-    keys : sequence of int, length m
-        Key of the state each bearing belongs to (``Vector(n)`` states, component 0 the
-        bearing, rad); keys may repeat (several bearings of one state). The factor's keys are
-        the distinct keys in order of first appearance.
-    bearings : array_like, shape (m,)
-        Measured bearings, rad (any branch; residuals are wrapped).
-
-    Returns
-    -------
-    gtsam.CustomFactor
-        Error ``e_j = wrap(x_{keys[j]}[0] - bearings[j])``, shape (m,), rad; the Jacobian for a
-        key has a 1 in column 0 of the rows of its bearings, zeros elsewhere.
-
-    Notes
-    -----
-    The same cost as ``m`` :func:`bearing_factor` factors with the same 1-D noise (with a
-    diagonal noise model, or a robust one with scalar reweighting), evaluated in one Python
-    callback instead of ``m``. Keep a batch to a few neighbouring states: a factor couples all
-    its keys in the elimination.
-
-    Examples
-    --------
-    >>> f = bearing_batch_factor(gtsam.noiseModel.Isotropic.Sigma(3, 0.01), [0, 0, 1],
-    ...                          [0.1, 0.12, np.pi - 0.01])
-    >>> v = gtsam.Values(); v.insert(0, np.array([0.11, 0.0])); v.insert(1, np.array([-np.pi, 0.0]))
-    >>> np.round(f.unwhitenedError(v), 6)
-    array([ 0.01, -0.01,  0.01])
-    """
-    key_list, z = _check_bearings(keys, bearings)
-    m = z.size
-    if int(noise.dim()) != m:
-        raise ValueError(f"noise model dimension {noise.dim()} differs from the {m} bearings")
-    unique = list(dict.fromkeys(key_list))
-    slot = {k: i for i, k in enumerate(unique)}
-    which = np.array([slot[k] for k in key_list])  # distinct-key index of each bearing
-    rows = [np.flatnonzero(which == i) for i in range(len(unique))]
-
-    def error_func(
-        this: gtsam.CustomFactor, values: gtsam.Values, jacobians: list[np.ndarray] | None
-    ) -> np.ndarray:
-        states = [values.atVector(k) for k in unique]
-        theta = np.array([s[0] for s in states])[which]
-        error = np.asarray(wrap_angle(theta - z))  # e_j = wrap(theta_{k_j} - z_j), rad
-        if jacobians is not None:
-            for i, s in enumerate(states):
-                H = np.zeros((m, s.shape[0]))
-                H[rows[i], 0] = 1.0  # d e_j / d x_k = [1, 0, ...] on the rows of key k
-                jacobians[i] = H
-        return error
-
-    return gtsam.CustomFactor(noise, unique, error_func)
 
 
 def state_bearing_noise(noise: gtsam.noiseModel.Base, dim: int) -> gtsam.noiseModel.Base:
@@ -233,9 +112,9 @@ def linear_bearing_factors(
 
     Notes
     -----
-    ``x[0] - z'_j`` equals the wrapped residual ``wrap(x[0] - z_j)`` of :func:`bearing_factor`
-    as long as the estimate stays within pi of the branch chosen here; the factor is then the
-    same factor, evaluated and linearised in C++ (no Python callback). A caller whose solution
+    ``x[0] - z'_j`` equals the wrapped residual ``wrap(x[0] - z_j)`` of the module docstring
+    as long as the estimate stays within pi of the branch chosen here, evaluated and
+    linearised in C++ (no Python callback). A caller whose solution
     moves a residual outside ``[-pi, pi)`` rebuilds the factors at that solution.
 
     Examples

@@ -13,12 +13,9 @@ the continuous white-noise-acceleration model (acceleration power spectral densi
 ``d = 1`` the state is a bearing track ``[bearing (rad), bearing rate (rad/s)]`` and the bearing
 part of the residual goes through :func:`factors.angles.wrap_angle`, so a track may cross ±180°.
 
-Two forms of the same factor:
-
-- :func:`constant_velocity_factor` -- a ``CustomFactor`` (a Python callback per evaluation).
-- :func:`linear_constant_velocity_factor` and, set up many at once, :func:`constant_velocity_steps`
-  (one step of many tracks) and :func:`constant_velocity_chain` (a whole track) -- the model is
-  linear, so the factor is a built-in ``JacobianFactor``
+The factor is :func:`linear_constant_velocity_factor` and, set up many at once,
+:func:`constant_velocity_steps` (one step of many tracks) and :func:`constant_velocity_chain` (a
+whole track): the model is linear, so the factor is a built-in ``JacobianFactor``
   ``[-R F, R] [dx_prev; dx_next] - b`` (``R`` the square-root information of ``Q``) held by a
   ``LinearContainerFactor`` at a linearisation point, evaluated and relinearised in C++.
   ``BetweenFactorVector`` cannot express it (it models ``x_next - x_prev``, not
@@ -36,7 +33,6 @@ from factors.angles import wrap_angle
 
 __all__ = [
     "constant_velocity_chain",
-    "constant_velocity_factor",
     "constant_velocity_steps",
     "linear_constant_velocity_factor",
     "transition_matrix",
@@ -119,71 +115,6 @@ def wna_covariance(dt: float, q: float, d: int) -> np.ndarray:
         raise ValueError(f"q (acceleration PSD) must be finite and > 0, got {q!r}")
     block = q * np.array([[dt**3 / 3.0, dt**2 / 2.0], [dt**2 / 2.0, dt]])
     return block if d == 1 else np.kron(block, np.eye(d))
-
-
-def constant_velocity_factor(
-    noise: gtsam.noiseModel.Base,
-    key_prev: int,
-    key_next: int,
-    dt: float,
-    *,
-    wrap: bool | None = None,
-) -> gtsam.CustomFactor:
-    """Factor between two constant-velocity states ``dt`` seconds apart.
-
-    Parameters
-    ----------
-    noise : gtsam.noiseModel.Base
-        Noise model of dimension ``2 d``, usually
-        ``gtsam.noiseModel.Gaussian.Covariance(wna_covariance(dt, q, d))``; ``d`` is inferred
-        from ``noise.dim()``.
-    key_prev, key_next : int
-        Keys of the ``Vector(2 d)`` states at ``t`` and ``t + dt``.
-    dt : float
-        Time step, s (>= 0).
-    wrap : bool or None, keyword-only
-        Wrap the position part of the residual into [-pi, pi). ``None`` (default) wraps when
-        ``d == 1`` (a bearing track ``[bearing, rate]``).
-
-    Returns
-    -------
-    gtsam.CustomFactor
-        Error ``e = x_next - F(dt) x_prev`` (units of the state), shape (2 d,); Jacobians
-        ``-F`` with respect to ``x_prev`` and ``I`` with respect to ``x_next``.
-
-    Examples
-    --------
-    >>> noise = gtsam.noiseModel.Gaussian.Covariance(wna_covariance(1.0, 1e-6, 1))
-    >>> f = constant_velocity_factor(noise, 0, 1, 1.0)
-    >>> v = gtsam.Values(); v.insert(0, np.array([0.1, 0.01])); v.insert(1, np.array([0.11, 0.01]))
-    >>> float(np.abs(f.unwhitenedError(v)).max()) < 1e-12
-    True
-    """
-    dim = int(noise.dim())
-    if dim < 2 or dim % 2:
-        raise ValueError(f"noise model dimension must be even (2 d), got {dim}")
-    d = dim // 2
-    dt = _check_dt(dt, allow_zero=True)
-    F = transition_matrix(dt, d)
-    minus_F = -F
-    eye = np.eye(dim)
-    do_wrap = (d == 1) if wrap is None else bool(wrap)
-
-    def error_func(
-        this: gtsam.CustomFactor, values: gtsam.Values, jacobians: list[np.ndarray] | None
-    ) -> np.ndarray:
-        k_prev, k_next = this.keys()[0], this.keys()[1]
-        x_prev = values.atVector(k_prev)
-        x_next = values.atVector(k_next)
-        error = x_next - F @ x_prev  # e = x_{k+1} - F x_k
-        if do_wrap:
-            error[:d] = wrap_angle(error[:d])
-        if jacobians is not None:
-            jacobians[0] = minus_F
-            jacobians[1] = eye
-        return error
-
-    return gtsam.CustomFactor(noise, [int(key_prev), int(key_next)], error_func)
 
 
 def wna_sqrt_information(dt: np.ndarray | float, q: float, d: int) -> np.ndarray:
@@ -279,8 +210,8 @@ def linear_constant_velocity_factor(
     -------
     gtsam.LinearContainerFactor
         Whitened error ``R (e(x) - e(x_0) + wrap(e(x_0)))`` with ``e(x) = x_next - F x_prev``
-        and ``x_0`` the linearisation point: the whitened error of
-        :func:`constant_velocity_factor` while the estimate stays within pi of ``x_0``.
+        and ``x_0`` the linearisation point: ``R wrap(x_next - F x_prev)`` while the estimate
+        stays within pi of ``x_0``.
 
     Examples
     --------

@@ -15,10 +15,9 @@ position relative to the platform at the bearing time and ``r^2 = dx^2 + dy^2``:
 
 This is the bearing factor of the project's design notes ("Factor graphs", bearings-only target
 motion analysis). The residual is wrapped by :func:`factors.angles.wrap_angle`, so bearings near
-±180° (a target due south) are handled. Two forms: :func:`target_bearing_factor`, one
-``CustomFactor`` per bearing, and :func:`target_bearing_batch_factor`, one ``CustomFactor`` with
-one vector residual for a batch of bearings (one Python callback per evaluation instead of one
-per bearing).
+±180° (a target due south) are handled. :func:`target_bearing_batch_factor` is one
+``CustomFactor`` with one vector residual for a batch of bearings (one Python callback per
+evaluation, whatever the number of bearings; a batch of one is the scalar factor).
 """
 
 from __future__ import annotations
@@ -34,7 +33,6 @@ from factors.angles import wrap_angle
 __all__ = [
     "target_bearing",
     "target_bearing_batch_factor",
-    "target_bearing_factor",
     "target_bearing_jacobian",
 ]
 
@@ -110,76 +108,6 @@ def target_bearing_jacobian(
     return np.stack([d_dx, d_dy, d_dx * dt_b, d_dy * dt_b], axis=-1)
 
 
-def target_bearing_factor(
-    noise: gtsam.noiseModel.Base,
-    key: int,
-    platform_xy: ArrayLike,
-    bearing: float,
-    *,
-    dt: float = 0.0,
-) -> gtsam.CustomFactor:
-    """Factor on a target state ``[x, y, vx, vy]`` from one true bearing taken at a known place.
-
-    Parameters
-    ----------
-    noise : gtsam.noiseModel.Base
-        Noise model of dimension 1 (rad), e.g. ``gtsam.noiseModel.Isotropic.Sigma(1, sigma)`` or
-        a ``gtsam.noiseModel.Robust`` around it.
-    key : int
-        Key of the ``Vector4`` target state.
-    platform_xy : array_like, shape (2,)
-        Platform (own-ship) position at the bearing time, m.
-    bearing : float
-        Measured true bearing, rad, clockwise from north.
-    dt : float, keyword-only
-        Bearing time minus the state's epoch, s (0 when the state is at the bearing time).
-
-    Returns
-    -------
-    gtsam.CustomFactor
-        Error ``wrap(beta(s) - bearing)``, rad, shape (1,); Jacobian shape (1, 4).
-
-    Raises
-    ------
-    ValueError
-        If the noise model is not 1-D or an input is not finite.
-
-    Examples
-    --------
-    >>> noise = gtsam.noiseModel.Isotropic.Sigma(1, 0.01)
-    >>> f = target_bearing_factor(noise, 0, [0.0, 0.0], np.pi / 2)
-    >>> v = gtsam.Values(); v.insert(0, np.array([100.0, 0.0, 1.0, 0.0]))
-    >>> float(abs(f.unwhitenedError(v)[0])) < 1e-12
-    True
-    """
-    if int(noise.dim()) != 1:
-        raise ValueError(f"noise model dimension must be 1, got {noise.dim()}")
-    o = np.asarray(platform_xy, dtype=float)
-    if o.shape != (2,) or not np.all(np.isfinite(o)):
-        raise ValueError(f"platform_xy must be 2 finite numbers (m), got {platform_xy!r}")
-    z = float(bearing)
-    dt = float(dt)
-    if not np.isfinite(z):
-        raise ValueError(f"bearing must be finite (rad), got {bearing!r}")
-    if not np.isfinite(dt):
-        raise ValueError(f"dt must be finite (s), got {dt!r}")
-
-    def error_func(
-        this: gtsam.CustomFactor, values: gtsam.Values, jacobians: list[np.ndarray] | None
-    ) -> np.ndarray:
-        s = values.atVector(this.keys()[0])
-        dx = s[0] + s[2] * dt - o[0]
-        dy = s[1] + s[3] * dt - o[1]
-        error = np.array([wrap_angle(np.arctan2(dx, dy) - z)])  # e = wrap(beta(s) - z)
-        if jacobians is not None:
-            r2 = max(dx * dx + dy * dy, MIN_RANGE_SQ)
-            g = np.array([dy / r2, -dx / r2])  # d beta / d (x, y)
-            jacobians[0] = np.array([[g[0], g[1], g[0] * dt, g[1] * dt]])
-        return error
-
-    return gtsam.CustomFactor(noise, [int(key)], error_func)
-
-
 def target_bearing_batch_factor(
     noise: gtsam.noiseModel.Base,
     keys: int | Sequence[int],
@@ -221,9 +149,9 @@ def target_bearing_batch_factor(
 
     Notes
     -----
-    The same cost as ``m`` :func:`target_bearing_factor` factors with the same 1-D noise
-    (diagonal, or robust with scalar reweighting), evaluated in one Python callback; the bearing
-    and its Jacobian are those of the module docstring, computed for all bearings at once.
+    The same cost as ``m`` one-bearing factors with the same 1-D noise (diagonal, or robust
+    with scalar reweighting), evaluated in one Python callback; the bearing and its Jacobian are
+    those of the module docstring, computed for all bearings at once.
 
     Examples
     --------

@@ -9,12 +9,11 @@ at ``j``) is predicted minus measured (:mod:`factors.tdoa_model`), in seconds::
 
 with ``u_i = (p - s_i)/d_i``. The sound speed ``c`` (m/s) is fixed or an unknown ``Vector(1)``;
 the clock offsets ``b`` (s, measured arrival = true arrival + ``b_i``) are absent or an unknown
-``Vector(n)``. Three factories share the model: :func:`tdoa_factor` (one TDOA),
-:func:`tdoa_vector_factor` (all of a source's TDOAs in one callback: the fast form) and
-:func:`weighted_tdoa_vector_factor` (whitened residuals scaled by ``sqrt(w_k)`` read live from a
-caller's array; optionally robust per TDOA). :func:`solve_source` localizes one source on a
-one-factor graph and returns the position, its ``gtsam.Marginals`` covariance and a
-:class:`TdoaSolveInfo`.
+``Vector(n)``. Two factories share the model: :func:`tdoa_vector_factor` (all of a source's
+TDOAs in one callback) and :func:`weighted_tdoa_vector_factor` (whitened residuals scaled by
+``sqrt(w_k)`` read live from a caller's array; optionally robust per TDOA).
+:func:`solve_source` localizes one source on a one-factor graph and returns the position, its
+``gtsam.Marginals`` covariance and a :class:`TdoaSolveInfo`.
 
 Notes
 -----
@@ -23,9 +22,9 @@ are the ``w_km`` of its eq. (19)-(22). Design notes, "Factor graphs".
 
 Timing (``python benchmarks/bench_tdoa_factor.py``; median of 200 solves of one source's 10
 TDOAs on a 5-sensor km array, graph build + Levenberg-Marquardt, 4-6 iterations, same optimum;
-2 cores shared with other jobs): one vector factor 0.26-0.43 ms per solve, ten scalar factors
-2.7-7.1 ms (8-19 times slower). A whole :func:`solve_source` call (with ``Marginals``) takes
-1.2-1.8 ms.
+2 cores shared with other jobs): one vector factor 0.26-0.43 ms per solve; ten one-TDOA
+factors, the form it replaced, took 2.7-7.1 ms (8-19 times slower). A whole
+:func:`solve_source` call (with ``Marginals``) takes 1.2-1.8 ms.
 
 The factories live in :mod:`factors.tdoa_factors`, the one-source solve here; all are importable
 from here.
@@ -40,14 +39,13 @@ import gtsam
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from factors.tdoa_factors import tdoa_factor, tdoa_vector_factor, weighted_tdoa_vector_factor
+from factors.tdoa_factors import tdoa_vector_factor, weighted_tdoa_vector_factor
 from factors.tdoa_model import TdoaModel, check_speed, predicted_tdoas
 
 __all__ = [
     "TdoaSolveInfo",
     "predicted_tdoas",
     "solve_source",
-    "tdoa_factor",
     "tdoa_vector_factor",
     "weighted_tdoa_vector_factor",
 ]

@@ -1,4 +1,4 @@
-"""TDOA factory functions on a click source position: one TDOA, all of a source's TDOAs, weighted.
+"""TDOA factory functions on a click source position: all of a source's TDOAs, weighted.
 
 Typed factories around closures (:class:`gtsam.CustomFactor`) of the model of
 :mod:`factors.tdoa_model`, residual ``(d_i - d_j)/c + b_i - b_j - tau`` in seconds (predicted
@@ -21,7 +21,7 @@ from factors.tdoa_model import (
 )
 from factors.weighted import sqrt_weights
 
-__all__ = ["tdoa_factor", "tdoa_vector_factor", "weighted_tdoa_vector_factor"]
+__all__ = ["tdoa_vector_factor", "weighted_tdoa_vector_factor"]
 
 
 def _speed(c: float | None, speed_key: int | None) -> float:
@@ -92,65 +92,6 @@ def _factor(
     return gtsam.CustomFactor(noise, keys, error_func)
 
 
-def tdoa_factor(
-    noise: gtsam.noiseModel.Base,
-    key: int,
-    sensors: ArrayLike,
-    pair: tuple[int, int],
-    tau: float,
-    *,
-    c: float | None = None,
-    speed_key: int | None = None,
-    clock_key: int | None = None,
-) -> gtsam.CustomFactor:
-    """Factor of one TDOA between the source position and its sensor pair.
-
-    Parameters
-    ----------
-    noise : gtsam.noiseModel.Base
-        One-dimensional noise model, s (e.g. ``Isotropic.Sigma(1, 2e-5)``, or a
-        ``noiseModel.Robust`` around it).
-    key : int
-        Key of the source position, a ``Point3``, m.
-    sensors : array_like, shape (n, 3)
-        Sensor positions, m (copied).
-    pair : tuple of int
-        The pair ``(i, j)``: `tau` is the arrival at ``i`` minus the arrival at ``j``.
-    tau : float
-        Measured delay, s.
-    c : float, optional, keyword-only
-        Fixed sound speed, m/s. Give exactly one of `c` and `speed_key`.
-    speed_key : int, optional, keyword-only
-        Key of an unknown sound speed, a ``Vector(1)``, m/s.
-    clock_key : int, optional, keyword-only
-        Key of unknown clock offsets, a ``Vector(n)`` (one per sensor, s); TDOAs fix only
-        their differences, so the caller adds a prior (e.g. on a reference sensor).
-
-    Returns
-    -------
-    gtsam.CustomFactor
-        On ``[key, speed_key?, clock_key?]``; error ``(d_i - d_j)/c + b_i - b_j - tau``,
-        shape (1,), s; Jacobians of shapes (1, 3), (1, 1), (1, n).
-
-    Notes
-    -----
-    Eq. (14)-(15) of the localization text; see the module docstring for the derivatives.
-
-    Examples
-    --------
-    >>> s = np.array([[0.0, 0, 0], [100.0, 0, 0]])
-    >>> f = tdoa_factor(gtsam.noiseModel.Isotropic.Sigma(1, 1e-5), 0, s, (0, 1), -0.02, c=1500.0)
-    >>> v = gtsam.Values(); v.insert(0, gtsam.Point3(35.0, 0.0, 0.0))
-    >>> round(float(f.unwhitenedError(v)[0]), 12)
-    0.0
-    """
-    pr = np.asarray(pair)
-    if pr.shape != (2,):
-        raise ValueError(f"pair must be two sensor indices (i, j), got {pair!r}")
-    model = TdoaModel.build(sensors, pr[None, :], [tau])
-    return _factor(noise, key, model, c, speed_key, clock_key)
-
-
 def tdoa_vector_factor(
     noise: gtsam.noiseModel.Base,
     key: int,
@@ -179,13 +120,19 @@ def tdoa_vector_factor(
         Sensor pairs ``(i, j)``.
     taus : array_like, shape (m,)
         Measured delays, arrival at ``i`` minus arrival at ``j``, s (copied).
-    c, speed_key, clock_key
-        As in :func:`tdoa_factor`.
+    c : float, optional, keyword-only
+        Fixed sound speed, m/s. Give exactly one of `c` and `speed_key`.
+    speed_key : int, optional, keyword-only
+        Key of an unknown sound speed, a ``Vector(1)``, m/s.
+    clock_key : int, optional, keyword-only
+        Key of unknown clock offsets, a ``Vector(n)`` (one per sensor, s); TDOAs fix only
+        their differences, so the caller adds a prior (e.g. on a reference sensor).
 
     Returns
     -------
     gtsam.CustomFactor
-        Error ``r`` of shape (m,), s, row k that of :func:`tdoa_factor` for pair k;
+        On ``[key, speed_key?, clock_key?]``; error ``r`` of shape (m,), s, row k
+        ``(d_i - d_j)/c + b_i - b_j - tau_k`` for pair k ``(i, j)``;
         Jacobians of shapes (m, 3), (m, 1), (m, n).
 
     Notes
@@ -245,7 +192,7 @@ def weighted_tdoa_vector_factor(
         Association weights, READ (not copied) at every evaluation; the caller updates them in
         place between solves. A negative weight counts as 0; weight 0 removes that TDOA.
     c, speed_key, clock_key
-        As in :func:`tdoa_factor`.
+        As in :func:`tdoa_vector_factor`.
     robust : gtsam.noiseModel.mEstimator.Base, optional, keyword-only
         Robust loss ``rho`` applied to each whitened residual separately (e.g.
         ``mEstimator.Huber.Create(1.345)``); default none (least squares).

@@ -134,3 +134,53 @@ def check_run(folder: Path, argv: list[str], out: Path | None = None) -> int:
 def check_cli_run():
     """:func:`check_run`: one run of ``fusion`` checked against the bad-input contract."""
     return check_run
+
+
+# --------------------------------------------------------------------------------------------
+# a test oracle: the wrapped bearing-track model as plain CustomFactors
+# --------------------------------------------------------------------------------------------
+class _WrappedTrackModel:
+    """The bearing-track model of ``factors.bearing`` and ``factors.motion`` written directly,
+    wrap at every evaluation, one Python callback per factor: the reference the built-in
+    (re-centred, linear) forms are checked against. Not library code: nothing estimates with it.
+    """
+
+    @staticmethod
+    def bearing(noise, key, z):
+        """``e = wrap(x[0] - z)`` on a ``Vector`` state (rad)."""
+        import gtsam
+        import numpy as np
+
+        def error(this, values, jacobians):
+            x = values.atVector(this.keys()[0])
+            if jacobians is not None:
+                jacobians[0] = np.eye(1, x.shape[0])
+            return np.array([np.mod(x[0] - z + np.pi, 2 * np.pi) - np.pi])
+
+        return gtsam.CustomFactor(noise, [int(key)], error)
+
+    @staticmethod
+    def motion(noise, key_prev, key_next, dt):
+        """``e = x_next - F(dt) x_prev`` (``d = dim / 2``), the bearing wrapped when ``d = 1``."""
+        import gtsam
+        import numpy as np
+
+        d = int(noise.dim()) // 2
+        F = np.block([[np.eye(d), dt * np.eye(d)], [np.zeros((d, d)), np.eye(d)]])
+
+        def error(this, values, jacobians):
+            x0, x1 = (values.atVector(k) for k in this.keys())
+            e = x1 - F @ x0
+            if d == 1:
+                e[0] = np.mod(e[0] + np.pi, 2 * np.pi) - np.pi
+            if jacobians is not None:
+                jacobians[0], jacobians[1] = -F, np.eye(2 * d)
+            return e
+
+        return gtsam.CustomFactor(noise, [int(key_prev), int(key_next)], error)
+
+
+@pytest.fixture
+def wrapped_track():
+    """The wrapped bearing-track model as CustomFactors (``.bearing``, ``.motion``)."""
+    return _WrappedTrackModel

@@ -191,8 +191,10 @@ def test_old_import_paths_still_work():
 #: and localization left fusion.clicks -> where the name lives now. They work for one release,
 #: with a DeprecationWarning.
 DEPRECATED_PATHS = {
-    ("fusion.pipelines.passive_measure", "LineStarter"): "fusion.pipelines.passive",
+    ("fusion.pipelines.passive_measure", "LineStarter"): "fusion.passive.acquisition",
+    ("fusion.pipelines.passive_measure", "PeakMeasurer"): "fusion.passive.measurement",
     ("fusion.pipelines.passive_types", "Click"): "fusion.pipelines.passive",
+    ("fusion.pipelines.click_training", "scenario_labels"): "fusion.pipelines.clicks.training",
     ("fusion.pipelines.passive_scoring", "ScoredTrack"): "fusion.metrics.tracks",
     ("fusion.pipelines.passive_scoring", "score_tracks"): "fusion.metrics.tracks",
     ("fusion.clicks.localize", "MultiSourceLocalizer"): "fusion.localization.localize",
@@ -250,7 +252,6 @@ MOVED_NAMES = {
     "FEATURE_NAMES": ("fusion.clicks.validate", "fusion.clicks.validate_features"),
     "TdoaPeak": ("fusion.clicks.scm", "fusion.clicks.scm_types"),
     "ScmCorrelation": ("fusion.clicks.scm", "fusion.clicks.scm_types"),
-    "tdoa_factor": ("factors.tdoa", "factors.tdoa_factors"),
     "tdoa_vector_factor": ("factors.tdoa", "factors.tdoa_factors"),
     "weighted_tdoa_vector_factor": ("factors.tdoa", "factors.tdoa_factors"),
     "AcquisitionResult": ("fusion.passive.acquisition.acquire", "fusion.passive.acquisition.result"),
@@ -469,3 +470,52 @@ def test_scoring_finder_sees_scores_outside_metrics(tmp_path, monkeypatch):
         "fusion/simulate/writer.py: class TrackScore",
         "fusion/simulate/writer.py: rate() takes truth",
     ]
+
+
+#: The floors of docs/architecture.md, bottom up: a package imports nothing of a floor above its own.
+FLOORS = {
+    "factors": 1,
+    "fusion.geometry": 2, "fusion.types": 2, "fusion.io": 2,
+    "fusion.passive": 3, "fusion.clicks": 3, "fusion.localization": 3, "fusion.active": 3,
+    "fusion.pipelines": 4,
+    "fusion.commands": 5, "fusion.demos": 5, "fusion.cli": 5, "fusion.report": 5,
+}
+
+
+def _floor(module: str) -> int | None:
+    """The floor of a dotted module name (its longest listed prefix), None when unlisted."""
+    parts = module.split(".")
+    for n in range(len(parts), 0, -1):
+        if ".".join(parts[:n]) in FLOORS:
+            return FLOORS[".".join(parts[:n])]
+    return None
+
+
+def _upward_imports(root: Path) -> list[tuple[str, str]]:
+    """(file, imported module) for every import, function-level included, of a higher floor."""
+    out = []
+    for path in sorted(p for f in ("fusion", "factors") for p in (root / f).rglob("*.py")):
+        rel = path.relative_to(root).with_suffix("")
+        module = ".".join(p for p in rel.parts if p != "__init__")
+        own = _floor(module)
+        if own is None:
+            continue
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            names = ([a.name for a in node.names] if isinstance(node, ast.Import) else
+                     [node.module] if isinstance(node, ast.ImportFrom) and node.level == 0
+                     and node.module else [])
+            out += [(module, n) for n in names if (_floor(n) or 0) > own]
+    return out
+
+
+def test_floors_import_only_downwards():
+    """No stage imports a pipeline, no pipeline a command: the floors of docs/architecture.md."""
+    assert _upward_imports(ROOT) == []
+
+
+def test_upward_import_finder_sees_a_stage_importing_a_pipeline(tmp_path):
+    """The floor check is not vacuous: a stage module importing a pipeline is reported."""
+    (tmp_path / "fusion" / "passive").mkdir(parents=True)
+    (tmp_path / "fusion" / "passive" / "bad.py").write_text(
+        "def f():\n    from fusion.pipelines.passive import PassivePipeline\n")
+    assert _upward_imports(tmp_path) == [("fusion.passive.bad", "fusion.pipelines.passive")]

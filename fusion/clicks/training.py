@@ -54,6 +54,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fusion._validation import check_positive
+from fusion.clicks.scm import window_weight
 from fusion.clicks.validate import scm2_features
 from fusion.simulate.clicks import draw_emission_times
 
@@ -161,7 +162,7 @@ def synthetic_scm2(
     echo_detect_range : (float, float), optional
         Range of the fraction of surface echoes detected (``echo`` class).
     taper : bool, optional
-        Weight each pulse by the time window of eq. (5), ``exp(-((t - T/2) / (T/4))^4)``, for
+        Weight each pulse by the time window of eq. (5) (:func:`fusion.clicks.scm.window_weight`), for
         SCM2s built from a time-windowed first-order map.
 
     Returns
@@ -311,8 +312,7 @@ def _render(row: NDArray[np.int_], t_a: NDArray[np.float64], t_b: NDArray[np.flo
     t = idx / fs
     val = scm1_pulse(t - t_a[:, None], fs) * scm1_pulse(t - t_b[:, None], fs)
     if taper_T is not None:  # eq. (5) time window at the pulse
-        mid = 0.5 * (t_a + t_b)
-        val *= np.exp(-(((mid - taper_T / 2.0) / (taper_T / 4.0)) ** 4))[:, None]
+        val *= window_weight(0.5 * (t_a + t_b), taper_T)[:, None]
     keep = (idx >= 0) & (idx < n_samp)
     flat = (row[:, None] * n_samp + idx)[keep]
     return np.bincount(flat, weights=val[keep], minlength=n * n_samp).reshape(n, n_samp)

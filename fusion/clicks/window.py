@@ -2,7 +2,7 @@
 
 :class:`WindowTdoa` and :class:`ClickWindow` are the results of
 :class:`fusion.pipelines.clicks.ClickFrontEnd` and of its streaming part
-(:mod:`fusion.pipelines.click_stream`): data of the click front end, kept with its other types
+(:mod:`fusion.pipelines.clicks.stream`): data of the click front end, kept with its other types
 below the pipelines so that neither pipeline module imports the other's. Also importable from
 :mod:`fusion.pipelines.clicks`.
 """

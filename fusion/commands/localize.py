@@ -9,7 +9,7 @@ mono file per sensor in array order; files of different lengths are trimmed to t
 warning), a sample-rate mismatch is an error. A progress bar shows on a terminal (``--quiet``
 turns it off).
 
-Long recordings (:mod:`fusion.pipelines.click_chunks`, :mod:`fusion.scale`): the windows are
+Long recordings (:mod:`fusion.pipelines.clicks.chunks`, :mod:`fusion.scale`): the windows are
 processed in chunks of ``--chunk-s`` seconds of consecutive windows (default 60); each chunk's task
 reads its own audio (its windows, one neighbour window on each side and the detector's guards)
 from the file(s) with soundfile and localizes its windows, and the chunks are stitched in order.
@@ -221,7 +221,7 @@ _SUFFIXES = (".wav", ".flac")
 def _recordings(args: argparse.Namespace, n_sensors: int) -> list:
     """(AudioSource, output path) of each recording to localize."""
     from fusion.io import check_audio_files
-    from fusion.pipelines.click_chunks import AudioSource
+    from fusion.pipelines.clicks.chunks import AudioSource
 
     def open_audio(paths: list, n: int) -> AudioSource:  # the checks live in fusion.io
         return AudioSource.of(check_audio_files(paths, n))
@@ -274,13 +274,13 @@ def run(args: argparse.Namespace) -> int:
     from fusion.clicks.scm import ClickMapCorrelator, ScmConfig, drift_grid
     from fusion.clicks.validate import TdoaValidator
     from fusion.io import read_array, write_settings
-    from fusion.pipelines.click_chunks import (
+    from fusion.pipelines.clicks import LLR_THRESHOLD, ClickFrontEnd, default_validator
+    from fusion.pipelines.clicks.chunks import (
         ChunkTask,
         localize_chunk,
         plan_chunks,
         write_document,
     )
-    from fusion.pipelines.clicks import LLR_THRESHOLD, ClickFrontEnd, default_validator
     from fusion.pipelines.localization import ClickLocalization, settings_from_args
     from fusion.scale import PartStore, dask_client, progress, run_tasks
 

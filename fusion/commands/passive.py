@@ -115,11 +115,10 @@ def _normalized(cube: Cube) -> Cube:
 def run(args: argparse.Namespace) -> int:
     """Read the cubes and clicks, run the pipeline, write the tracks and alerts."""
     from fusion._progress import progress
-    from fusion.passive.acquisition import Acquisition
+    from fusion.passive.acquisition import Acquisition, LineStarter
     from fusion.passive.crossing import CrossingDetector
     from fusion.passive.quality import TrackQualityIndicator
     from fusion.pipelines.passive import PassivePipeline, SmootherSettings
-    from fusion.pipelines.passive.measure import LineStarter
 
     if not args.snr1_db > args.snr0_db:
         raise ValueError(f"--snr1-db ({args.snr1_db:g}) must exceed --snr0-db ({args.snr0_db:g})")

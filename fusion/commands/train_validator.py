@@ -43,7 +43,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--labels", type=Path, default=None, help="labels CSV time,i,j,tau[,source]")
     p.add_argument("--simulated", type=number(int, ge=1), default=0, metavar="N",
                    help="also train on N varied simulated scenarios (seeds 0..N-1 of "
-                        "fusion.pipelines.click_training.varied_scenario; the shipped model is "
+                        "fusion.pipelines.clicks.training.varied_scenario; the shipped model is "
                         "--simulated 40)")
     p.add_argument("--out", type=Path, required=True, help="validator model .npz")
     p.add_argument("--replica-out", type=Path, default=None,
@@ -98,7 +98,7 @@ def _recordings(args: argparse.Namespace) -> list[tuple[Path, Path, Path]]:
 def _checked(recordings: list[tuple[Path, Path, Path]]) -> list:
     """(audio path, array, labels) of each recording, its array and labels read and checked."""
     from fusion.io import read_array, read_table
-    from fusion.pipelines.click_training import TdoaLabels
+    from fusion.pipelines.clicks.training import TdoaLabels
 
     checked = []
     for audio_p, array_p, labels_p in recordings:
@@ -119,13 +119,13 @@ def run(args: argparse.Namespace) -> int:
     from fusion.clicks.replica import estimate_replica, load_replica, write_replica
     from fusion.clicks.scm import ClickMapCorrelator, ScmConfig
     from fusion.io import read_audio
-    from fusion.pipelines.click_training import (
+    from fusion.pipelines.clicks import ClickFrontEnd
+    from fusion.pipelines.clicks.training import (
         CandidateSet,
         label_windows,
         simulated_training_set,
         train_from_candidates,
     )
-    from fusion.pipelines.clicks import ClickFrontEnd
 
     front = ClickFrontEnd(validator=False, refiner=False, hop_s=args.hop,
                           correlator=ClickMapCorrelator(config=ScmConfig(window_s=args.window)))

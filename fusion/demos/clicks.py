@@ -31,7 +31,7 @@ from fusion.localization.intensity import intensity_volume
 from fusion.localization.search_grid import SearchRegion
 from fusion.localization.surface_paths import surface_paths
 from fusion.localization.window_tdoas import WindowTdoas
-from fusion.pipelines.click_chunks import FEW_TDOAS
+from fusion.pipelines.clicks.chunks import FEW_TDOAS
 
 __all__ = ["run_demo"]
 
@@ -184,8 +184,8 @@ def run_demo(out_dir: Path, *, seed: int) -> dict[str, Any]:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from fusion.pipelines.click_training import label_windows, scenario_labels
     from fusion.pipelines.clicks import LLR_THRESHOLD, ClickFrontEnd, default_validator
+    from fusion.pipelines.clicks.training import label_windows, scenario_labels
     from fusion.pipelines.from_recording import RECORDING_SPAN_S, decide_from_recording
     from fusion.pipelines.localization import (
         ClickLocalization,

@@ -4,7 +4,7 @@ or one mono file per sensor), windowed reads of long recordings, atomic writes.
 :func:`check_audio_files` is the one home of the checks every audio reader makes (the file exists
 and is readable, channel and file counts match the array, one sample rate, samples present,
 lengths trimmed to the shortest with one warning); the readers here and the chunked localization
-of ``fusion localize`` (:class:`fusion.pipelines.click_chunks.AudioSource`) start from it.
+of ``fusion localize`` (:class:`fusion.pipelines.clicks.chunks.AudioSource`) start from it.
 """
 
 from __future__ import annotations

@@ -25,6 +25,9 @@ Per scan ``k`` (period ``T``):
    mapped to bearing through ``dtheta/db = 2 / ((N - 1) sin theta)`` (sine floored half a beam off
    endfire).
 
+Steps 2-4 and the measurement noise of step 5 are :class:`fusion.passive.measurement.PeakMeasurer`
+(their one home, shared with the passive pipeline).
+
 Examples
 --------
 >>> from fusion.simulate.cube import simulate_cube
@@ -46,7 +49,8 @@ from filterpy.common import Q_discrete_white_noise
 from filterpy.kalman import KalmanFilter
 from numpy.typing import ArrayLike, NDArray
 
-from fusion.geometry import beam_from_bearing, beam_tolerance, beamwidth_deg, bearing_from_beam
+from fusion.geometry import beam_from_bearing, beam_tolerance, beamwidth_deg
+from fusion.passive.measurement import PeakMeasurer
 from fusion.types import Cube
 
 __all__ = ["BearingTracker", "TrackHistory", "beamwidth_deg", "cell_power_statistics"]
@@ -291,8 +295,7 @@ class BearingTracker:
         wavelength = cube.sound_speed / cube.freqs[fbin]
         half = (self.search_beams if self.search_beams is not None
                 else beam_tolerance(wavelength, cube.aperture, n_beams))
-        step_cos = 2.0 / (n_beams - 1)
-        sin_floor = np.sin(float(bearing_from_beam(0.5, n_beams)))
+        measurer = PeakMeasurer(beam_sigma=self.beam_sigma, noise_mean=self.noise_mean)
         theta0 = np.radians(bearing_deg)
         sigma0 = (np.radians(self.init_bearing_sigma_deg) if self.init_bearing_sigma_deg
                   else 0.5 * np.radians(float(beamwidth_deg(bearing_deg, wavelength=wavelength,
@@ -302,26 +305,13 @@ class BearingTracker:
         scans = np.arange(init_scan + 1, last + 1)
         out = {k: np.empty(scans.size) for k in (
             "bearing", "rate", "sigma", "pred", "meas", "beam", "amp", "res")}
-        offsets = np.arange(-1, 2)
         for i, k in enumerate(scans):
             kf.predict()
             theta_pred = float(np.clip(kf.x[0, 0], 0.0, np.pi))
-            b_pred = float(beam_from_bearing(theta_pred, n_beams))
-            ib = int(np.clip(np.floor(b_pred + 0.5), 0, n_beams - 1))
-            row = cube.power[k, :, fbin]
-            # A(k): power of the predicted cell, before this scan's data are searched
-            amp = float(row[ib])
-            # local peak in cosine-beam space, then centroid of the peak and its neighbours
-            lo, hi = max(ib - half, 0), min(ib + half, n_beams - 1)
-            peak = lo + int(np.argmax(row[lo:hi + 1]))
-            cells = np.clip(peak + offsets, 0, n_beams - 1)
-            w = np.maximum(row[cells] - self.noise_mean, 0.0)
-            b_meas = float(np.dot(w, cells) / w.sum()) if w.sum() > 0 else float(peak)
-            theta_meas = float(bearing_from_beam(b_meas, n_beams))
-            # measurement noise: beam_sigma beams through dtheta/db = 2 / ((N - 1) sin theta)
-            s = max(np.sin(theta_pred), sin_floor)
-            r_theta = self.beam_sigma * step_cos / s
-            kf.update(np.array([[theta_meas]]), R=np.array([[r_theta**2]]))
+            # steps 2-4: A(k) at the predicted cell, the peak near it, its centroid, the residual
+            m = measurer.measure(cube.power[k, :, fbin], theta_pred, search_beams=half)
+            amp, theta_meas = m.amplitude, m.bearing
+            kf.update(np.array([[theta_meas]]), R=np.array([[m.sigma**2]]))
             kf.x[0, 0] = np.clip(kf.x[0, 0], 0.0, np.pi)
             out["bearing"][i] = kf.x[0, 0]
             out["rate"][i] = kf.x[1, 0]

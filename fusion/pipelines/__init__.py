@@ -8,6 +8,8 @@
   in, the settings its command estimates fitted to it, results out: the functions ``fusion
   smooth``, ``crossings``, ``tqi`` and ``track`` call, exported as :func:`fusion.smooth_bearings`,
   :func:`fusion.find_crossings`, :func:`fusion.track_quality`, :func:`fusion.track_detections`.
+- :mod:`fusion.pipelines.clicks` -- the click front end (``frontend``, ``stream``, ``chunks``,
+  ``training``), a package; :mod:`fusion.pipelines.localization` -- its TDOAs to sources.
 
 Import the pipeline modules themselves; this package imports nothing, so that loading one
 pipeline does not load the others' dependencies.
@@ -18,8 +20,6 @@ pipeline does not load the others' dependencies.
 __all__ = [
     "bearing_crossings",
     "bearing_smoothing",
-    "click_chunks",
-    "click_stream",
     "click_training",
     "clicks",
     "from_recording",

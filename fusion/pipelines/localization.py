@@ -25,7 +25,7 @@ from fusion.geometry import SensorArray
 from fusion.localization.candidates import CandidateFinder
 from fusion.localization.competition import CompetitionSettings
 from fusion.localization.localize import METHODS, LocalizationOutput, MultiSourceLocalizer
-from fusion.localization.retime import emission_shift
+from fusion.localization.retime import retime_owned
 from fusion.localization.search_grid import SearchRegion
 from fusion.localization.surface_paths import PATHS
 from fusion.localization.tracks import SourceTracker, Track, WindowSources
@@ -351,7 +351,7 @@ class ClickLocalization:
             for _ in range(1 if surface_z is None else 2):
                 if not (out.sources and np.any(rate != 0)):
                     break
-                retimed = _retime(out, taus, rate, pairs, pos, c, surface_z)
+                retimed = retime_owned(out, taus, rate, pairs, pos, c, surface_z)
                 out = localizer.localize(pos, pairs, retimed, sig, alpha, c=c)
         except ValueError as e:  # e.g. too few independent pairs: no fix in this window
             logger.info("window %.1f s: not localized (%s)", window.t_start, e)
@@ -373,28 +373,6 @@ def explained_fraction(out: LocalizationOutput | None) -> float:
         return 0.0
     w = np.stack([s.weights for s in out.sources])
     return float(np.mean(w.max(axis=0) > 0.5)) if w.size else 0.0
-
-
-def _retime(out: LocalizationOutput, taus: np.ndarray, rate: np.ndarray, pairs: np.ndarray,
-            pos: np.ndarray, c: float, surface_z: float | None) -> np.ndarray:
-    """Each TDOA moved along its drift to the arrival at its first sensor of one emission.
-
-    The emission is that of the source owning the TDOA (largest weight) whose mean direct
-    arrival is at the window centre (:func:`~fusion.localization.retime.emission_shift`); the
-    arrival at the first sensor is along the path the source reads the TDOA on (direct, or
-    reflected at the surface ``z = surface_z``).
-    """
-    w = np.stack([s.weights for s in out.sources])  # (K, M)
-    owner = np.argmax(w, axis=0)
-    retimed = taus.copy()
-    for k, fix in enumerate(out.sources):
-        m = np.flatnonzero(owner == k)
-        if m.size:
-            reflected = np.isin(fix.paths[m], (1, 3)) if surface_z is not None else False
-            retimed[m] = taus[m] + emission_shift(rate[m], pairs[m, 0],
-                                                  np.broadcast_to(reflected, m.shape),
-                                                  fix.position, pos, c, surface_z)
-    return retimed
 
 
 #: Variance written for a direction the geometry leaves unobservable, m^2 (``observable`` false).

@@ -1,4 +1,4 @@
-"""Tests of factors.motion: WNA covariance, constant-velocity factor (scalar and linear forms)."""
+"""Tests of factors.motion: WNA covariance, the linear constant-velocity factors."""
 
 import gtsam
 import numpy as np
@@ -8,7 +8,6 @@ from numpy.testing import assert_allclose
 
 from factors.motion import (
     constant_velocity_chain,
-    constant_velocity_factor,
     constant_velocity_steps,
     linear_constant_velocity_factor,
     transition_matrix,
@@ -40,32 +39,20 @@ def test_wna_blocks_per_axis():
     assert np.all(np.linalg.eigvalsh(Q2) > 0)
 
 
-@pytest.mark.parametrize("d", [1, 2, 3])
-def test_jacobians_many_states(d):
-    """Analytic Jacobians equal central differences at seeded states, bearings near +-pi."""
-    rng = np.random.default_rng(10 + d)
-    for _ in range(25):
-        dt = rng.uniform(0.1, 20.0)
-        noise = gtsam.noiseModel.Gaussian.Covariance(wna_covariance(dt, rng.uniform(1e-6, 1.0), d))
-        f = constant_velocity_factor(noise, 0, 1, dt)
-        x0 = rng.normal(size=2 * d)
-        x0[:d] = rng.choice([-1, 1]) * np.pi * rng.uniform(0.97, 1.0, d)
-        x1 = rng.normal(size=2 * d)
-        assert_jacobians(f, _values(x0, x1))
-
-
 def test_error_and_wrap():
     """Zero error on the CV prediction; the bearing part wraps across +-180 deg for d=1."""
     dt = 4.0
-    f = constant_velocity_factor(gtsam.noiseModel.Unit.Create(2), 0, 1, dt)
+    unit2, unit4 = gtsam.noiseModel.Unit.Create(2), gtsam.noiseModel.Unit.Create(4)
     x0 = np.array([np.pi - 0.01, 0.005])
     x1 = transition_matrix(dt, 1) @ x0
-    assert_allclose(f.unwhitenedError(_values(x0, x1)), 0.0, atol=1e-15)
     x1w = x1 - np.array([2 * np.pi, 0.0])  # same bearing on the other branch
-    assert_allclose(f.unwhitenedError(_values(x0, x1w)), 0.0, atol=1e-12)
-    f2 = constant_velocity_factor(gtsam.noiseModel.Unit.Create(4), 0, 1, dt)
-    err = f2.unwhitenedError(_values(np.zeros(4), np.array([7.0, 0, 0, 0])))
-    assert_allclose(err, [7.0, 0, 0, 0])  # no wrapping for positions
+    for nxt in (x1, x1w):
+        f = linear_constant_velocity_factor(unit2, 0, 1, dt, estimate_prev=x0, estimate_next=nxt)
+        assert f.error(_values(x0, nxt)) < 1e-24
+    far = np.array([7.0, 0, 0, 0])
+    f2 = linear_constant_velocity_factor(unit4, 0, 1, dt, estimate_prev=np.zeros(4),
+                                         estimate_next=far)
+    assert_allclose(f2.error(_values(np.zeros(4), far)), 0.5 * 7.0**2)  # no wrap of positions
 
 
 def test_graph_converges_to_truth():
@@ -76,9 +63,8 @@ def test_graph_converges_to_truth():
     for _ in range(n - 1):
         truth.append(F @ truth[-1])
     g = gtsam.NonlinearFactorGraph()
-    noise = gtsam.noiseModel.Gaussian.Covariance(wna_covariance(dt, 0.01, 2))
-    for k in range(n - 1):
-        g.add(constant_velocity_factor(noise, k, k + 1, dt))
+    g.push_back(constant_velocity_chain(np.arange(n), dt * np.arange(n), 0.01,
+                                        estimates=np.zeros((n, 4))))
     for k in (0, n - 1):
         g.add(gtsam.PriorFactorVector(k, truth[k], gtsam.noiseModel.Isotropic.Sigma(4, 1e-3)))
     init = gtsam.Values()
@@ -97,10 +83,6 @@ def test_bad_input():
         wna_covariance(1.0, -1.0, 1)
     with pytest.raises(ValueError, match="d "):
         wna_covariance(1.0, 1.0, 0)
-    with pytest.raises(ValueError, match="even"):
-        constant_velocity_factor(gtsam.noiseModel.Unit.Create(3), 0, 1, 1.0)
-    with pytest.raises(ValueError, match="dt"):
-        constant_velocity_factor(gtsam.noiseModel.Unit.Create(2), 0, 1, np.nan)
 
 
 # -- linear (built-in) form -----------------------------------------------------------------
@@ -121,9 +103,10 @@ def test_sqrt_information_inverts_covariance(d):
 
 
 @pytest.mark.parametrize("d", [1, 2])
-def test_linear_jacobians_and_error_equal_scalar(d):
+def test_linear_jacobians_and_error_equal_wrapped_model(d, wrapped_track):
     """Linear CV factor: whitened Jacobians equal central differences, and its cost equals the
-    CustomFactor's at points moved away from the linearisation point (bearings near +-pi)."""
+    wrapped model's (tests' reference) at points moved away from the linearisation point
+    (bearings near +-pi)."""
     rng = np.random.default_rng(80 + d)
     for _ in range(25):
         dt = rng.uniform(0.1, 20.0)
@@ -134,7 +117,7 @@ def test_linear_jacobians_and_error_equal_scalar(d):
         if d == 1:
             x1[0] = np.mod(x1[0] + np.pi, 2 * np.pi) - np.pi  # next bearing on the other branch
         lin = linear_constant_velocity_factor(noise, 0, 1, dt, estimate_prev=x0, estimate_next=x1)
-        old = constant_velocity_factor(noise, 0, 1, dt)
+        old = wrapped_track.motion(noise, 0, 1, dt)
         at = _values(x0, x1)
         assert_jacobians(lin, at)  # no unwhitened error: checked on the whitened error
         moved = _values(x0 + 0.05 * rng.normal(size=2 * d), x1 + 0.05 * rng.normal(size=2 * d))
@@ -163,9 +146,9 @@ def test_linear_zero_at_truth_and_chain_equals_single_factors():
     assert constant_velocity_chain([0], [0.0], q, estimates=x[:1]).size() == 0
 
 
-def test_linear_chain_graph_matches_scalar_graph():
-    """A bearing track across +-180 deg: the chain of linear CV factors and the CustomFactor
-    chain give the same optimum (to 1e-9) with the same bearings and prior."""
+def test_linear_chain_graph_matches_wrapped_model(wrapped_track):
+    """A bearing track across +-180 deg: the chain of linear CV factors and the wrapped model's
+    chain (tests' reference) give the same optimum (to 1e-9) with the same bearings and prior."""
     rng = np.random.default_rng(5)
     n, q, sig = 25, 1e-7, 0.01
     t = np.cumsum(rng.uniform(2.0, 6.0, n))
@@ -173,14 +156,14 @@ def test_linear_chain_graph_matches_scalar_graph():
     z = np.mod(theta + rng.normal(0, sig, n) + np.pi, 2 * np.pi) - np.pi
     init = np.column_stack([np.unwrap(z), np.zeros(n)])
     out = []
-    for kind in ("scalar", "linear"):
+    for kind in ("reference", "linear"):
         g = gtsam.NonlinearFactorGraph()
         g.add(gtsam.PriorFactorVector(0, init[0], gtsam.noiseModel.Diagonal.Sigmas([0.1, 0.01])))
-        if kind == "scalar":
+        if kind == "reference":
             for k in range(n - 1):
                 dt = t[k + 1] - t[k]
                 noise = gtsam.noiseModel.Gaussian.Covariance(wna_covariance(dt, q, 1))
-                g.add(constant_velocity_factor(noise, k, k + 1, dt))
+                g.add(wrapped_track.motion(noise, k, k + 1, dt))
         else:
             g.push_back(constant_velocity_chain(np.arange(n), t, q, estimates=init))
         for k in range(n):

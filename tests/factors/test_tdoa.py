@@ -1,7 +1,6 @@
-"""Tests of factors.tdoa: TDOA factors (scalar, vector, weighted) and the one-source solve."""
+"""Tests of factors.tdoa: TDOA factors (vector, weighted) and the one-source solve."""
 
 import logging
-import time
 
 import gtsam
 import numpy as np
@@ -11,7 +10,6 @@ from numpy.testing import assert_allclose
 from factors.tdoa import (
     predicted_tdoas,
     solve_source,
-    tdoa_factor,
     tdoa_vector_factor,
     weighted_tdoa_vector_factor,
 )
@@ -84,12 +82,17 @@ def _mismatch(factor, values, t_scale, *, delta=DELTA):
                          for ha, hn in zip(ana, num, strict=True)]))
 
 
+def _one(noise, key, s, pair, tau, **kw):
+    """The factor of one TDOA: a vector factor of one pair."""
+    return tdoa_vector_factor(noise, key, s, [pair], [tau], **kw)
+
+
 def _noisy_taus(rng, p, s, pairs, c, sigma):
     return predicted_tdoas(p, s, pairs, c=c) + rng.normal(0.0, sigma, size=len(pairs))
 
 
-def test_jacobians_scalar_and_vector_many_geometries():
-    """Scalar (every pair) and vector factor Jacobians equal central differences, fixed speed."""
+def test_jacobians_one_pair_and_vector_many_geometries():
+    """One-pair (every pair) and all-pair vector factor Jacobians equal central differences, fixed speed."""
     rng = np.random.default_rng(11)
     found = []
     for label, s, p, c in _geometries(rng):
@@ -100,7 +103,7 @@ def test_jacobians_scalar_and_vector_many_geometries():
         f = tdoa_vector_factor(noise, P, s, pairs, taus, c=c)
         found.append((label, "vector", _mismatch(f, _values(p), t_scale)))
         for (i, j), tau in zip(pairs, taus, strict=True):
-            f = tdoa_factor(gtsam.noiseModel.Isotropic.Sigma(1, 1e-5), P, s, (i, j), tau, c=c)
+            f = _one(gtsam.noiseModel.Isotropic.Sigma(1, 1e-5), P, s, (i, j), tau, c=c)
             found.append((label, (i, j), _mismatch(f, _values(p), t_scale)))
     assert all(m <= 1.0 for *_, m in found), [x for x in found if not x[-1] <= 1.0]
 
@@ -120,7 +123,7 @@ def test_jacobians_with_unknown_speed_and_clocks():
             v = _values(p, c if speed_key else None, clocks if clock_key else None)
             kw = {"c": None if speed_key else c, "speed_key": speed_key, "clock_key": clock_key}
             k = int(rng.integers(len(pairs)))
-            f = tdoa_factor(gtsam.noiseModel.Unit.Create(1), P, s, pairs[k], taus[k], **kw)
+            f = _one(gtsam.noiseModel.Unit.Create(1), P, s, pairs[k], taus[k], **kw)
             key = (label, speed_key is not None, clock_key is not None)
             found.append((key, _mismatch(tdoa_vector_factor(noise, P, s, pairs, taus, **kw), v,
                                          t_scale)))
@@ -188,7 +191,7 @@ def test_zero_error_at_truth_every_form():
         v = _values(p, c, clocks)
         f = tdoa_vector_factor(unit, P, s, pairs, taus, speed_key=S, clock_key=B)
         assert_allclose(f.unwhitenedError(v), 0.0, atol=10 * EPS * t_scale)
-        f = tdoa_factor(gtsam.noiseModel.Unit.Create(1), P, s, pairs[0], taus[0], c=c, clock_key=B)
+        f = _one(gtsam.noiseModel.Unit.Create(1), P, s, pairs[0], taus[0], c=c, clock_key=B)
         assert_allclose(f.unwhitenedError(v), 0.0, atol=10 * EPS * t_scale)
         w = np.ones(len(pairs))
         f = weighted_tdoa_vector_factor(unit, P, s, pairs, taus, w, speed_key=S, clock_key=B,
@@ -196,8 +199,8 @@ def test_zero_error_at_truth_every_form():
         assert_allclose(f.unwhitenedError(v), 0.0, atol=10 * EPS * t_scale)
 
 
-def test_vector_error_equals_stacked_scalar_errors_and_direct_formula():
-    """The vector factor's error is the stack of scalar errors and of a direct numpy formula."""
+def test_vector_error_equals_stacked_one_pair_errors_and_direct_formula():
+    """The vector factor's error is the stack of one-pair errors and of a direct numpy formula."""
     rng = np.random.default_rng(16)
     for _label, s, p, c in _geometries(rng):
         pairs = _all_pairs(len(s))
@@ -205,7 +208,7 @@ def test_vector_error_equals_stacked_scalar_errors_and_direct_formula():
         v = _values(p + rng.normal(size=3))
         sigmas = rng.uniform(1e-5, 1e-4, size=len(pairs))
         vec = tdoa_vector_factor(gtsam.noiseModel.Diagonal.Sigmas(sigmas), P, s, pairs, taus, c=c)
-        stack = [tdoa_factor(gtsam.noiseModel.Isotropic.Sigma(1, sg), P, s, pq, t, c=c)
+        stack = [_one(gtsam.noiseModel.Isotropic.Sigma(1, sg), P, s, pq, t, c=c)
                  for pq, t, sg in zip(pairs, taus, sigmas, strict=True)]
         e = vec.unwhitenedError(v)
         assert_allclose(e, np.concatenate([f.unwhitenedError(v) for f in stack]), rtol=0, atol=0)
@@ -303,15 +306,6 @@ def test_converges_xav_array_from_poor_starts():
             assert info.observable
 
 
-def test_scalar_factor_graph_converges():
-    """A graph of one scalar factor per TDOA reaches the truth too (XAV array, 1.5 m away)."""
-    truth = XAV.mean(0) + np.array([1.2, -0.5, 0.7])
-    pairs = _all_pairs(6)
-    taus = predicted_tdoas(truth, XAV, pairs, c=C_XAV)
-    res = _optimize(_scalar_graph(XAV, pairs, taus, 2e-5, C_XAV), XAV.mean(0))
-    assert_allclose(res.atPoint3(P), truth, atol=1e-6)
-
-
 def test_covariance_is_inverse_fisher_information():
     """Marginals covariance = (J^T Sigma^-1 J)^-1 with J from a direct formula at the solution."""
     rng = np.random.default_rng(22)
@@ -330,7 +324,7 @@ def test_covariance_is_inverse_fisher_information():
 
 def test_robust_huber_resists_one_corrupted_tdoa():
     """Huber per TDOA: one 100-sigma TDOA barely moves the fit (unlike least squares), and the
-    optimum equals that of scalar factors with GTSAM's own Robust(Huber) noise models."""
+    optimum equals that of one-pair factors with GTSAM's own Robust(Huber) noise models."""
     rng = np.random.default_rng(23)
     pairs = _all_pairs(5)
     sigma = 2e-5
@@ -345,7 +339,7 @@ def test_robust_huber_resists_one_corrupted_tdoa():
                                  initial=start)
     assert np.linalg.norm(p_r - truth) < 0.25  # CRB here: about 0.06 m
     assert np.linalg.norm(p_r - p_clean) < 0.5 * np.linalg.norm(p_ls - p_clean)
-    res = _optimize(_scalar_graph(KM, pairs, taus, sigma, C, huber), start)
+    res = _optimize(_one_pair_graph(KM, pairs, taus, sigma, C, huber), start)
     assert_allclose(p_r, res.atPoint3(P), atol=1e-6)
     assert info.observable
 
@@ -433,10 +427,10 @@ def test_bad_input():
         tdoa_vector_factor(gtsam.noiseModel.Unit.Create(3), P, KM, pairs, taus, c=C)
     with pytest.raises(ValueError, match="keys must differ"):
         tdoa_vector_factor(unit10, P, KM, pairs, taus, speed_key=P)
-    with pytest.raises(ValueError, match="two sensor indices"):
-        tdoa_factor(gtsam.noiseModel.Unit.Create(1), P, KM, (0, 1, 2), 0.0, c=C)
+    with pytest.raises(ValueError, match=r"shape \(m, 2\)"):
+        _one(gtsam.noiseModel.Unit.Create(1), P, KM, (0, 1, 2), 0.0, c=C)
     with pytest.raises(ValueError, match="positive"):
-        tdoa_factor(gtsam.noiseModel.Unit.Create(1), P, KM, (0, 1), 0.0, c=0.0)
+        _one(gtsam.noiseModel.Unit.Create(1), P, KM, (0, 1), 0.0, c=0.0)
     with pytest.raises(ValueError, match="float64"):
         weighted_tdoa_vector_factor(unit10, P, KM, pairs, taus, [1.0] * 10, c=C)
     with pytest.raises(ValueError, match=r"shape \(10,\)"):
@@ -459,7 +453,6 @@ def test_bad_input():
         f.unwhitenedError(_values([0, 0, 0], clocks=np.zeros(4)))
 
 
-# ----------------------------------------------------------------------------- timing
 def _lm_params():
     params = gtsam.LevenbergMarquardtParams()
     params.setRelativeErrorTol(1e-12)
@@ -473,47 +466,12 @@ def _optimize(graph, start):
     return gtsam.LevenbergMarquardtOptimizer(graph, values, _lm_params()).optimize()
 
 
-def _scalar_graph(s, pairs, taus, sigma, c, robust=None):
+def _one_pair_graph(s, pairs, taus, sigma, c, robust=None):
+    """One one-pair factor per TDOA, each with its own (optionally robust) 1-D noise."""
     graph = gtsam.NonlinearFactorGraph()
     noise = gtsam.noiseModel.Isotropic.Sigma(1, sigma)
     if robust is not None:
         noise = gtsam.noiseModel.Robust.Create(robust, noise)
     for pq, tau in zip(pairs, taus, strict=True):
-        graph.add(tdoa_factor(noise, P, s, pq, tau, c=c))
+        graph.add(_one(noise, P, s, pq, tau, c=c))
     return graph
-
-
-def _vector_graph(s, pairs, taus, sigma, c):
-    graph = gtsam.NonlinearFactorGraph()
-    graph.add(tdoa_vector_factor(gtsam.noiseModel.Isotropic.Sigma(len(pairs), sigma), P, s, pairs,
-                                 taus, c=c))
-    return graph
-
-
-def time_solves(runs: int, seed: int = 27) -> dict[str, float]:
-    """Median seconds per solve (graph build + LM) of 10 TDOAs: vector vs scalar factors."""
-    rng = np.random.default_rng(seed)
-    pairs = _all_pairs(5)
-    truth = rng.uniform(KM.min(0), KM.max(0))
-    taus = _noisy_taus(rng, truth, KM, pairs, C, 1e-5)
-    start = truth + 0.3 * 1000.0 * _unit_sphere(rng)
-    out = {}
-    for name, build in (("vector", _vector_graph), ("scalar", _scalar_graph)):
-        secs = []
-        for _ in range(runs):
-            t0 = time.perf_counter()
-            res = _optimize(build(KM, pairs, taus, 1e-5, C), start)
-            secs.append(time.perf_counter() - t0)
-        out[name] = float(np.median(secs))
-        out[name + "_position"] = np.asarray(res.atPoint3(P))
-    return out
-
-
-def test_timing_vector_vs_scalar(record_property):
-    """Both forms reach the same optimum; their per-solve times are recorded (not asserted)."""
-    t = time_solves(40)
-    assert_allclose(t["vector_position"], t["scalar_position"], atol=1e-8)
-    record_property("vector_ms", 1e3 * t["vector"])
-    record_property("scalar_ms", 1e3 * t["scalar"])
-    print(f"\nTDOA solve, 10 TDOAs: vector factor {1e3 * t['vector']:.2f} ms, "
-          f"10 scalar factors {1e3 * t['scalar']:.2f} ms (median of 40)")

@@ -7,19 +7,16 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from factors.bearing import (
-    bearing_batch_factor,
-    bearing_factor,
-    linear_bearing_factor,
-    linear_bearing_factors,
-)
-from factors.motion import constant_velocity_factor, linear_constant_velocity_factor, wna_covariance
+from factors.bearing import linear_bearing_factor, linear_bearing_factors
+from factors.motion import linear_constant_velocity_factor, wna_covariance
+from factors.target import target_bearing_batch_factor
 from factors.testing import assert_jacobians
 from factors.weighted import weighted_factor
 
 
-def test_jacobians_many_states_and_weights():
-    """Jacobians of weighted bearing and motion factors equal central differences."""
+def test_jacobians_many_states_and_weights(wrapped_track):
+    """Jacobians of weighted bearing and motion factors (the tests' wrapped-model
+    CustomFactors) equal central differences."""
     rng = np.random.default_rng(7)
     w = np.zeros(1)
     for _ in range(25):
@@ -29,18 +26,18 @@ def test_jacobians_many_states_and_weights():
         v = gtsam.Values()
         v.insert(0, x0)
         v.insert(1, x1)
-        inner_b = bearing_factor(gtsam.noiseModel.Isotropic.Sigma(1, 0.02), 0, rng.normal())
+        inner_b = wrapped_track.bearing(gtsam.noiseModel.Isotropic.Sigma(1, 0.02), 0, rng.normal())
         dt = rng.uniform(0.5, 5.0)
-        inner_m = constant_velocity_factor(
+        inner_m = wrapped_track.motion(
             gtsam.noiseModel.Gaussian.Covariance(wna_covariance(dt, 0.1, 1)), 0, 1, dt)
         assert_jacobians(weighted_factor(inner_b, w, 0), v)
         assert_jacobians(weighted_factor(inner_m, w, 0), v)
 
 
-def test_error_is_weight_times_inner_and_zero_at_truth():
+def test_error_is_weight_times_inner_and_zero_at_truth(wrapped_track):
     """Cost = w * inner cost; read live from the array; zero at truth."""
     w = np.array([0.3, 0.9])
-    inner = bearing_factor(gtsam.noiseModel.Isotropic.Sigma(1, 0.1), 0, 0.5)
+    inner = wrapped_track.bearing(gtsam.noiseModel.Isotropic.Sigma(1, 0.1), 0, 0.5)
     f = weighted_factor(inner, w, 1)
     v = gtsam.Values()
     v.insert(0, np.array([0.8, 0.0]))
@@ -51,14 +48,14 @@ def test_error_is_weight_times_inner_and_zero_at_truth():
     assert_allclose(f.unwhitenedError(v), [0.0], atol=1e-15)
 
 
-def test_graph_converges_to_weighted_mean_and_follows_updates():
+def test_graph_converges_to_weighted_mean_and_follows_updates(wrapped_track):
     """Two bearings with weights w1, w2 pull a state to their weighted mean; updating the
     weights between solves moves the solution without rebuilding the graph."""
     w = np.array([0.5, 0.5])
     noise = gtsam.noiseModel.Isotropic.Sigma(1, 0.05)
     g = gtsam.NonlinearFactorGraph()
     for i, z in enumerate((0.2, 0.6)):
-        g.add(weighted_factor(bearing_factor(noise, 0, z), w, i))
+        g.add(weighted_factor(wrapped_track.bearing(noise, 0, z), w, i))
     g.add(gtsam.PriorFactorVector(0, np.zeros(2), gtsam.noiseModel.Diagonal.Sigmas([1e6, 1e-3])))
     init = gtsam.Values()
     init.insert(0, np.array([0.0, 0.0]))
@@ -69,9 +66,9 @@ def test_graph_converges_to_weighted_mean_and_follows_updates():
         assert_allclose(res.atVector(0)[0], expect, atol=1e-6)
 
 
-def test_bad_input():
+def test_bad_input(wrapped_track):
     """Non-array weights, bad index, robust inner noise and wrong wrapper noise raise."""
-    inner = bearing_factor(gtsam.noiseModel.Unit.Create(1), 0, 0.1)
+    inner = wrapped_track.bearing(gtsam.noiseModel.Unit.Create(1), 0, 0.1)
     with pytest.raises(ValueError, match="float64"):
         weighted_factor(inner, [1.0], 0)
     with pytest.raises(ValueError, match="out of range"):
@@ -79,7 +76,7 @@ def test_bad_input():
     robust = gtsam.noiseModel.Robust.Create(
         gtsam.noiseModel.mEstimator.Huber.Create(1.0), gtsam.noiseModel.Unit.Create(1))
     with pytest.raises(ValueError, match="Gaussian"):
-        weighted_factor(bearing_factor(robust, 0, 0.1), np.ones(1), 0)
+        weighted_factor(wrapped_track.bearing(robust, 0, 0.1), np.ones(1), 0)
     with pytest.raises(ValueError, match="dimension"):
         weighted_factor(inner, np.ones(1), 0, noise=gtsam.noiseModel.Unit.Create(2))
 
@@ -88,25 +85,27 @@ def test_bad_input():
 
 
 def test_vector_form_weights_each_row():
-    """One weight per row of a batch factor: cost = sum_i w_i e_i^2 / 2; Jacobians match."""
+    """One weight per row of a vector factor (target bearings of two states): cost =
+    sum_i w_i e_i^2 / 2; Jacobians match; equal to one-row factors weighted one by one."""
     rng = np.random.default_rng(17)
+    own = np.array([[0.0, 0.0], [50.0, 0.0], [100.0, 20.0], [150.0, 0.0]])
     for _ in range(15):
-        z = rng.uniform(-np.pi, np.pi, 4)
-        x = np.column_stack([z + rng.normal(0, 0.05, 4), rng.normal(0, 0.01, 4)])
+        x = np.column_stack([rng.uniform(-2000, 2000, (2, 2)), rng.normal(0, 3, (2, 2))])
         v = gtsam.Values()
         for k in range(2):
             v.insert(k, x[k])
         keys = [0, 0, 1, 1]
+        z = rng.uniform(-np.pi, np.pi, 4)
         w = rng.uniform(0.0, 1.0, 6)
         rows = [5, 0, 3, 2]
-        inner = bearing_batch_factor(gtsam.noiseModel.Isotropic.Sigma(4, 0.02), keys, z)
+        inner = target_bearing_batch_factor(gtsam.noiseModel.Isotropic.Sigma(4, 0.02), keys, own, z)
         f = weighted_factor(inner, w, rows)
         e_w = inner.whitenedError(v)
         assert_allclose(f.error(v), 0.5 * np.sum(w[rows] * e_w**2), rtol=1e-12)
-        assert_jacobians(f, v)
-        single = [weighted_factor(bearing_factor(gtsam.noiseModel.Isotropic.Sigma(1, 0.02), k,
-                                                 zj), w, r)
-                  for k, zj, r in zip(keys, z, rows, strict=True)]
+        assert_jacobians(f, v, delta=1e-4, rtol=1e-5, atol=1e-9)
+        single = [weighted_factor(target_bearing_batch_factor(
+                      gtsam.noiseModel.Isotropic.Sigma(1, 0.02), k, own[j:j + 1], z[j:j + 1]), w, r)
+                  for j, (k, r) in enumerate(zip(keys, rows, strict=True))]
         assert_allclose(f.error(v), sum(s.error(v) for s in single), rtol=1e-12)
 
 
@@ -172,7 +171,8 @@ def test_first_linearisation_costs_no_more_than_later_ones():
 
 def test_index_sequence_bad_input():
     """A per-row index of the wrong length or out of range raises ValueError."""
-    inner = bearing_batch_factor(gtsam.noiseModel.Isotropic.Sigma(2, 0.1), [0, 1], [0.1, 0.2])
+    inner = target_bearing_batch_factor(gtsam.noiseModel.Isotropic.Sigma(2, 0.1), [0, 1],
+                                        np.zeros((2, 2)), [0.1, 0.2])
     with pytest.raises(ValueError, match="one per row"):
         weighted_factor(inner, np.ones(3), [0, 1, 2])
     with pytest.raises(ValueError, match="out of range"):

@@ -33,6 +33,11 @@ assumes (eqs. 5-11), in which a target at a constant bearing rate draws a curve;
 at the nearest beam, as ``rateest`` reads its lines. ``trace="beam"``
 (:class:`.fans.StraightLineFans`) keeps the literal straight lines. Where the text is silent or
 garbled the choices are documented on :class:`Acquisition` and in the step modules.
+
+Around the method, for a tracker that starts from acquisitions: :mod:`.starts`
+(:class:`LineStarter`, automatic starts on the strongest lines no track holds) and :mod:`.prior`
+(:class:`AcquisitionPrior`, the Gaussian prior of a track's first state from an acquisition's own
+SNR, beamwidth and trace length; uses :class:`fusion.passive.smoothing.TrackPrior`).
 """
 
 from fusion.geometry import beamwidth_deg
@@ -46,6 +51,7 @@ from fusion.passive.acquisition.fans import (
 )
 from fusion.passive.acquisition.lines import FanSearch, best_lines_in_fans, slope_grid
 from fusion.passive.acquisition.normalise import expected_median_fraction, normalize_spectra
+from fusion.passive.acquisition.prior import AcquisitionPrior
 from fusion.passive.acquisition.refine import (
     MATCHED_STEP_BEAMS,
     RefinedTrace,
@@ -53,6 +59,7 @@ from fusion.passive.acquisition.refine import (
     refine_trace,
 )
 from fusion.passive.acquisition.snr import HAMMING_ENBW, band_noise_level, snr_1hz_db
+from fusion.passive.acquisition.starts import LineStarter, StartCandidate
 from fusion.passive.acquisition.traces import (
     TraceFanSearch,
     best_traces_in_fans,
@@ -63,12 +70,15 @@ __all__ = [
     "HAMMING_ENBW",
     "MATCHED_STEP_BEAMS",
     "Acquisition",
+    "AcquisitionPrior",
     "AcquisitionResult",
     "BestLine",
     "ConstantRateFans",
     "FanSearch",
     "FanStrategy",
+    "LineStarter",
     "RefinedTrace",
+    "StartCandidate",
     "StraightLineFans",
     "TraceFanSearch",
     "acquire",

@@ -1,4 +1,4 @@
-"""Bearing-rate smoothing on factor graphs: one track, online, and many tracks through crossings.
+"""Bearing-rate smoothing on factor graphs: one track, incremental, and many tracks through crossings.
 
 Every track is a chain of states ``x_k = (theta_k, theta_dot_k)`` (bearing, rad; bearing rate,
 rad/s) at the scan times, tied by constant-rate motion factors with white-noise-acceleration
@@ -15,8 +15,11 @@ Modules, one role each:
   track (one sparse linear solve, or Levenberg-Marquardt with a Huber/Cauchy loss for outlier
   bearings), equal to a Rauch-Tung-Striebel smoother (:func:`rts_reference`) on linear-Gaussian
   data.
-- :mod:`~fusion.passive.smoothing.online` -- :class:`OnlineBearingSmoother` and
-  :class:`OnlineBearingSmootherSet`, the same graphs grown one scan at a time with iSAM2.
+- :mod:`~fusion.passive.smoothing.fixed_lag` -- :class:`FixedLagBearingTrack`, the one
+  incremental bearing tracker: one track's graph grown state by state on a GTSAM fixed-lag
+  smoother (the passive pipeline's tracks).
+- :mod:`~fusion.passive.smoothing.online` -- :class:`OnlineBearingSmoother`, the same graph as
+  the batch smoother grown one scan at a time (a fixed-lag track that keeps every state).
 - :mod:`~fusion.passive.smoothing.nearest_neighbour` -- :class:`NearestNeighbourTracker`, a
   Kalman (filterpy) bearing tracker with global nearest-neighbour assignment, optionally
   crossing-aware.
@@ -51,10 +54,11 @@ and forwards for one release.
 from fusion._deprecated import moved_names
 from fusion.passive.crossing.timing import crossing_time
 from fusion.passive.smoothing.batch import BearingSmoother, rts_reference
+from fusion.passive.smoothing.fixed_lag import FixedLagBearingTrack, TrackStates
 from fusion.passive.smoothing.graph import ROBUST_LOSSES
 from fusion.passive.smoothing.multitrack import MultiTrackSmoother
 from fusion.passive.smoothing.nearest_neighbour import NearestNeighbourTracker
-from fusion.passive.smoothing.online import OnlineBearingSmoother, OnlineBearingSmootherSet
+from fusion.passive.smoothing.online import OnlineBearingSmoother
 from fusion.passive.smoothing.table import smooth_bearings
 from fusion.passive.smoothing.types import (
     MultiTrackResult,
@@ -66,13 +70,14 @@ from fusion.passive.smoothing.types import (
 __all__ = [
     "ROBUST_LOSSES",
     "BearingSmoother",
+    "FixedLagBearingTrack",
     "MultiTrackResult",
     "MultiTrackSmoother",
     "NearestNeighbourTracker",
     "OnlineBearingSmoother",
-    "OnlineBearingSmootherSet",
     "SmoothedTrack",
     "TrackPrior",
+    "TrackStates",
     "TrackerResult",
     "crossing_time",
     "rts_reference",

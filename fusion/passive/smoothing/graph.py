@@ -8,8 +8,8 @@ own linear factors, evaluated in C++ (:func:`factors.motion.constant_velocity_ch
 :func:`factors.bearing.linear_bearing_factors`): every bearing (and the prior bearing) is put on
 the branch nearest the current estimate, motion residuals are wrapped at the linearisation point,
 and a graph whose solution moved a residual onto another branch is re-centred there and solved
-again. The result is the optimum of the wrapped model of the scalar factors
-(:func:`factors.bearing.bearing_factor`, :func:`factors.motion.constant_velocity_factor`).
+again. The result is the optimum of the wrapped model (residuals wrapped at every evaluation;
+the tests check it against that model written as plain ``CustomFactor`` s).
 Bearings whose origin is uncertain enter with association weights ``w``: with the Gaussian
 loss as the same built-in factor with ``sigma / sqrt(w)`` (cost ``w`` times the bearing
 factor's), with a robust loss through :func:`factors.weighted.weighted_factor`.

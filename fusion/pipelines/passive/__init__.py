@@ -11,13 +11,15 @@ algorithm of its own and imports no I/O. A user builds a :class:`PassivePipeline
 :class:`PassiveResult`.
 
 Modules: the parts are
-:mod:`~fusion.pipelines.passive.pipeline` (the pipeline), :mod:`~fusion.pipelines.passive.measure`
-(peak measurement, automatic starts), :mod:`~fusion.pipelines.passive.tracks` (acquisition prior,
-fixed-lag graph of one track), :mod:`~fusion.pipelines.passive.crossing` (crossing episodes) and
-:mod:`~fusion.pipelines.passive.types` (scans and clicks in, results out).
+:mod:`~fusion.pipelines.passive.pipeline` (the pipeline), :mod:`~fusion.pipelines.passive.crossing`
+(crossing episodes) and :mod:`~fusion.pipelines.passive.types` (scans and clicks in, results
+out). The algorithms it calls live in their stages: the peak measurement in
+:mod:`fusion.passive.measurement`, automatic starts and the acquisition prior in
+:mod:`fusion.passive.acquisition` (:class:`LineStarter` is re-exported here, as the pipeline's
+``starter``), the fixed-lag graph of one track in :mod:`fusion.passive.smoothing.fixed_lag`.
 """
 
-from fusion.pipelines.passive.measure import LineStarter
+from fusion.passive.acquisition.starts import LineStarter
 from fusion.pipelines.passive.pipeline import PassivePipeline
 from fusion.pipelines.passive.types import (
     Click,

@@ -4,13 +4,13 @@ Per scan (:meth:`PassivePipeline.step`; :meth:`PassivePipeline.run` steps throug
 
 1. **Measure** every live track: predict its state to the scan time from its graph; in the
    track's frequency band read the cell at the predicted beam (amplitude ``A(k)``) and the peak
-   near it (bearing, residual) -- :class:`~fusion.pipelines.passive.measure.PeakMeasurer`.
+   near it (bearing, residual) -- :class:`~fusion.passive.measurement.PeakMeasurer`.
 2. **Track quality**: one update of the TQI with hysteresis for all live tracks from their
    amplitudes and residuals (:class:`~fusion.passive.quality.TrackQualityIndicator`). ``lost``
    ends the track (after this scan's state); ``uncertain`` widens its process noise for this
    step by ``uncertain_q_factor``.
 3. **Graphs**: each track's (bearing, bearing rate) lives on its own GTSAM fixed-lag smoother of
-   linear factors (:class:`~fusion.pipelines.passive.tracks.FixedLagBearingTrack`): a motion
+   linear factors (:class:`~fusion.passive.smoothing.fixed_lag.FixedLagBearingTrack`): a motion
    factor to the new state, and the measured bearing if it passes the innovation gate and the
    track is not in a crossing episode.
 4. **Crossings**: every ``K`` s the crossing detector (*Target Track Crossing
@@ -21,11 +21,11 @@ Per scan (:meth:`PassivePipeline.step`; :meth:`PassivePipeline.run` steps throug
    the association-weighted multi-track graph (EM,
    :class:`~fusion.pipelines.passive.crossing.CrossingResolver`) and each track receives the
    bearings assigned to it on the states of their scans.
-5. **Starts**: an operator click (beam, frequency) -- or, with a :class:`~fusion.pipelines.
-   passive.measure.LineStarter`, a line found automatically -- is acquired over the last
+5. **Starts**: an operator click (beam, frequency) -- or, with a :class:`~fusion.passive.
+   acquisition.starts.LineStarter`, a line found automatically -- is acquired over the last
    ``acquisition_scans`` scans (:class:`~fusion.passive.acquisition.Acquisition`) and starts a
    track whose first state carries the acquisition's estimate as a prior with its uncertainty
-   (:class:`~fusion.pipelines.passive.tracks.AcquisitionPrior`).
+   (:class:`~fusion.passive.acquisition.prior.AcquisitionPrior`).
 
 The pipeline chains these parts and holds no algorithm of its own.
 """
@@ -42,16 +42,21 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fusion.geometry import beam_from_bearing, beam_tolerance, beamwidth_cos, beamwidth_deg
-from fusion.passive.acquisition import Acquisition, AcquisitionResult
+from fusion.passive.acquisition import (
+    Acquisition,
+    AcquisitionPrior,
+    AcquisitionResult,
+    LineStarter,
+)
 from fusion.passive.crossing import AlertKind, CrossingAlert, CrossingDetector
+from fusion.passive.measurement import BearingMeasurement, PeakMeasurer
 from fusion.passive.quality import LABELS, TQIMemory, TrackQuality, TrackQualityIndicator
+from fusion.passive.smoothing.fixed_lag import FixedLagBearingTrack
 from fusion.pipelines.passive.crossing import (
     CrossingResolution,
     CrossingResolver,
     EpisodeBook,
 )
-from fusion.pipelines.passive.measure import BearingMeasurement, LineStarter, PeakMeasurer
-from fusion.pipelines.passive.tracks import AcquisitionPrior, FixedLagBearingTrack
 from fusion.pipelines.passive.types import (
     Click,
     PassiveResult,
@@ -274,10 +279,10 @@ class PassivePipeline:
             lost = state == TrackQuality.LOST
             q_scale = self.smoother.uncertain_q_factor if state == TrackQuality.UNCERTAIN else 1.0
             x_pred, p_pred = preds[i] if q_scale == 1.0 else tr.graph.predict(t, q_scale=q_scale)
-            s_innov = math.sqrt(p_pred[0, 0] + m.sigma**2)
+            s_innov = m.innovation_std(p_pred[0, 0])
             episode = self._episodes.member_of(tr.track_id)
-            use = (not lost and episode is None and m.local_peak
-                   and abs(m.bearing - x_pred[0]) <= self.smoother.gate * s_innov)
+            use = (not lost and episode is None
+                   and m.in_gate(x_pred[0], p_pred[0, 0], self.smoother.gate))
             if episode is not None:
                 episode.record(tr.track_id, t, bearing=m.bearing, sigma=m.sigma,
                                predicted=float(x_pred[0]), innovation_std=s_innov,
@@ -396,9 +401,7 @@ class PassivePipeline:
             if res.default_used:
                 continue
             beam = float(beam_from_bearing(math.radians(res.bearing_deg), g.n_beams))
-            reach = self.starter.exclusion_lobes * float(lobe[c.bin])
-            if any(abs(beam - hb) <= reach and abs(c.bin - hf) <= self.starter.bin_guard
-                   for hb, hf in self._held()):
+            if self.starter.excluded(beam, c.bin, held=self._held(), lobe_beams=lobe):
                 continue  # the acquisition walked onto a held line
             starts.append(self._start(scan, res, beam=c.beam, freq_hz=float(g.freqs[c.bin]),
                                       source="auto"))

@@ -155,7 +155,7 @@ class SmootherSettings:
         Process-noise scale of a step whose TQI is ``uncertain``.
     block : int
         Scans of states that leave the lag together (see `block_s` of
-        :class:`~fusion.pipelines.passive.tracks.FixedLagBearingTrack`).
+        :class:`~fusion.passive.smoothing.fixed_lag.FixedLagBearingTrack`).
     context_scans : int
         Own bearings of each track, from before a crossing episode, given to the multi-track
         graph to tell the tracks apart.

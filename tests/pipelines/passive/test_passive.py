@@ -10,13 +10,11 @@ from numpy.testing import assert_allclose, assert_array_equal
 
 from fusion.io import Cube
 from fusion.metrics.tracks import ScoredTrack, score_tracks
-from fusion.passive.acquisition import Acquisition
+from fusion.passive.acquisition import Acquisition, AcquisitionPrior, LineStarter
 from fusion.passive.crossing import CrossingDetector
 from fusion.passive.quality import TrackQualityIndicator
 from fusion.passive.smoothing import TrackPrior
 from fusion.pipelines.passive import PassivePipeline, SmootherSettings
-from fusion.pipelines.passive.measure import LineStarter
-from fusion.pipelines.passive.tracks import AcquisitionPrior
 from fusion.pipelines.passive.types import Click, PassiveResult, Scan, scans_of
 from fusion.simulate.passive import LineTarget, simulate_passive
 

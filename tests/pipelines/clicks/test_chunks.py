@@ -19,17 +19,17 @@ from hypothesis import strategies as st
 from threadpoolctl import threadpool_limits
 
 from fusion.io import check_audio_files, read_array, write_json
-from fusion.pipelines.click_chunks import (
+from fusion.pipelines.clicks.chunks import (
     AudioSource,
     plan_chunks,
     track_document_sources,
 )
-from fusion.pipelines.click_stream import stream_start
+from fusion.pipelines.clicks.stream import stream_start
 from fusion.pipelines.localization import ClickLocalization, result_document
 from fusion.scale import PartStore, dask_client, file_identity, fingerprint, run_tasks
 from fusion.simulate.clicks import simulate_clicks, write_click_scenario
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 
 
 @pytest.fixture(scope="module")
@@ -283,7 +283,7 @@ def test_document_summary_counts_flagged_sources_apart(tmp_path):
     """write_document counts sources flagged unobservable, mirror-ambiguous or on <= 3 TDOAs."""
     import json
 
-    from fusion.pipelines.click_chunks import write_document
+    from fusion.pipelines.clicks.chunks import write_document
 
     def src(used, observable=True, mirror=False):
         return {"x": 0.0, "y": 0.0, "z": -900.0, "cov": np.eye(3).tolist(), "tdoas_used": used,
@@ -304,7 +304,7 @@ def test_windows_not_localized_are_written_and_counted(tmp_path):
     """A window whose localizer failed carries the reason; the summary counts it."""
     import json
 
-    from fusion.pipelines.click_chunks import write_document
+    from fusion.pipelines.clicks.chunks import write_document
 
     w1 = {"t_start": 0.0, "t_end": 12.0, "tdoas": [{"valid": True}] * 3, "sources": [],
           "not_localized": "too few independent pairs"}

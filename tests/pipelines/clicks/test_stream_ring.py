@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from fusion.pipelines.click_stream import _AudioRing
+from fusion.pipelines.clicks.stream import _AudioRing
 
 
 @settings(max_examples=60, deadline=None)

@@ -66,7 +66,7 @@ from fusion.clicks.types import ChannelClicks
 from fusion.clicks.validate import TdoaValidator, scm2_features
 from fusion.clicks.window import ClickWindow, WindowTdoa
 from fusion.geometry import SensorArray
-from fusion.pipelines.click_stream import MeasuredWindow, measure_stream, window_starts_count
+from fusion.pipelines.clicks.stream import MeasuredWindow, measure_stream, window_starts_count
 
 __all__ = ["LLR_THRESHOLD", "ClickFrontEnd", "ClickWindow", "WindowTdoa", "default_validator",
            "window_starts"]
@@ -90,7 +90,7 @@ def default_validator(threshold: float | None = None) -> TdoaValidator:
     import dataclasses
     from pathlib import Path
 
-    v = TdoaValidator.load(Path(__file__).resolve().parents[1] / "clicks" / "data" / "validator_v1.npz")
+    v = TdoaValidator.load(Path(__file__).resolve().parents[2] / "clicks" / "data" / "validator_v1.npz")
     return v if threshold is None else dataclasses.replace(v, threshold=float(threshold))
 
 

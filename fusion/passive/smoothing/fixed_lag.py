@@ -1,19 +1,17 @@
-"""Parts of the passive pipeline that hold a track: its acquisition prior and its fixed-lag graph.
+"""One bearing track grown state by state on a GTSAM incremental fixed-lag smoother.
 
-- :class:`AcquisitionPrior` turns an :class:`~fusion.passive.acquisition.AcquisitionResult` into a
-  Gaussian prior on the track's first state, with an uncertainty derived from the acquisition's
-  own SNR, beamwidth and trace length.
-- :class:`FixedLagBearingTrack` holds one track's states ``x_k = (bearing, bearing rate)`` on a
-  GTSAM ``IncrementalFixedLagSmoother`` built only from GTSAM's built-in factors: the
-  constant-rate motion model and the bearing measurements are exact linear relations
-  (:func:`factors.motion.linear_constant_velocity_factor`,
-  :func:`factors.bearing.linear_bearing_factor`), so the graph is linearised in C++ and never
-  calls back into Python.
+:class:`FixedLagBearingTrack` holds one track's states ``x_k = (bearing, bearing rate)`` on a
+GTSAM ``IncrementalFixedLagSmoother`` built only from GTSAM's built-in factors: the constant-rate
+motion model and the bearing measurements are exact linear relations
+(:func:`factors.motion.linear_constant_velocity_factor`,
+:func:`factors.bearing.linear_bearing_factor`), so the graph is linearised in C++ and never
+calls back into Python. It is the one incremental bearing tracker: the passive pipeline grows
+one per track (a finite lag), and :class:`~fusion.passive.smoothing.online.OnlineBearingSmoother`
+is one with an infinite lag (every state kept) and, optionally, a robust bearing loss.
 """
 
 from __future__ import annotations
 
-import logging
 import math
 from dataclasses import dataclass
 
@@ -24,117 +22,12 @@ from numpy.typing import NDArray
 from factors.bearing import linear_bearing_factor
 from factors.motion import linear_constant_velocity_factor, transition_matrix, wna_covariance
 from fusion._validation import check_positive
-from fusion.geometry import beam_from_bearing, beamwidth_cos, beamwidth_deg, bearing_from_beam
-from fusion.passive.acquisition import AcquisitionResult
-from fusion.passive.smoothing import TrackPrior
+from fusion.passive.smoothing.graph import _check_loss, _robust_noise
+from fusion.passive.smoothing.types import TrackPrior
 
-__all__ = ["AcquisitionPrior", "FixedLagBearingTrack", "TrackStates"]
-
-logger = logging.getLogger(__name__)
+__all__ = ["FixedLagBearingTrack", "TrackStates"]
 
 FloatArray = NDArray[np.float64]
-
-
-
-class AcquisitionPrior:
-    """Prior on a track's first state from an acquisition result.
-
-    Parameters
-    ----------
-    default_sigma_rate_deg_per_min : float
-        Rate standard deviation when the acquisition output its defaults (rate 0), deg/min.
-    snr_floor : float
-        Smallest linear IBW SNR used in the uncertainty model (the defaults' threshold, 1).
-    inflation : float
-        Factor on both standard deviations (1: the model as derived).
-    max_walk_lobes : float
-        An estimate farther than this many main-lobe widths (in beams) from the clicked beam has
-        walked onto another line: the prior is then the defaults at the clicked beam.
-
-    Notes
-    -----
-    The acquisition (*Acquisition system particularly suited for tracking targets having high
-    bearing rates*, segments 46-54) fits a constant-rate trace through ``n`` scans of the IBW
-    BTR. Each scan places the line to about ``sigma_1 = BW / sqrt(2 snr)`` (BW the main-lobe
-    width in bearing at the estimate, :func:`fusion.geometry.beamwidth_deg`; ``snr`` the
-    linear IBW SNR of the best trace, ``AcquisitionResult.snr_ibw``), and a straight-line fit of
-    ``n`` equally spaced points has, at its latest end and in its slope,
-
-    ``sigma_bearing = sigma_1 sqrt((4 n - 2) / (n (n + 1)))``,
-    ``sigma_rate = sigma_1 sqrt(12 / (n (n^2 - 1))) / T``.
-
-    On tuning seeds 100-259 of single-line cubes (3-12 dB per bin, rates within 12 deg/min) the
-    errors divided by these sigmas had RMS 0.66-0.87: the model is slightly conservative and is
-    used as derived. When the acquisition output its defaults (clicked beam, rate 0), or its
-    estimate lies more than `max_walk_lobes` main lobes from the click (on those seeds, clicks on
-    a weak line a few beams from a stronger one in the same bin ended on the stronger line), the
-    prior is the defaults: the clicked beam's bearing with half a beamwidth, rate 0 with
-    `default_sigma_rate_deg_per_min`.
-    """
-
-    def __init__(
-        self,
-        *,
-        default_sigma_rate_deg_per_min: float = 10.0,
-        snr_floor: float = 1.0,
-        inflation: float = 1.0,
-        max_walk_lobes: float = 1.0,
-    ) -> None:
-        self.default_sigma_rate_deg_per_min = check_positive(
-            "default_sigma_rate_deg_per_min", default_sigma_rate_deg_per_min)
-        self.snr_floor = check_positive("snr_floor", snr_floor)
-        self.inflation = check_positive("inflation", inflation)
-        self.max_walk_lobes = check_positive("max_walk_lobes", max_walk_lobes)
-
-    def prior(
-        self, result: AcquisitionResult, *, click_beam: int, n_beams: int, wavelength: float,
-        aperture: float, scan_period: float,
-    ) -> TrackPrior:
-        """The prior of the state at the acquisition's latest scan.
-
-        Parameters
-        ----------
-        result : AcquisitionResult
-            The acquisition's estimate.
-        click_beam : int
-            The clicked beam.
-        n_beams : int
-            Beams of the array (equally spaced in cosine).
-        wavelength, aperture : float
-            Wavelength of the clicked line and the array aperture, m.
-        scan_period : float
-            Time between scans, s.
-
-        Returns
-        -------
-        TrackPrior
-            Bearing (rad) and rate (rad/s) of the acquisition with the model's sigmas.
-        """
-        theta = math.radians(result.bearing_deg)
-        rate = math.radians(result.bearing_rate_deg_per_min) / 60.0
-        lobe_beams = beamwidth_cos(wavelength, aperture) * (n_beams - 1) / 2.0
-        walked = (abs(float(beam_from_bearing(theta, n_beams)) - click_beam)
-                  > self.max_walk_lobes * lobe_beams)
-        line = result.best_line
-        if result.default_used or walked or line is None or line.n_scans_used < 3:
-            if walked:
-                logger.info("acquisition at %.2f deg is more than %g main lobes from the "
-                            "clicked beam %d: defaults", result.bearing_deg,
-                            self.max_walk_lobes, click_beam)
-            theta, rate = float(bearing_from_beam(click_beam, n_beams)), 0.0
-        bw = math.radians(float(beamwidth_deg(math.degrees(theta), wavelength=wavelength,
-                                              aperture=aperture)))
-        if result.default_used or walked or line is None or line.n_scans_used < 3:
-            sig_b = 0.5 * bw
-            sig_r = math.radians(self.default_sigma_rate_deg_per_min) / 60.0
-        else:
-            n = float(line.n_scans_used)
-            snr = max(float(result.snr_ibw), self.snr_floor)
-            s1 = bw / math.sqrt(2.0 * snr)  # one scan's line position
-            sig_b = s1 * math.sqrt((4.0 * n - 2.0) / (n * (n + 1.0)))  # latest end of the fit
-            sig_r = s1 * math.sqrt(12.0 / (n * (n * n - 1.0))) / scan_period  # its slope
-        return TrackPrior(bearing=theta, rate=rate, sigma_bearing=self.inflation * sig_b,
-                          sigma_rate=self.inflation * sig_r)
 
 
 @dataclass(frozen=True)
@@ -167,7 +60,8 @@ class FixedLagBearingTrack:
     t0 : float
         Time of the first state, s.
     lag_s : float
-        Smoother lag, s: states older than ``lag_s`` before the latest are marginalised.
+        Smoother lag, s: states older than ``lag_s`` before the latest are marginalised
+        (``math.inf``: none is, every state stays in the graph).
     q : float
         Bearing-acceleration power spectral density of the constant-rate model, rad^2/s^3
         (:func:`factors.motion.wna_covariance`).
@@ -181,6 +75,14 @@ class FixedLagBearingTrack:
         marginalises re-eliminates the whole chain (the smoother orders the departing states
         first), and blocks make that happen once per block instead of once per state. A state is
         therefore smoothed by between ``lag_s`` and ``lag_s + block_s`` of later data.
+    robust : {"none", "huber", "cauchy"}
+        Loss of the bearing factors (``"none"``: Gaussian, the linear model above). A robust
+        loss makes the bearing weights depend on the estimate: iSAM2 then relinearises
+        (`relinearize_threshold`) and the latest state is read from the whole estimate.
+    robust_k : float
+        Threshold of the robust loss, in bearing sigmas.
+    relinearize_threshold : float
+        iSAM2 relinearisation threshold (tangent-space step), used with a robust loss only.
 
     Notes
     -----
@@ -206,15 +108,24 @@ class FixedLagBearingTrack:
         q: float,
         wildfire_threshold: float = 1e-9,
         block_s: float = 10.0,
+        robust: str = "none",
+        robust_k: float = 1.345,
+        relinearize_threshold: float = 1e-3,
     ) -> None:
-        self.lag_s = check_positive("lag_s", lag_s)
+        self.lag_s = math.inf if lag_s == math.inf else check_positive("lag_s", lag_s)
         self.block_s = check_positive("block_s", block_s)
         self.q = check_positive("q", q)
+        self.robust = _check_loss(robust)
+        self.robust_k = check_positive("robust_k", robust_k)
         if not math.isfinite(t0):
             raise ValueError(f"t0 must be finite, got {t0!r}")
         params = gtsam.ISAM2Params()
         params.setOptimizationParams(gtsam.ISAM2GaussNewtonParams(float(wildfire_threshold)))
-        params.enableRelinearization = False  # linear factors: exact at any point
+        # Gaussian: linear factors, exact at any point; robust: the weights move with the estimate
+        params.enableRelinearization = self.robust != "none"
+        if params.enableRelinearization:
+            params.setRelinearizeThreshold(float(relinearize_threshold))
+            params.relinearizeSkip = 1
         params.setFactorization("QR")  # the motion information (~1/q) dwarfs the prior's
         self._smoother = gtsam.IncrementalFixedLagSmoother(self.lag_s, params)
         self._t0 = float(t0)
@@ -248,11 +159,11 @@ class FixedLagBearingTrack:
                 scale * self._model(dt)[1], False)
         return self._motion_cache[key]
 
-    @staticmethod
-    def _bearing_factor(key: int, bearing: float, sigma: float,
+    def _bearing_factor(self, key: int, bearing: float, sigma: float,
                         estimate: FloatArray) -> gtsam.NonlinearFactor:
-        return linear_bearing_factor(gtsam.noiseModel.Isotropic.Sigma(1, sigma), key, bearing,
-                                     estimate=estimate)
+        noise = _robust_noise(gtsam.noiseModel.Isotropic.Sigma(1, sigma), self.robust,
+                              self.robust_k)
+        return linear_bearing_factor(noise, key, bearing, estimate=estimate)
 
     # -- bookkeeping ------------------------------------------------------------------------
     def _stamp(self, time: float) -> float:
@@ -399,6 +310,9 @@ class FixedLagBearingTrack:
         of the whole tree (``calculateEstimate``) back-substitutes through every state.
         """
         key = len(self._times) - 1
+        if self.robust != "none":  # relinearised: the point is no longer the guess
+            x = np.asarray(self._smoother.calculateEstimateVector(key), dtype=float)
+            return x, np.asarray(self._smoother.marginalCovariance(key))
         ab = np.asarray(self._smoother.getISAM2().marginalFactor(key).augmentedInformation())
         cov = np.linalg.inv(ab[:2, :2])  # information R'R of the root marginal
         return self._guess + cov @ ab[:2, 2], cov

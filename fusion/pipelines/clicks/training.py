@@ -30,7 +30,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fusion.clicks.validate import TdoaValidator, train_validator
-from fusion.pipelines.clicks import ClickFrontEnd, ClickWindow
+from fusion.pipelines.clicks.frontend import ClickFrontEnd, ClickWindow
 
 __all__ = [
     "CandidateSet",

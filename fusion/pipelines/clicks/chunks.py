@@ -49,7 +49,7 @@ from numpy.typing import NDArray
 from fusion._output import atomic_output
 from fusion._validation import check_positive
 from fusion.geometry import SensorArray
-from fusion.pipelines.click_stream import stream_start, window_starts_count
+from fusion.pipelines.clicks.stream import stream_start, window_starts_count
 from fusion.pipelines.localization import ClickLocalization, LocalizedWindow, result_document
 
 __all__ = ["FEW_TDOAS", "AudioSource", "ChunkTask", "DocumentSummary", "localize_chunk",

@@ -7,8 +7,8 @@ import pytest
 
 from fusion.clicks.training import synthetic_training_set
 from fusion.clicks.validate import train_validator
-from fusion.pipelines.click_training import label_windows, scenario_labels
 from fusion.pipelines.clicks import ClickFrontEnd, window_starts
+from fusion.pipelines.clicks.training import label_windows, scenario_labels
 from fusion.simulate.clicks import simulate_clicks
 
 
