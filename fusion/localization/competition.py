@@ -346,7 +346,8 @@ def compete(
                 break
             scale = np.maximum(sig[None, :], spread[idx, None])
         # (b) weight update: responsibilities with a uniform clutter component
-        r = tdoas.predicted(x[idx]) - tdoas.taus
+        delays = tdoas.predicted(x[idx])  # (K', M), also read by the merge below
+        r = delays - tdoas.taus
         loglik = log_pi[idx, None] - 0.5 * (r / scale) ** 2 - np.log(np.sqrt(2 * np.pi) * scale)
         # normalised over the candidates, the columns of one measurement and clutter
         top = log_clutter.copy()
@@ -371,7 +372,8 @@ def compete(
                     continue
                 if same_source(tdoas, x[a], x[b], w[a], w[b],
                                 np.minimum(scale[pa], scale[pb]), cfg,
-                                settled=bool(max(spread[a], spread[b]) <= sig.min())):
+                                settled=bool(max(spread[a], spread[b]) <= sig.min()),
+                                delays=(delays[pa], delays[pb])):
                     loser = b if w[a].sum() >= w[b].sum() else a
                     alive[loser] = False
                     w[a + b - loser] = np.minimum(w[a] + w[b], 1.0)  # joined: the TDOAs of both
