@@ -22,6 +22,11 @@ from factors.tdoa_model import (
 )
 from factors.weighted import sqrt_weights
 
+try:  # what np.einsum calls without `optimize`, minus its dispatch (the same arithmetic)
+    from numpy._core.multiarray import c_einsum as _einsum
+except ImportError:  # pragma: no cover - another numpy layout
+    _einsum = np.einsum
+
 __all__ = ["tdoa_factor", "tdoa_vector_factor", "weighted_tdoa_vector_factor"]
 
 
@@ -234,7 +239,7 @@ def _fixed_speed_error(
         this: gtsam.CustomFactor, values: gtsam.Values, jacobians: list[np.ndarray] | None
     ) -> np.ndarray:
         diff = values.atPoint3(key) - sensors  # p - s_i, (n, 3)
-        d = np.sqrt(np.einsum("ij,ij->i", diff, diff))
+        d = np.sqrt(_einsum("ij,ij->i", diff, diff))
         r = (d[first] - d[second]) / c - taus
         scale = np.sqrt(np.maximum(weights, 0.0))  # sqrt_weights, read live
         if jacobians is not None:
