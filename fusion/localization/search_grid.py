@@ -60,7 +60,7 @@ class SearchGrid:
     @property
     def size(self) -> int:
         """Number of grid points."""
-        return int(np.prod(self.shape))
+        return self.x.size * self.y.size * self.z.size
 
     @property
     def step(self) -> float:
