@@ -15,12 +15,15 @@ Examples
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.linalg import solve_triangular
 from scipy.special import logsumexp
-from sklearn.mixture import GaussianMixture
+
+if TYPE_CHECKING:  # imported where a mixture is fitted: scoring needs only the arrays
+    from sklearn.mixture import GaussianMixture
 
 __all__ = ["GaussianMixtureArrays", "fit_mixture"]
 
@@ -127,6 +130,8 @@ def fit_mixture(x: NDArray[np.float64], n_components: int | None, seed: int) -> 
     -------
     sklearn.mixture.GaussianMixture
     """
+    from sklearn.mixture import GaussianMixture
+
     sizes = range(1, 5) if n_components is None else (int(n_components),)
     best, best_bic = None, np.inf
     for k in sizes:

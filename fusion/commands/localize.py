@@ -10,7 +10,8 @@ warning), a sample-rate mismatch is an error. A progress bar shows on a terminal
 turns it off).
 
 Long recordings (:mod:`fusion.pipelines.clicks.chunks`, :mod:`fusion.scale`): the windows are
-processed in chunks of ``--chunk-s`` seconds of consecutive windows (default 60); each chunk's task
+processed in chunks of ``--chunk-s`` seconds of consecutive windows (default 60; with
+``--workers N`` shorter when the recordings would give fewer than N chunks); each chunk's task
 reads its own audio (its windows, one neighbour window on each side and the detector's guards)
 from the file(s) with soundfile and localizes its windows, and the chunks are stitched in order.
 Memory does not grow with the length of the recording. By default the chunks run one after the
@@ -160,9 +161,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="CSV t_start,t_end[,f_low,f_high] of events found by another detector: "
                         "localize each event from band-passed waveform cross-correlation "
                         "instead of detecting clicks")
-    p.add_argument("--chunk-s", dest="chunk", type=number(float, gt=0), default=60.0,
+    p.add_argument("--chunk-s", dest="chunk", type=number(float, gt=0), default=None,
                    help="audio per task, s: consecutive windows processed (and recorded for "
-                        "resuming) together (default 60)")
+                        "resuming) together (default 60; with --workers N, shorter where the "
+                        "recordings would give fewer than N chunks)")
     where = p.add_mutually_exclusive_group()
     where.add_argument("--workers", type=number(int, ge=1, le=max_workers()), default=None,
                        help="run the chunks on a local Dask cluster of this many worker "
@@ -237,6 +239,25 @@ def _recordings(args: argparse.Namespace, n_sensors: int) -> list:
     if twice:
         raise ValueError(f"--audio {folder}: recordings {twice} would share an output name")
     return [(open_audio([p], n_sensors), Path(args.out) / f"{p.stem}.json") for p in files]
+
+
+#: Audio per chunk, s, unless --chunk-s says otherwise.
+CHUNK_S = 60.0
+
+
+def _default_chunk_s(recordings: list, pipe, workers: int | None) -> float:
+    """:data:`CHUNK_S`, or with `workers` local workers and fewer chunks than workers, the
+    hop multiple that gives each worker a chunk of the longest recording (the result is the
+    same for any chunking: :mod:`fusion.pipelines.clicks.chunks`)."""
+    from fusion.pipelines.clicks.stream import window_starts_count
+
+    front = pipe.front_end
+    counts = [window_starts_count(source.duration_s, front.window_s, front.hop_s)
+              for source, _ in recordings]
+    per = max(1, int(round(CHUNK_S / front.hop_s)))
+    if not workers or sum(-(-n // per) for n in counts) >= workers:
+        return CHUNK_S
+    return front.hop_s * max(1, -(-max(counts) // int(workers)))
 
 
 def _run_key(args: argparse.Namespace, audio: list) -> str:
@@ -315,6 +336,8 @@ def run(args: argparse.Namespace) -> int:
                                       rates=drift_grid(args.max_tdoa_rate)),
         validator=validator, refiner=not args.no_refine, hop_s=args.hop)
     pipe = ClickLocalization(front_end=front, localizer=localizer)
+    if args.chunk is None:
+        args.chunk = _default_chunk_s(recordings, pipe, args.workers)
     plans = [plan_chunks(source, pipe, chunk_s=args.chunk) for source, _ in recordings]
     tasks = [t for plan in plans for t in plan]
     if len(recordings) == 1:

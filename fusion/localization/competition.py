@@ -117,7 +117,7 @@ class CompetitionResult:
 
 
 class _CandidateGraph:
-    """One candidate's one-factor graph whose TDOA weights are updated in place."""
+    """The one-factor graph of the candidate updates, its TDOA weights written in place per solve."""
 
     def __init__(self, tdoas: WindowTdoas, iterations: int) -> None:
         self.key = gtsam.symbol("x", 0)
@@ -288,7 +288,8 @@ def compete(
     totals = w.sum(axis=1) + 1e-12
     log_pi = np.log((1.0 - cfg.clutter_fraction) * totals / totals.sum())
     alive = np.ones(k0, dtype=bool)
-    graphs = [_CandidateGraph(tdoas, cfg.solver_iterations) for _ in range(k0)]
+    # one graph serves every candidate: each solve writes all its weights and starts afresh
+    graph = _CandidateGraph(tdoas, cfg.solver_iterations)
     # per-candidate delay scale: shrinks by anneal_factor per iteration, but never below the
     # delay change of the candidate's last move (a travelling candidate keeps its TDOAs)
     spread0 = max(float(start_scale_s), float(sig.max()))
@@ -318,7 +319,7 @@ def compete(
             strong = wt[k] > 1e-6 * max(float(wt[k].max()), 1e-300)
             step_s = 0.0
             if independent_pairs(pairs, strong) >= 3:  # else too little to fix a position
-                new = graphs[k].solve(x[k], wt[k])
+                new = graph.solve(x[k], wt[k])
                 moved = max(moved, float(np.linalg.norm(new - x[k])))
                 step_s = float(np.max(np.abs(tdoas.predicted(new) - r[row] - tdoas.taus)))
                 x[k] = new
@@ -346,7 +347,8 @@ def compete(
                 break
             scale = np.maximum(sig[None, :], spread[idx, None])
         # (b) weight update: responsibilities with a uniform clutter component
-        r = tdoas.predicted(x[idx]) - tdoas.taus
+        delays = tdoas.predicted(x[idx])  # (K', M), also read by the merge below
+        r = delays - tdoas.taus
         loglik = log_pi[idx, None] - 0.5 * (r / scale) ** 2 - np.log(np.sqrt(2 * np.pi) * scale)
         # normalised over the candidates, the columns of one measurement and clutter
         top = log_clutter.copy()
@@ -371,7 +373,8 @@ def compete(
                     continue
                 if same_source(tdoas, x[a], x[b], w[a], w[b],
                                 np.minimum(scale[pa], scale[pb]), cfg,
-                                settled=bool(max(spread[a], spread[b]) <= sig.min())):
+                                settled=bool(max(spread[a], spread[b]) <= sig.min()),
+                                delays=(delays[pa], delays[pb])):
                     loser = b if w[a].sum() >= w[b].sum() else a
                     alive[loser] = False
                     w[a + b - loser] = np.minimum(w[a] + w[b], 1.0)  # joined: the TDOAs of both
@@ -394,7 +397,7 @@ def compete(
             if grow_passes:
                 left = 1.0 - _group_total(w[alive].sum(axis=0), group, n_groups)[group]
                 for k in np.flatnonzero(alive):
-                    out = _grow(tdoas, graphs[k], x[k], w[k], left, cfg, z_range)
+                    out = _grow(tdoas, graph, x[k], w[k], left, cfg, z_range)
                     if out is not None:
                         x[k], w[k] = out
                         grew = True

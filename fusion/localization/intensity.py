@@ -19,12 +19,14 @@ at ``chunk_points x M`` floats whatever the grid size.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from fusion.localization.search_grid import SearchGrid
 from fusion.localization.window_tdoas import WindowTdoas
+from fusion.types import frozen_array
 
 __all__ = [
     "IntensityVolume",
@@ -266,15 +268,25 @@ def _best_column(intensities: NDArray[np.float64], groups: NDArray[np.intp]
     one vectorised maximum per rank (at most the number of path pairs), on contiguous copies
     rather than a strided ``maximum.reduceat`` over the permuted columns; the same values.
     """
-    order = np.argsort(groups, kind="stable")
-    sorted_g = groups[order]
+    first, ranks = _column_ranks(groups.tobytes())
+    out = intensities[:, first]
+    for slots, columns in ranks:
+        out[:, slots] = np.maximum(out[:, slots], intensities[:, columns])
+    # row-major like the input: the sums and products that follow then add in the same order
+    return np.ascontiguousarray(out), first
+
+
+@lru_cache(maxsize=256)
+def _column_ranks(groups: bytes) -> tuple[NDArray[np.intp], tuple]:
+    """Of the groups (intp bytes): each group's first column, and per further rank r the group
+    slots and columns of rank r (the plan of :func:`_best_column`, the same for every surface
+    of a window)."""
+    g = np.frombuffer(groups, dtype=np.intp)
+    order = np.argsort(g, kind="stable")
+    sorted_g = g[order]
     starts = np.flatnonzero(np.r_[True, sorted_g[1:] != sorted_g[:-1]])
     which = np.cumsum(np.r_[False, sorted_g[1:] != sorted_g[:-1]])  # group slot of each column
     rank = np.arange(order.size) - starts[which]  # position of each column in its group
-    out = intensities[:, order[starts]]
-    for r in range(1, int(rank.max(initial=0)) + 1):
-        at = rank == r
-        slots = which[at]
-        out[:, slots] = np.maximum(out[:, slots], intensities[:, order[at]])
-    # row-major like the input: the sums and products that follow then add in the same order
-    return np.ascontiguousarray(out), order[starts]
+    ranks = tuple((frozen_array(which[rank == r], np.intp), frozen_array(order[rank == r], np.intp))
+                  for r in range(1, int(rank.max(initial=0)) + 1))
+    return frozen_array(order[starts], np.intp), ranks

@@ -13,6 +13,7 @@ Notes
 
 from __future__ import annotations
 
+from functools import lru_cache
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -38,6 +39,13 @@ def independent_pairs(pairs: NDArray[np.intp], rows: NDArray[np.bool_]) -> int:
 
     (The number of independent TDOAs: a spanning forest of the pair graph.)
     """
+    selected = np.asarray(pairs)[rows]
+    return _forest_size(selected.astype(np.intp, copy=False).tobytes())
+
+
+@lru_cache(maxsize=4096)
+def _forest_size(selected: bytes) -> int:
+    """Edges of a spanning forest of the pairs (i, j) packed in `selected` (intp bytes)."""
     parent: dict[int, int] = {}
 
     def root(i: int) -> int:
@@ -47,7 +55,7 @@ def independent_pairs(pairs: NDArray[np.intp], rows: NDArray[np.bool_]) -> int:
         return i
 
     rank = 0
-    for i, j in pairs[rows].tolist():
+    for i, j in np.frombuffer(selected, dtype=np.intp).reshape(-1, 2).tolist():
         ri, rj = root(i), root(j)
         if ri != rj:
             parent[ri] = rj
@@ -132,14 +140,17 @@ def holds_a_source(w: NDArray[np.float64], pairs: NDArray[np.intp],
 def same_source(
     tdoas: WindowTdoas, xa: NDArray, xb: NDArray, wa: NDArray, wb: NDArray, scale: NDArray,
     settings: CompetitionSettings, *, settled: bool,
+    delays: tuple[NDArray, NDArray] | None = None,
 ) -> bool:
     """Whether two candidates explain the same TDOAs.
 
     Close in delay space (at the sharper candidate's scale), or, once both are annealed,
     splitting the same TDOAs between them (while annealing, broad candidates share naturally).
+    `delays`, when given, are ``tdoas.predicted(xa)`` and ``tdoas.predicted(xb)``.
     """
     union = np.maximum(wa, wb)
-    e = (tdoas.predicted(xa) - tdoas.predicted(xb)) / scale
+    da, db = (tdoas.predicted(xa), tdoas.predicted(xb)) if delays is None else delays
+    e = (da - db) / scale
     if union.sum() > 0:
         rms = float(np.sqrt(np.sum(union * e * e) / union.sum()))
     else:

@@ -60,7 +60,7 @@ class SearchGrid:
     @property
     def size(self) -> int:
         """Number of grid points."""
-        return int(np.prod(self.shape))
+        return self.x.size * self.y.size * self.z.size
 
     @property
     def step(self) -> float:
@@ -71,6 +71,12 @@ class SearchGrid:
     def points(self, start: int = 0, stop: int | None = None) -> NDArray[np.float64]:
         """Grid points ``start:stop`` in flat (C, ``ij``) order, shape (k, 3), m."""
         stop = self.size if stop is None else min(stop, self.size)
+        if start == 0 and stop == self.size:  # the whole grid: the same values, broadcast
+            out = np.empty((*self.shape, 3))
+            out[..., 0] = self.x[:, None, None]
+            out[..., 1] = self.y[None, :, None]
+            out[..., 2] = self.z[None, None, :]
+            return out.reshape(-1, 3)
         i, j, k = np.unravel_index(np.arange(start, stop), self.shape)
         return np.column_stack([self.x[i], self.y[j], self.z[k]])
 
@@ -86,8 +92,9 @@ class SearchGrid:
         axes = []
         for a in range(3):
             ax = ctr[a] + offs
-            if lo is not None and hi is not None:
-                ax = np.unique(np.clip(ax, lo[a], hi[a]))
+            if lo is not None and hi is not None:  # increasing: clipping leaves runs at the ends
+                ax = np.clip(ax, lo[a], hi[a])
+                ax = ax[np.r_[True, ax[1:] != ax[:-1]]]
             axes.append(ax)
         return cls(*axes)
 

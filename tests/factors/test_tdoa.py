@@ -253,6 +253,33 @@ def test_weights_are_read_live():
                         rtol=1e-12)
 
 
+def test_fixed_speed_weighted_error_is_the_models_arithmetic():
+    """At a known speed without a robust loss the weighted factor returns, bit for bit, the
+    model's residual and Jacobian scaled by sqrt(w) / sigma, also after in-place weight updates."""
+    from factors.tdoa_model import TdoaModel
+
+    rng = np.random.default_rng(24)
+    for _, s, p, c in _geometries(rng):
+        pairs = _all_pairs(len(s))
+        m = len(pairs)
+        sigmas = rng.uniform(5e-6, 5e-5, size=m)
+        taus = _noisy_taus(rng, p, s, pairs, c, 5e-5)
+        w = rng.uniform(-0.2, 1.0, size=m)
+        f = weighted_tdoa_vector_factor(gtsam.noiseModel.Diagonal.Sigmas(sigmas), P, s, pairs,
+                                        taus, w, c=c)
+        model = TdoaModel.build(s, pairs, taus)
+        for k in range(3):
+            if k:
+                w[:] = rng.uniform(-0.2, 1.0, size=m)
+            x = p + rng.normal(size=3)
+            r, h_p, _ = model.residual(np.asarray(gtsam.Point3(*x)), c, jacobian=True)
+            scale = np.sqrt(np.maximum(w, 0.0))
+            inv_sigma = np.diag(gtsam.noiseModel.Diagonal.Sigmas(sigmas).R())
+            assert np.array_equal(f.unwhitenedError(_values(x)), scale * (r * inv_sigma))
+            a, _ = f.linearize(_values(x)).jacobian()
+            assert np.array_equal(a, (scale * inv_sigma)[:, None] * h_p)
+
+
 def test_zero_weight_removes_a_tdoa():
     """Weight 0 on a corrupted TDOA: its residual is 0 and the optimum equals the fit without it."""
     rng = np.random.default_rng(19)

@@ -11,7 +11,7 @@ localizes its own (:meth:`ClickLocalization.localize`). Chunks therefore need no
 other and run in any order, on any worker; their windows are stitched in order.
 
 The stream of each chunk starts on the block grid of a stream from the start of the recording,
-at a point where that stream makes its clicks final (:func:`fusion.pipelines.click_stream.
+at a point where that stream makes its clicks final (:func:`fusion.pipelines.clicks.stream.
 stream_start`), so every window is computed from the same samples, cut at the same places, as
 in one pass over the whole recording: the result does not depend on the chunking, nor on where
 the chunks ran. Each task works with one BLAS thread (the threads of a Dask worker), so that

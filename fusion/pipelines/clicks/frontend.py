@@ -311,7 +311,7 @@ class ClickFrontEnd:
     ) -> Iterator[MeasuredWindow]:
         """Measure the windows of a stream of audio blocks, not yet associated across time.
 
-        See :func:`fusion.pipelines.click_stream.measure_stream` (the same parameters): clicks
+        See :func:`fusion.pipelines.clicks.stream.measure_stream` (the same parameters): clicks
         are detected once per sample and each window is measured (:meth:`measure_window`) as
         soon as its clicks are final; a stream may start part-way through a recording.
         """

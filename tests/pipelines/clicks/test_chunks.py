@@ -91,6 +91,23 @@ def test_measure_refuses_a_start_without_guards(recording):
                                     start_sample=192000, final_from=200000, first_window=2))
 
 
+def test_workers_without_chunk_length_get_a_chunk_each(recording):
+    """--workers N without --chunk-s: 60 s chunks unless the recordings give fewer than N; then
+    the hop multiple that gives each worker one (5 windows, 2 workers: 3 and 2)."""
+    from fusion.commands.localize import CHUNK_S, _default_chunk_s
+
+    pipe = ClickLocalization(localizer=None)
+    src = AudioSource.of(check_audio_files([recording / "audio.flac"], 4))
+    assert _default_chunk_s([(src, None)], pipe, None) == CHUNK_S
+    assert _default_chunk_s([(src, None)], pipe, 1) == CHUNK_S
+    chunk = _default_chunk_s([(src, None)], pipe, 2)
+    assert chunk == 6.0
+    tasks = plan_chunks(src, pipe, chunk_s=chunk)
+    assert [(t.first_window, t.stop_window) for t in tasks] == [(0, 3), (3, 5)]
+    assert len(plan_chunks(src, pipe, chunk_s=_default_chunk_s([(src, None)], pipe, 8))) == 5
+    assert _default_chunk_s([(src, None)] * 2, pipe, 2) == CHUNK_S  # a chunk per recording
+
+
 def test_chunks_cover_each_window_once(recording):
     """The plan reports every window once, in order; each chunk measures its two neighbours."""
     pipe = ClickLocalization(localizer=None)
