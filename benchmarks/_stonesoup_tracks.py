@@ -6,7 +6,7 @@ Built only from Stone Soup components: a nearly-constant-velocity Kalman filter 
 nearest neighbour (``GNNWith2DAssignment`` with a Mahalanobis ``DistanceHypothesiser``) or joint
 probabilistic data association (``JPDAwithEHM``, the exact JPDA marginals computed by efficient
 hypothesis management, with a ``PDAHypothesiser``; the brute-force ``JPDA`` enumerates the
-product of every track's hypotheses and does not finish with 20 tracks), Gaussian-mixture
+product of every track's hypotheses, exponential in the number of tracks), Gaussian-mixture
 reduction per scan (``MultiTargetMixtureTracker``), tracks started by a
 ``MultiMeasurementInitiator`` (GNN over holding tracks, confirmed by track length: ``min_points``
 updates) and deleted by an ``UpdateTimeDeleter`` (no update for ``max_misses`` ping periods).
