@@ -293,8 +293,12 @@ def ensure_visible(fig: Any, min_px: float = MIN_UNCERTAINTY_PX) -> int:
     return widened
 
 
+#: Most TQI markers per track (thinned evenly; every change of state is always marked).
+MAX_STATE_MARKERS = 40
+
+
 def tqi_markers(ax: Any, x: ArrayLike, y: ArrayLike, states: ArrayLike, *, color: Any,
-                ms: float = 3.0) -> None:
+                ms: float = 3.0, max_markers: int = MAX_STATE_MARKERS) -> None:
     """Mark each point with its TQI state's marker (:data:`TQI_MARKERS`), in the track's colour.
 
     Parameters
@@ -308,10 +312,17 @@ def tqi_markers(ax: Any, x: ArrayLike, y: ArrayLike, states: ArrayLike, *, color
         The track's colour (its identity).
     ms : float, keyword-only
         Marker size, points.
+    max_markers : int, keyword-only
+        Markers per call at most, evenly spaced, plus the first point of every run of a state
+        (so that a short spell of ``lost`` or ``uncertain`` is never thinned away).
     """
     x, y, s = np.asarray(x), np.asarray(y), np.asarray(states).astype(str)
+    keep = np.zeros(s.size, dtype=bool)
+    keep[:: max(1, int(np.ceil(s.size / max(max_markers, 1))))] = True
+    keep[1:] |= s[1:] != s[:-1]
+    keep[:1] = True
     for state, marker in TQI_MARKERS.items():
-        m = s == state
+        m = (s == state) & keep
         if m.any():
             filled = marker not in ("x", "+")
             ax.plot(x[m], y[m], marker, ms=ms, color=color, ls="none",
