@@ -33,6 +33,12 @@ def test_fusion_demo_runs_every_part(run_cli, tmp_path):
     smoothing = parts["smoothing"]["summary"]
     assert smoothing["tracks"] == smoothing["true_tracks"]
     assert smoothing["median_track_rmse_deg"] < smoothing["raw_noise_deg"]
+    clicks = parts["clicks-scenario"]["summary"]  # counts first: found and false, then errors
+    found, whale_windows = (int(v) for v in clicks["whales_found"].split("/"))
+    assert 0 < found <= whale_windows and clicks["false_fixes"] >= 0
+    line = next(ln for ln in (out / "summary.md").read_text(encoding="utf-8").splitlines()
+                if ln.startswith("- [clicks_tracks.png]"))
+    assert line.index("whales_found=") < line.index("false_fixes=") < line.index("source_error")
     _check_summary_links(out)
 
 

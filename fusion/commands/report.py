@@ -67,5 +67,7 @@ def run(args: argparse.Namespace) -> int:
     kind, written = make_report(args.result, args.out, inputs=extra)
     for path in written:
         emit(str(path))
-    emit(f"{len(written)} figure(s) of the {kind} result -> {args.out}", err=True)
+    n = sum(path.suffix == ".png" for path in written)
+    emit(f"fusion report: {n} figure(s) of the {kind} result and summary.md -> {args.out}",
+         err=True)
     return 0

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fusion.io import atomic_output, write_json
+from fusion.io import write_json
 from fusion.simulate.cube import simulate_cube
 
 __all__ = ["run_demo"]
@@ -33,12 +33,9 @@ def run_demo(out_dir: Path, *, seed: int) -> dict[str, float | bool]:
         True and estimated bearing (deg) and bearing rate (deg/min), the SNR estimate and whether
         the defaults were used.
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     from fusion.passive.acquisition import Acquisition
+    from fusion.report.acquisition import acquisition_figure
+    from fusion.report.figures import FigureWriter
 
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -52,25 +49,16 @@ def run_demo(out_dir: Path, *, seed: int) -> dict[str, float | bool]:
         "click_beam": sc.click_beam,
         "click_freq": sc.click_freq,
     })
-    fig, ax = plt.subplots(figsize=(6.0, 4.5))
-    n_scans, n_beams = res.btr.shape
-    im = ax.imshow(res.btr, origin="lower", aspect="auto", cmap="viridis",
-                   extent=(-0.5, n_beams - 0.5, -0.5, n_scans - 0.5))
-    ax.plot(sc.beam_track, np.arange(n_scans), "w:", lw=1.0, label="true trace")
-    if res.best_line is not None:
-        bl = res.best_line
-        ax.plot(bl.beams, np.arange(bl.start_scan, bl.end_scan + 1), "r-", lw=1.5,
-                label="best trace")
-    ax.set_xlabel("beam (0 = forward endfire)")
-    ax.set_ylabel("scan (latest at top)")
-    ax.set_title(f"IBW BTR: rate {res.bearing_rate_deg_per_min:.1f} deg/min "
-                 f"(true {sc.bearing_rate_deg_per_min:.1f})")
-    fig.colorbar(im, ax=ax, label="normalised power")
+    # the figure `fusion report` draws for `fusion acquire` (same axes and units), plus the truth
+    fig = acquisition_figure(sc.cube, res.to_json(), freq_hz=sc.click_freq, lag_s=2.0,
+                             title=f"fusion demo: acquisition (true rate "
+                                   f"{sc.bearing_rate_deg_per_min:.1f} deg/min)")
+    ax = fig.axes[0]
+    n = sc.cube.power.shape[0]
+    ax.plot(sc.shown_bearing_deg, (np.arange(n) - n + 1) * sc.cube.scan_period, "w:", lw=1.2,
+            label="true bearing (as displayed)")
     ax.legend(loc="lower right", fontsize=8)
-    fig.tight_layout()
-    with atomic_output(out_dir / "btr.png") as tmp:
-        fig.savefig(tmp, dpi=100)
-    plt.close(fig)
+    FigureWriter(out_dir).save(fig, "btr.png")
     return {
         "true_bearing_deg": round(sc.latest_bearing_deg, 2),
         "bearing_deg": round(res.bearing_deg, 2),

@@ -36,6 +36,7 @@ def run_demo(out_dir: Path, *, seed: int) -> dict:
     from fusion.io import atomic_output
     from fusion.metrics.crossings import score_alerts
     from fusion.passive.quality import TrackQuality
+    from fusion.report.figures import state_legend, tqi_markers
     from fusion.simulate.bearings import simulate_bearings
 
     out_dir = Path(out_dir)
@@ -68,23 +69,25 @@ def run_demo(out_dir: Path, *, seed: int) -> dict:
         end = int(np.argmax(sc.time * m))
         ax.annotate(str(k), (centred(sc.bearing_deg[end]), sc.time[end] / 60.0), fontsize=7,
                     xytext=(3, 3), textcoords="offset points")
-    for state in TrackQuality:
-        m = tqi == state
-        ax.plot(centred(sc.bearing_deg[m]), sc.time[m] / 60.0, ".", ms=2.5,
-                color=_TQI_COLOURS[state], label=f"TQI {state.label}")
+    labels = np.array([TrackQuality(q).label for q in tqi])
+    for k in sc.track_ids:  # colour: the track; marker: its TQI state
+        m = sc.track_id == k
+        tqi_markers(ax, centred(sc.bearing_deg[m]), sc.time[m] / 60.0, labels[m],
+                    color=f"C{int(k) % 10}", ms=2.5)
+    state_legend(ax)
     for a in alerts:
         k = int(np.argmin(np.abs(sc.truth_time - a.t_cross)))
         b = centred(sc.truth_bearing_deg[a.track_a, k])
         if a.kind == "predicted":
-            ax.plot(b, a.time / 60.0, "v", mfc="none", mec="tab:orange", ms=8)
+            ax.plot(b, a.time / 60.0, "v", mfc="none", mec="k", ms=8)
         else:
-            ax.plot(b, a.time / 60.0, "x", color="tab:red", ms=8)
+            ax.plot(b, a.time / 60.0, "D", mfc="none", mec="k", ms=8)
     for c in sc.crossings:
         k = int(np.argmin(np.abs(sc.truth_time - c.t_cross)))
         ax.plot(centred(sc.truth_bearing_deg[c.track_a, k]), c.t_cross / 60.0, "o", mfc="none",
                 mec="k", ms=10, lw=0.5)
-    ax.plot([], [], "v", mfc="none", mec="tab:orange", label="predicted (at alert time)")
-    ax.plot([], [], "x", color="tab:red", label="detected (at alert time)")
+    ax.plot([], [], "v", mfc="none", mec="k", label="predicted (at alert time)")
+    ax.plot([], [], "D", mfc="none", mec="k", label="detected (at alert time)")
     ax.plot([], [], "o", mfc="none", mec="k", label="true crossing")
     ax.set_xlim(-180, 180)
     ax.set_xlabel("bearing, deg (clockwise from north, north in the middle)")
@@ -111,7 +114,6 @@ def run_demo(out_dir: Path, *, seed: int) -> dict:
     }
 
 
-_TQI_COLOURS = {0: "0.6", 1: "tab:orange", 2: "tab:blue", 3: "tab:green"}
 
 
 def _demo_track_quality(sc, *, seed: int) -> np.ndarray:

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from fusion.io import atomic_output, write_table
-from fusion.report.figures import TQI_COLOURS
+from fusion.report.figures import state_legend, tqi_markers
 
 __all__ = ["run_demo"]
 
@@ -64,32 +64,31 @@ def run_demo(out_dir: Path, *, seed: int) -> dict:
     for i in range(sc.n_targets):
         on = np.isfinite(sc.snr_db[:, i])
         ax.plot(sc.bearing_deg[on, i], sc.time[on], "k--", lw=0.7, alpha=0.6)
-    for tr in res.tracks:
-        for label, colour in TQI_COLOURS.items():
-            m = tr.tqi == label
-            ax.plot(tr.bearing_deg[m], tr.time[m], ".", ms=2.5, color=colour)
+    for tr in res.tracks:  # colour: the track; marker: its TQI state
+        colour = f"C{tr.track_id % 10}"
+        ax.plot(tr.bearing_deg, tr.time, "-", lw=0.6, color=colour, alpha=0.6)
+        tqi_markers(ax, tr.bearing_deg, tr.time, tr.tqi, color=colour, ms=2.5)
         ax.annotate(str(tr.track_id), (tr.bearing_deg[-1], tr.time[-1]), fontsize=8,
-                    xytext=(3, -3), textcoords="offset points")
+                    color=colour, xytext=(3, -3), textcoords="offset points")
         if tr.end is not None:
-            ax.plot(tr.bearing_deg[-1], tr.time[-1], "s", mfc="none", mec="k", ms=7)
+            ax.plot(tr.bearing_deg[-1], tr.time[-1], "*", color="k", ms=9)
     by_id = {t.track_id: t for t in res.tracks}
     for a in res.alerts:
         tr = by_id[a.track_a]
         k = int(np.argmin(np.abs(tr.time - a.time)))  # on track a when the alert was raised
-        style = ("v", "tab:orange") if a.kind == "predicted" else ("x", "tab:red")
+        style = ("v", "k") if a.kind == "predicted" else ("D", "k")
         ax.plot(tr.bearing_deg[k], a.time, style[0], color=style[1], mfc="none", ms=8)
     for r in res.resolutions:
         for tid in r.tracks:
             tr = by_id[tid]
             k = (tr.time >= r.t_start) & (tr.time <= r.t_end)
-            ax.plot(tr.bearing_deg[k], tr.time[k], "-", color="tab:purple", lw=6, alpha=0.25)
-    for label, colour in TQI_COLOURS.items():
-        ax.plot([], [], ".", color=colour, label=f"TQI {label}")
+            ax.plot(tr.bearing_deg[k], tr.time[k], "-", color="0.5", lw=6, alpha=0.25)
+    state_legend(ax)
     ax.plot([], [], "k--", lw=0.7, label="truth")
-    ax.plot([], [], "v", color="tab:orange", mfc="none", label="crossing predicted (alert time)")
-    ax.plot([], [], "x", color="tab:red", label="crossing detected (alert time)")
-    ax.plot([], [], "-", color="tab:purple", lw=6, alpha=0.25, label="crossing episode")
-    ax.plot([], [], "s", mfc="none", mec="k", label="track ended (lost)")
+    ax.plot([], [], "v", color="k", mfc="none", label="crossing predicted (alert time)")
+    ax.plot([], [], "D", color="k", mfc="none", label="crossing detected (alert time)")
+    ax.plot([], [], "-", color="0.5", lw=6, alpha=0.25, label="crossing episode")
+    ax.plot([], [], "*", color="k", label="track ended (lost)")
     lo, hi = np.nanmin(sc.bearing_deg), np.nanmax(sc.bearing_deg)
     ax.set_xlim(max(0.0, lo - 5.0), min(180.0, hi + 5.0))
     ax.set_xlabel("bearing from the forward axis, deg")

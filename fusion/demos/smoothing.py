@@ -17,7 +17,7 @@ from fusion.geometry import wrap_angle
 from fusion.io import write_table
 from fusion.metrics.crossings import crossing_outcomes
 from fusion.passive.smoothing import MultiTrackSmoother
-from fusion.report.figures import bearing_band
+from fusion.report.figures import bearing_band, ensure_visible
 from fusion.simulate.bearings import simulate_bearings
 
 __all__ = ["run_demo"]
@@ -84,6 +84,7 @@ def run_demo(out_dir: Path, *, seed: int) -> dict:
     ax.set_title("Smoothed tracks (1-sigma bands); x: true crossings; red: crossing alerts")
     ax.legend(loc="lower right", fontsize=7)
     fig.tight_layout()
+    ensure_visible(fig)
     fig.savefig(out_dir / "smoothing.png", dpi=110)
     plt.close(fig)
     rmse = []

@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any, Protocol
 
 from fusion.io import atomic_output
+from fusion.report.figures import index_line
 
 __all__ = ["FIGURES", "summary_lines", "write_summary"]
 
@@ -30,13 +31,15 @@ FIGURES: dict[str, tuple[str, tuple[str, ...]]] = {
         ("valid_tdoas", "valid_true_fraction", "tdoa_abs_error_median_us", "tdoa_crb_median_us")),
     "clicks-scenario/clicks_surfaces.png": (
         "intensity surfaces of one window with the localized and the true sources",
-        ("surface_window_s", "sources", "sources_flagged", "source_error_median_m")),
+        ("surface_window_s", "sources", "sources_flagged", "whales_found", "false_fixes",
+         "source_error_median_m")),
     "clicks-scenario/clicks_sources.png": (
-        "localized sources against the true positions", ("sources", "sources_flagged",
-                                                          "source_error_median_m")),
+        "localized sources against the true positions",
+        ("sources", "sources_flagged", "whales_found", "false_fixes", "source_error_median_m")),
     "clicks-scenario/clicks_tracks.png": (
         "whale tracks in plan view and depth (replica, echoes and sea floor from the recording)",
-        ("tracks", "sources", "sources_flagged", "source_error_median_m", "replica_estimated",
+        ("tracks", "sources", "sources_flagged", "whales_found", "false_fixes",
+         "source_error_median_m", "replica_estimated",
          "bottom_echoes", "sea_floor_z")),
     "tma/tma.png": (
         "plan view: own-ship, true target and the TMA estimate with 2-sigma ellipses",
@@ -103,7 +106,7 @@ def summary_lines(out_dir: Path, *, seed: int, results: Sequence[PartLike]) -> l
             what, keys = FIGURES.get(rel, (f"figure of the {r.name} part", ()))
             nums = _numbers(r.summary, keys)
             shown.update(k for k in keys if k in r.summary)
-            lines.append(f"- [{png.name}]({rel}): {what}" + (f" — {nums}" if nums else ""))
+            lines.append(index_line(rel, what, nums))
         rest = [k for k in r.summary if k not in shown]
         if rest:
             lines.append(f"- numbers: {_numbers(r.summary, rest)}")

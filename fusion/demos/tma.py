@@ -41,7 +41,7 @@ def run_demo(out_dir: Path, *, seed: int) -> dict:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from fusion.report.figures import covariance_ellipse
+    from fusion.report.figures import covariance_ellipse, ensure_visible
 
     out_dir = Path(out_dir)
     write_scenario(out_dir, seed=seed)
@@ -70,6 +70,7 @@ def run_demo(out_dir: Path, *, seed: int) -> dict:
     ax.set_ylabel("y north (m)")
     ax.set_title(f"Bearings-only TMA (seed {seed}): 2-sigma ellipses, dotted = bearings")
     ax.legend(loc="best")
+    ensure_visible(fig)
     fig.savefig(out_dir / "tma.png", dpi=110)
     plt.close(fig)
     return {

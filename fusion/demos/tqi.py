@@ -72,8 +72,8 @@ def run_demo(out_dir: Path, *, seed: int) -> dict:
         return onset + int(lag) if np.isfinite(lag) else -1
 
     fig, ax = plt.subplots(4, 1, figsize=(10, 9), sharex=True)
-    ax[0].semilogy(t, np.maximum(amp, 1e-3), ".", ms=3)
-    ax[0].set_ylabel("amplitude A(k)")
+    ax[0].plot(t, 10.0 * np.log10(np.maximum(amp, 1e-3)), ".", ms=3)  # as fusion report draws it
+    ax[0].set_ylabel("amplitude, dB (noise mean 0 dB)")
     ax[1].plot(t, res, ".", ms=3, color="0.6", label="residual")
     ax[1].plot(t, h1.residual_deg[:, 0], label="smoothed ES")
     ax[1].plot(t, h1.err_max_deg[:, 0], "k--", lw=0.8, label="ERR_max")
@@ -114,7 +114,6 @@ def run_demo(out_dir: Path, *, seed: int) -> dict:
 
 def _demo_cube(out_dir: Path, *, seed: int, plt) -> dict:
     """The passive pipeline (acquisition -> fixed-lag track -> TQI) on a simulated cube."""
-    from fusion.geometry import beam_from_bearing
     from fusion.passive.acquisition import Acquisition
     from fusion.passive.crossing import CrossingDetector
     from fusion.passive.quality import TrackQuality
@@ -145,19 +144,31 @@ def _demo_cube(out_dir: Path, *, seed: int, plt) -> dict:
         "bearing_rate_deg_per_min": np.array([u.bearing_rate_deg_per_min for u in ups]),
         "true_bearing_deg": truth, "amplitude": np.array([u.amplitude for u in ups]),
         "residual": np.array([u.residual_deg for u in ups]), "tqi": labels})
-    fig, ax = plt.subplots(2, 1, figsize=(9, 6), sharex=True)
-    ax[0].imshow(c.power[:, :, int(np.argmin(np.abs(c.freqs - sc.click_freq)))],
-                 aspect="auto", origin="lower", cmap="viridis",
-                 extent=(-0.5, c.n_beams - 0.5, -0.5, c.n_scans - 0.5))
-    ax[0].plot(beam_from_bearing(np.radians(brg), c.n_beams), scan_k, "r.", ms=3,
-               label="tracker")
-    ax[0].axhline(latest, color="w", lw=0.8, ls="--")
-    ax[0].set_xlabel("beam")
-    ax[0].set_ylabel("scan")
+    # BTR in the units `fusion report` uses (bearing deg across, time s up, dB over the bin's
+    # median); the bearing error below on its own time axis (no axis shared with the BTR)
+    from fusion.report.acquisition import beam_edges_deg, btr_bin, btr_db
+
+    db = btr_db(c, btr_bin(c, sc.click_freq))
+    t_edges = (np.arange(c.n_scans + 1) - 0.5) * c.scan_period
+    times = scan_k * c.scan_period
+    fig, ax = plt.subplots(1, 2, figsize=(12, 6), gridspec_kw={"width_ratios": [1.6, 1]})
+    im = ax[0].pcolormesh(beam_edges_deg(c.n_beams), t_edges, db, cmap="viridis",
+                          shading="flat")
+    fig.colorbar(im, ax=ax[0], label="power over the bin's median, dB")
+    ax[0].plot(brg, times, "r.", ms=3, label="tracker")
+    ax[0].axhline(latest * c.scan_period, color="w", lw=0.8, ls="--",
+                  label="end of the acquisition window")
+    ax[0].set_xlim(0.0, 180.0)
+    ax[0].set_xlabel("bearing from the forward axis, deg")
+    ax[0].set_ylabel("time, s")
     ax[0].legend(loc="upper right", fontsize=7)
-    ax[1].plot(scan_k, brg - truth)
-    ax[1].set_xlabel("scan")
-    ax[1].set_ylabel("bearing error, deg")
+    ax[1].plot(brg - truth, times)
+    ax[1].axvline(0.0, color="k", lw=0.6)
+    ax[1].set_xlabel("bearing error, deg")
+    ax[1].set_ylabel("time, s")
+    ax[1].set_ylim(ax[0].get_ylim())
+    ax[1].grid(alpha=0.3)
+    fig.suptitle("passive chain on a simulated cube: BTR with the track, and its bearing error")
     fig.tight_layout()
     fig.savefig(out_dir / "cube_track.png", dpi=100)
     plt.close(fig)

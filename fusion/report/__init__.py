@@ -5,7 +5,9 @@ figures (:func:`~fusion.report.build.make_report`); the families: :mod:`~fusion.
 (BTR with the acquired line), :mod:`~fusion.report.bearing_time` (tracks, TQI, crossing alerts),
 :mod:`~fusion.report.positions` (multistatic tracks over the clutter map, TMA),
 :mod:`~fusion.report.localization` (sources, whale tracks, intensity surfaces);
-:mod:`~fusion.report.figures` holds the pieces they and the demo share. matplotlib is imported
+:mod:`~fusion.report.figures` holds the pieces they and the demo share (colour for a track's
+identity, marker shape for its TQI state, uncertainty drawn at least a few pixels wide, the index
+line); :mod:`~fusion.report.index` writes the folder's ``summary.md``. matplotlib is imported
 only when a figure is made (Agg canvas, no pyplot state).
 """
 
@@ -16,6 +18,7 @@ __all__ = [
     "bearing_time",
     "build",
     "figures",
+    "index",
     "kinds",
     "localization",
     "positions",

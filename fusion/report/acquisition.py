@@ -18,7 +18,7 @@ from fusion.geometry import bearing_from_beam
 from fusion.report.figures import new_figure
 from fusion.types import Cube
 
-__all__ = ["acquisition_figure", "btr_bin", "read_acquisition"]
+__all__ = ["acquisition_figure", "beam_edges_deg", "btr_bin", "btr_db", "read_acquisition"]
 
 
 def read_acquisition(doc: Any, *, source: str) -> dict[str, float | bool]:
@@ -85,7 +85,13 @@ def btr_bin(cube: Cube, freq_hz: float | None) -> int:
     return int(np.argmin(np.abs(f - freq_hz)))
 
 
-def _beam_edges_deg(n_beams: int) -> NDArray[np.float64]:
+def btr_db(cube: Cube, k: int) -> NDArray[np.float64]:
+    """Power of bin `k` in dB over the bin's median, shape (scans, beams) (floor -30 dB)."""
+    power = cube.power[:, :, k]
+    return 10.0 * np.log10(np.maximum(power / max(float(np.median(power)), 1e-300), 1e-3))
+
+
+def beam_edges_deg(n_beams: int) -> NDArray[np.float64]:
     """Bearing of the edges between beams (half-beam steps), deg, shape (n_beams + 1,)."""
     edges = np.arange(n_beams + 1, dtype=float) - 0.5
     return np.degrees(bearing_from_beam(np.clip(edges, 0.0, n_beams - 1.0), n_beams))
@@ -114,12 +120,11 @@ def acquisition_figure(cube: Cube, result: Mapping[str, float | bool], *, freq_h
         Power (dB over the bin's median) against bearing (deg) and time (s, latest scan 0).
     """
     k = btr_bin(cube, freq_hz)
-    power = cube.power[:, :, k]
-    db = 10.0 * np.log10(np.maximum(power / max(float(np.median(power)), 1e-300), 1e-3))
-    n_scans, n_beams = power.shape
+    db = btr_db(cube, k)
+    n_scans, n_beams = db.shape
     t = (np.arange(n_scans + 1, dtype=float) - n_scans + 0.5) * cube.scan_period
     fig, ax = new_figure(size=(8.0, 6.5))
-    im = ax.pcolormesh(_beam_edges_deg(n_beams), t, db, cmap="viridis", shading="flat")
+    im = ax.pcolormesh(beam_edges_deg(n_beams), t, db, cmap="viridis", shading="flat")
     fig.colorbar(im, ax=ax, label="power over the bin's median, dB")
     tl = np.linspace(t[0] + 0.5 * cube.scan_period, 0.0, 200)
     rate_deg_s = float(result["bearing_rate_deg_per_min"]) / 60.0

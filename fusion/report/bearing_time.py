@@ -13,14 +13,22 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from fusion.report.figures import TQI_COLOURS, bearing_band, new_figure, no_wrap_line
+from fusion.report.figures import (
+    TQI_MARKERS,
+    bearing_band,
+    new_figure,
+    no_wrap_line,
+    state_legend,
+    tqi_markers,
+)
 from fusion.types import Table
 
 __all__ = ["MAX_ALERT_PAIRS", "alerts_figure", "alerts_on_tracks_figure", "smoothed_figure",
            "tqi_bearing_figure", "tqi_figure"]
 
-#: Marker and colour of each alert kind.
-ALERT_STYLE = {"predicted": ("v", "tab:orange"), "detected": ("x", "tab:red")}
+#: Marker and colour of each alert kind: black, so that colour stays the tracks' identity, and
+#: shapes no TQI state uses (:data:`fusion.report.figures.TQI_MARKERS`).
+ALERT_STYLE = {"predicted": ("v", "k"), "detected": ("D", "k")}
 
 #: Tracks named in a legend at most (more tracks: no legend entry per track).
 MAX_LEGEND_TRACKS = 12
@@ -108,15 +116,13 @@ def smoothed_figure(tracks: Table, *, tqi: NDArray[Any] | None = None,
                             tracks["sigma_bearing_deg"][rows], lw=1.0, label=label)
         ax_rate.plot(tracks["bearing_rate_deg_per_min"][rows], t, color=line.get_color(), lw=1.0)
         ax_sig.plot(tracks["sigma_bearing_deg"][rows], t, color=line.get_color(), lw=1.0)
-        if tqi is not None:
-            for state, colour in TQI_COLOURS.items():
-                m = tqi[rows] == state
-                ax.plot(tracks["bearing_deg"][rows][m], t[m], ".", color=colour, ms=1.5)
+        if tqi is not None:  # colour: the track; marker: its state
+            tqi_markers(ax, tracks["bearing_deg"][rows], t, tqi[rows], color=line.get_color(),
+                        ms=2.5)
         ax.annotate(str(tid), (tracks["bearing_deg"][rows][-1], t[-1]), fontsize=8,
                     color=line.get_color(), xytext=(2, 2), textcoords="offset points")
     if tqi is not None:
-        for state, colour in TQI_COLOURS.items():
-            ax.plot([], [], ".", color=colour, label=f"TQI {state}")
+        state_legend(ax)
     if alerts is not None and len(alerts):
         _draw_alerts(ax, alerts, tracks)
     _bearing_axes(ax, tracks["bearing_deg"])
@@ -145,24 +151,26 @@ def tqi_figure(table: Table, *, title: str) -> Any:
     Returns
     -------
     matplotlib Figure
-        Amplitude (dB, coloured by state), residual (deg) and the state, against time (s).
+        Amplitude (dB) and residual (deg), marker by state, and the state, against time (s);
+        colour is the track in every panel.
     """
     fig, (ax_a, ax_r, ax_s) = new_figure(3, 1, size=(10.0, 8.0), sharex=True)
-    states = list(TQI_COLOURS)
+    states = list(TQI_MARKERS)
     amp_db = 10.0 * np.log10(np.maximum(table["amplitude"], 1e-3))
     tqi = table["tqi"]
-    for state, colour in TQI_COLOURS.items():
-        m = tqi == state
-        ax_a.plot(table["time"][m], amp_db[m], ".", color=colour, ms=3, label=state)
-        ax_r.plot(table["time"][m], table["residual"][m], ".", color=colour, ms=3)
     ids = np.unique(table["track_id"])
     offsets = np.linspace(-0.25, 0.25, ids.size) if ids.size > 1 else np.zeros(1)
-    for off, (tid, rows) in zip(offsets, _tracks(table), strict=True):
-        level = np.array([states.index(s) for s in tqi[rows]], dtype=float)
+    for k, (off, (tid, rows)) in enumerate(zip(offsets, _tracks(table), strict=True)):
+        colour = f"C{k % 10}"
+        tqi_markers(ax_a, table["time"][rows], amp_db[rows], tqi[rows], color=colour)
+        tqi_markers(ax_r, table["time"][rows], table["residual"][rows], tqi[rows], color=colour)
+        level = np.array([states.index(s) if s in states else np.nan for s in tqi[rows]])
         label = f"track {tid}" if ids.size <= MAX_LEGEND_TRACKS else None
-        ax_s.step(table["time"][rows], level + off, where="post", lw=1.0, label=label)
+        ax_s.step(table["time"][rows], level + off, where="post", lw=1.0, color=colour,
+                  label=label)
+    state_legend(ax_a)
     ax_a.set_ylabel("amplitude, dB (noise mean 0 dB)")
-    ax_a.legend(title="TQI", fontsize=7, loc="best", ncol=4)
+    ax_a.legend(fontsize=7, loc="best", ncol=4)
     ax_r.set_ylabel("residual, deg")
     ax_s.set_yticks(range(len(states)), states)
     ax_s.set_ylabel("TQI state")
@@ -176,7 +184,7 @@ def tqi_figure(table: Table, *, title: str) -> Any:
 
 
 def tqi_bearing_figure(table: Table, bearings: Table, *, title: str) -> Any:
-    """Bearing tracks coloured by the TQI state of the update at the same track and time.
+    """Bearing tracks (colour) marked with the TQI state (marker) at the same track and time.
 
     Parameters
     ----------
@@ -196,16 +204,17 @@ def tqi_bearing_figure(table: Table, bearings: Table, *, title: str) -> Any:
            zip(table["track_id"], table["time"], table["tqi"], strict=True)}
     state = np.array([key.get((int(k), float(t)), "") for k, t in
                       zip(bearings["track_id"], bearings["time"], strict=True)])
-    for _tid, rows in _tracks(bearings):
-        ax.plot(no_wrap_line(bearings["bearing_deg"][rows]), bearings["time"][rows], "-",
-                color="0.8", lw=0.8)
     m = state == ""
     ax.plot(bearings["bearing_deg"][m], bearings["time"][m], ".", color="0.75", ms=2,
             label="no TQI at this time")
-    for s, colour in TQI_COLOURS.items():
-        m = state == s
-        ax.plot(bearings["bearing_deg"][m], bearings["time"][m], ".", color=colour, ms=3,
-                label=f"TQI {s}")
+    for k, (tid, rows) in enumerate(_tracks(bearings)):  # colour: the track; marker: its state
+        colour = f"C{k % 10}"
+        ax.plot(no_wrap_line(bearings["bearing_deg"][rows]), bearings["time"][rows], "-",
+                color=colour, lw=0.8, alpha=0.6, label=f"track {tid}" if k < MAX_LEGEND_TRACKS
+                else None)
+        tqi_markers(ax, bearings["bearing_deg"][rows], bearings["time"][rows], state[rows],
+                    color=colour)
+    state_legend(ax)
     _bearing_axes(ax, bearings["bearing_deg"])
     ax.legend(fontsize=7, loc="best")
     ax.set_title(title)

@@ -31,6 +31,7 @@ import numpy as np
 
 from fusion._output import outputs_together
 from fusion.report.figures import FigureWriter
+from fusion.report.index import write_summary
 from fusion.report.kinds import KINDS, DetectedResult, detect_result
 
 __all__ = ["ReportInputs", "make_report"]
@@ -102,6 +103,44 @@ OPTION = {"cube": "--cube", "freq_hz": "--freq-hz", "lag_s": "--display-lag-s",
           "array": "--array"}
 
 
+def _n_tracks(table: Any) -> int:
+    return int(np.unique(np.asarray(table["track_id"])).size)
+
+
+def _alert_counts(alerts: Any) -> str:
+    if alerts is None:
+        return "no alerts given"
+    kinds = np.asarray(alerts["kind"]).astype(str)
+    return (f"{len(kinds)} alerts ({int((kinds == 'predicted').sum())} predicted, "
+            f"{int((kinds == 'detected').sum())} detected)")
+
+
+def _state_counts(states: Any) -> str:
+    s = np.asarray(states).astype(str)
+    order = ("strong", "low_snr", "uncertain", "lost")
+    return ", ".join(f"{name} {int((s == name).sum())}" for name in order)
+
+
+def _track_counts(tracks: Any) -> str:
+    """Confirmed tracks drawn, and tracks never confirmed (left out of the figure)."""
+    ids = np.asarray(tracks["track_id"])
+    status = np.asarray(tracks["status"]).astype(str)
+    confirmed = np.unique(ids[status == "confirmed"])
+    never = np.setdiff1d(np.unique(ids), confirmed)
+    return f"{confirmed.size} confirmed tracks, {never.size} never confirmed (not drawn)"
+
+
+def _tma_reading(result: Any) -> str:
+    cols = result.columns
+    obs = bool(np.all(np.asarray(cols["observable"]) != 0)) if "observable" in cols else True
+    text = f"final range {float(np.asarray(cols['range'])[-1]):.0f} m"
+    if "range_low" in cols:
+        hi = float(np.asarray(cols["range_high"])[-1])
+        text += (f" (95 % interval {float(np.asarray(cols['range_low'])[-1]):.0f}-"
+                 + ("unbounded" if hi >= 1e12 else f"{hi:.0f}") + " m)")
+    return text + ("; range observable" if obs else "; FLAGGED: range unobservable")
+
+
 def _read_bearings(path: Path) -> Any:
     from fusion.io import read_bearings
 
@@ -151,7 +190,9 @@ def _passive(res: DetectedResult, extra: ReportInputs, out: FigureWriter) -> Non
               else _read_alerts(extra.alerts) if extra.alerts else None)
     table, tqi = _smoothed_table(tracks_path, with_tqi=True)
     out.save(smoothed_figure(table, tqi=tqi, alerts=alerts,
-                             title=f"fusion passive: {res.path}"), "passive_tracks.png")
+                             title=f"fusion passive: {res.path}"), "passive_tracks.png",
+             "bearing-time tracks with 1-sigma bands and TQI states, crossing alerts; bearing "
+             f"rate; bearing sigma — {_n_tracks(table)} tracks, {_alert_counts(alerts)}")
 
 
 def _smoothed(res: DetectedResult, extra: ReportInputs, out: FigureWriter) -> None:
@@ -161,10 +202,15 @@ def _smoothed(res: DetectedResult, extra: ReportInputs, out: FigureWriter) -> No
     alerts = _read_alerts(extra.alerts) if extra.alerts else None
     raw = _read_bearings(extra.bearings) if extra.bearings else None
     out.save(smoothed_figure(table, alerts=alerts, detections=raw,
-                             title=f"fusion smooth: {res.path.name}"), "smoothed.png")
+                             title=f"fusion smooth: {res.path.name}"), "smoothed.png",
+             "smoothed bearing tracks with 1-sigma bands"
+             + (" over the raw bearings (grey)" if raw is not None else "")
+             + f", bearing rate and sigma over time — {_n_tracks(table)} tracks"
+             + (f", {_alert_counts(alerts)}" if alerts is not None else ""))
     if alerts is not None and len(alerts):
         out.save(alerts_figure(alerts, title=f"crossing alerts: {extra.alerts.name}"),
-                 "crossings.png")
+                 "crossings.png", "crossing time and interval of every alert, per track pair "
+                 f"— {_alert_counts(alerts)}")
 
 
 def _tqi(res: DetectedResult, extra: ReportInputs, out: FigureWriter) -> None:
@@ -173,11 +219,14 @@ def _tqi(res: DetectedResult, extra: ReportInputs, out: FigureWriter) -> None:
 
     table = read_tqi(res.path)
     bearings = _read_bearings(extra.bearings) if extra.bearings else None
-    out.save(tqi_figure(table, title=f"fusion tqi: {res.path.name}"), "tqi.png")
+    states = _state_counts(table["tqi"])
+    out.save(tqi_figure(table, title=f"fusion tqi: {res.path.name}"), "tqi.png",
+             "amplitude (dB), bearing residual (deg) and TQI state of every track over time "
+             f"— {_n_tracks(table)} tracks, updates {states}")
     if bearings is not None:
         out.save(tqi_bearing_figure(table, bearings,
                                     title=f"TQI on the tracks of {extra.bearings.name}"),
-                 "tqi_bearing_time.png")
+                 "tqi_bearing_time.png", f"TQI states on the bearing tracks — updates {states}")
 
 
 def _alerts(res: DetectedResult, extra: ReportInputs, out: FigureWriter) -> None:
@@ -189,11 +238,14 @@ def _alerts(res: DetectedResult, extra: ReportInputs, out: FigureWriter) -> None
     bearings = _read_bearings(extra.bearings) if extra.bearings else None
     if len(alerts):
         out.save(alerts_figure(alerts, title=f"fusion crossings: {res.path.name}"),
-                 "crossings.png")
+                 "crossings.png", "crossing time and interval of every alert, per track pair "
+                 f"— {_alert_counts(alerts)}")
     if bearings is not None:
         out.save(alerts_on_tracks_figure(alerts, bearings,
                                          title=f"crossing alerts on {extra.bearings.name}"),
-                 "crossings_bearing_time.png")
+                 "crossings_bearing_time.png",
+                 f"the alerts on the bearing tracks — {_n_tracks(bearings)} tracks, "
+                 f"{_alert_counts(alerts)}")
 
 
 def _tracks(res: DetectedResult, extra: ReportInputs, out: FigureWriter) -> None:
@@ -206,14 +258,17 @@ def _tracks(res: DetectedResult, extra: ReportInputs, out: FigureWriter) -> None
         sig = read_table(res.path, required=("sigma_x", "sigma_y"), max_abs=None)
     except ValueError:
         sig = None  # not a --smooth output
+    counts = _track_counts(tracks)
     out.save(tracks_figure(tracks, detections=det, title=f"fusion track: {res.path.name}",
                            map_settings=track_map_settings(res.path)),
-             "tracks.png")
+             "tracks.png", "tracks in plan view (x east, y north)"
+             + (" over the clutter map of the detections" if det is not None else "")
+             + f" — {counts}")
     if sig is None:
         return
     out.save(track_sigma_figure(tracks, sig["sigma_x"], sig["sigma_y"],
                                 title=f"fusion track --smooth: {res.path.name}"),
-             "tracks_sigma.png")
+             "tracks_sigma.png", f"x and y of the confirmed tracks with 1-sigma bands — {counts}")
 
 
 def _tma(res: DetectedResult, extra: ReportInputs, out: FigureWriter) -> None:
@@ -230,7 +285,15 @@ def _tma(res: DetectedResult, extra: ReportInputs, out: FigureWriter) -> None:
     if interval is not None:
         result = Table({**result.columns, "range_low": interval["range_low"],
                         "range_high": interval["range_high"]}, source=result.source)
-    out.save(tma_figure(result, ownship=own, title=f"fusion tma: {res.path.name}"), "tma.png")
+    try:  # the observability flag, when the output has it
+        flag = read_table(res.path, required=("observable",), max_abs=None)
+    except ValueError:
+        flag = None
+    if flag is not None:
+        result = Table({**result.columns, "observable": flag["observable"]}, source=result.source)
+    out.save(tma_figure(result, ownship=own, title=f"fusion tma: {res.path.name}"), "tma.png",
+             "plan view with 2-sigma bars, range with its 95 % interval and speed over time — "
+             + _tma_reading(result))
 
 
 def _acquisition(res: DetectedResult, extra: ReportInputs, out: FigureWriter) -> None:
@@ -243,13 +306,22 @@ def _acquisition(res: DetectedResult, extra: ReportInputs, out: FigureWriter) ->
     result = read_acquisition(read_json(res.path), source=str(res.path))
     out.save(acquisition_figure(read_cube(extra.cube), result, freq_hz=extra.freq_hz,
                                 lag_s=extra.lag_s, title=f"fusion acquire: {res.path.name}"),
-             "btr.png")
+             "btr.png", "bearing-time record of the clicked bin with the acquired line — "
+             f"bearing {result['bearing_deg']:.2f} deg, rate "
+             f"{result['bearing_rate_deg_per_min']:.2f} deg/min, SNR {result['snr_db']:.1f} dB"
+             + (", defaults used (no line above the noise)" if result["default_used"] else ""))
 
 
 def _localization(res: DetectedResult, extra: ReportInputs, out: FigureWriter) -> None:
     from fusion.io import read_array
     from fusion.report.kinds import file_kind
-    from fusion.report.localization import fixes_figure, read_fixes, surface_figure
+    from fusion.report.localization import (
+        fix_counts,
+        fixes_figure,
+        read_fixes,
+        surface_figure,
+        surface_reading,
+    )
 
     array = read_array(extra.array) if extra.array else None
     folder = res.kind == "localization_folder"
@@ -258,13 +330,16 @@ def _localization(res: DetectedResult, extra: ReportInputs, out: FigureWriter) -
     for path, kind, fixes in zip(res.files, kinds, read, strict=True):  # all read first
         prefix = f"{path.stem}_" if folder else ""
         out.save(fixes_figure(fixes, array=array, title=f"fusion localize: {path.name}"),
-                 f"{prefix}localize.png")
+                 f"{prefix}localize.png", "sources in plan view with 2-sigma ellipses, depth "
+                 f"(or height in the array's frame) over time — {fix_counts(fixes, kind)}")
         if array is not None and kind == "localization":
             fig = surface_figure(fixes, array, title=f"intensity surface: {path.name}")
             if fig is None:
                 logger.warning("%s: no valid TDOA in any window; no intensity surface", path)
             else:
-                out.save(fig, f"{prefix}localize_surface.png")
+                out.save(fig, f"{prefix}localize_surface.png",
+                         "eq. 17 intensity of the window with the most valid TDOAs, plan view "
+                         f"and depth section, with its sources — {surface_reading(fixes)}")
 
 
 DRAW: dict[str, Callable[[DetectedResult, ReportInputs, FigureWriter], None]] = {
@@ -300,7 +375,8 @@ def make_report(result: str | Path, out_dir: str | Path, *,
     kind : str
         The result's kind.
     written : list of pathlib.Path
-        The PNG files written.
+        The PNG files written, then ``summary.md`` (each figure with its one-line reading;
+        :mod:`fusion.report.index`).
 
     Raises
     ------
@@ -316,6 +392,7 @@ def make_report(result: str | Path, out_dir: str | Path, *,
         names = ", ".join(OPTION[u] for u in unused)
         raise ValueError(f"{names}: not used for a result of {KINDS[found.kind]} ({result})")
     out = FigureWriter(out_dir, inputs=[*found.files, *extra.paths()])
-    with outputs_together(out_dir):  # every figure, or none (an input found bad late)
+    with outputs_together(out_dir):  # every figure and the index, or none (an input found bad late)
         DRAW[found.kind](found, extra, out)
-    return found.kind, out.written
+        index = write_summary(Path(out_dir), f"{found.path} ({KINDS[found.kind]})", out.readings)
+    return found.kind, [*out.written, index]

@@ -21,7 +21,7 @@ from numpy.typing import NDArray
 from fusion.geometry import SensorArray
 from fusion.report.figures import covariance_ellipse, new_figure
 
-__all__ = ["Fixes", "read_fixes", "fixes_figure", "surface_figure"]
+__all__ = ["Fixes", "fix_counts", "read_fixes", "fixes_figure", "surface_figure", "surface_reading"]
 
 #: Sources drawn with a covariance ellipse at most (the rest as points).
 MAX_ELLIPSES = 200
@@ -112,6 +112,25 @@ def read_fixes(path: Path, kind: str) -> Fixes:
                  tracks, windows)
 
 
+def fix_counts(fixes: Fixes, kind: str) -> str:
+    """The counts a reader needs before any error figure: fixes, flagged, tracks.
+
+    Examples
+    --------
+    >>> f = Fixes(np.zeros(3), np.zeros((3, 3)), np.zeros((3, 3, 3)),
+    ...           np.array([True, True, False]), (), [])
+    >>> fix_counts(f, "events")
+    '3 events localized, 2 fixed, 1 flagged (unobservable)'
+    >>> fix_counts(f, "localization")
+    '3 sources, 2 fixed, 1 flagged (unobservable or mirror-ambiguous), 0 tracks'
+    """
+    n, good = int(fixes.good.size), int(fixes.good.sum())
+    if kind == "events":
+        return f"{n} events localized, {good} fixed, {n - good} flagged (unobservable)"
+    return (f"{n} sources, {good} fixed, {n - good} flagged (unobservable or mirror-ambiguous), "
+            f"{len(fixes.tracks)} tracks")
+
+
 def fixes_figure(fixes: Fixes, *, array: SensorArray | None = None, title: str) -> Any:
     """Sources and tracks in plan view and depth against time.
 
@@ -157,21 +176,28 @@ def fixes_figure(fixes: Fixes, *, array: SensorArray | None = None, title: str) 
     ax.set_title("plan view (ellipses: 2 sigma)")
     if ax.get_legend_handles_labels()[0]:
         ax.legend(fontsize=7, loc="best")
+    # depth (m, down) when everything is under the sea surface z = 0 (a range); otherwise the
+    # array's own frame, height z up (a tank, a frame of hydrophones around z = 0)
+    zs = np.concatenate([p[:, 2], array.positions[:, 2] if array is not None else []])
+    as_depth = bool(zs.size == 0 or np.all(zs <= 0))
+    sign = -1.0 if as_depth else 1.0
     if good.any():
         sz = 2.0 * np.sqrt(np.where(np.isfinite(fixes.cov[good, 2, 2]), fixes.cov[good, 2, 2],
                                     0.0))
-        ax_d.errorbar(t[good], -p[good, 2], yerr=sz, fmt="o", ms=3, color="tab:blue",
+        ax_d.errorbar(t[good], sign * p[good, 2], yerr=sz, fmt="o", ms=3, color="tab:blue",
                       capsize=2, label="sources (2 sigma)")
     if (~good).any():
-        ax_d.plot(t[~good], -p[~good, 2], "o", mfc="none", color="0.5", ms=5)
+        ax_d.plot(t[~good], sign * p[~good, 2], "o", mfc="none", color="0.5", ms=5)
     if array is not None:
         for z in np.unique(array.positions[:, 2]):
-            ax_d.axhline(-z, color="k", lw=0.5, ls=":")
-        ax_d.plot([], [], ":", color="k", lw=0.5, label="sensor depths")
-    ax_d.invert_yaxis()
+            ax_d.axhline(sign * z, color="k", lw=0.5, ls=":")
+        ax_d.plot([], [], ":", color="k", lw=0.5,
+                  label="sensor depths" if as_depth else "sensor heights")
+    if as_depth:
+        ax_d.invert_yaxis()
     ax_d.set_xlabel("time, s")
-    ax_d.set_ylabel("depth, m")
-    ax_d.set_title("depth")
+    ax_d.set_ylabel("depth, m" if as_depth else "height z, m (z up, array frame)")
+    ax_d.set_title("depth" if as_depth else "height")
     ax_d.grid(alpha=0.3)
     if ax_d.get_legend_handles_labels()[0]:
         ax_d.legend(fontsize=7, loc="best")
@@ -186,6 +212,17 @@ def _best_window(windows: list[dict[str, Any]]) -> int | None:
     if not counts or max(counts) == 0:
         return None
     return int(np.argmax(counts))
+
+
+def surface_reading(fixes: Fixes) -> str:
+    """The counts of the window :func:`surface_figure` draws (its time, valid TDOAs, sources)."""
+    k = _best_window(fixes.windows)
+    if k is None:
+        return "no valid TDOA in any window"
+    w = fixes.windows[k]
+    n_valid = sum(bool(d.get("valid")) for d in w.get("tdoas", []))
+    return (f"window {w['t_start']:g}-{w['t_end']:g} s, {n_valid} valid TDOAs, "
+            f"{len(w.get('sources', []))} sources")
 
 
 def surface_figure(fixes: Fixes, array: SensorArray, *, title: str) -> Any | None:

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from fusion.report.figures import covariance_ellipse, new_figure
+from fusion.report.figures import covariance_ellipse, new_figure, sigma_band
 from fusion.types import Table
 
 __all__ = ["clutter_recurrence", "track_sigma_figure", "tracks_figure", "tma_figure"]
@@ -209,8 +209,7 @@ def track_sigma_figure(tracks: Table, sigma_x: NDArray[np.float64], sigma_y: NDA
         for ax, col, sig in ((ax_x, "x", sigma_x), (ax_y, "y", sigma_y)):
             v = tracks[col][rows]
             line, = ax.plot(t, v, lw=1.0, label=f"track {tid}" if ax is ax_x else None)
-            ax.fill_between(t, v - sig[rows], v + sig[rows], color=line.get_color(), alpha=0.3,
-                            lw=0)
+            sigma_band(ax, t, v, sig[rows], color=line.get_color())
     ax_x.set_ylabel("x east, m")
     ax_y.set_ylabel("y north, m")
     ax_y.set_xlabel("time, s")
@@ -229,7 +228,8 @@ def tma_figure(result: Table, *, ownship: Table | None = None, title: str) -> An
     ----------
     result : Table
         ``time,x,y,vx,vy,sigma_x,sigma_y,range`` (``fusion tma``; m, m/s, s), with
-        ``range_low,range_high`` (95 % interval, m) when the output has them.
+        ``range_low,range_high`` (95 % interval, m) and ``observable`` (1/0) when the output has
+        them; a range flagged unobservable is written on the figure and in its title.
     ownship : Table, optional, keyword-only
         Own-ship ``time,x,y``: drawn with bearing lines to the estimate at a few times.
     title : str, keyword-only
@@ -275,6 +275,14 @@ def tma_figure(result: Table, *, ownship: Table | None = None, title: str) -> An
     for a in (axes["range"], axes["speed"]):
         a.grid(alpha=0.3)
     course = float(np.degrees(np.arctan2(result["vx"][-1], result["vy"][-1])) % 360.0)
-    fig.suptitle(f"{title}: final range {result['range'][-1] / 1000:.2f} km, "
-                 f"speed {speed[-1]:.1f} m/s, course {course:.0f} deg")
+    flagged = "observable" in result and bool(np.any(np.asarray(result["observable"]) == 0))
+    if flagged:  # the estimate is drawn, but the reader must not take its range at face value
+        for a in (ax, axes["range"]):
+            a.text(0.5, 0.97, "RANGE UNOBSERVABLE (flagged)", transform=a.transAxes, ha="center",
+                   va="top", color="tab:red", fontsize=10, fontweight="bold",
+                   bbox={"facecolor": "w", "edgecolor": "tab:red", "alpha": 0.9})
+    fig.suptitle(("RANGE UNOBSERVABLE -- " if flagged else "")
+                 + f"{title}: final range {result['range'][-1] / 1000:.2f} km, "
+                 f"speed {speed[-1]:.1f} m/s, course {course:.0f} deg"
+                 + ("" if "observable" not in result or flagged else " (range observable)"))
     return fig

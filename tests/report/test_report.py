@@ -90,7 +90,11 @@ def _check_figures(out: Path, names: list[str]) -> None:
     """Exactly `names` were written, each a PNG of plausible size that is not blank."""
     import matplotlib.image
 
-    assert sorted(p.name for p in out.iterdir()) == sorted(names)
+    assert sorted(p.name for p in out.iterdir()) == sorted([*names, "summary.md"])
+    index = (out / "summary.md").read_text(encoding="utf-8")
+    for name in names:  # each figure linked once, with what it shows and its counts
+        line = next(ln for ln in index.splitlines() if ln.startswith(f"- [{name}]({name}): "))
+        assert " — " in line and any(ch.isdigit() for ch in line.split(" — ", 1)[1]), line
     for name in names:
         w, h = _png_size(out / name)
         assert 500 <= w <= 2000 and 250 <= h <= 1500, (name, w, h)
