@@ -163,16 +163,20 @@ def _smoother_from_data(t, z, association: str, st=None) -> tuple[MultiTrackSmoo
     return mts, st
 
 
-def bench_association(seeds, within_s: float = 60.0) -> dict:
+#: Variants of the association ablation.
+VARIANTS = ("weighted", "nearest", "nn", "jpda")
+
+
+def bench_association(seeds, within_s: float = 60.0, names=VARIANTS) -> dict:
     """Weighted against nearest association, the plain nearest-neighbour tracker and Stone
     Soup's JPDA tracker (:mod:`_jpda`) on the same unlabelled bearings (settings fitted once
     per scenario, outside the timings): outcomes around each crossing (15-scan guard, 20-scan
     windows),
     identity per detection inside the guard, bearing RMS within `within_s` of each crossing
     (per crossing target, the track that followed it before), divided by the noise."""
-    from _jpda import run_jpda  # Stone Soup, only for this part
+    if "jpda" in names:
+        from _jpda import run_jpda  # Stone Soup, only for this part
 
-    names = ("weighted", "nearest", "nn", "jpda")
     tally = {n: dict.fromkeys(CROSSING_OUTCOMES, 0) for n in names}
     inside = {n: np.zeros(2, np.int64) for n in names}
     err = {n: [] for n in names}
@@ -320,11 +324,21 @@ def main(argv=None) -> int:
                     help="the ablation on its report seeds instead of its tuning seeds")
     ap.add_argument("--seed-count", type=int, default=None,
                     help="first N seeds of the ablation's set (default all)")
+    ap.add_argument("--seeds-from", type=int, default=None,
+                    help="the ablation on --seed-count seeds from this one instead of a named "
+                         "set (a fresh report set)")
+    ap.add_argument("--variants", nargs="+", choices=VARIANTS, default=list(VARIANTS),
+                    help="variants of the ablation (default all)")
     a = ap.parse_args(argv)
     if a.association:
         seeds = REPORT_SEEDS if a.report else TUNING_SEEDS
         seeds = seeds[: a.seed_count] if a.seed_count else seeds
-        out = {"seed_set": "report" if a.report else "tuning", **bench_association(seeds)}
+        label = "report" if a.report else "tuning"
+        if a.seeds_from is not None:
+            seeds = tuple(range(a.seeds_from, a.seeds_from + (a.seed_count or 30)))
+            label = f"from {a.seeds_from}"
+        names = tuple(v for v in VARIANTS if v in a.variants)  # jpda after weighted
+        out = {"seed_set": label, **bench_association(seeds, names=names)}
         print(json.dumps(out))
         return 0
     out = {}

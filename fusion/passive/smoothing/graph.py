@@ -204,6 +204,42 @@ def _chain_marginals(graph: gtsam.GaussianFactorGraph, n: int) -> list[FloatArra
     return cov
 
 
+def _chain_bearing_covariance(graph: gtsam.GaussianFactorGraph, n: int,
+                              states: NDArray[np.int64]) -> FloatArray:
+    """Joint covariance (r, r) of the bearings of states `states` (r indices into 0..n-1, any
+    order, repeats allowed) of a linear chain graph.
+
+    From the same QR conditionals as :func:`_chain_marginals`: ``x_k = A_k x_{k+1} + e_k`` with
+    ``e_k`` independent of ``x_{k+1}``, so ``Cov(x_i, x_j) = A_i ... A_{j-1} Sigma_j`` for
+    ``i <= j``; the products are carried backwards along the chain, all needed states at once.
+    """
+    want = np.unique(states)
+    bn = graph.eliminateSequential(_natural(n), gtsam.EliminateQR)
+    r = want.size
+    cross = np.zeros((r, 2, 2))  # Cov(x_k, x_{want[b]}) for the needed states after k
+    out = np.zeros((r, r))
+    pos = r - 1
+    sigma = np.zeros((2, 2))
+    for k in range(n - 1, int(want[0]) - 1, -1):
+        c = bn.at(k)
+        r_inv = np.linalg.inv(c.R())
+        own = r_inv @ r_inv.T
+        if k == n - 1:
+            a = None
+            sigma = own
+        else:
+            a = -r_inv @ c.S()
+            sigma = a @ sigma @ a.T + own
+            cross[pos + 1:] = a @ cross[pos + 1:]  # Cov(x_k, x_j) = A_k Cov(x_{k+1}, x_j)
+        if pos >= 0 and want[pos] == k:
+            cross[pos] = sigma
+            out[pos, pos:] = cross[pos:, 0, 0]
+            out[pos:, pos] = cross[pos:, 0, 0]
+            pos -= 1
+    where = np.searchsorted(want, states)
+    return out[np.ix_(where, where)]
+
+
 def _branches(
     times: FloatArray, meas: _Measurements, prior: TrackPrior | None, states: FloatArray
 ) -> FloatArray:

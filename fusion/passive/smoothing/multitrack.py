@@ -24,6 +24,7 @@ from fusion.passive.smoothing.association import (
     joint_weights,
     nearest_weights,
 )
+from fusion.passive.smoothing.em import SharedBearingPosterior
 from fusion.passive.smoothing.graph import (
     _check_detections,
     _check_loss,
@@ -449,7 +450,13 @@ class MultiTrackSmoother:
 
     def _em_cluster(self, cl, t, z, scan_times, scan_of, labels, first, last, est, weights,
                     pair_det, pair_track) -> int:
-        """EM over one crossing cluster; updates `weights` and `est` in place."""
+        """EM over one crossing cluster; updates `weights` and `est` in place.
+
+        With the Gaussian loss each member's M-step is the closed form of
+        :class:`~fusion.passive.smoothing.em.SharedBearingPosterior` (its graph solved once
+        without the cluster's shared bearings, then conditioned on them with the current
+        weights); with a robust loss every M-step solves each member's graph again.
+        """
         sel = np.flatnonzero(np.isin(pair_det, cl))
         members = np.unique(pair_track[sel])
         lo = int(scan_of[cl].min()) - self.margin_scans
@@ -457,22 +464,30 @@ class MultiTrackSmoother:
         spans = {m: (max(lo, int(first[m])), min(hi, int(last[m]))) for m in members}
         metas = {m: self._track_meas(m, *spans[m], z, scan_of, labels, pair_det, pair_track)
                  for m in members}
+        on = {m: pair_track[sel] == m for m in members}
+        closed = self.model.loss == "none"
+        post = {}
+        for m in members:
+            s0, s1 = spans[m]
+            init = est[m][s0 - first[m]: s1 - first[m] + 1]
+            if closed:
+                dets = pair_det[sel][on[m]]
+                post[m] = SharedBearingPosterior(
+                    scan_times[s0: s1 + 1], metas[m], self._span_prior(init), self.model, init,
+                    weights, sel[on[m]], scan_of[dets] - s0, z[dets])
         it = 0
         for it in range(1, self.em_max_iterations + 1):  # noqa: B007
             theta = np.zeros(sel.size)
             for m in members:  # M-step: weighted least squares per track
+                if closed:
+                    theta[on[m]] = post[m].bearings(weights[sel][on[m]])
+                    continue
                 s0, s1 = spans[m]
-                times_m = scan_times[s0: s1 + 1]
                 init = est[m][s0 - first[m]: s1 - first[m] + 1]
-                prior = TrackPrior(bearing=float(init[0, 0]), rate=float(init[0, 1]),
-                                   sigma_bearing=10.0 * self.model.sigma_bearing,
-                                   sigma_rate=self.tracker.init_sigma_rate)
-                states, _ = _solve(times_m, metas[m], prior, self.model, init=init,
-                                   weights=weights)
+                states, _ = _solve(scan_times[s0: s1 + 1], metas[m], self._span_prior(init),
+                                   self.model, init=init, weights=weights)
                 est[m][s0 - first[m]: s1 - first[m] + 1] = states
-                on_m = pair_track[sel] == m
-                dets = pair_det[sel][on_m]
-                theta[on_m] = states[scan_of[dets] - s0, 0]
+                theta[on[m]] = states[scan_of[pair_det[sel][on[m]]] - s0, 0]
             # E-step: association probabilities at the tracks' current bearings
             dj, mj = pair_det[sel], pair_track[sel]
             if self.association == "weighted":
@@ -489,4 +504,18 @@ class MultiTrackSmoother:
             weights[sel] = new
             if change < self.em_tol:
                 break
+        if closed:  # the members' whole spans at the settled weights
+            for m in members:
+                s0, s1 = spans[m]
+                init = post[m].states
+                states, _ = _solve(scan_times[s0: s1 + 1], metas[m], self._span_prior(
+                    est[m][s0 - first[m]: s1 - first[m] + 1]), self.model, init=init,
+                    weights=weights)
+                est[m][s0 - first[m]: s1 - first[m] + 1] = states
         return it
+
+    def _span_prior(self, init: FloatArray) -> TrackPrior:
+        """The weak prior on the first state of a member's span, centred on `init[0]`."""
+        return TrackPrior(bearing=float(init[0, 0]), rate=float(init[0, 1]),
+                          sigma_bearing=10.0 * self.model.sigma_bearing,
+                          sigma_rate=self.tracker.init_sigma_rate)
