@@ -36,6 +36,7 @@ from factors.weighted import sqrt_weights, weighted_factor
 from fusion._progress import RowShare
 from fusion._stack import with_deep_stack
 from fusion.geometry import check_radians, wrap_angle
+from fusion.passive.smoothing.huber import huber_minimum
 from fusion.passive.smoothing.types import TrackPrior
 
 __all__ = ["ROBUST_LOSSES"]
@@ -265,9 +266,11 @@ def _optimize(
     solution moved a bearing or motion residual onto another branch.
 
     Without a robust loss every factor is linear, so one Gauss-Newton step (one sparse linear
-    solve) reaches the minimum and the linear graph is returned for the marginals; a robust
-    loss is minimised by Levenberg-Marquardt, calling `on_iteration()` after each of its
-    iterations (GTSAM's iteration hook: the iterations are unchanged).
+    solve) reaches the minimum and the linear graph is returned for the marginals; the Huber
+    loss on unweighted bearings is minimised by Newton steps on the same linear solve
+    (:func:`~fusion.passive.smoothing.huber.huber_minimum`), any other robust loss by
+    Levenberg-Marquardt; `on_iteration()` is called after each iteration (GTSAM's iteration
+    hook for LM: the iterations are unchanged).
     """
     for _ in range(_MAX_RECENTRE):
         graph = _build_graph(times, meas, prior, model, loss, weights, states)
@@ -277,6 +280,18 @@ def _optimize(
         if loss == "none":
             graph = graph.linearize(values)
             values = values.retract(_solve_linear(graph))  # x = x_0 + argmin ||A dx - b||^2
+        elif loss == "huber" and not (meas.weight_index >= 0).any():
+            # Newton steps on the exact Huber cost (fusion.passive.smoothing.huber): LM on the
+            # robust noise model is reweighted least squares and crawls when many bearings
+            # lie beyond the threshold
+            motion = _build_graph(times, _Measurements(state=np.zeros(0, np.int64),
+                                                       bearing=np.zeros(0)),
+                                  prior, model, "none", None, states).linearize(values)
+            new = huber_minimum(times, meas.state, meas.bearing, prior, model, states, motion,
+                                _solve_linear, on_iteration)
+            values = gtsam.Values()
+            for k in range(times.size):
+                values.insert(k, new[k])
         else:
             params = _lm_params(model.max_iterations)
             if on_iteration is not None:

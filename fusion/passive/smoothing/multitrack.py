@@ -299,7 +299,7 @@ class MultiTrackSmoother:
             times_m = scan_times[first[m]: last[m] + 1]
             meas = self._track_meas(m, first[m], last[m], z, scan_of, labels, pair_det,
                                     pair_track)
-            prior = self._prior(m, est)
+            prior = self._span_prior(est[m])
             states, sig = _solve(times_m, meas, prior, self.model, init=est[m], weights=weights,
                                  marginals=True)
             tracks.append(SmoothedTrack(m, times_m, np.asarray(wrap_angle(states[:, 0])),
@@ -427,12 +427,6 @@ class MultiTrackSmoother:
         var = v_f * v_b / (v_f + v_b) + self.model.sigma_bearing**2
         ok = np.abs(wrap_angle(z[sel] - theta)) < self.tracker.gate * np.sqrt(var)
         return [int(j) for j in sel[ok]]
-
-    def _prior(self, m: int, est: list[FloatArray]) -> TrackPrior:
-        x0 = est[m][0]
-        return TrackPrior(bearing=float(x0[0]), rate=float(x0[1]),
-                          sigma_bearing=10.0 * self.model.sigma_bearing,
-                          sigma_rate=self.tracker.init_sigma_rate)
 
     def _track_meas(self, m: int, s0: int, s1: int, z: FloatArray, scan_of: NDArray[np.int64],
                     labels: NDArray[np.int64], pair_det: NDArray[np.int64],
