@@ -74,10 +74,10 @@ class SharedBearingPosterior:
                  free_bearing: FloatArray) -> None:
         base = weights.copy()
         base[free] = 0.0  # weight 0: the factor is left out of the graph
-        graph, _, states = _optimize(times, meas, prior, model, "none", base, init)
+        graph, _, states, bn = _optimize(times, meas, prior, model, "none", base, init)
         self.states = states
         self.theta0 = states[free_state, 0]
-        self.cov = _chain_bearing_covariance(graph, times.size, free_state)
+        self.cov = _chain_bearing_covariance(graph, times.size, free_state, bn)
         self.z = nearest_branch(free_bearing, self.theta0)
         self.sigma = model.sigma_bearing
 

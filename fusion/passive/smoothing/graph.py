@@ -168,6 +168,11 @@ def _natural(n: int) -> gtsam.Ordering:
     return ordering
 
 
+def _eliminate(graph: gtsam.GaussianFactorGraph) -> gtsam.GaussianBayesNet:
+    """QR elimination of a linear chain graph (keys 0..n-1) along the chain."""
+    return graph.eliminateSequential(_natural(len(graph.keys())), gtsam.EliminateQR)
+
+
 def _solve_linear(graph: gtsam.GaussianFactorGraph) -> gtsam.VectorValues:
     """``argmin ||A dx - b||^2`` of a linear chain graph (keys 0..n-1) by QR.
 
@@ -177,18 +182,20 @@ def _solve_linear(graph: gtsam.GaussianFactorGraph) -> gtsam.VectorValues:
     episodes of the hard passive benchmark fell back to nearest assignment for it). QR works
     on ``A`` itself and solves them; along the chain (natural order) it costs O(n).
     """
-    return graph.eliminateSequential(_natural(len(graph.keys())), gtsam.EliminateQR).optimize()
+    return _eliminate(graph).optimize()
 
 
-def _chain_marginals(graph: gtsam.GaussianFactorGraph, n: int) -> list[FloatArray]:
+def _chain_marginals(graph: gtsam.GaussianFactorGraph, n: int,
+                     bn: gtsam.GaussianBayesNet | None = None) -> list[FloatArray]:
     """Marginal covariances (2, 2) of the states 0..n-1 of a linear chain graph.
 
     QR elimination along the chain gives conditionals ``R_k x_k + S_k x_{k+1} = d_k`` (unit
     noise); backwards, ``Sigma_k = A_k Sigma_{k+1} A_k^T + R_k^{-1} R_k^{-T}`` with
     ``A_k = -R_k^{-1} S_k``: the covariances of ``gtsam.Marginals`` without its Cholesky
     factorisation, which fails on the same rigid chains as :func:`_solve_linear`'s default.
+    `bn`: the graph's elimination (:func:`_eliminate`) if already done.
     """
-    bn = graph.eliminateSequential(_natural(n), gtsam.EliminateQR)
+    bn = graph.eliminateSequential(_natural(n), gtsam.EliminateQR) if bn is None else bn
     cov: list[FloatArray] = [np.zeros((2, 2))] * n
     for k in range(n - 1, -1, -1):
         c = bn.at(k)
@@ -206,16 +213,18 @@ def _chain_marginals(graph: gtsam.GaussianFactorGraph, n: int) -> list[FloatArra
 
 
 def _chain_bearing_covariance(graph: gtsam.GaussianFactorGraph, n: int,
-                              states: NDArray[np.int64]) -> FloatArray:
+                              states: NDArray[np.int64],
+                              bn: gtsam.GaussianBayesNet | None = None) -> FloatArray:
     """Joint covariance (r, r) of the bearings of states `states` (r indices into 0..n-1, any
     order, repeats allowed) of a linear chain graph.
 
     From the same QR conditionals as :func:`_chain_marginals`: ``x_k = A_k x_{k+1} + e_k`` with
     ``e_k`` independent of ``x_{k+1}``, so ``Cov(x_i, x_j) = A_i ... A_{j-1} Sigma_j`` for
     ``i <= j``; the products are carried backwards along the chain, all needed states at once.
+    `bn`: the graph's elimination (:func:`_eliminate`) if already done.
     """
     want = np.unique(states)
-    bn = graph.eliminateSequential(_natural(n), gtsam.EliminateQR)
+    bn = graph.eliminateSequential(_natural(n), gtsam.EliminateQR) if bn is None else bn
     r = want.size
     cross = np.zeros((r, 2, 2))  # Cov(x_k, x_{want[b]}) for the needed states after k
     out = np.zeros((r, r))
@@ -261,7 +270,8 @@ def _optimize(
     weights: FloatArray | None,
     states: FloatArray,
     on_iteration: Callable[[], None] | None = None,
-) -> tuple[gtsam.NonlinearFactorGraph | gtsam.GaussianFactorGraph, gtsam.Values, FloatArray]:
+) -> tuple[gtsam.NonlinearFactorGraph | gtsam.GaussianFactorGraph, gtsam.Values, FloatArray,
+           gtsam.GaussianBayesNet | None]:
     """Minimise the graph built at `states`; rebuilt at the solution and solved again while the
     solution moved a bearing or motion residual onto another branch.
 
@@ -270,8 +280,10 @@ def _optimize(
     loss on unweighted bearings is minimised by Newton steps on the same linear solve
     (:func:`~fusion.passive.smoothing.huber.huber_minimum`), any other robust loss by
     Levenberg-Marquardt; `on_iteration()` is called after each iteration (GTSAM's iteration
-    hook for LM: the iterations are unchanged).
+    hook for LM: the iterations are unchanged). The last item returned is the QR elimination
+    of the returned linear graph (None with a robust loss), for its marginals.
     """
+    bn = None
     for _ in range(_MAX_RECENTRE):
         graph = _build_graph(times, meas, prior, model, loss, weights, states)
         values = gtsam.Values()
@@ -279,7 +291,8 @@ def _optimize(
             values.insert(k, states[k])
         if loss == "none":
             graph = graph.linearize(values)
-            values = values.retract(_solve_linear(graph))  # x = x_0 + argmin ||A dx - b||^2
+            bn = _eliminate(graph)
+            values = values.retract(bn.optimize())  # x = x_0 + argmin ||A dx - b||^2
         elif loss == "huber" and not (meas.weight_index >= 0).any():
             # Newton steps on the exact Huber cost (fusion.passive.smoothing.huber): LM on the
             # robust noise model is reweighted least squares and crawls when many bearings
@@ -306,7 +319,7 @@ def _optimize(
     else:
         logger.warning("bearing branches still changing after %d re-centred solves",
                        _MAX_RECENTRE)
-    return graph, values, states
+    return graph, values, states, bn
 
 
 def _row_medians(a: FloatArray) -> FloatArray:
@@ -391,14 +404,15 @@ def _solve(
     solve = RowShare(rows - (rows // 2 if marginals else 0), on_rows)
     graph = values = None
     for loss in losses:  # a redescending loss starts from the convex Huber solution
-        graph, values, states = _optimize(times, meas, prior, model, loss, weights, states,
+        graph, values, states, bn = _optimize(times, meas, prior, model, loss, weights, states,
                                           solve.half if on_rows is not None else None)
     solve.rest()
     if not marginals:
         return states, None
     share = RowShare(rows // 2, on_rows)
     lin = graph if isinstance(graph, gtsam.GaussianFactorGraph) else graph.linearize(values)
-    var = np.array([c.diagonal() for c in _chain_marginals(lin, times.size)])
+    var = np.array([c.diagonal() for c in _chain_marginals(lin, times.size,
+                                                           bn if lin is graph else None)])
     share.rest()
     return states, np.sqrt(var)
 
@@ -414,9 +428,9 @@ def _solve_cov(
 ) -> tuple[FloatArray, list[FloatArray]]:
     """Minimise one track graph (hard factors, Gaussian); states (n, 2) and the marginal
     covariances (2, 2) of the states `keys`."""
-    graph, values, states = _optimize(times, meas, prior, model, "none", None,
-                                      np.asarray(init, float))
-    cov = _chain_marginals(graph, times.size)
+    graph, values, states, bn = _optimize(times, meas, prior, model, "none", None,
+                                          np.asarray(init, float))
+    cov = _chain_marginals(graph, times.size, bn)
     return states, [cov[int(k)] for k in keys]
 
 

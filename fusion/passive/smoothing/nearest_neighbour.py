@@ -213,10 +213,14 @@ class NearestNeighbourTracker:
             tuple(int(remap[o]) for o in c if remap[o] >= 0) if c else () for c in candidates
         )
         first, last, states = [], [], []
+        shared_of: dict[int, list[int]] = {}  # track -> the detections it shares
+        for j, c in enumerate(new_cands):
+            for o in c:
+                shared_of.setdefault(o, []).append(j)
         for i in keep:
             tr = tracks[i]
             own = np.flatnonzero(labels == remap[i])
-            shared = [j for j, c in enumerate(new_cands) if remap[i] in c]
+            shared = shared_of.get(int(remap[i]), [])
             last_det = int(max(scan_of[np.r_[own, shared].astype(int)])) if own.size else tr["last"]
             last_scan = min(tr["last"], last_det)
             first.append(tr["first"])
