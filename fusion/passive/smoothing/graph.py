@@ -196,19 +196,19 @@ def _chain_marginals(graph: gtsam.GaussianFactorGraph, n: int,
     `bn`: the graph's elimination (:func:`_eliminate`) if already done.
     """
     bn = graph.eliminateSequential(_natural(n), gtsam.EliminateQR) if bn is None else bn
+    conds = [bn.at(k) for k in range(n)]
+    r_inv = np.linalg.inv(np.array([c.R() for c in conds]))  # all states at once
+    own = r_inv @ r_inv.transpose(0, 2, 1)
     cov: list[FloatArray] = [np.zeros((2, 2))] * n
     for k in range(n - 1, -1, -1):
-        c = bn.at(k)
-        keys = list(c.keys())
-        r_inv = np.linalg.inv(c.R())
-        own = r_inv @ r_inv.T
+        keys = list(conds[k].keys())
         if len(keys) == 1:
-            cov[k] = own
+            cov[k] = own[k]
         else:
             if keys != [k, k + 1]:
                 raise RuntimeError(f"not a chain graph: state {k} depends on {keys[1:]}")
-            a = -r_inv @ c.S()
-            cov[k] = a @ cov[k + 1] @ a.T + own
+            a = -r_inv[k] @ conds[k].S()
+            cov[k] = a @ cov[k + 1] @ a.T + own[k]
     return cov
 
 

@@ -174,13 +174,13 @@ class NearestNeighbourTracker:
                             coasting.update((a, b))
             # gated cost matrix of squared normalised innovations
             zk = z[idx]
-            cost = np.full((len(live), idx.size), np.inf)
-            for r, i in enumerate(live):
-                kf = tracks[i]["kf"]
-                S = kf.P[0, 0] + s2
-                nu = wrap_angle(zk - kf.x[0])
-                d2 = nu**2 / S
-                cost[r] = np.where(d2 < self.gate**2, d2, np.inf)
+            if live:  # all live tracks at once (the same arithmetic, element by element)
+                pred = np.array([tracks[i]["kf"].x[0] for i in live])
+                S = np.array([tracks[i]["kf"].P[0, 0] for i in live]) + s2
+                d2 = wrap_angle(zk[None, :] - pred[:, None]) ** 2 / S[:, None]
+                cost = np.where(d2 < self.gate**2, d2, np.inf)
+            else:
+                cost = np.full((0, idx.size), np.inf)
             used = np.zeros(idx.size, bool)
             assigned: dict[int, int] = {}
             if coasting:
