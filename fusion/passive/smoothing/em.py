@@ -19,12 +19,14 @@ _chain_bearing_covariance`). Adding the shared bearings back is Gaussian conditi
 ``z'`` each bearing on the branch nearest ``theta_0``: the minimum of the member's graph with
 the weights ``w``, at the shared detections, in a few small dense operations instead of a new
 graph per iteration (``I + D^{1/2} S D^{1/2}`` is at least the identity, so the solve is
-well-conditioned for any weights, zero included). The whole track is solved on its graph once
-more when the weights have settled.
+well-conditioned for any weights, zero included). When the weights have settled, the member's
+states over its whole span follow from the same factorisation (:meth:`SharedBearingPosterior.
+states_at`).
 """
 
 from __future__ import annotations
 
+import gtsam
 import numpy as np
 from numpy.typing import NDArray
 
@@ -80,9 +82,31 @@ class SharedBearingPosterior:
         self.cov = _chain_bearing_covariance(graph, times.size, free_state, bn)
         self.z = nearest_branch(free_bearing, self.theta0)
         self.sigma = model.sigma_bearing
+        self._bn, self._state = bn, np.asarray(free_state, np.int64)
+
+    def _gain(self, w: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """``D^{1/2}`` and ``(I + D^{1/2} S D^{1/2})^{-1} D^{1/2} (z' - theta_0)``."""
+        d = np.sqrt(np.clip(w, 0.0, None)) / self.sigma
+        m = np.eye(d.size) + d[:, None] * self.cov * d[None, :]
+        return d, np.linalg.solve(m, d * (self.z - self.theta0))
 
     def bearings(self, w: FloatArray) -> FloatArray:
         """Bearings (k,) at the shared detections of the graph minimum with weights `w`, rad."""
-        d = np.sqrt(np.clip(w, 0.0, None)) / self.sigma
-        m = np.eye(d.size) + d[:, None] * self.cov * d[None, :]
-        return self.theta0 + self.cov @ (d * np.linalg.solve(m, d * (self.z - self.theta0)))
+        d, u = self._gain(w)
+        return self.theta0 + self.cov @ (d * u)
+
+    def states_at(self, w: FloatArray) -> FloatArray:
+        """All states (n, 2) of the graph minimum with weights `w`.
+
+        The shared bearings add ``g = C^T D^{1/2} u`` to the normal equations (``C`` picks the
+        bearing of each shared detection's state): the states move by ``(R^T R)^{-1} g``, two
+        triangular solves on the QR factor ``R`` of the graph without them.
+        """
+        d, u = self._gain(w)
+        g = np.zeros((self.states.shape[0], 2))
+        np.add.at(g[:, 0], self._state, d * u)
+        gx = gtsam.VectorValues()
+        for k in range(g.shape[0]):
+            gx.insert(k, g[k])
+        dx = self._bn.backSubstitute(self._bn.backSubstituteTranspose(gx))
+        return self.states + np.array([dx.at(k) for k in range(g.shape[0])])

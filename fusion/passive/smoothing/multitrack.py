@@ -501,11 +501,7 @@ class MultiTrackSmoother:
         if closed:  # the members' whole spans at the settled weights
             for m in members:
                 s0, s1 = spans[m]
-                init = post[m].states
-                states, _ = _solve(scan_times[s0: s1 + 1], metas[m], self._span_prior(
-                    est[m][s0 - first[m]: s1 - first[m] + 1]), self.model, init=init,
-                    weights=weights)
-                est[m][s0 - first[m]: s1 - first[m] + 1] = states
+                est[m][s0 - first[m]: s1 - first[m] + 1] = post[m].states_at(weights[sel][on[m]])
         return it
 
     def _span_prior(self, init: FloatArray) -> TrackPrior:

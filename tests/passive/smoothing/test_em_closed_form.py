@@ -68,3 +68,17 @@ def test_chain_bearing_covariance_equals_the_dense_inverse():
     got = _chain_bearing_covariance(lin, times.size, states)
     want = cov[np.ix_(2 * states, 2 * states)]
     assert_allclose(got, want, rtol=1e-7, atol=1e-14)
+
+
+@pytest.mark.parametrize("seed", range(2))
+def test_closed_form_states_equal_the_graph_solved_with_the_weights(seed):
+    times, meas, prior, model, init, weights, free, st, zf = _member(seed)
+    post = SharedBearingPosterior(times, meas, prior, model, init, weights, free, st, zf)
+    w = np.random.default_rng(200 + seed).uniform(0, 1, free.size)
+    full = weights.copy()
+    full[free] = w
+    states, _ = _solve(times, meas, prior, model, init=init, weights=full)
+    got = post.states_at(w)
+    assert_allclose(np.angle(np.exp(1j * (got[:, 0] - states[:, 0]))), 0.0, atol=1e-9)
+    assert_allclose(got[:, 1], states[:, 1], atol=1e-11)
+    assert np.max(np.abs(got - post.states_at(np.zeros(free.size)))) > 1e-4
