@@ -290,3 +290,22 @@ def test_gaussian_weighted_bearings_equal_the_weighted_factor_path():
     assert_allclose(sa, sb, rtol=1e-6)
     c, _ = _solve(times, meas, None, gauss, weights=np.ones(10))
     assert np.max(np.abs(c[10:20, 0] - a[10:20, 0])) > 1e-4  # the weights matter
+
+
+def test_one_detection_scans_equal_the_joint_event_enumeration_exactly():
+    """Scans with one shared detection take a short path; it must give the enumeration's
+    numbers to the last bit (same products, same order)."""
+    from fusion.passive.smoothing.association import _events
+
+    rng = np.random.default_rng(11)
+    scan = np.repeat(np.arange(40), 3)
+    det = np.repeat(np.arange(40), 3)
+    track = np.tile([2, 0, 1], 40)
+    dens = rng.uniform(0.01, 50.0, scan.size)
+    w, _ = joint_weights(scan, det, track, dens, p_detect=0.8, clutter_density=0.3)
+    for s in range(40):
+        rows = np.flatnonzero(scan == s)
+        pairs = {(int(det[r]), int(track[r])): float(dens[r]) for r in rows}
+        acc, total = _events([s], [0, 1, 2], pairs, 0.8, 0.3)
+        for r in rows:
+            assert w[r] == acc[(s, int(track[r]))] / total
