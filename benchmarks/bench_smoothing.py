@@ -148,7 +148,8 @@ def _association_scenario(seed: int):
     return sc, {"tracks": n_tracks, "p_detect": p_d, "clutter_per_scan": clutter}
 
 
-def _smoother_from_data(t, z, association: str, st=None) -> tuple[MultiTrackSmoother, object]:
+def _smoother_from_data(t, z, association: str, st=None,
+                        extend_ends: bool = True) -> tuple[MultiTrackSmoother, object]:
     """The multi-track smoother as ``fusion smooth`` builds it: every setting fitted to the
     unlabelled rows (nothing from the truth; `st` those settings if already fitted); the
     clutter density of the association counted by the smoother itself from the detections
@@ -159,12 +160,12 @@ def _smoother_from_data(t, z, association: str, st=None) -> tuple[MultiTrackSmoo
         q=st.q_deg2_per_s3 * np.radians(1.0) ** 2, clutter_density=None,
         p_detect=st.p_detect, min_length=st.min_length, association=association,
         init_sigma_rate=np.radians(st.init_sigma_rate_deg_per_s), max_misses=st.max_misses,
-        max_gap_scans=st.max_gap_scans)
+        max_gap_scans=st.max_gap_scans, extend_ends=extend_ends)
     return mts, st
 
 
 #: Variants of the association ablation.
-VARIANTS = ("weighted", "nearest", "nn", "jpda")
+VARIANTS = ("weighted", "no-ends", "nearest", "nn", "jpda")
 
 
 def bench_association(seeds, within_s: float = 60.0, names=VARIANTS) -> dict:
@@ -205,8 +206,9 @@ def bench_association(seeds, within_s: float = 60.0, names=VARIANTS) -> dict:
                 lab = res.labels
                 tracks = {m: (res.scan_times[res.first_scan[m]: res.last_scan[m] + 1],
                               res.states[m][:, 0]) for m in range(res.n_tracks)}
-            else:
-                mts, _ = _smoother_from_data(t, z, name, st)
+            else:  # "no-ends": weighted, tracks not extended beyond their end segments
+                mts, _ = _smoother_from_data(t, z, "weighted" if name == "no-ends" else name, st,
+                                             extend_ends=name != "no-ends")
                 res = mts.run(t, z)
                 if name == "weighted":
                     lam_counted = mts.used_clutter_density
