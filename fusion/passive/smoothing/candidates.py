@@ -53,16 +53,16 @@ def gap_candidates(end: tuple, start: tuple, scan_times: FloatArray, z: FloatArr
 
 def end_candidates(end: tuple, forward: bool, scan_times: FloatArray, z: FloatArray,
                    scan_of: NDArray[np.int64], labels: NDArray[np.int64], *, q: float,
-                   sigma_bearing: float, gate: float, max_misses: int,
-                   max_scans: int) -> list[int]:
+                   sigma_bearing: float, gate: float, max_misses: int, max_scans: int,
+                   eligible: NDArray[np.bool_] | None = None) -> list[int]:
     """Unassigned detections (`labels` -1) after the last scan of `end` (`forward`) or before
     its first scan, within `gate` standard deviations of the end state predicted to their
     scan (constant rate, white-noise acceleration `q`), scan by scan until more than
-    `max_misses` scans in a row hold none or `max_scans` scans are passed. `scan_of` must be
-    non-decreasing."""
+    `max_misses` scans in a row hold none or `max_scans` scans are passed; only detections
+    marked in `eligible` (default all). `scan_of` must be non-decreasing."""
     s_end, x, p = (end[3], end[4], end[5]) if forward else (end[0], end[1], end[2])
     sgn = 1.0 if forward else -1.0
-    free = labels < 0
+    free = (labels < 0) if eligible is None else (labels < 0) & eligible
     out: list[int] = []
     misses = 0
     for step in range(1, max_scans + 1):

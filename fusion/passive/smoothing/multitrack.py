@@ -235,6 +235,8 @@ class MultiTrackSmoother:
         scan_times = tr.scan_times
         scan_of = np.searchsorted(scan_times, t)
         segments = self._segments(tr, z, scan_of)
+        # what a track may be extended over beyond its ends: detections the tracker took
+        tracked = (tr.labels >= 0) | np.array([len(c) > 0 for c in tr.candidates], bool)
         self._failed_fits: list[tuple[int, int, str]] = []
         self._n_fits = 0
         ends = [self._segment_ends(seg, z, scan_of, scan_times) for seg in segments]
@@ -270,7 +272,7 @@ class MultiTrackSmoother:
                 for fwd, end in ((False, ends[ch[0]]), (True, ends[ch[-1]])):
                     js = end_candidates(end, fwd, scan_times, z, scan_of, labels, **gating,
                                         max_misses=self.tracker.max_misses,
-                                        max_scans=self.max_gap_scans)
+                                        max_scans=self.max_gap_scans, eligible=tracked)
                     for j in js:
                         cand[j].append(m)
                     if js:
