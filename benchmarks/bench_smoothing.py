@@ -4,9 +4,14 @@ Prints one JSON line of measured metrics (human lines on stderr)::
 
     python benchmarks/bench_smoothing.py [--seeds N] [--min-crossings M] [--tracks T]
     python benchmarks/bench_smoothing.py --association [--report]   # the ablation alone
+    python benchmarks/bench_smoothing.py --association --seeds-from 9700 --seed-count 30 \
+        [--variants weighted no-ends nearest nn jpda]
 
 The association ablation (``--association``, issue 18) runs on :data:`TUNING_SEEDS` (the seeds
-the association was developed on) or, with ``--report``, once on :data:`REPORT_SEEDS`.
+the association was developed on), with ``--report`` once on :data:`REPORT_SEEDS`, or on a
+fresh range (``--seeds-from``). Variants: weighted (the default smoother), ``no-ends`` (weighted
+without extending tracks over their ambiguous ends), nearest assignment, the nearest-neighbour
+tracker alone, Stone Soup's JPDA.
 """
 
 from __future__ import annotations
