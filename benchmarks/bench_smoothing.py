@@ -4,9 +4,14 @@ Prints one JSON line of measured metrics (human lines on stderr)::
 
     python benchmarks/bench_smoothing.py [--seeds N] [--min-crossings M] [--tracks T]
     python benchmarks/bench_smoothing.py --association [--report]   # the ablation alone
+    python benchmarks/bench_smoothing.py --association --seeds-from 9700 --seed-count 30 \
+        [--variants weighted no-ends nearest nn jpda]
 
 The association ablation (``--association``, issue 18) runs on :data:`TUNING_SEEDS` (the seeds
-the association was developed on) or, with ``--report``, once on :data:`REPORT_SEEDS`.
+the association was developed on), with ``--report`` once on :data:`REPORT_SEEDS`, or on a
+fresh range (``--seeds-from``). Variants: weighted (the default smoother), ``no-ends`` (weighted
+without extending tracks over their ambiguous ends), nearest assignment, the nearest-neighbour
+tracker alone, Stone Soup's JPDA.
 """
 
 from __future__ import annotations
@@ -147,7 +152,8 @@ def _association_scenario(seed: int):
     return sc, {"tracks": n_tracks, "p_detect": p_d, "clutter_per_scan": clutter}
 
 
-def _smoother_from_data(t, z, association: str, st=None) -> tuple[MultiTrackSmoother, object]:
+def _smoother_from_data(t, z, association: str, st=None,
+                        extend_ends: bool = True) -> tuple[MultiTrackSmoother, object]:
     """The multi-track smoother as ``fusion smooth`` builds it: every setting fitted to the
     unlabelled rows (nothing from the truth; `st` those settings if already fitted); the
     clutter density of the association counted by the smoother itself from the detections
@@ -158,20 +164,24 @@ def _smoother_from_data(t, z, association: str, st=None) -> tuple[MultiTrackSmoo
         q=st.q_deg2_per_s3 * np.radians(1.0) ** 2, clutter_density=None,
         p_detect=st.p_detect, min_length=st.min_length, association=association,
         init_sigma_rate=np.radians(st.init_sigma_rate_deg_per_s), max_misses=st.max_misses,
-        max_gap_scans=st.max_gap_scans)
+        max_gap_scans=st.max_gap_scans, extend_ends=extend_ends)
     return mts, st
 
 
-def bench_association(seeds, within_s: float = 60.0) -> dict:
+#: Variants of the association ablation.
+VARIANTS = ("weighted", "no-ends", "nearest", "nn", "jpda")
+
+
+def bench_association(seeds, within_s: float = 60.0, names=VARIANTS) -> dict:
     """Weighted against nearest association, the plain nearest-neighbour tracker and Stone
     Soup's JPDA tracker (:mod:`_jpda`) on the same unlabelled bearings (settings fitted once
     per scenario, outside the timings): outcomes around each crossing (15-scan guard, 20-scan
     windows),
     identity per detection inside the guard, bearing RMS within `within_s` of each crossing
     (per crossing target, the track that followed it before), divided by the noise."""
-    from _jpda import run_jpda  # Stone Soup, only for this part
+    if "jpda" in names:
+        from _jpda import run_jpda  # Stone Soup, only for this part
 
-    names = ("weighted", "nearest", "nn", "jpda")
     tally = {n: dict.fromkeys(CROSSING_OUTCOMES, 0) for n in names}
     inside = {n: np.zeros(2, np.int64) for n in names}
     err = {n: [] for n in names}
@@ -200,8 +210,9 @@ def bench_association(seeds, within_s: float = 60.0) -> dict:
                 lab = res.labels
                 tracks = {m: (res.scan_times[res.first_scan[m]: res.last_scan[m] + 1],
                               res.states[m][:, 0]) for m in range(res.n_tracks)}
-            else:
-                mts, _ = _smoother_from_data(t, z, name, st)
+            else:  # "no-ends": weighted, tracks not extended beyond their end segments
+                mts, _ = _smoother_from_data(t, z, "weighted" if name == "no-ends" else name, st,
+                                             extend_ends=name != "no-ends")
                 res = mts.run(t, z)
                 if name == "weighted":
                     lam_counted = mts.used_clutter_density
@@ -305,11 +316,21 @@ def main(argv=None) -> int:
                     help="the ablation on its report seeds instead of its tuning seeds")
     ap.add_argument("--seed-count", type=int, default=None,
                     help="first N seeds of the ablation's set (default all)")
+    ap.add_argument("--seeds-from", type=int, default=None,
+                    help="the ablation on --seed-count seeds from this one instead of a named "
+                         "set (a fresh report set)")
+    ap.add_argument("--variants", nargs="+", choices=VARIANTS, default=list(VARIANTS),
+                    help="variants of the ablation (default all)")
     a = ap.parse_args(argv)
     if a.association:
         seeds = REPORT_SEEDS if a.report else TUNING_SEEDS
         seeds = seeds[: a.seed_count] if a.seed_count else seeds
-        out = {"seed_set": "report" if a.report else "tuning", **bench_association(seeds)}
+        label = "report" if a.report else "tuning"
+        if a.seeds_from is not None:
+            seeds = tuple(range(a.seeds_from, a.seeds_from + (a.seed_count or 30)))
+            label = f"from {a.seeds_from}"
+        names = tuple(v for v in VARIANTS if v in a.variants)  # jpda after weighted
+        out = {"seed_set": label, **bench_association(seeds, names=names)}
         print(json.dumps(out))
         return 0
     out = {}

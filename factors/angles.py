@@ -45,6 +45,9 @@ def wrap_angle(a: ArrayLike) -> NDArray[np.float64] | float:
     >>> wrap_angle(np.nextafter(-np.pi, -4.0))
     -3.141592653589793
     """
+    if type(a) is float or type(a) is np.float64:  # one angle: the same arithmetic on a float
+        w = (a + np.pi) % _TWO_PI - np.pi  # Python's float % rounds as np.mod does
+        return float(w - _TWO_PI if w >= np.pi else w)
     out = np.mod(np.asarray(a, dtype=float) + np.pi, _TWO_PI) - np.pi
     out = np.where(out >= np.pi, out - _TWO_PI, out)  # mod rounded up to 2 pi: -pi, not +pi
     return float(out) if out.ndim == 0 else out

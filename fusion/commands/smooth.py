@@ -56,6 +56,11 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="weights of the bearing factors shared around crossings: posterior "
                         "association probabilities (weighted, default) or a gated nearest "
                         "assignment per scan (nearest, the baseline)")
+    p.add_argument("--no-end-extension", dest="extend_ends", action="store_false",
+                   help="unknown-origin rows: do not extend a track over the ambiguous "
+                        "detections before its first and after its last segment (where it "
+                        "starts or ends beside another track); default: extended, weighted "
+                        "like the detections of its gaps")
     p.add_argument("--output-times", choices=("grid", "states"), default="states",
                    help="states (default): the smoother's own state times; grid: every track "
                         "on the regular grid of --period-s through gaps up to --max-gap-scans "
@@ -128,6 +133,7 @@ def run(args: argparse.Namespace) -> int:
                                  association=args.association,
                                  clutter_density=args.clutter_density, merge_deg=args.merge_deg,
                                  twin_deg=args.twin_deg, output_times=args.output_times,
+                                 extend_ends=args.extend_ends,
                                  on_rows=bar.update)
     except RuntimeError as e:  # gtsam: an ill-posed graph
         bar.close()

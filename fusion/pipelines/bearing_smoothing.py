@@ -135,6 +135,7 @@ def smooth_bearings(
     twin_deg: float = 4.0,
     output_times: str = "states",
     max_miss_s: float = 4.0,
+    extend_ends: bool = True,
     on_rows: Callable[[int], None] | None = None,
     **given: Any,
 ) -> SmoothingResult:
@@ -152,6 +153,9 @@ def smooth_bearings(
         As the options of ``fusion smooth`` (``--robust``, ``--association``,
         ``--clutter-density``, ``--merge-deg``, ``--twin-deg``, ``--output-times``,
         ``--max-miss-s``); angles in degrees.
+    extend_ends : bool, keyword-only
+        Tracks from unknown-origin rows extended over the ambiguous detections beyond their
+        first and last segments (``fusion smooth --no-end-extension``: False).
     on_rows : callable, keyword-only
         Progress callback of the smoothing (see
         :func:`fusion.passive.smoothing.table.smooth_bearings`).
@@ -185,7 +189,8 @@ def smooth_bearings(
                                p_detect=st.p_detect, min_length=st.min_length,
                                association=association,
                                init_sigma_rate=np.radians(st.init_sigma_rate_deg_per_s),
-                               max_misses=st.max_misses, max_gap_scans=st.max_gap_scans)
+                               max_misses=st.max_misses, max_gap_scans=st.max_gap_scans,
+                               extend_ends=extend_ends)
     bearing_deg = np.asarray(table["bearing_deg"], dtype=float)
     times = np.asarray(table["time"], dtype=float)
     tracks = smooth_rows(np.asarray(table["track_id"]), times, _radians(bearing_deg),

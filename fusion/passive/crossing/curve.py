@@ -20,7 +20,6 @@ from functools import lru_cache
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import stats as _stats
 
 from fusion.passive.line_fit import LineStats
 
@@ -102,6 +101,10 @@ def _wrap(a: NDArray[np.float64]) -> NDArray[np.float64]:
 
 @lru_cache(maxsize=32)
 def _f_table(alpha: float) -> NDArray[np.float64]:
+    # imported here: scipy.stats costs ~0.8 s CPU to import, and most users of the crossing
+    # package (fusion smooth among them) never need a quantile
+    from scipy import stats as _stats
+
     d = np.arange(1, 2001, dtype=float)
     return np.concatenate([[np.inf], _stats.f.isf(alpha, 1.0, d)])
 

@@ -13,7 +13,6 @@ from functools import lru_cache
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy import stats as _stats
 
 __all__ = ["crossing_time_interval", "f_ratio_quantile", "t_quantile", "welch_dof"]
 
@@ -23,6 +22,8 @@ _MAX_DOF = 1000
 @lru_cache(maxsize=8)
 def _t_table(level: float) -> NDArray[np.float64]:
     """Two-sided Student-t quantiles at `level` for 0 .. _MAX_DOF degrees of freedom."""
+    from scipy import stats as _stats  # imported when needed: ~0.8 s CPU (see curve._f_table)
+
     dof = np.arange(_MAX_DOF + 1, dtype=float)
     q = _stats.t.ppf(0.5 + level / 2.0, np.maximum(dof, 1.0))
     q[-1] = _stats.norm.ppf(0.5 + level / 2.0)  # the last entry stands for many
@@ -135,5 +136,7 @@ def f_ratio_quantile(alpha: float, dof_num: ArrayLike, dof_den: ArrayLike) -> ND
     dd = np.clip(np.floor(np.nan_to_num(np.asarray(dof_den, dtype=float), nan=1.0)), 1, _MAX_DOF)
     key = dn * (_MAX_DOF + 1) + dd
     uniq, inv = np.unique(key, return_inverse=True)
+    from scipy import stats as _stats  # imported when needed (see _t_table)
+
     q = _stats.f.isf(alpha, uniq // (_MAX_DOF + 1), uniq % (_MAX_DOF + 1))
     return q[inv].reshape(dn.shape)

@@ -21,7 +21,7 @@ Modules, one role each:
 - :mod:`~fusion.passive.smoothing.online` -- :class:`OnlineBearingSmoother`, the same graph as
   the batch smoother grown one scan at a time (a fixed-lag track that keeps every state).
 - :mod:`~fusion.passive.smoothing.nearest_neighbour` -- :class:`NearestNeighbourTracker`, a
-  Kalman (filterpy) bearing tracker with global nearest-neighbour assignment, optionally
+  Kalman bearing tracker (filterpy's arithmetic) with global nearest-neighbour assignment, optionally
   crossing-aware.
 - :mod:`~fusion.passive.smoothing.multitrack` -- :class:`MultiTrackSmoother`, tracks from
   unlabeled detections with expectation-maximisation around every crossing through
@@ -29,6 +29,10 @@ Modules, one role each:
 - :mod:`~fusion.passive.smoothing.association` -- the weights of shared detections: posterior
   association probabilities over each scan's joint events, clutter and missed detections
   included, or the gated nearest assignment they are measured against.
+- :mod:`~fusion.passive.smoothing.candidates` -- released detections gated into the gaps and
+  beyond the ends of linked tracks.
+- :mod:`~fusion.passive.smoothing.em` -- the M-step of the crossing-cluster EM in closed form.
+- :mod:`~fusion.passive.smoothing.huber` -- Huber-loss track graphs minimised by Newton steps.
 - :mod:`~fusion.passive.smoothing.linking` -- segments chained into tracks by one assignment;
   shared detections grouped into crossing clusters.
 - :mod:`~fusion.passive.smoothing.grid` -- :func:`~fusion.passive.smoothing.grid.on_grid`, a

@@ -69,6 +69,14 @@ def _events(dets: list[int], tracks: list[int], pairs: dict[tuple[int, int], flo
     return acc, total
 
 
+def _scan_rows(scan: IntArray) -> list[IntArray]:
+    """Indices of the pairs of each scan (ascending), scans in ascending order."""
+    if scan.size == 0:
+        return []
+    order = np.argsort(scan, kind="stable")
+    return np.split(order, np.flatnonzero(np.diff(scan[order])) + 1)
+
+
 def joint_weights(scan: IntArray, det: IntArray, track: IntArray, density: FloatArray, *,
                   p_detect: float, clutter_density: float, max_joint: int = 7
                   ) -> tuple[FloatArray, int]:
@@ -108,8 +116,7 @@ def joint_weights(scan: IntArray, det: IntArray, track: IntArray, density: Float
     lam = float(clutter_density)
     out = np.zeros(det.size)
     n_approx = 0
-    for s in np.unique(scan):
-        rows = np.flatnonzero(scan == s)
+    for rows in _scan_rows(scan):
         dets = sorted({int(j) for j in det[rows]})
         if len(dets) > max_joint:
             n_approx += 1
@@ -117,6 +124,18 @@ def joint_weights(scan: IntArray, det: IntArray, track: IntArray, density: Float
             denom = np.full(int(det[rows].max()) + 1, lam)
             np.add.at(denom, det[rows], lik)
             out[rows] = lik / denom[det[rows]]
+            continue
+        if len(dets) == 1 and np.unique(track[rows]).size == rows.size:
+            # one detection: its events are clutter or one of its tracks; the products and
+            # sums of _events in the same order, without the recursion
+            by_track = rows[np.argsort(track[rows], kind="stable")]
+            n_t = rows.size
+            p_m = [p_d * float(density[r]) * (1.0 - p_d) ** (n_t - 1) for r in by_track]
+            total = lam * (1.0 - p_d) ** n_t
+            for p in p_m:
+                total += p
+            for r, p in zip(by_track, p_m, strict=True):
+                out[r] = p / total
             continue
         tracks = sorted({int(m) for m in track[rows]})
         pairs = {(int(det[r]), int(track[r])): float(density[r]) for r in rows}
@@ -139,8 +158,7 @@ def nearest_weights(scan: IntArray, det: IntArray, track: IntArray, d2: FloatArr
     """
     out = np.zeros(det.size)
     big = 1e12
-    for s in np.unique(scan):
-        rows = np.flatnonzero(scan == s)
+    for rows in _scan_rows(scan):
         dets = np.unique(det[rows])
         tracks = np.unique(track[rows])
         cost = np.full((dets.size, tracks.size), big)

@@ -11,7 +11,6 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
-from filterpy.kalman import KalmanFilter, rts_smoother
 from numpy.typing import ArrayLike, NDArray
 
 from factors.motion import transition_matrix, wna_covariance
@@ -165,6 +164,9 @@ def rts_reference(
         ``filterpy.kalman.rts_smoother`` outputs: smoothed states (n, 2), covariances (n, 2, 2),
         smoother gains and predicted covariances.
     """
+    from filterpy.kalman import KalmanFilter, rts_smoother  # the reference only (filterpy
+    # imports scipy.stats, ~0.8 s CPU, which the smoothers never need)
+
     t = np.asarray(times, dtype=float)
     z = np.asarray(bearings, dtype=float)
     kf = KalmanFilter(dim_x=2, dim_z=1)

@@ -36,6 +36,7 @@ from factors.weighted import sqrt_weights, weighted_factor
 from fusion._progress import RowShare
 from fusion._stack import with_deep_stack
 from fusion.geometry import check_radians, wrap_angle
+from fusion.passive.smoothing.huber import huber_minimum
 from fusion.passive.smoothing.types import TrackPrior
 
 __all__ = ["ROBUST_LOSSES"]
@@ -167,6 +168,11 @@ def _natural(n: int) -> gtsam.Ordering:
     return ordering
 
 
+def _eliminate(graph: gtsam.GaussianFactorGraph) -> gtsam.GaussianBayesNet:
+    """QR elimination of a linear chain graph (keys 0..n-1) along the chain."""
+    return graph.eliminateSequential(_natural(len(graph.keys())), gtsam.EliminateQR)
+
+
 def _solve_linear(graph: gtsam.GaussianFactorGraph) -> gtsam.VectorValues:
     """``argmin ||A dx - b||^2`` of a linear chain graph (keys 0..n-1) by QR.
 
@@ -176,32 +182,72 @@ def _solve_linear(graph: gtsam.GaussianFactorGraph) -> gtsam.VectorValues:
     episodes of the hard passive benchmark fell back to nearest assignment for it). QR works
     on ``A`` itself and solves them; along the chain (natural order) it costs O(n).
     """
-    return graph.eliminateSequential(_natural(len(graph.keys())), gtsam.EliminateQR).optimize()
+    return _eliminate(graph).optimize()
 
 
-def _chain_marginals(graph: gtsam.GaussianFactorGraph, n: int) -> list[FloatArray]:
+def _chain_marginals(graph: gtsam.GaussianFactorGraph, n: int,
+                     bn: gtsam.GaussianBayesNet | None = None) -> list[FloatArray]:
     """Marginal covariances (2, 2) of the states 0..n-1 of a linear chain graph.
 
     QR elimination along the chain gives conditionals ``R_k x_k + S_k x_{k+1} = d_k`` (unit
     noise); backwards, ``Sigma_k = A_k Sigma_{k+1} A_k^T + R_k^{-1} R_k^{-T}`` with
     ``A_k = -R_k^{-1} S_k``: the covariances of ``gtsam.Marginals`` without its Cholesky
     factorisation, which fails on the same rigid chains as :func:`_solve_linear`'s default.
+    `bn`: the graph's elimination (:func:`_eliminate`) if already done.
     """
-    bn = graph.eliminateSequential(_natural(n), gtsam.EliminateQR)
+    bn = graph.eliminateSequential(_natural(n), gtsam.EliminateQR) if bn is None else bn
+    conds = [bn.at(k) for k in range(n)]
+    r_inv = np.linalg.inv(np.array([c.R() for c in conds]))  # all states at once
+    own = r_inv @ r_inv.transpose(0, 2, 1)
     cov: list[FloatArray] = [np.zeros((2, 2))] * n
     for k in range(n - 1, -1, -1):
-        c = bn.at(k)
-        keys = list(c.keys())
-        r_inv = np.linalg.inv(c.R())
-        own = r_inv @ r_inv.T
+        keys = list(conds[k].keys())
         if len(keys) == 1:
-            cov[k] = own
+            cov[k] = own[k]
         else:
             if keys != [k, k + 1]:
                 raise RuntimeError(f"not a chain graph: state {k} depends on {keys[1:]}")
-            a = -r_inv @ c.S()
-            cov[k] = a @ cov[k + 1] @ a.T + own
+            a = -r_inv[k] @ conds[k].S()
+            cov[k] = a @ cov[k + 1] @ a.T + own[k]
     return cov
+
+
+def _chain_bearing_covariance(graph: gtsam.GaussianFactorGraph, n: int,
+                              states: NDArray[np.int64],
+                              bn: gtsam.GaussianBayesNet | None = None) -> FloatArray:
+    """Joint covariance (r, r) of the bearings of states `states` (r indices into 0..n-1, any
+    order, repeats allowed) of a linear chain graph.
+
+    From the same QR conditionals as :func:`_chain_marginals`: ``x_k = A_k x_{k+1} + e_k`` with
+    ``e_k`` independent of ``x_{k+1}``, so ``Cov(x_i, x_j) = A_i ... A_{j-1} Sigma_j`` for
+    ``i <= j``; the products are carried backwards along the chain, all needed states at once.
+    `bn`: the graph's elimination (:func:`_eliminate`) if already done.
+    """
+    want = np.unique(states)
+    bn = graph.eliminateSequential(_natural(n), gtsam.EliminateQR) if bn is None else bn
+    r = want.size
+    cross = np.zeros((r, 2, 2))  # Cov(x_k, x_{want[b]}) for the needed states after k
+    out = np.zeros((r, r))
+    pos = r - 1
+    sigma = np.zeros((2, 2))
+    for k in range(n - 1, int(want[0]) - 1, -1):
+        c = bn.at(k)
+        r_inv = np.linalg.inv(c.R())
+        own = r_inv @ r_inv.T
+        if k == n - 1:
+            a = None
+            sigma = own
+        else:
+            a = -r_inv @ c.S()
+            sigma = a @ sigma @ a.T + own
+            cross[pos + 1:] = a @ cross[pos + 1:]  # Cov(x_k, x_j) = A_k Cov(x_{k+1}, x_j)
+        if pos >= 0 and want[pos] == k:
+            cross[pos] = sigma
+            out[pos, pos:] = cross[pos:, 0, 0]
+            out[pos:, pos] = cross[pos:, 0, 0]
+            pos -= 1
+    where = np.searchsorted(want, states)
+    return out[np.ix_(where, where)]
 
 
 def _branches(
@@ -224,15 +270,20 @@ def _optimize(
     weights: FloatArray | None,
     states: FloatArray,
     on_iteration: Callable[[], None] | None = None,
-) -> tuple[gtsam.NonlinearFactorGraph | gtsam.GaussianFactorGraph, gtsam.Values, FloatArray]:
+) -> tuple[gtsam.NonlinearFactorGraph | gtsam.GaussianFactorGraph, gtsam.Values, FloatArray,
+           gtsam.GaussianBayesNet | None]:
     """Minimise the graph built at `states`; rebuilt at the solution and solved again while the
     solution moved a bearing or motion residual onto another branch.
 
     Without a robust loss every factor is linear, so one Gauss-Newton step (one sparse linear
-    solve) reaches the minimum and the linear graph is returned for the marginals; a robust
-    loss is minimised by Levenberg-Marquardt, calling `on_iteration()` after each of its
-    iterations (GTSAM's iteration hook: the iterations are unchanged).
+    solve) reaches the minimum and the linear graph is returned for the marginals; the Huber
+    loss on unweighted bearings is minimised by Newton steps on the same linear solve
+    (:func:`~fusion.passive.smoothing.huber.huber_minimum`), any other robust loss by
+    Levenberg-Marquardt; `on_iteration()` is called after each iteration (GTSAM's iteration
+    hook for LM: the iterations are unchanged). The last item returned is the QR elimination
+    of the returned linear graph (None with a robust loss), for its marginals.
     """
+    bn = None
     for _ in range(_MAX_RECENTRE):
         graph = _build_graph(times, meas, prior, model, loss, weights, states)
         values = gtsam.Values()
@@ -240,7 +291,20 @@ def _optimize(
             values.insert(k, states[k])
         if loss == "none":
             graph = graph.linearize(values)
-            values = values.retract(_solve_linear(graph))  # x = x_0 + argmin ||A dx - b||^2
+            bn = _eliminate(graph)
+            values = values.retract(bn.optimize())  # x = x_0 + argmin ||A dx - b||^2
+        elif loss == "huber" and not (meas.weight_index >= 0).any():
+            # Newton steps on the exact Huber cost (fusion.passive.smoothing.huber): LM on the
+            # robust noise model is reweighted least squares and crawls when many bearings
+            # lie beyond the threshold
+            motion = _build_graph(times, _Measurements(state=np.zeros(0, np.int64),
+                                                       bearing=np.zeros(0)),
+                                  prior, model, "none", None, states).linearize(values)
+            new = huber_minimum(times, meas.state, meas.bearing, prior, model, states, motion,
+                                _solve_linear, on_iteration)
+            values = gtsam.Values()
+            for k in range(times.size):
+                values.insert(k, new[k])
         else:
             params = _lm_params(model.max_iterations)
             if on_iteration is not None:
@@ -255,7 +319,7 @@ def _optimize(
     else:
         logger.warning("bearing branches still changing after %d re-centred solves",
                        _MAX_RECENTRE)
-    return graph, values, states
+    return graph, values, states, bn
 
 
 def _row_medians(a: FloatArray) -> FloatArray:
@@ -340,14 +404,15 @@ def _solve(
     solve = RowShare(rows - (rows // 2 if marginals else 0), on_rows)
     graph = values = None
     for loss in losses:  # a redescending loss starts from the convex Huber solution
-        graph, values, states = _optimize(times, meas, prior, model, loss, weights, states,
+        graph, values, states, bn = _optimize(times, meas, prior, model, loss, weights, states,
                                           solve.half if on_rows is not None else None)
     solve.rest()
     if not marginals:
         return states, None
     share = RowShare(rows // 2, on_rows)
     lin = graph if isinstance(graph, gtsam.GaussianFactorGraph) else graph.linearize(values)
-    var = np.array([c.diagonal() for c in _chain_marginals(lin, times.size)])
+    var = np.array([c.diagonal() for c in _chain_marginals(lin, times.size,
+                                                           bn if lin is graph else None)])
     share.rest()
     return states, np.sqrt(var)
 
@@ -363,9 +428,9 @@ def _solve_cov(
 ) -> tuple[FloatArray, list[FloatArray]]:
     """Minimise one track graph (hard factors, Gaussian); states (n, 2) and the marginal
     covariances (2, 2) of the states `keys`."""
-    graph, values, states = _optimize(times, meas, prior, model, "none", None,
-                                      np.asarray(init, float))
-    cov = _chain_marginals(graph, times.size)
+    graph, values, states, bn = _optimize(times, meas, prior, model, "none", None,
+                                          np.asarray(init, float))
+    cov = _chain_marginals(graph, times.size, bn)
     return states, [cov[int(k)] for k in keys]
 
 

@@ -24,6 +24,8 @@ from fusion.passive.smoothing.association import (
     joint_weights,
     nearest_weights,
 )
+from fusion.passive.smoothing.candidates import end_candidates, gap_candidates
+from fusion.passive.smoothing.em import SharedBearingPosterior
 from fusion.passive.smoothing.graph import (
     _check_detections,
     _check_loss,
@@ -103,6 +105,9 @@ class MultiTrackSmoother:
         Loss on the hard (single-owner) bearing factors of the final smoothing.
     min_length : int, keyword-only
         Tracks with fewer detections are dropped (default 5).
+    extend_ends : bool, keyword-only
+        Extend each track over the unassigned detections before its first and after its last
+        segment (default True; see Notes, 4).
 
     Notes
     -----
@@ -113,32 +118,28 @@ class MultiTrackSmoother:
        scans (one scan of margin) are released: their origin is uncertain. What is left are
        segments that follow one target each. Tracks with fewer than `min_length` detections
        (dropped in the end anyway) cut no other track.
-    3. Segment relabelling: each segment is smoothed on its bearing-rate graph (its first and
-       last `fit_scans` scans, weak prior) and gives ``gtsam.Marginals`` of its first and last
-       state. A segment ending at ``t_e`` and one starting at ``t_s > t_e`` are linked with
-       cost ``d^2 + ln det S``, ``d^2`` the squared Mahalanobis distance between the end state
-       propagated by the constant-rate model and the start state, ``S`` its covariance
-       (propagated end covariance + ``Q(t_s - t_e)`` + start covariance); links with ``d^2``
-       above `link_gate` are not allowed. One assignment (``linear_sum_assignment``) over all
-       ends and starts, preferring more links, chains the segments into tracks: the identity
-       after a crossing is the one whose bearing and rate continue those before it.
-    4. The released detections in a track's gaps, gated against the track's interpolation
-       across the gap, enter every candidate track through association-weighted factors
-       (:func:`factors.weighted.weighted_factor`). Per crossing cluster, EM: every track of the
-       cluster gets a small graph over the cluster span plus `margin_scans` of context, with its
-       own detections as hard factors and each shared detection ``j`` weighted by ``w_jm``.
-       Start ``w_jm = 1/M``; M-step: weighted least squares per track (re-linearised and
-       re-centred on the wrap at every solve); E-step: ``w_jm`` the posterior probability
-       that detection ``j`` came from track ``m`` given the tracks' current bearings, summed
+    3. Segment relabelling: each segment's first and last `fit_scans` scans are smoothed on
+       their graph (weak prior) for the end states and covariances. A segment ending at
+       ``t_e`` and one starting at ``t_s > t_e`` are linked with cost ``d^2 + ln det S``,
+       ``d^2`` the squared Mahalanobis distance between the propagated end state and the start
+       state, ``S`` its covariance; links with ``d^2`` above `link_gate` are not allowed. One
+       assignment over all ends and starts, preferring more links, chains the segments into
+       tracks: the identity after a crossing is the one whose bearing and rate continue it.
+    4. The released detections in a track's gaps, gated against its interpolation across the
+       gap (:mod:`~fusion.passive.smoothing.candidates`; with `extend_ends` also those before
+       its first and after its last segment, where it starts or ends beside another track),
+       enter every candidate track through association-weighted factors. Per crossing
+       cluster, EM: every track of the cluster gets a graph over the cluster span plus
+       `margin_scans`, its own detections hard and each shared detection ``j`` weighted by
+       ``w_jm``. Start ``w_jm = 1/M``; M-step: weighted least squares per track (Gaussian loss:
+       in closed form, :mod:`~fusion.passive.smoothing.em`); E-step: ``w_jm`` the posterior
+       probability that ``j`` came from track ``m`` at the tracks' current bearings, summed
        over the scan's joint events (each track at most one detection, missed with
-       ``1 - P_D``, each detection from one track or clutter of density ``lambda``); repeat
-       until the weights settle. With ``association="nearest"`` the E-step is a gated
-       nearest assignment per scan instead (weights 0 or 1).
-    5. Final smoothing of every whole track with the settled weights; marginals from
-       ``gtsam.Marginals``.
-
-    Responsibilities use the measurement variance alone (as in probabilistic multi-hypothesis
-    tracking), not the state covariance, which would need a ``Marginals`` per iteration.
+       ``1 - P_D``, each detection from one track or clutter of density ``lambda``) and
+       computed with the measurement variance alone (as in probabilistic multi-hypothesis
+       tracking); repeat until the weights settle. With ``association="nearest"`` the E-step
+       is a gated nearest assignment per scan (weights 0 or 1).
+    5. Final smoothing of every whole track with the settled weights, with its marginals.
     """
 
     def __init__(
@@ -164,6 +165,7 @@ class MultiTrackSmoother:
         robust: str = "none",
         robust_k: float = 1.345,
         min_length: int = 5,
+        extend_ends: bool = True,
     ) -> None:
         self.model = _Model(
             sigma_bearing=check_positive("sigma_bearing", sigma_bearing),
@@ -200,6 +202,7 @@ class MultiTrackSmoother:
         self.em_tol = check_positive("em_tol", em_tol)
         self.em_max_iterations = int(em_max_iterations)
         self.min_length = int(min_length)
+        self.extend_ends = bool(extend_ends)
 
     def _density(self, z: FloatArray, theta: FloatArray) -> FloatArray:
         """Measurement density ``N(wrap(z - theta); 0, sigma^2)``, 1/rad."""
@@ -232,6 +235,8 @@ class MultiTrackSmoother:
         scan_times = tr.scan_times
         scan_of = np.searchsorted(scan_times, t)
         segments = self._segments(tr, z, scan_of)
+        # what a track may be extended over beyond its ends: detections the tracker took
+        tracked = (tr.labels >= 0) | np.array([len(c) > 0 for c in tr.candidates], bool)
         self._failed_fits: list[tuple[int, int, str]] = []
         self._n_fits = 0
         ends = [self._segment_ends(seg, z, scan_of, scan_times) for seg in segments]
@@ -256,18 +261,28 @@ class MultiTrackSmoother:
         last = np.array([scan_of[segments[ch[-1]][-1]] for ch in kept], np.int64)
         # candidates in the gaps of every track
         cand: list[list[int]] = [[] for _ in range(t.size)]
+        gating = {"q": self.model.q, "sigma_bearing": self.model.sigma_bearing,
+                  "gate": self.tracker.gate}
         for m, ch in enumerate(kept):
             for p, p_next in zip(ch[:-1], ch[1:], strict=True):
-                for j in self._gap_candidates(ends[p], ends[p_next], scan_times, z, scan_of,
-                                               labels):
+                for j in gap_candidates(ends[p], ends[p_next], scan_times, z, scan_of, labels,
+                                        **gating):
                     cand[j].append(m)
-        pair_det_l, pair_track_l = [], []
-        for j, c in enumerate(cand):
-            for m in c:
-                pair_det_l.append(j)
-                pair_track_l.append(m)
-        pair_det = np.array(pair_det_l, np.int64)
-        pair_track = np.array(pair_track_l, np.int64)
+            if self.extend_ends:  # and beyond its first and last segment
+                for fwd, end in ((False, ends[ch[0]]), (True, ends[ch[-1]])):
+                    js = end_candidates(end, fwd, scan_times, z, scan_of, labels, **gating,
+                                        max_misses=self.tracker.max_misses,
+                                        max_scans=self.max_gap_scans, eligible=tracked)
+                    for j in js:
+                        cand[j].append(m)
+                    if js:
+                        if fwd:
+                            last[m] = max(last[m], int(scan_of[js].max()))
+                        else:
+                            first[m] = min(first[m], int(scan_of[js].min()))
+        pairs_l = [(j, m) for j, c in enumerate(cand) for m in c]
+        pair_det = np.array([j for j, _ in pairs_l], np.int64)
+        pair_track = np.array([m for _, m in pairs_l], np.int64)
         shared_idx = np.unique(pair_det)
         released = np.zeros(t.size, bool)
         released[shared_idx] = True
@@ -276,10 +291,7 @@ class MultiTrackSmoother:
         p_d = pd_hat if self.p_detect is None else self.p_detect
         self.used_clutter_density, self.used_p_detect = lam, p_d
         self._n_approx = 0
-        weights = np.zeros(pair_det.size)
-        for j in shared_idx:
-            sel = pair_det == j
-            weights[sel] = 1.0 / sel.sum()
+        weights = 1.0 / np.bincount(pair_det, minlength=t.size)[pair_det]  # 1/M each
         est = []
         for m in range(n_tracks):
             times_m = scan_times[first[m]: last[m] + 1]
@@ -298,7 +310,7 @@ class MultiTrackSmoother:
             times_m = scan_times[first[m]: last[m] + 1]
             meas = self._track_meas(m, first[m], last[m], z, scan_of, labels, pair_det,
                                     pair_track)
-            prior = self._prior(m, est)
+            prior = self._span_prior(est[m])
             states, sig = _solve(times_m, meas, prior, self.model, init=est[m], weights=weights,
                                  marginals=True)
             tracks.append(SmoothedTrack(m, times_m, np.asarray(wrap_angle(states[:, 0])),
@@ -405,34 +417,6 @@ class MultiTrackSmoother:
         (st_a, cov_a), (st_b, cov_b) = out[0], out[-1]
         return (s0, st_a[0], cov_a[0], s1, st_b[-1], cov_b[-1])
 
-    def _gap_candidates(self, end: tuple, start: tuple, scan_times: FloatArray, z: FloatArray,
-                        scan_of: NDArray[np.int64], labels: NDArray[np.int64]) -> list[int]:
-        """Unassigned detections in the gap between two linked segments, gated against the
-        track's interpolation across the gap (forward and backward predictions fused)."""
-        s1, x_e, p_e = end[3], end[4], end[5]
-        s0, x_s, p_s = start[0], start[1], start[2]
-        sel = np.flatnonzero((scan_of > s1) & (scan_of < s0) & (labels < 0))
-        q = self.model.q
-        # forward prediction from the end, backward prediction from the start (the 2x2
-        # products F P F^T + Q written out, all detections of the gap at once)
-        dt_f = scan_times[scan_of[sel]] - scan_times[s1]
-        dt_b = scan_times[s0] - scan_times[scan_of[sel]]
-        m_f = x_e[0] + dt_f * x_e[1]
-        v_f = p_e[0, 0] + 2 * dt_f * p_e[0, 1] + dt_f**2 * p_e[1, 1] + q * dt_f**3 / 3
-        m_b = x_s[0] - dt_b * x_s[1]
-        v_b = ((p_s[0, 0] + q * dt_b**3 / 3) - 2 * dt_b * (p_s[0, 1] + q * dt_b**2 / 2)
-               + dt_b**2 * (p_s[1, 1] + q * dt_b))
-        theta = m_f + wrap_angle(m_b - m_f) * v_f / (v_f + v_b)
-        var = v_f * v_b / (v_f + v_b) + self.model.sigma_bearing**2
-        ok = np.abs(wrap_angle(z[sel] - theta)) < self.tracker.gate * np.sqrt(var)
-        return [int(j) for j in sel[ok]]
-
-    def _prior(self, m: int, est: list[FloatArray]) -> TrackPrior:
-        x0 = est[m][0]
-        return TrackPrior(bearing=float(x0[0]), rate=float(x0[1]),
-                          sigma_bearing=10.0 * self.model.sigma_bearing,
-                          sigma_rate=self.tracker.init_sigma_rate)
-
     def _track_meas(self, m: int, s0: int, s1: int, z: FloatArray, scan_of: NDArray[np.int64],
                     labels: NDArray[np.int64], pair_det: NDArray[np.int64],
                     pair_track: NDArray[np.int64]) -> _Measurements:
@@ -449,7 +433,13 @@ class MultiTrackSmoother:
 
     def _em_cluster(self, cl, t, z, scan_times, scan_of, labels, first, last, est, weights,
                     pair_det, pair_track) -> int:
-        """EM over one crossing cluster; updates `weights` and `est` in place."""
+        """EM over one crossing cluster; updates `weights` and `est` in place.
+
+        With the Gaussian loss each member's M-step is the closed form of
+        :class:`~fusion.passive.smoothing.em.SharedBearingPosterior` (its graph solved once
+        without the cluster's shared bearings, then conditioned on them with the current
+        weights); with a robust loss every M-step solves each member's graph again.
+        """
         sel = np.flatnonzero(np.isin(pair_det, cl))
         members = np.unique(pair_track[sel])
         lo = int(scan_of[cl].min()) - self.margin_scans
@@ -457,22 +447,30 @@ class MultiTrackSmoother:
         spans = {m: (max(lo, int(first[m])), min(hi, int(last[m]))) for m in members}
         metas = {m: self._track_meas(m, *spans[m], z, scan_of, labels, pair_det, pair_track)
                  for m in members}
+        on = {m: pair_track[sel] == m for m in members}
+        closed = self.model.loss == "none"
+        post = {}
+        for m in members:
+            s0, s1 = spans[m]
+            init = est[m][s0 - first[m]: s1 - first[m] + 1]
+            if closed:
+                dets = pair_det[sel][on[m]]
+                post[m] = SharedBearingPosterior(
+                    scan_times[s0: s1 + 1], metas[m], self._span_prior(init), self.model, init,
+                    weights, sel[on[m]], scan_of[dets] - s0, z[dets])
         it = 0
         for it in range(1, self.em_max_iterations + 1):  # noqa: B007
             theta = np.zeros(sel.size)
             for m in members:  # M-step: weighted least squares per track
+                if closed:
+                    theta[on[m]] = post[m].bearings(weights[sel][on[m]])
+                    continue
                 s0, s1 = spans[m]
-                times_m = scan_times[s0: s1 + 1]
                 init = est[m][s0 - first[m]: s1 - first[m] + 1]
-                prior = TrackPrior(bearing=float(init[0, 0]), rate=float(init[0, 1]),
-                                   sigma_bearing=10.0 * self.model.sigma_bearing,
-                                   sigma_rate=self.tracker.init_sigma_rate)
-                states, _ = _solve(times_m, metas[m], prior, self.model, init=init,
-                                   weights=weights)
+                states, _ = _solve(scan_times[s0: s1 + 1], metas[m], self._span_prior(init),
+                                   self.model, init=init, weights=weights)
                 est[m][s0 - first[m]: s1 - first[m] + 1] = states
-                on_m = pair_track[sel] == m
-                dets = pair_det[sel][on_m]
-                theta[on_m] = states[scan_of[dets] - s0, 0]
+                theta[on[m]] = states[scan_of[pair_det[sel][on[m]]] - s0, 0]
             # E-step: association probabilities at the tracks' current bearings
             dj, mj = pair_det[sel], pair_track[sel]
             if self.association == "weighted":
@@ -489,4 +487,14 @@ class MultiTrackSmoother:
             weights[sel] = new
             if change < self.em_tol:
                 break
+        if closed:  # the members' whole spans at the settled weights
+            for m in members:
+                s0, s1 = spans[m]
+                est[m][s0 - first[m]: s1 - first[m] + 1] = post[m].states_at(weights[sel][on[m]])
         return it
+
+    def _span_prior(self, init: FloatArray) -> TrackPrior:
+        """The weak prior on the first state of a member's span, centred on `init[0]`."""
+        return TrackPrior(bearing=float(init[0, 0]), rate=float(init[0, 1]),
+                          sigma_bearing=10.0 * self.model.sigma_bearing,
+                          sigma_rate=self.tracker.init_sigma_rate)

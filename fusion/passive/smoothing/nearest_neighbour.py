@@ -12,7 +12,6 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
-from filterpy.kalman import KalmanFilter
 from numpy.typing import ArrayLike
 from scipy.optimize import linear_sum_assignment
 
@@ -24,6 +23,35 @@ from fusion.passive.smoothing.graph import _check_detections
 from fusion.passive.smoothing.types import TrackerResult
 
 __all__ = ["NearestNeighbourTracker"]
+
+_H = np.array([[1.0, 0.0]])
+_I2 = np.eye(2)
+
+
+class _BearingFilter:
+    """Kalman filter of one track, state ``[bearing, rate]``, one bearing per update.
+
+    The arithmetic of filterpy's ``KalmanFilter.predict`` / ``update`` (same products in the
+    same order, Joseph-form covariance update), without its per-call bookkeeping (the tracker
+    runs thousands of them per file).
+    """
+
+    __slots__ = ("x", "P", "R")
+
+    def __init__(self, x: np.ndarray, P: np.ndarray, r: float) -> None:
+        self.x, self.P, self.R = x, P, np.array([[r]])
+
+    def predict(self, F: np.ndarray, Q: np.ndarray) -> None:
+        self.x = np.dot(F, self.x)
+        self.P = np.dot(np.dot(F, self.P), F.T) + Q
+
+    def update(self, z: float) -> None:
+        y = np.array([z]) - np.dot(_H, self.x)
+        PHT = np.dot(self.P, _H.T)
+        K = np.dot(PHT, 1.0 / (np.dot(_H, PHT) + self.R))  # inv of 1 x 1: 1 / S, exactly
+        self.x = self.x + np.dot(K, y)
+        I_KH = _I2 - np.dot(K, _H)
+        self.P = np.dot(np.dot(I_KH, self.P), I_KH.T) + np.dot(np.dot(K, self.R), K.T)
 
 
 class NearestNeighbourTracker:
@@ -56,8 +84,9 @@ class NearestNeighbourTracker:
 
     Notes
     -----
-    filterpy ``KalmanFilter`` per track, state ``[bearing, rate]``; the innovation is wrapped by
-    handing the filter the measurement on the branch nearest the prediction. Assignment:
+    A Kalman filter per track (filterpy's arithmetic, :class:`_BearingFilter`), state
+    ``[bearing, rate]``; the innovation is wrapped by handing the filter the measurement on the
+    branch nearest the prediction. Assignment:
     ``scipy.optimize.linear_sum_assignment`` on squared normalised innovations, gated.
     """
 
@@ -87,13 +116,10 @@ class NearestNeighbourTracker:
         self.separation = check_positive("separation", sep)
         self.window_scans = int(window_scans)
 
-    def _new_filter(self, z: float) -> KalmanFilter:
-        kf = KalmanFilter(dim_x=2, dim_z=1)
-        kf.x = np.array([float(z), 0.0])
-        kf.P = np.diag([self.sigma_bearing**2, self.init_sigma_rate**2])
-        kf.H = np.array([[1.0, 0.0]])
-        kf.R = np.array([[self.sigma_bearing**2]])
-        return kf
+    def _new_filter(self, z: float) -> _BearingFilter:
+        return _BearingFilter(np.array([float(z), 0.0]),
+                              np.diag([self.sigma_bearing**2, self.init_sigma_rate**2]),
+                              self.sigma_bearing**2)
 
     def run(self, times: ArrayLike, bearings: ArrayLike, *,
             on_scan: Callable[[float], None] | None = None) -> TrackerResult:
@@ -121,6 +147,7 @@ class NearestNeighbourTracker:
         candidates: list[tuple[int, ...]] = [()] * t.size
         tracks: list[dict] = []  # kf, first, states, hits, misses, confirmed, dets
         s2 = self.sigma_bearing**2
+        steps: dict[float, tuple[np.ndarray, np.ndarray]] = {}  # dt -> F, Q
         for k, tk in enumerate(scan_times):
             if on_scan is not None and k:
                 on_scan(starts[k] / t.size)  # the scans before this one are done
@@ -130,7 +157,9 @@ class NearestNeighbourTracker:
                 tr = tracks[i]
                 dt = tk - tr["t"]
                 if dt > 0:
-                    tr["kf"].predict(F=transition_matrix(dt, 1), Q=wna_covariance(dt, self.q, 1))
+                    if dt not in steps:
+                        steps[dt] = (transition_matrix(dt, 1), wna_covariance(dt, self.q, 1))
+                    tr["kf"].predict(*steps[dt])
                     tr["t"] = tk
             coasting: set[int] = set()
             if self.crossing_aware:
@@ -145,13 +174,13 @@ class NearestNeighbourTracker:
                             coasting.update((a, b))
             # gated cost matrix of squared normalised innovations
             zk = z[idx]
-            cost = np.full((len(live), idx.size), np.inf)
-            for r, i in enumerate(live):
-                kf = tracks[i]["kf"]
-                S = kf.P[0, 0] + s2
-                nu = wrap_angle(zk - kf.x[0])
-                d2 = nu**2 / S
-                cost[r] = np.where(d2 < self.gate**2, d2, np.inf)
+            if live:  # all live tracks at once (the same arithmetic, element by element)
+                pred = np.array([tracks[i]["kf"].x[0] for i in live])
+                S = np.array([tracks[i]["kf"].P[0, 0] for i in live]) + s2
+                d2 = wrap_angle(zk[None, :] - pred[:, None]) ** 2 / S[:, None]
+                cost = np.where(d2 < self.gate**2, d2, np.inf)
+            else:
+                cost = np.full((0, idx.size), np.inf)
             used = np.zeros(idx.size, bool)
             assigned: dict[int, int] = {}
             if coasting:
@@ -183,7 +212,7 @@ class NearestNeighbourTracker:
                 if i in assigned:
                     c = assigned[i]
                     kf = tr["kf"]
-                    kf.update(np.array([kf.x[0] + wrap_angle(zk[c] - kf.x[0])]))
+                    kf.update(kf.x[0] + wrap_angle(zk[c] - kf.x[0]))
                     labels[idx[c]] = i
                     tr["hits"] += 1
                     tr["misses"] = 0
@@ -213,10 +242,14 @@ class NearestNeighbourTracker:
             tuple(int(remap[o]) for o in c if remap[o] >= 0) if c else () for c in candidates
         )
         first, last, states = [], [], []
+        shared_of: dict[int, list[int]] = {}  # track -> the detections it shares
+        for j, c in enumerate(new_cands):
+            for o in c:
+                shared_of.setdefault(o, []).append(j)
         for i in keep:
             tr = tracks[i]
             own = np.flatnonzero(labels == remap[i])
-            shared = [j for j, c in enumerate(new_cands) if remap[i] in c]
+            shared = shared_of.get(int(remap[i]), [])
             last_det = int(max(scan_of[np.r_[own, shared].astype(int)])) if own.size else tr["last"]
             last_scan = min(tr["last"], last_det)
             first.append(tr["first"])
