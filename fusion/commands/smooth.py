@@ -56,11 +56,12 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="weights of the bearing factors shared around crossings: posterior "
                         "association probabilities (weighted, default) or a gated nearest "
                         "assignment per scan (nearest, the baseline)")
-    p.add_argument("--no-end-extension", dest="extend_ends", action="store_false",
-                   help="unknown-origin rows: do not extend a track over the ambiguous "
-                        "detections before its first and after its last segment (where it "
-                        "starts or ends beside another track); default: extended, weighted "
-                        "like the detections of its gaps")
+    p.add_argument("--end-extension", dest="extend_ends",
+                   action=argparse.BooleanOptionalAction, default=False,
+                   help="unknown-origin rows: extend a track over the ambiguous detections "
+                        "before its first and after its last segment (where it starts or ends "
+                        "beside another track), weighted like the detections of its gaps "
+                        "(default: off; on real camera bearings it added false crossing alerts)")
     p.add_argument("--output-times", choices=("grid", "states"), default="states",
                    help="states (default): the smoother's own state times; grid: every track "
                         "on the regular grid of --period-s through gaps up to --max-gap-scans "

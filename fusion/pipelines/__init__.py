@@ -16,18 +16,17 @@ pipeline does not load the others' dependencies.
 """
 
 # The package imports none of its modules (each loads only its own dependencies when
-# imported); `from fusion.pipelines import *` imports them all.
+# imported); `from fusion.pipelines import *` imports them all. Deprecated old paths
+# (``click_training``, ``passive_measure``, ``passive_scoring``, ``passive_types``) still import,
+# with a warning, but are not listed.
 __all__ = [
+    "active_tracking",
     "bearing_crossings",
     "bearing_smoothing",
-    "click_training",
     "clicks",
     "from_recording",
     "localization",
     "passive",
-    "passive_measure",
-    "passive_scoring",
-    "passive_types",
     "sound_speed",
     "track_quality",
 ]

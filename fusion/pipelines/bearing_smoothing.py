@@ -135,7 +135,7 @@ def smooth_bearings(
     twin_deg: float = 4.0,
     output_times: str = "states",
     max_miss_s: float = 4.0,
-    extend_ends: bool = True,
+    extend_ends: bool = False,
     on_rows: Callable[[int], None] | None = None,
     **given: Any,
 ) -> SmoothingResult:
@@ -155,7 +155,7 @@ def smooth_bearings(
         ``--max-miss-s``); angles in degrees.
     extend_ends : bool, keyword-only
         Tracks from unknown-origin rows extended over the ambiguous detections beyond their
-        first and last segments (``fusion smooth --no-end-extension``: False).
+        first and last segments (``fusion smooth --end-extension``: True; default False).
     on_rows : callable, keyword-only
         Progress callback of the smoothing (see
         :func:`fusion.passive.smoothing.table.smooth_bearings`).

@@ -338,9 +338,9 @@ def test_tracks_that_start_side_by_side_are_extended_over_their_ambiguous_start(
     assert out[False][0] >= 20.0 and out[False][1] < early.sum()
 
 
-def test_cli_no_end_extension_reaches_the_smoother(tmp_path):
-    """fusion smooth extends tracks over their ambiguous start by default and not with
-    --no-end-extension (the two tracks of the side-by-side start above)."""
+def test_cli_end_extension_reaches_the_smoother(tmp_path):
+    """fusion smooth extends tracks over their ambiguous start with --end-extension and not by
+    default (the two tracks of the side-by-side start above)."""
     rng = np.random.default_rng(0)
     t = np.repeat(10.0 * np.arange(80), 2)
     lab = np.tile([0, 1], 80)
@@ -349,7 +349,7 @@ def test_cli_no_end_extension_reaches_the_smoother(tmp_path):
     src.write_text("track_id,time,bearing_deg\n" + "".join(
         f"-1,{a},{b}\n" for a, b in zip(t, np.degrees(z), strict=True)))
     starts = {}
-    for extra in ([], ["--no-end-extension"]):
+    for extra in ([], ["--end-extension"]):
         out = tmp_path / f"s{len(extra)}.csv"
         assert main(["smooth", "--bearings", str(src), "--out", str(out), "--quiet",
                      "--bearing-sigma-deg", "0.2292", "--accel-psd-deg2-per-s3", "3.283e-7",
@@ -360,4 +360,4 @@ def test_cli_no_end_extension_reaches_the_smoother(tmp_path):
         _, *rows = out.read_text().splitlines()
         arr = np.array([list(map(float, r.split(","))) for r in rows])
         starts[len(extra)] = sorted(arr[arr[:, 0] == k, 1].min() for k in np.unique(arr[:, 0]))
-    assert starts[0][0] < starts[1][0]
+    assert starts[1][0] < starts[0][0]

@@ -107,7 +107,7 @@ class MultiTrackSmoother:
         Tracks with fewer detections are dropped (default 5).
     extend_ends : bool, keyword-only
         Extend each track over the unassigned detections before its first and after its last
-        segment (default True; see Notes, 4).
+        segment (default False: on real camera bearings it added false crossing alerts; see Notes, 4).
 
     Notes
     -----
@@ -165,7 +165,7 @@ class MultiTrackSmoother:
         robust: str = "none",
         robust_k: float = 1.345,
         min_length: int = 5,
-        extend_ends: bool = True,
+        extend_ends: bool = False,
     ) -> None:
         self.model = _Model(
             sigma_bearing=check_positive("sigma_bearing", sigma_bearing),
