@@ -108,8 +108,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--band-hz", dest="band", type=number(float, gt=0), nargs=2, metavar=("LOW", "HIGH"),
                    default=None,
                    help="click detection band, Hz (default: the -10 dB band of the replica "
-                        "estimated from the recording, below 0.95 of the Nyquist frequency; "
-                        "14000 40000, the method's, without an estimate)")
+                        "estimated from the recording, at least 26 kHz wide, below 0.95 of the "
+                        "Nyquist frequency; 14000 40000, the method's, without an estimate)")
     p.add_argument("--min-centre-freq-hz", dest="min_centre_freq", type=number(float, ge=0), default=20000.0,
                    help="smallest click centre frequency (eq. 2), Hz (default 20000)")
     p.add_argument("--detect-threshold", type=number(float, gt=0), default=None,
@@ -129,6 +129,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="largest delay drift d tau/dt the click-map correlation compensates, s/s "
                         f"(default {MAX_TDOA_RATE:g}: whales up to ~2.4 m/s; 0: none, the method "
                         "text's correlation)")
+    p.add_argument("--keep-aliases", action="store_true",
+                   help="keep TDOAs that re-pair the clicks of a stronger TDOA of their pair one "
+                        "click apart (default: they fail validation: one delay per click train)")
     p.add_argument("--no-refine", action="store_true",
                    help="keep TDOAs on the smoothed-click-map grid (no waveform refinement)")
     p.add_argument("--method", choices=("competition", "eq18", "eq17", "lsq", "none"),
@@ -259,7 +262,7 @@ def _run_key(args: argparse.Namespace, audio: list) -> str:
         "generic_replica": file_identity(GENERIC_PATH, content=True),
         "options": {k: getattr(args, k) for k in (
             "window", "hop", "band", "min_centre_freq", "detect_threshold", "llr_threshold",
-            "no_refine", "max_tdoa_rate", "method", "chunk", "surface_paths", "sea_floor_z",
+            "no_refine", "keep_aliases", "max_tdoa_rate", "method", "chunk", "surface_paths", "sea_floor_z",
             "candidates", "min_source_tdoas")},
     })
 
@@ -317,7 +320,8 @@ def run(args: argparse.Namespace) -> int:
         detector=detector,
         correlator=ClickMapCorrelator(config=ScmConfig(window_s=args.window),
                                       rates=drift_grid(args.max_tdoa_rate)),
-        validator=validator, refiner=not args.no_refine, hop_s=args.hop)
+        validator=validator, refiner=not args.no_refine, hop_s=args.hop,
+        alias_screen=not args.keep_aliases)
     pipe = ClickLocalization(front_end=front, localizer=localizer)
     plans = [plan_chunks(source, pipe, chunk_s=args.chunk) for source, _ in recordings]
     tasks = [t for plan in plans for t in plan]

@@ -136,6 +136,9 @@ class ClickFrontEnd:
         Block size of the SCM2 before its ACF features (see
         :func:`fusion.clicks.validate.scm2_features`; 10 at the default 3 kHz grid). The
         shipped validator was trained with the default.
+    alias_screen : bool, optional
+        Fail a TDOA that re-pairs the clicks of a stronger TDOA of its pair one click apart
+        (:func:`fusion.clicks.aliases.train_aliases`; default True).
     """
 
     def __init__(
@@ -150,6 +153,7 @@ class ClickFrontEnd:
         sigma_t_s: float = 1e-3,
         scm_level: float = 0.5,
         feature_decimation: int = 10,
+        alias_screen: bool = True,
     ) -> None:
         check_positive("hop_s", hop_s)
         check_positive("sigma_t_s", sigma_t_s)
@@ -175,6 +179,7 @@ class ClickFrontEnd:
         self.sigma_t_s = float(sigma_t_s)
         self.scm_level = float(scm_level)
         self.feature_decimation = int(feature_decimation)
+        self.alias_screen = bool(alias_screen)
 
     @property
     def window_s(self) -> float:
@@ -258,7 +263,7 @@ class ClickFrontEnd:
                 scm_peak=float(peak.value),
                 n_clicks=int(s2.click_times_s.size), features=z[k], llr=float(llr[k]),
                 passes=bool(passes[k]), click_times_s=times, t_s=t0_s + 0.5 * self.window_s))
-        if self.validator is not None:  # one delay per click train
+        if self.validator is not None and self.alias_screen:  # one delay per click train
             out = [dataclasses.replace(d, passes=False) if alias else d
                    for d, alias in zip(out, train_aliases(out), strict=True)]
         return out
