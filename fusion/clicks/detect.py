@@ -67,6 +67,7 @@ from fusion.clicks._click_peaks import local_maxima, not_echo, not_ringing
 from fusion.clicks._detect_statistic import all_finite, centre_frequency, chunked_statistic
 from fusion.clicks._frames import gather_frames, interp_nodes, segment_medians
 from fusion.clicks._kernels import DetectorKernels
+from fusion.clicks.band import DEFAULT_BAND_HZ
 from fusion.clicks.replica import Replica, ReplicaEstimate, estimate_replica, load_replica
 from fusion.clicks.types import ChannelClicks
 
@@ -149,7 +150,7 @@ class ClickDetector:
         method: Literal["stft", "envelope"] = "stft",
         nfft: int = 24,
         overlap: float = 0.75,
-        band_hz: tuple[float, float] = (14_000.0, 40_000.0),
+        band_hz: tuple[float, float] = DEFAULT_BAND_HZ,
         threshold: float = DEFAULT_THRESHOLD,
         background_s: float = 0.5,
         background_decimation: int = 32,
@@ -294,6 +295,11 @@ class ClickDetector:
         """This detector with another echo suppression window (see the class parameters)."""
         probe = ClickDetector(echo_window_s=echo_window_s)  # checks the window
         return self._copy(echo_window_s=probe.echo_window_s)
+
+    def with_band(self, band_hz: tuple[float, float]) -> ClickDetector:
+        """This detector summing the power over another band, Hz (see the class parameters)."""
+        probe = ClickDetector(band_hz=band_hz)  # checks the band
+        return self._copy(band_hz=probe.band_hz, _kernels={})
 
     def _copy(self, **changes) -> ClickDetector:
         new = ClickDetector.__new__(ClickDetector)

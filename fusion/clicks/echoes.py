@@ -43,6 +43,7 @@ import numpy as np
 import scipy.signal
 from numpy.typing import ArrayLike, NDArray
 
+from fusion.clicks.band import DEFAULT_BAND_HZ
 from fusion.clicks.types import ChannelClicks
 
 __all__ = ["CONTROL_RATIO", "ECHO_Z", "FLOOR_MARGIN_M", "BottomEchoes", "bottom_echoes",
@@ -118,7 +119,7 @@ def bottom_echoes(
     fs: float,
     clicks: Sequence[ChannelClicks],
     *,
-    band_hz: tuple[float, float] = (14_000.0, 40_000.0),
+    band_hz: tuple[float, float] = DEFAULT_BAND_HZ,
     lag_range_s: tuple[float, float] = (0.5e-3, 30e-3),
     max_clicks: int = 60,
     min_clicks: int = 8,

@@ -107,7 +107,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--hop-s", dest="hop", type=number(float, ge=MIN_HOP_S), default=2.0,
                    help=f"update period, s, at least {MIN_HOP_S:g} (default 2)")
     p.add_argument("--band-hz", dest="band", type=number(float, gt=0), nargs=2, metavar=("LOW", "HIGH"),
-                   default=(14000.0, 40000.0), help="click detection band, Hz (default 14000 40000)")
+                   default=None,
+                   help="click detection band, Hz (default: the -10 dB band of the replica "
+                        "estimated from the recording, at least 26 kHz wide, below 0.95 of the "
+                        "Nyquist frequency; 14000 40000, the method's, without an estimate)")
     p.add_argument("--min-centre-freq-hz", dest="min_centre_freq", type=number(float, ge=0), default=20000.0,
                    help="smallest click centre frequency (eq. 2), Hz (default 20000)")
     p.add_argument("--detect-threshold", type=number(float, gt=0), default=None,
@@ -127,6 +130,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="largest delay drift d tau/dt the click-map correlation compensates, s/s "
                         f"(default {MAX_TDOA_RATE:g}: whales up to ~2.4 m/s; 0: none, the method "
                         "text's correlation)")
+    p.add_argument("--keep-aliases", action="store_true",
+                   help="keep TDOAs that re-pair the clicks of a stronger TDOA of their pair one "
+                        "click apart (default: they fail validation: one delay per click train)")
     p.add_argument("--no-refine", action="store_true",
                    help="keep TDOAs on the smoothed-click-map grid (no waveform refinement)")
     p.add_argument("--method", choices=("competition", "eq18", "eq17", "lsq", "none"),
@@ -195,7 +201,7 @@ def _decisions(args: argparse.Namespace, det_opts: dict, settings, source, array
     _, first = next(source.blocks(block=n))
     return decide_from_recording(
         first, source.fs, array, detector=detector, settings=settings,
-        estimate_replica=args.replica is None,
+        estimate_replica=args.replica is None, estimate_band=args.band is None,
         replica_source=str(args.replica) if given else "generic",
         span=f"the first {n / source.fs:.3g} s of {Path(source.paths[0]).name}")
 
@@ -277,7 +283,7 @@ def _run_key(args: argparse.Namespace, audio: list) -> str:
         "generic_replica": file_identity(GENERIC_PATH, content=True),
         "options": {k: getattr(args, k) for k in (
             "window", "hop", "band", "min_centre_freq", "detect_threshold", "llr_threshold",
-            "no_refine", "max_tdoa_rate", "method", "chunk", "surface_paths", "sea_floor_z",
+            "no_refine", "keep_aliases", "max_tdoa_rate", "method", "chunk", "surface_paths", "sea_floor_z",
             "candidates", "min_source_tdoas")},
     })
 
@@ -292,6 +298,7 @@ def run(args: argparse.Namespace) -> int:
 
         return run_events(args)
     from fusion._output import STDOUT, output_lock, private_folder
+    from fusion.clicks.band import DEFAULT_BAND_HZ
     from fusion.clicks.scm import ClickMapCorrelator, ScmConfig, drift_grid
     from fusion.clicks.validate import TdoaValidator
     from fusion.io import read_array, write_settings
@@ -307,7 +314,7 @@ def run(args: argparse.Namespace) -> int:
 
     if args.hop > args.window:
         raise ValueError(f"--hop-s {args.hop} is longer than --window-s {args.window}")
-    lo, hi = args.band
+    lo, hi = DEFAULT_BAND_HZ if args.band is None else args.band
     if not lo < hi:
         raise ValueError(f"--band-hz: low edge {lo} must be below the high edge {hi}")
     array = read_array(args.array)
@@ -334,7 +341,8 @@ def run(args: argparse.Namespace) -> int:
         detector=detector,
         correlator=ClickMapCorrelator(config=ScmConfig(window_s=args.window),
                                       rates=drift_grid(args.max_tdoa_rate)),
-        validator=validator, refiner=not args.no_refine, hop_s=args.hop)
+        validator=validator, refiner=not args.no_refine, hop_s=args.hop,
+        alias_screen=not args.keep_aliases)
     pipe = ClickLocalization(front_end=front, localizer=localizer)
     if args.chunk is None:
         args.chunk = _default_chunk_s(recordings, pipe, args.workers)

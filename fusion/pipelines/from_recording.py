@@ -4,6 +4,9 @@ Before the windows are processed, the first minute of a recording is examined on
 
 * the click replica is estimated from its strongest clicks (step 32 of the method,
   :meth:`fusion.clicks.detect.ClickDetector.with_recording_replica`), unless one is given;
+* the detection band is the band of that estimate, the averaged click (step 32's "range of
+  frequencies for the signal of interest", :func:`fusion.clicks.band.click_band`), unless one is
+  given; without an estimate the detector's band stays;
 * the bottom echoes are measured (:func:`fusion.clicks.echoes.bottom_echoes`): when the
   hydrophones hear their clicks followed by a floor echo, the detector drops echoes within the
   measured lags (:func:`fusion.clicks.echoes.echo_window`) and, when no sea floor is given and
@@ -25,6 +28,8 @@ Examples
 >>> d = decide_from_recording(sc.audio, sc.fs, sc.sensors, settings=LocalizerSettings())
 >>> d.replica is not None, d.echoes.near_floor, d.settings.sea_floor_z < -1600
 (True, True, True)
+>>> tuple(round(v) for v in d.detector.band_hz)  # 27-43 kHz widened to 26 kHz, below 45.6
+(19600, 45600)
 """
 
 from __future__ import annotations
@@ -36,6 +41,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
+from fusion.clicks.band import BAND_DROP_DB, MIN_BAND_WIDTH_HZ, detection_band
 from fusion.clicks.detect import ClickDetector
 from fusion.clicks.echoes import FLOOR_MARGIN_M, BottomEchoes, bottom_echoes, echo_window
 from fusion.clicks.replica import ReplicaEstimate
@@ -65,7 +71,7 @@ class RecordingDecisions:
     notes : tuple of str
         One line per decision, for the user.
     record : dict
-        The decisions as JSON-ready values (``replica`` and ``sea_floor``).
+        The decisions as JSON-ready values (``replica``, ``band`` and ``sea_floor``).
     """
 
     detector: ClickDetector
@@ -84,10 +90,12 @@ def decide_from_recording(
     detector: ClickDetector | None = None,
     settings: LocalizerSettings | None = None,
     estimate_replica: bool = True,
+    estimate_band: bool = True,
     replica_source: str = "generic",
     span: str = "the recording",
 ) -> RecordingDecisions:
-    """Decide the replica, the echo suppression and the sea floor from a recording's start.
+    """Decide the replica, the detection band, the echo suppression and the sea floor from a
+    recording's start.
 
     Parameters
     ----------
@@ -103,6 +111,9 @@ def decide_from_recording(
         The localizer settings; a sea floor already set is kept. None: no localization.
     estimate_replica : bool, optional
         Estimate the replica (False: keep the detector's, named by `replica_source`).
+    estimate_band : bool, optional
+        Take the detection band from the estimated replica (False, or no estimate: keep the
+        detector's band).
     replica_source : str, optional
         What the starting replica is, for the notes (e.g. a file name).
     span : str, optional
@@ -135,6 +146,8 @@ def decide_from_recording(
                               "samples": [float(v) for v in est.replica.samples]}
     else:
         replica_note, replica_record = f"replica: {replica_source}", {"source": replica_source}
+    det, band_note, band_record = _band(det, est if estimate_band else None,
+                                        given=not estimate_band, span=span)
 
     echoes = bottom_echoes(x, fs, det.detect(x, fs), band_hz=det.band_hz)
     given = settings is not None and settings.sea_floor_z is not None
@@ -144,7 +157,7 @@ def decide_from_recording(
         "near_floor": echoes.near_floor,
         "bottom_echo_z": [None if not np.isfinite(v) else round(float(v), 2) for v in echoes.z],
         "bottom_echo_lag_s": [None if not np.isfinite(v) else float(v) for v in echoes.lag_s]}
-    notes = [replica_note]
+    notes = [replica_note, band_note]
     below = bool(np.all(sensors.positions[:, 2] < SEA_SURFACE_Z))
     if echoes.near_floor:
         window = echo_window(echoes)
@@ -168,4 +181,23 @@ def decide_from_recording(
                      f"(the method's range): sources searched above z = {floor:g} m "
                      "(--sea-floor-z for hydrophones moored above the floor)")
     return RecordingDecisions(det, settings, est, echoes, tuple(notes),
-                              {"replica": replica_record, "sea_floor": floor_record})
+                              {"replica": replica_record, "band": band_record,
+                               "sea_floor": floor_record})
+
+
+def _band(det: ClickDetector, est: ReplicaEstimate | None, *, given: bool, span: str
+          ) -> tuple[ClickDetector, str, dict[str, Any]]:
+    """The detector with the band of the estimated replica (unchanged without an estimate or
+    when the band is `given`), the note and the record."""
+    lo, hi = det.band_hz
+    if est is None:
+        why = "given" if given else "no replica estimate"
+        return (det, f"detection band: {lo / 1e3:.4g}-{hi / 1e3:.4g} kHz ({why})",
+                {"source": why, "band_hz": [lo, hi]})
+    lo, hi = detection_band(est.replica.samples, est.replica.fs)
+    det = det.with_band((lo, hi))
+    note = (f"detection band: {lo / 1e3:.4g}-{hi / 1e3:.4g} kHz, the -{BAND_DROP_DB:g} dB band of "
+            f"the clicks averaged from {span}, at least {MIN_BAND_WIDTH_HZ / 1e3:g} kHz wide "
+            "(--band-hz LOW HIGH to give one)")
+    return det, note, {"source": "estimated replica", "band_hz": [lo, hi],
+                       "drop_db": BAND_DROP_DB, "min_width_hz": MIN_BAND_WIDTH_HZ}

@@ -77,7 +77,8 @@ def test_half_the_channels_decide_and_few_clicks_abstain():
 
 @pytest.mark.parametrize("echo", ["bottom", "none"])
 def test_localize_decides_the_sea_floor_from_the_recording(tmp_path, echo):
-    """`fusion localize` without --sea-floor-z: a recording with bottom echoes gets the floor
+    """`fusion localize` without --sea-floor-z: the detection band from the estimated replica;
+    a recording with bottom echoes gets the floor
     below the deepest sensor (printed, in the settings file); one without takes the hydrophones
     as bottom-mounted (the same bound, another source named); with --sea-floor-z, that one."""
     from fusion.cli import main
@@ -90,6 +91,10 @@ def test_localize_decides_the_sea_floor_from_the_recording(tmp_path, echo):
                  "--quiet"]) == 0
     side = json.loads((tmp_path / "r.settings.json").read_text())
     deepest = min(s["z"] for s in array["sensors"])
+    # the detection band: the estimated replica's, at least the method's width, below Nyquist
+    lo, hi = side["band"]["band_hz"]
+    assert side["band"]["source"] == "estimated replica"
+    assert hi - lo >= side["band"]["min_width_hz"] - 1e-6 and hi <= 0.95 * 48_000.0
     if echo == "bottom":
         assert side["sea_floor"]["source"] == "bottom echoes"
         assert side["sea_floor"]["sea_floor_z"] == pytest.approx(deepest - FLOOR_MARGIN_M)
@@ -100,8 +105,10 @@ def test_localize_decides_the_sea_floor_from_the_recording(tmp_path, echo):
         assert side["localization"]["sea_floor_z"] == pytest.approx(deepest - FLOOR_MARGIN_M)
         assert main(["localize", "--audio", str(tmp_path / "s" / "audio.flac"), "--array",
                      str(tmp_path / "s" / "array.json"), "--out", str(tmp_path / "g.json"),
-                     "--quiet", "--sea-floor-z", str(deepest - 500.0)]) == 0
+                     "--quiet", "--sea-floor-z", str(deepest - 500.0),
+                     "--band-hz", "15000", "41000"]) == 0
         given = json.loads((tmp_path / "g.settings.json").read_text())
+        assert given["band"] == {"source": "given", "band_hz": [15000.0, 41000.0]}
         assert given["sea_floor"]["source"] == "given"
         assert given["localization"]["sea_floor_z"] == pytest.approx(deepest - 500.0)
 

@@ -25,7 +25,8 @@ held in memory, whatever the length of the recording.
 Acceptance (decisions where the text leaves a choice, documented here):
 
 * a TDOA **passes validation** when its GMM log-likelihood ratio (eq. 11) is at least the
-  validator's threshold;
+  validator's threshold and it is not an alias of a stronger TDOA of its pair (the same clicks
+  at both sensors re-paired one click apart, :func:`fusion.clicks.aliases.train_aliases`);
 * it is **confirmed** when the time association links it to a TDOA of the previous *or* the next
   window ([0041]: seen in two consecutive updates); a window is therefore reported one update
   after it is processed, when its successor is known;
@@ -45,6 +46,7 @@ Examples
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import math
 from collections.abc import Callable, Iterable, Iterator, Sequence
@@ -53,6 +55,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from fusion._validation import check_positive
+from fusion.clicks.aliases import train_aliases
 from fusion.clicks.associate import (
     TimeAssociator,
     closure_check,
@@ -133,6 +136,9 @@ class ClickFrontEnd:
         Block size of the SCM2 before its ACF features (see
         :func:`fusion.clicks.validate.scm2_features`; 10 at the default 3 kHz grid). The
         shipped validator was trained with the default.
+    alias_screen : bool, optional
+        Fail a TDOA that re-pairs the clicks of a stronger TDOA of its pair one click apart
+        (:func:`fusion.clicks.aliases.train_aliases`; default True).
     """
 
     def __init__(
@@ -147,6 +153,7 @@ class ClickFrontEnd:
         sigma_t_s: float = 1e-3,
         scm_level: float = 0.5,
         feature_decimation: int = 10,
+        alias_screen: bool = True,
     ) -> None:
         check_positive("hop_s", hop_s)
         check_positive("sigma_t_s", sigma_t_s)
@@ -172,6 +179,7 @@ class ClickFrontEnd:
         self.sigma_t_s = float(sigma_t_s)
         self.scm_level = float(scm_level)
         self.feature_decimation = int(feature_decimation)
+        self.alias_screen = bool(alias_screen)
 
     @property
     def window_s(self) -> float:
@@ -255,6 +263,9 @@ class ClickFrontEnd:
                 scm_peak=float(peak.value),
                 n_clicks=int(s2.click_times_s.size), features=z[k], llr=float(llr[k]),
                 passes=bool(passes[k]), click_times_s=times, t_s=t0_s + 0.5 * self.window_s))
+        if self.validator is not None and self.alias_screen:  # one delay per click train
+            out = [dataclasses.replace(d, passes=False) if alias else d
+                   for d, alias in zip(out, train_aliases(out), strict=True)]
         return out
 
     def _scm2s(self, inside: list[ChannelClicks], peaks, t0_s: float) -> list:
