@@ -122,12 +122,21 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--curve-alpha", type=number(float, gt=0, le=0.5), default=DEFAULT_CURVE_ALPHA,
                    metavar="P", help="level of the F-test that keeps a curve instead of the "
                    f"line (default {DEFAULT_CURVE_ALPHA:g}; smaller keeps fewer curves)")
+    p.add_argument("--curve-variance", choices=("unscented", "linear"), default="unscented",
+                   help="variance of a curve's bearing ahead of its window: unscented "
+                        "(default; the bearings of sigma points of the curve's covariance, so an "
+                        "extrapolation that bends within its uncertainty gets that spread) or "
+                        "linear (the delta method, before)")
     p.add_argument("--ladder-alpha", type=number(float, ge=0, le=0.5),
                    default=DEFAULT_LADDER_ALPHA, metavar="P",
                    help="a track enters a longer window of the ladder only if its residual "
                         "variance there passes the variance-ratio test against the shortest "
                         f"window at level P (default {DEFAULT_LADDER_ALPHA:g}; 0: every track, "
                         "the ladder before)")
+    p.add_argument("--predictions", choices=("revised", "once"), default="revised",
+                   help="revised (default): a pair's crossing is predicted again when its new "
+                        "interval no longer overlaps that of the prediction raised; once: one "
+                        "prediction per crossing (before)")
     p.add_argument("--merge-repeats", action="store_true",
                    help="merge a pair's crossings by time and interval overlap only (before: a "
                         "crossing in the other direction is always the pair's next crossing)")
@@ -168,7 +177,9 @@ def _options(args: argparse.Namespace) -> dict:
             "J": args.window, "n_windows": args.windows, "lead_windows": args.lead,
             "confirm": args.confirm, "level": args.level,
             "curve_alpha": args.curve_alpha if args.bearing_model == "curve" else None,
-            "ladder_alpha": args.ladder_alpha or None}
+            "ladder_alpha": args.ladder_alpha or None,
+            "unscented": args.curve_variance == "unscented",
+            "revise": args.predictions == "revised"}
 
 
 def _check_spans(args: argparse.Namespace, st: CrossingSettings, spans_s: np.ndarray) -> None:

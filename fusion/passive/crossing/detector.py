@@ -43,7 +43,8 @@ class _Events:
     ``key = slot_a * 2**32 + slot_b`` with the tracks' storage slots; ``t_cross``, ``low``,
     ``high`` are the latest crossing time and interval seen for the event; ``direction`` is the
     sign of the bearing difference's rate at the crossing (successive crossings of a pair
-    alternate it); ``predicted`` and ``detected`` say which alerts the event has raised.
+    alternate it); ``predicted`` and ``detected`` say which alerts the event has raised;
+    ``said_low``, ``said_high`` are the interval of its latest ``predicted`` alert.
     """
 
     key: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, np.int64))
@@ -53,8 +54,11 @@ class _Events:
     direction: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
     predicted: NDArray[np.bool_] = field(default_factory=lambda: np.zeros(0, bool))
     detected: NDArray[np.bool_] = field(default_factory=lambda: np.zeros(0, bool))
+    said_low: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
+    said_high: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
 
-    _COLUMNS = ("key", "t_cross", "low", "high", "direction", "predicted", "detected")
+    _COLUMNS = ("key", "t_cross", "low", "high", "direction", "predicted", "detected",
+                "said_low", "said_high")
 
     def keep(self, index: NDArray) -> None:
         for name in self._COLUMNS:
@@ -126,6 +130,15 @@ class CrossingDetector:
         Curves are fitted on this many of the shortest windows of the ladder (default 1: the
         shortest only; a constant-velocity curve over a long window of a manoeuvring vessel
         mimics a turn and extrapolates it, benchmarks/RESULTS.md).
+    unscented : bool, optional
+        A curve's bearing variance ahead of its window from the unscented transform of its
+        parameter covariance (the bearings of six sigma points) instead of the delta method
+        (default False): an extrapolation that bends sharply within the parameters'
+        uncertainty gets the spread it has (benchmarks/RESULTS.md, issue 19 evening).
+    revise : bool, optional
+        A crossing event whose interval, at a later sample, no longer overlaps the interval of
+        the ``predicted`` alert it raised raises a new ``predicted`` alert (a revised
+        prediction; default False: at most one per event, the rule below).
     split_repeats : bool, optional
         A crossing whose bearing difference changes sign the other way from the pair's
         current event is the pair's next crossing, however close in time (default True;
@@ -190,6 +203,8 @@ class CrossingDetector:
         split_repeats: bool = True,
         ladder_alpha: float | None = None,
         curve_windows: int = 1,
+        unscented: bool = False,
+        revise: bool = False,
     ) -> None:
         if int(J) != J or J < 3:
             raise ValueError(f"J (samples per window) must be an integer > 2, got {J!r}")
@@ -237,6 +252,8 @@ class CrossingDetector:
         if int(curve_windows) != curve_windows or curve_windows < 1:
             raise ValueError(f"curve_windows must be a positive integer, got {curve_windows!r}")
         self.curve_windows = int(curve_windows)
+        self.unscented = bool(unscented)
+        self.revise = bool(revise)
         self.reset()
 
     @property
@@ -335,7 +352,8 @@ class CrossingDetector:
         if not curves or self.curve_alpha is None or self.level is None:
             return st, None
         tau, val, ok = fit.windows(ids, t)
-        return st, curve_fits(tau, val, ok, st, alpha=self.curve_alpha)
+        return st, curve_fits(tau, val, ok, st, alpha=self.curve_alpha,
+                              unscented=self.unscented)
 
     def _judge(
         self, model: tuple[LineStats, CurveStats | None], ia: NDArray[np.int64],
@@ -451,6 +469,11 @@ class CrossingDetector:
         old_pred &= same  # a new event starts with no alerts
         old_det &= same
         emit_pred = h.predicted & ~old_pred & ~old_det
+        if self.revise:  # a prediction whose interval left the one said is said again
+            said_lo = np.full(key.size, np.nan)
+            said_hi = np.full(key.size, np.nan)
+            said_lo[found], said_hi[found] = ev.said_low[pf], ev.said_high[pf]
+            emit_pred |= h.predicted & old_pred & ~old_det & ((h.low > said_hi) | (h.high < said_lo))
         emit_det = ~h.predicted & ~old_det
         # Existing rows: the event (same or replaced) takes the latest t_c, interval and flags.
         ev.t_cross[pf] = h.t_cross[found]
@@ -459,11 +482,14 @@ class CrossingDetector:
         ev.direction[pf] = h.direction[found]
         ev.predicted[pf] = (old_pred | emit_pred)[found]
         ev.detected[pf] = (old_det | emit_det)[found]
+        ep = emit_pred[found]
+        ev.said_low[pf] = np.where(ep, h.low[found], ev.said_low[pf])
+        ev.said_high[pf] = np.where(ep, h.high[found], ev.said_high[pf])
         new = ~found
         if np.any(new):
             ev.append(key=key[new], t_cross=h.t_cross[new], low=h.low[new], high=h.high[new],
                       direction=h.direction[new], predicted=emit_pred[new],
-                      detected=emit_det[new])
+                      detected=emit_det[new], said_low=h.low[new], said_high=h.high[new])
         emit = np.flatnonzero(emit_pred | emit_det)
         kind_of = (AlertKind.PREDICTED, AlertKind.DETECTED)
         out = [

@@ -24,6 +24,8 @@ __all__ = [
     "DEFAULT_LEAD_WINDOWS",
     "DEFAULT_LEVEL",
     "DEFAULT_N_WINDOWS",
+    "DEFAULT_REVISE",
+    "DEFAULT_UNSCENTED",
     "DEFAULT_WINDOW_S",
     "MAX_SAMPLES_PER_WINDOW",
     "MIN_SAMPLES_PER_WINDOW",
@@ -62,6 +64,12 @@ class CrossingSettings:
         (None: lines only).
     ladder_alpha : float or None
         Level of the variance-ratio test that admits a track to a longer window (None: all).
+    unscented : bool
+        Curves' bearing variances ahead of the window from the unscented transform of their
+        covariance (False: the delta method).
+    revise : bool
+        A pair's prediction is raised again when its interval no longer overlaps that of the
+        prediction raised (False: one prediction per crossing).
     adjusted : tuple of str
         What was asked and changed, one phrase each (printed by :meth:`describe`).
     """
@@ -77,6 +85,8 @@ class CrossingSettings:
     level: float
     curve_alpha: float | None = None
     ladder_alpha: float | None = None
+    unscented: bool = False
+    revise: bool = False
     adjusted: tuple[str, ...] = ()
 
     def detector_options(self) -> dict[str, Any]:
@@ -84,7 +94,8 @@ class CrossingSettings:
         return {"J": self.J, "K": self.period_s, "horizon_s": self.horizon_s,
                 "n_windows": self.n_windows, "lead_windows": self.lead_windows,
                 "confirm": self.confirm, "level": self.level, "curve_alpha": self.curve_alpha,
-                "ladder_alpha": self.ladder_alpha}
+                "ladder_alpha": self.ladder_alpha, "unscented": self.unscented,
+                "revise": self.revise}
 
     def describe(self) -> str:
         """One line saying what was chosen."""
@@ -95,7 +106,9 @@ class CrossingSettings:
                 f"{self.horizon_s:.4g} s, {self.confirm} sample(s) to confirm, "
                 f"level {self.level:g}, "
                 + ("straight lines only" if self.curve_alpha is None else
-                   f"curves kept at F-test level {self.curve_alpha:g}")
+                   f"curves kept at F-test level {self.curve_alpha:g}"
+                   + (", their variance unscented" if self.unscented else ""))
+                + (", predictions revised" if self.revise else "")
                 + ("" if self.ladder_alpha is None else
                    f", longer windows only where they fit (F-test level {self.ladder_alpha:g})")
                 + "".join(f"; ADJUSTED {a}" for a in self.adjusted))
@@ -114,6 +127,12 @@ DEFAULT_LEAD_WINDOWS = 0.5
 DEFAULT_CURVE_ALPHA = 0.001
 #: Default level of the variance-ratio test that admits a track to a longer window (issue 19).
 DEFAULT_LADDER_ALPHA = 0.01
+#: Default: curves' variances ahead of the window from the unscented transform (issue 19,
+#: evening: intervals of curved predictions that hold more often, benchmarks/RESULTS.md).
+DEFAULT_UNSCENTED = True
+#: Default: a prediction whose interval moved off the one raised is raised again (issue 19,
+#: evening, benchmarks/RESULTS.md).
+DEFAULT_REVISE = True
 #: Default number of samples in a row that confirm an alert.
 DEFAULT_CONFIRM = 2
 #: Default nominal level of the Fieller intervals (see :func:`crossing_settings`).
@@ -138,6 +157,8 @@ def crossing_settings(
     level: float = DEFAULT_LEVEL,
     curve_alpha: float | None = DEFAULT_CURVE_ALPHA,
     ladder_alpha: float | None = DEFAULT_LADDER_ALPHA,
+    unscented: bool = DEFAULT_UNSCENTED,
+    revise: bool = DEFAULT_REVISE,
 ) -> CrossingSettings:
     """Window, horizon and grid period of a bearing table, in seconds, from the data.
 
@@ -157,7 +178,7 @@ def crossing_settings(
         Samples in the shortest window (default ``round(window_s / K)``, at least
         :data:`MIN_SAMPLES_PER_WINDOW`).
     n_windows, lead_windows, confirm, level, curve_alpha, \
-ladder_alpha
+ladder_alpha, unscented, revise
         As in :class:`fusion.passive.crossing.CrossingDetector`.
 
     Returns
@@ -185,7 +206,8 @@ ladder_alpha
     return crossing_settings_from_steps(
         step, track_span, window_s=window_s, horizon_s=horizon_s, period_s=period_s, J=J,
         n_windows=n_windows, lead_windows=lead_windows, confirm=confirm, level=level,
-        curve_alpha=curve_alpha, ladder_alpha=ladder_alpha)
+        curve_alpha=curve_alpha, ladder_alpha=ladder_alpha, unscented=unscented,
+        revise=revise)
 
 
 def crossing_settings_from_steps(
@@ -202,6 +224,8 @@ def crossing_settings_from_steps(
     level: float = DEFAULT_LEVEL,
     curve_alpha: float | None = DEFAULT_CURVE_ALPHA,
     ladder_alpha: float | None = DEFAULT_LADDER_ALPHA,
+    unscented: bool = DEFAULT_UNSCENTED,
+    revise: bool = DEFAULT_REVISE,
 ) -> CrossingSettings:
     """:func:`crossing_settings` from the two numbers it takes of the data.
 
@@ -213,7 +237,7 @@ def crossing_settings_from_steps(
     track_span_s : float
         Median time span of the tracks, s.
     window_s, horizon_s, period_s, J, n_windows, lead_windows, confirm, level, curve_alpha, \
-ladder_alpha
+ladder_alpha, unscented, revise
         As in :func:`crossing_settings`.
 
     Returns
@@ -257,4 +281,6 @@ ladder_alpha
                             level=float(level),
                             curve_alpha=None if curve_alpha is None else float(curve_alpha),
                             ladder_alpha=None if ladder_alpha is None else float(ladder_alpha),
+                            unscented=bool(unscented) and curve_alpha is not None,
+                            revise=bool(revise),
                             adjusted=tuple(adjusted))
