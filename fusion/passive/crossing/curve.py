@@ -139,6 +139,18 @@ def _cv_jacobian(p: NDArray[np.float64], u: NDArray[np.float64]
     return np.arctan2(x, y), g
 
 
+def _free_scale(gg: NDArray[np.float64], p: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``G^T G + c p p^T`` (``c`` its mean eigenvalue, a ridge of 1e-12 c): invertible.
+
+    The bearing does not change along `p` (a unit vector; ``G p = 0``), so ``p`` spans the
+    null space of ``G^T G`` and is an eigenvector of the sum, which then solves the
+    minimum-norm Gauss-Newton step for any right-hand side ``G^T r`` (orthogonal to ``p``)
+    and gives ``(G^T G)^+ = M^-1 - p p^T / c`` without an eigendecomposition.
+    """
+    c = np.maximum(np.einsum("nii->n", gg) / 4.0, 1e-300)[:, None, None]
+    return gg + c * (p[:, :, None] * p[:, None, :]) + 1e-12 * c * np.eye(4)
+
+
 def curve_fits(
     tau: NDArray[np.float64],
     value: NDArray[np.float64],
@@ -201,9 +213,8 @@ def curve_fits(
         r = _wrap(value - b) * w
         g = g * w[..., None]
         gg = np.einsum("nji,njk->nik", g, g)
-        step = np.einsum("nij,nj->ni", np.linalg.pinv(gg, rcond=1e-10, hermitian=True),
-                         np.einsum("nji,nj->ni", g, r))
-        p = p + step
+        step = np.linalg.solve(_free_scale(gg, p), np.einsum("nji,nj->ni", g, r)[..., None])
+        p = p + step[..., 0]
         p = p / np.maximum(np.linalg.norm(p, axis=1, keepdims=True), 1e-300)
     b, g = _cv_jacobian(p, u)
     rss_cv = ((_wrap(value - b) * w) ** 2).sum(axis=1)
@@ -211,17 +222,22 @@ def curve_fits(
     dof = np.maximum(n - 3.0, 1.0)
     s2 = rss_cv / dof
     g = g * w[..., None]
-    cov = s2[:, None, None] * np.linalg.pinv(np.einsum("nji,njk->nik", g, g), rcond=1e-10,
-                                             hermitian=True)
+    gg = np.einsum("nji,njk->nik", g, g)
+    m_free = _free_scale(gg, p)
+    pp = p[:, :, None] * p[:, None, :] / np.einsum("nii->n", m_free - gg)[:, None, None]
+    cov = s2[:, None, None] * (np.linalg.inv(m_free) - pp)  # (G^T G)^+: p spans its null space
     with np.errstate(divide="ignore", invalid="ignore"):
         f_stat = (rss_line - rss_cv) / s2
     ok = (n >= 6) & np.all(np.isfinite(p), axis=1)
     curved = ok & (((rss_cv > 0) & (f_stat > f_quantile(alpha, n - 3.0)))
                    | ((rss_cv <= 0) & (rss_line > 0)))
     spread = None
-    if unscented:
-        lam, vec = np.linalg.eigh(cov)  # ascending: the first is the free scale (about 0)
-        spread = vec[:, :, 1:] * np.sqrt(3.0 * np.maximum(lam[:, None, 1:], 0.0))
+    if unscented:  # the curved rows' sigma points (the others keep the line)
+        spread = np.zeros((n_tr, 4, 3))
+        c = np.flatnonzero(curved)
+        if c.size:
+            lam, vec = np.linalg.eigh(cov[c])  # ascending: the first is the free scale (~0)
+            spread[c] = vec[:, :, 1:] * np.sqrt(3.0 * np.maximum(lam[:, None, 1:], 0.0))
     return CurveStats(line=line, p=p, cov=cov, scale=scale,
                       dof=np.where(curved, n - 3.0, n - 2.0),
                       residual_var=np.where(curved, s2, line.residual_var), curved=curved,
