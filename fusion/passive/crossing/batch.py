@@ -41,6 +41,8 @@ def detect_crossings(
     ladder_alpha: float | None = None,
     unscented: bool = False,
     revise: bool = False,
+    confirm_overlap: bool = False,
+    curve_beyond: bool = False,
 ) -> list[CrossingAlert]:
     """Crossing alerts of a whole bearing table (batch entry point).
 
@@ -54,7 +56,8 @@ def detect_crossings(
     K : float, optional
         Sample period, s (default: the median time step within tracks).
     horizon_s, min_rate_diff_deg_per_s, merge_window_s, max_gap_s, n_windows, level, \
-max_interval_s, lead_windows, confirm, curve_alpha, split_repeats, ladder_alpha, unscented, revise
+max_interval_s, lead_windows, confirm, curve_alpha, split_repeats, ladder_alpha, unscented, revise, \
+confirm_overlap, curve_beyond
         As in :class:`CrossingDetector` (`max_gap_s` also bounds interpolation gaps).
 
     Returns
@@ -83,7 +86,8 @@ max_interval_s, lead_windows, confirm, curve_alpha, split_repeats, ladder_alpha,
         merge_window_s=merge_window_s, max_gap_s=max_gap_s, n_windows=n_windows, level=level,
         max_interval_s=max_interval_s, lead_windows=lead_windows, confirm=confirm,
         curve_alpha=curve_alpha, split_repeats=split_repeats, ladder_alpha=ladder_alpha,
-        unscented=unscented, revise=revise,
+        unscented=unscented, revise=revise, confirm_overlap=confirm_overlap,
+        curve_beyond=curve_beyond,
     )
     rs = resample_bearings(
         tid, cols["time"], cols["bearing_deg"], period_s=det.K, max_gap_s=det.max_gap_s

@@ -139,6 +139,16 @@ class CrossingDetector:
         A crossing event whose interval, at a later sample, no longer overlaps the interval of
         the ``predicted`` alert it raised raises a new ``predicted`` alert (a revised
         prediction; default False: at most one per event, the rule below).
+    confirm_overlap : bool, optional
+        A sample confirms a pair's hit of the sample before only if their two crossing-time
+        intervals overlap (default False: any hit confirms): two honest intervals of one
+        crossing from windows sharing all but one sample overlap, and a prediction that jumps
+        from sample to sample is not yet one.
+    curve_beyond : bool, optional
+        The interval of a pair with a curved track may end up to one window span beyond the
+        reach of predictions (default False: an interval reaching the end of the reach is
+        unbounded, and a fast crossing is predicted only once its whole interval is within
+        reach). Lines' Fieller intervals never had that limit.
     split_repeats : bool, optional
         A crossing whose bearing difference changes sign the other way from the pair's
         current event is the pair's next crossing, however close in time (default True;
@@ -205,6 +215,8 @@ class CrossingDetector:
         curve_windows: int = 1,
         unscented: bool = False,
         revise: bool = False,
+        confirm_overlap: bool = False,
+        curve_beyond: bool = False,
     ) -> None:
         if int(J) != J or J < 3:
             raise ValueError(f"J (samples per window) must be an integer > 2, got {J!r}")
@@ -254,6 +266,8 @@ class CrossingDetector:
         self.curve_windows = int(curve_windows)
         self.unscented = bool(unscented)
         self.revise = bool(revise)
+        self.confirm_overlap = bool(confirm_overlap)
+        self.curve_beyond = bool(curve_beyond)
         self.reset()
 
     @property
@@ -269,6 +283,8 @@ class CrossingDetector:
         self._last_time = -np.inf
         self._streak_key = np.zeros(0, np.int64)  # pairs hit at the previous sample ...
         self._streak_count = np.zeros(0, np.int64)  # ... and for how many samples in a row
+        self._streak_low = np.zeros(0)  # ... with the interval of that sample
+        self._streak_high = np.zeros(0)
 
     @property
     def fit(self) -> SlidingLineFit:
@@ -336,9 +352,14 @@ class CrossingDetector:
         pos_ok = np.minimum(pos, max(self._streak_key.size - 1, 0))
         seen = (pos < self._streak_key.size) & (self._streak_key[pos_ok] == key) \
             if self._streak_key.size else np.zeros(key.size, bool)
+        if self.confirm_overlap and self._streak_key.size:  # the same crossing, consistently
+            with np.errstate(invalid="ignore"):
+                seen &= ((h.low <= self._streak_high[pos_ok]) & (h.high >= self._streak_low[pos_ok])
+                         | np.isnan(h.low))
         count = np.where(seen, self._streak_count[pos_ok] + 1 if self._streak_key.size else 1, 1)
         order = np.argsort(key, kind="stable")
         self._streak_key, self._streak_count = key[order], count[order]
+        self._streak_low, self._streak_high = h.low[order], h.high[order]
         if self.confirm <= 1:
             return h
         keep = count >= self.confirm
@@ -357,10 +378,14 @@ class CrossingDetector:
 
     def _judge(
         self, model: tuple[LineStats, CurveStats | None], ia: NDArray[np.int64],
-        ib: NDArray[np.int64], *, back_s: float, reach_s: float,
+        ib: NDArray[np.int64], *, back_s: float, reach_s: float, window_s: float,
     ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_],
                NDArray[np.float64]]:
-        """Crossing time, interval, resolved flag and direction of pairs on one window."""
+        """Crossing time, interval, resolved flag and direction of pairs on one window.
+
+        Curved pairs are evaluated on ``[-back_s, reach_s]``, extended by `window_s` ahead with
+        `curve_beyond` (their crossing is still looked for nearest the sample).
+        """
         st, cs = model
         tau, low, high, ok = pair_intervals(ia, ib, st.value, st, level=self.level)
         direction = np.sign(st.slope[ib] - st.slope[ia])
@@ -369,7 +394,8 @@ class CrossingDetector:
             if c.size:
                 q = t_quantile(self.level, np.minimum(cs.dof[ia[c]], cs.dof[ib[c]]))
                 tc, lc, hc, okc, dc = curved_pair_intervals(
-                    ia[c], ib[c], cs, q=q, reach_s=reach_s, back_s=back_s)
+                    ia[c], ib[c], cs, q=q, back_s=back_s,
+                    reach_s=reach_s + (window_s if self.curve_beyond else 0.0))
                 tau, low, high, ok, direction = (x.copy() for x in (tau, low, high, ok, direction))
                 tau[c], low[c], high[c], ok[c], direction[c] = tc, lc, hc, okc, dc
         with np.errstate(invalid="ignore"):
@@ -380,7 +406,7 @@ class CrossingDetector:
         """Pairs satisfying an inequality on the shortest window that resolves them."""
         parts: list[tuple] = []
         models: list[tuple[LineStats, CurveStats | None]] = []
-        reach: list[tuple[float, float]] = []
+        reach: list[tuple[float, float, float]] = []
         admitted = np.ones(ids.size, bool)  # tracks whose longer windows fit as well
         var_prev = dof_prev = np.zeros(ids.size)
         for level, (fit, J) in enumerate(zip(self._fits, self.windows, strict=True)):
@@ -402,7 +428,7 @@ class CrossingDetector:
             span = J * self.K
             lead = min(self.horizon_s, self.lead_windows * span)
             back = min(span, lead)
-            reach.append((back, lead))
+            reach.append((back, lead, span))
             ia, ib, tau = pairs_in_reach(
                 st.value[sel], st.slope[sel], reach_s=lead,
                 min_rate_diff_rad_per_s=self.min_rate_diff_rad_per_s)
@@ -417,10 +443,10 @@ class CrossingDetector:
                 direction = np.sign(st.slope[ib] - st.slope[ia])
             else:
                 tau, low, high, ok, direction = self._judge(model, ia, ib, back_s=back,
-                                                            reach_s=lead)
+                                                            reach_s=lead, window_s=span)
                 for lower in range(level):  # judged on the shortest window that resolves it
                     ok &= ~self._judge(models[lower], ia, ib, back_s=reach[lower][0],
-                                       reach_s=reach[lower][1])[3]
+                                       reach_s=reach[lower][1], window_s=reach[lower][2])[3]
             with np.errstate(invalid="ignore"):
                 pred = ok & (tau > 0.0) & (tau <= lead)  # inequality (3)
                 det = ok & (tau >= -back) & (tau <= 0.0)  # inequality (4)

@@ -18,7 +18,9 @@ from fusion.passive.bearing_grid import estimate_period
 
 __all__ = [
     "DEFAULT_CONFIRM",
+    "DEFAULT_CONFIRM_OVERLAP",
     "DEFAULT_CURVE_ALPHA",
+    "DEFAULT_CURVE_BEYOND",
     "DEFAULT_HORIZON_S",
     "DEFAULT_LADDER_ALPHA",
     "DEFAULT_LEAD_WINDOWS",
@@ -70,6 +72,11 @@ class CrossingSettings:
     revise : bool
         A pair's prediction is raised again when its interval no longer overlaps that of the
         prediction raised (False: one prediction per crossing).
+    confirm_overlap : bool
+        A confirming sample's interval must overlap the one before (False: any hit confirms).
+    curve_beyond : bool
+        A curved pair's interval may end up to a window beyond the reach of predictions (False:
+        within the reach).
     adjusted : tuple of str
         What was asked and changed, one phrase each (printed by :meth:`describe`).
     """
@@ -87,6 +94,8 @@ class CrossingSettings:
     ladder_alpha: float | None = None
     unscented: bool = False
     revise: bool = False
+    confirm_overlap: bool = False
+    curve_beyond: bool = False
     adjusted: tuple[str, ...] = ()
 
     def detector_options(self) -> dict[str, Any]:
@@ -95,7 +104,8 @@ class CrossingSettings:
                 "n_windows": self.n_windows, "lead_windows": self.lead_windows,
                 "confirm": self.confirm, "level": self.level, "curve_alpha": self.curve_alpha,
                 "ladder_alpha": self.ladder_alpha, "unscented": self.unscented,
-                "revise": self.revise}
+                "revise": self.revise, "confirm_overlap": self.confirm_overlap,
+                "curve_beyond": self.curve_beyond}
 
     def describe(self) -> str:
         """One line saying what was chosen."""
@@ -103,11 +113,13 @@ class CrossingSettings:
         return (f"K={self.period_s:.4g} s (data step {self.data_step_s:.4g} s), windows "
                 f"{self.window_s:.4g}-{longest:.4g} s (J={self.J}, {self.n_windows} windows), "
                 f"predictions up to {self.lead_windows:g} window ahead, horizon "
-                f"{self.horizon_s:.4g} s, {self.confirm} sample(s) to confirm, "
-                f"level {self.level:g}, "
+                f"{self.horizon_s:.4g} s, {self.confirm} sample(s) to confirm"
+                + (" (intervals overlapping)" if self.confirm_overlap else "")
+                + f", level {self.level:g}, "
                 + ("straight lines only" if self.curve_alpha is None else
                    f"curves kept at F-test level {self.curve_alpha:g}"
-                   + (", their variance unscented" if self.unscented else ""))
+                   + (", their variance unscented" if self.unscented else "")
+                   + (", intervals up to a window beyond the reach" if self.curve_beyond else ""))
                 + (", predictions revised" if self.revise else "")
                 + ("" if self.ladder_alpha is None else
                    f", longer windows only where they fit (F-test level {self.ladder_alpha:g})")
@@ -133,6 +145,10 @@ DEFAULT_UNSCENTED = True
 #: Default: a prediction whose interval moved off the one raised is raised again (issue 19,
 #: evening, benchmarks/RESULTS.md).
 DEFAULT_REVISE = True
+#: Default: a confirming sample's interval must overlap the one before (issue 19, evening).
+DEFAULT_CONFIRM_OVERLAP = False
+#: Default: a curved pair's interval may end up to a window beyond the reach (issue 19, evening).
+DEFAULT_CURVE_BEYOND = False
 #: Default number of samples in a row that confirm an alert.
 DEFAULT_CONFIRM = 2
 #: Default nominal level of the Fieller intervals (see :func:`crossing_settings`).
@@ -159,6 +175,8 @@ def crossing_settings(
     ladder_alpha: float | None = DEFAULT_LADDER_ALPHA,
     unscented: bool = DEFAULT_UNSCENTED,
     revise: bool = DEFAULT_REVISE,
+    confirm_overlap: bool = DEFAULT_CONFIRM_OVERLAP,
+    curve_beyond: bool = DEFAULT_CURVE_BEYOND,
 ) -> CrossingSettings:
     """Window, horizon and grid period of a bearing table, in seconds, from the data.
 
@@ -178,7 +196,7 @@ def crossing_settings(
         Samples in the shortest window (default ``round(window_s / K)``, at least
         :data:`MIN_SAMPLES_PER_WINDOW`).
     n_windows, lead_windows, confirm, level, curve_alpha, \
-ladder_alpha, unscented, revise
+ladder_alpha, unscented, revise, confirm_overlap, curve_beyond
         As in :class:`fusion.passive.crossing.CrossingDetector`.
 
     Returns
@@ -207,7 +225,7 @@ ladder_alpha, unscented, revise
         step, track_span, window_s=window_s, horizon_s=horizon_s, period_s=period_s, J=J,
         n_windows=n_windows, lead_windows=lead_windows, confirm=confirm, level=level,
         curve_alpha=curve_alpha, ladder_alpha=ladder_alpha, unscented=unscented,
-        revise=revise)
+        revise=revise, confirm_overlap=confirm_overlap, curve_beyond=curve_beyond)
 
 
 def crossing_settings_from_steps(
@@ -226,6 +244,8 @@ def crossing_settings_from_steps(
     ladder_alpha: float | None = DEFAULT_LADDER_ALPHA,
     unscented: bool = DEFAULT_UNSCENTED,
     revise: bool = DEFAULT_REVISE,
+    confirm_overlap: bool = DEFAULT_CONFIRM_OVERLAP,
+    curve_beyond: bool = DEFAULT_CURVE_BEYOND,
 ) -> CrossingSettings:
     """:func:`crossing_settings` from the two numbers it takes of the data.
 
@@ -237,7 +257,7 @@ def crossing_settings_from_steps(
     track_span_s : float
         Median time span of the tracks, s.
     window_s, horizon_s, period_s, J, n_windows, lead_windows, confirm, level, curve_alpha, \
-ladder_alpha, unscented, revise
+ladder_alpha, unscented, revise, confirm_overlap, curve_beyond
         As in :func:`crossing_settings`.
 
     Returns
@@ -282,5 +302,6 @@ ladder_alpha, unscented, revise
                             curve_alpha=None if curve_alpha is None else float(curve_alpha),
                             ladder_alpha=None if ladder_alpha is None else float(ladder_alpha),
                             unscented=bool(unscented) and curve_alpha is not None,
-                            revise=bool(revise),
+                            revise=bool(revise), confirm_overlap=bool(confirm_overlap),
+                            curve_beyond=bool(curve_beyond) and curve_alpha is not None,
                             adjusted=tuple(adjusted))

@@ -430,7 +430,8 @@ def detect_crossings_streamed(
 max_interval_s, lead_windows, confirm
         As in :func:`~fusion.passive.crossing.detect_crossings` (`K` required).
     **more
-        ``curve_alpha``, ``split_repeats``, ``ladder_alpha``, ``unscented``, ``revise`` of
+        ``curve_alpha``, ``split_repeats``, ``ladder_alpha``, ``unscented``, ``revise``,
+        ``confirm_overlap``, ``curve_beyond`` of
         :class:`CrossingDetector`.
 
     Returns
