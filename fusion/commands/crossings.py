@@ -127,20 +127,21 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "(default; the bearings of sigma points of the curve's covariance, so an "
                         "extrapolation that bends within its uncertainty gets that spread) or "
                         "linear (the delta method, before)")
-    p.add_argument("--curve-interval", choices=("beyond", "reach"), default="reach",
-                   help="where the t_cross interval of a pair with a curved track may end: "
-                        "beyond (up to one window beyond the reach of predictions, as a line's "
-                        "may) or reach (default: within the reach, else the pair is unresolved)")
     p.add_argument("--ladder-alpha", type=number(float, ge=0, le=0.5),
                    default=DEFAULT_LADDER_ALPHA, metavar="P",
                    help="a track enters a longer window of the ladder only if its residual "
                         "variance there passes the variance-ratio test against the shortest "
                         f"window at level P (default {DEFAULT_LADDER_ALPHA:g}; 0: every track, "
                         "the ladder before)")
-    p.add_argument("--confirm-rule", choices=("count", "overlap"), default="count",
-                   help="count (default): any --confirm samples in a row with a hit confirm an "
-                        "alert; overlap: each confirming sample's t_cross interval must also "
-                        "overlap the one before (a prediction that jumps is not confirmed)")
+    p.add_argument("--extrapolation", choices=("calibrated", "model"), default="model",
+                   help="variance of a fit extrapolated ahead (predictions): calibrated (grown "
+                        "by the factor that makes each track's earlier window predict the samples "
+                        "since as often as --level says, pooled over tracks) or model (default: "
+                        "the fits' own covariance)")
+    p.add_argument("--confirm-rule", choices=("overlap", "count"), default="overlap",
+                   help="overlap (default): each of the --confirm samples in a row must hit with "
+                        "a t_cross interval that overlaps the one before (a prediction that "
+                        "jumps is not confirmed); count: any hits in a row (before)")
     p.add_argument("--predictions", choices=("revised", "once"), default="revised",
                    help="revised (default): a pair's crossing is predicted again when its new "
                         "interval no longer overlaps that of the prediction raised; once: one "
@@ -189,7 +190,7 @@ def _options(args: argparse.Namespace) -> dict:
             "unscented": args.curve_variance == "unscented",
             "revise": args.predictions == "revised",
             "confirm_overlap": args.confirm_rule == "overlap",
-            "curve_beyond": args.curve_interval == "beyond"}
+            "calibrate": args.extrapolation == "calibrated"}
 
 
 def _check_spans(args: argparse.Namespace, st: CrossingSettings, spans_s: np.ndarray) -> None:

@@ -42,7 +42,7 @@ def detect_crossings(
     unscented: bool = False,
     revise: bool = False,
     confirm_overlap: bool = False,
-    curve_beyond: bool = False,
+    calibrate: bool = False,
 ) -> list[CrossingAlert]:
     """Crossing alerts of a whole bearing table (batch entry point).
 
@@ -57,7 +57,7 @@ def detect_crossings(
         Sample period, s (default: the median time step within tracks).
     horizon_s, min_rate_diff_deg_per_s, merge_window_s, max_gap_s, n_windows, level, \
 max_interval_s, lead_windows, confirm, curve_alpha, split_repeats, ladder_alpha, unscented, revise, \
-confirm_overlap, curve_beyond
+confirm_overlap, calibrate
         As in :class:`CrossingDetector` (`max_gap_s` also bounds interpolation gaps).
 
     Returns
@@ -87,7 +87,7 @@ confirm_overlap, curve_beyond
         max_interval_s=max_interval_s, lead_windows=lead_windows, confirm=confirm,
         curve_alpha=curve_alpha, split_repeats=split_repeats, ladder_alpha=ladder_alpha,
         unscented=unscented, revise=revise, confirm_overlap=confirm_overlap,
-        curve_beyond=curve_beyond,
+        calibrate=calibrate,
     )
     rs = resample_bearings(
         tid, cols["time"], cols["bearing_deg"], period_s=det.K, max_gap_s=det.max_gap_s

@@ -253,6 +253,7 @@ def curved_pair_intervals(
     reach_s: float,
     back_s: float,
     n_grid: int = 129,
+    ahead_var_scale: float = 1.0,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_],
            NDArray[np.float64]]:
     """Crossing time, interval and direction of pairs of window curves.
@@ -269,6 +270,9 @@ def curved_pair_intervals(
         Crossings are looked for in ``[-back_s, reach_s]`` (s from the current sample).
     n_grid : int, optional
         Points of the time grid the curves are evaluated on.
+    ahead_var_scale : float, optional
+        Factor on the difference's variance ahead of the sample (default 1; the extrapolation
+        factor of :class:`~fusion.passive.crossing.calibration.ExtrapolationScale`).
 
     Returns
     -------
@@ -298,6 +302,8 @@ def curved_pair_intervals(
     bb, vb = cs.bearing(index_b, tt)
     d = _wrap(bb - ba)
     var = va + vb
+    if ahead_var_scale != 1.0:
+        var = np.where(tt > 0, ahead_var_scale * var, var)
     q2 = (np.asarray(q, dtype=float) * np.ones(p))[:, None] ** 2
     gfun = d * d - q2 * var
     sc = (np.sign(d[:, :-1]) != np.sign(d[:, 1:])) & (np.abs(d[:, :-1]) < np.pi / 2) \

@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from fusion.passive.crossing.calibration import ExtrapolationScale, holdout_errors
 from fusion.passive.crossing.curve import (
     CurveStats,
     curve_fits,
@@ -144,11 +145,13 @@ class CrossingDetector:
         intervals overlap (default False: any hit confirms): two honest intervals of one
         crossing from windows sharing all but one sample overlap, and a prediction that jumps
         from sample to sample is not yet one.
-    curve_beyond : bool, optional
-        The interval of a pair with a curved track may end up to one window span beyond the
-        reach of predictions (default False: an interval reaching the end of the reach is
-        unbounded, and a fast crossing is predicted only once its whole interval is within
-        reach). Lines' Fieller intervals never had that limit.
+    calibrate : bool, optional
+        Grow the variance of predictions (crossings ahead of the sample) by the factor the data
+        ask for (default False): each track's J-sample line of ``lead_windows J`` samples ago
+        is checked on the samples since, and the factor is the smallest that makes those
+        held-out errors fall within their intervals as often as the level says (pooled over
+        tracks and the recent past, :class:`~fusion.passive.crossing.calibration.ExtrapolationScale`,
+        :attr:`extrapolation_scale`). Needs a ladder window of ``J + lead_windows J`` samples.
     split_repeats : bool, optional
         A crossing whose bearing difference changes sign the other way from the pair's
         current event is the pair's next crossing, however close in time (default True;
@@ -216,7 +219,7 @@ class CrossingDetector:
         unscented: bool = False,
         revise: bool = False,
         confirm_overlap: bool = False,
-        curve_beyond: bool = False,
+        calibrate: bool = False,
     ) -> None:
         if int(J) != J or J < 3:
             raise ValueError(f"J (samples per window) must be an integer > 2, got {J!r}")
@@ -267,7 +270,7 @@ class CrossingDetector:
         self.unscented = bool(unscented)
         self.revise = bool(revise)
         self.confirm_overlap = bool(confirm_overlap)
-        self.curve_beyond = bool(curve_beyond)
+        self.calibrate = bool(calibrate)
         self.reset()
 
     @property
@@ -285,6 +288,8 @@ class CrossingDetector:
         self._streak_count = np.zeros(0, np.int64)  # ... and for how many samples in a row
         self._streak_low = np.zeros(0)  # ... with the interval of that sample
         self._streak_high = np.zeros(0)
+        self._scale = ExtrapolationScale(self.level) if self._holdout() is not None else None
+        self.extrapolation_scale = 1.0  # the factor on predictions' variances (calibrate)
 
     @property
     def fit(self) -> SlidingLineFit:
@@ -341,6 +346,7 @@ class CrossingDetector:
         for fit in self._fits:
             fit.update(ids, t, np.radians(bdeg))
         self._prune(t)
+        self._calibrate(ids, t)
         hits = self._confirmed(self._hits(t, ids))
         return self._alerts(t, hits)
 
@@ -378,35 +384,55 @@ class CrossingDetector:
 
     def _judge(
         self, model: tuple[LineStats, CurveStats | None], ia: NDArray[np.int64],
-        ib: NDArray[np.int64], *, back_s: float, reach_s: float, window_s: float,
+        ib: NDArray[np.int64], *, back_s: float, reach_s: float,
     ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_],
                NDArray[np.float64]]:
-        """Crossing time, interval, resolved flag and direction of pairs on one window.
-
-        Curved pairs are evaluated on ``[-back_s, reach_s]``, extended by `window_s` ahead with
-        `curve_beyond` (their crossing is still looked for nearest the sample).
-        """
+        """Crossing time, interval, resolved flag and direction of pairs on one window."""
         st, cs = model
         tau, low, high, ok = pair_intervals(ia, ib, st.value, st, level=self.level)
+        k = self.extrapolation_scale
+        if k > 1.0:  # predictions: the lines' extrapolation variance grown by k
+            _, lk, hk, okk = pair_intervals(ia, ib, st.value, st, level=self.level, var_scale=k)
+            ahead = tau > 0
+            low, high, ok = (np.where(ahead, x, y) for x, y in ((lk, low), (hk, high), (okk, ok)))
         direction = np.sign(st.slope[ib] - st.slope[ia])
         if cs is not None:
             c = np.flatnonzero(cs.curved[ia] | cs.curved[ib])
             if c.size:
                 q = t_quantile(self.level, np.minimum(cs.dof[ia[c]], cs.dof[ib[c]]))
                 tc, lc, hc, okc, dc = curved_pair_intervals(
-                    ia[c], ib[c], cs, q=q, back_s=back_s,
-                    reach_s=reach_s + (window_s if self.curve_beyond else 0.0))
+                    ia[c], ib[c], cs, q=q, back_s=back_s, reach_s=reach_s,
+                    ahead_var_scale=k)
                 tau, low, high, ok, direction = (x.copy() for x in (tau, low, high, ok, direction))
                 tau[c], low[c], high[c], ok[c], direction[c] = tc, lc, hc, okc, dc
         with np.errstate(invalid="ignore"):
             ok &= (high - low) <= self.max_interval_s
         return tau, low, high, ok, direction
 
+    def _holdout(self) -> tuple[int, int] | None:
+        """(ladder level, samples ahead) of the held-out check of `calibrate`, or None."""
+        if not self.calibrate or self.level is None:
+            return None
+        ahead = max(1, int(round(self.lead_windows * self.J)))
+        for level, w in enumerate(self.windows):
+            if w >= self.J + ahead:
+                return level, ahead
+        return None
+
+    def _calibrate(self, ids: NDArray[np.int64], t: float) -> None:
+        """Add this sample's held-out errors and update the extrapolation factor."""
+        hold = self._holdout()
+        if self._scale is None or hold is None or ids.size == 0:
+            return
+        tau, val, ok = self._fits[hold[0]].windows(ids, t)
+        self.extrapolation_scale = self._scale.add(
+            *holdout_errors(tau, val, ok, J=self.J, K=self.K, ahead=hold[1]))
+
     def _hits(self, t: float, ids: NDArray[np.int64]) -> _Hits:
         """Pairs satisfying an inequality on the shortest window that resolves them."""
         parts: list[tuple] = []
         models: list[tuple[LineStats, CurveStats | None]] = []
-        reach: list[tuple[float, float, float]] = []
+        reach: list[tuple[float, float]] = []
         admitted = np.ones(ids.size, bool)  # tracks whose longer windows fit as well
         var_prev = dof_prev = np.zeros(ids.size)
         for level, (fit, J) in enumerate(zip(self._fits, self.windows, strict=True)):
@@ -428,7 +454,7 @@ class CrossingDetector:
             span = J * self.K
             lead = min(self.horizon_s, self.lead_windows * span)
             back = min(span, lead)
-            reach.append((back, lead, span))
+            reach.append((back, lead))
             ia, ib, tau = pairs_in_reach(
                 st.value[sel], st.slope[sel], reach_s=lead,
                 min_rate_diff_rad_per_s=self.min_rate_diff_rad_per_s)
@@ -443,10 +469,10 @@ class CrossingDetector:
                 direction = np.sign(st.slope[ib] - st.slope[ia])
             else:
                 tau, low, high, ok, direction = self._judge(model, ia, ib, back_s=back,
-                                                            reach_s=lead, window_s=span)
+                                                            reach_s=lead)
                 for lower in range(level):  # judged on the shortest window that resolves it
                     ok &= ~self._judge(models[lower], ia, ib, back_s=reach[lower][0],
-                                       reach_s=reach[lower][1], window_s=reach[lower][2])[3]
+                                       reach_s=reach[lower][1])[3]
             with np.errstate(invalid="ignore"):
                 pred = ok & (tau > 0.0) & (tau <= lead)  # inequality (3)
                 det = ok & (tau >= -back) & (tau <= 0.0)  # inequality (4)

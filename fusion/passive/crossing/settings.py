@@ -17,10 +17,10 @@ from numpy.typing import ArrayLike
 from fusion.passive.bearing_grid import estimate_period
 
 __all__ = [
+    "DEFAULT_CALIBRATE",
     "DEFAULT_CONFIRM",
     "DEFAULT_CONFIRM_OVERLAP",
     "DEFAULT_CURVE_ALPHA",
-    "DEFAULT_CURVE_BEYOND",
     "DEFAULT_HORIZON_S",
     "DEFAULT_LADDER_ALPHA",
     "DEFAULT_LEAD_WINDOWS",
@@ -74,9 +74,9 @@ class CrossingSettings:
         prediction raised (False: one prediction per crossing).
     confirm_overlap : bool
         A confirming sample's interval must overlap the one before (False: any hit confirms).
-    curve_beyond : bool
-        A curved pair's interval may end up to a window beyond the reach of predictions (False:
-        within the reach).
+    calibrate : bool
+        Predictions' variances grown by the factor the held-out check of each track's earlier
+        window asks for (False: the fits' own covariance).
     adjusted : tuple of str
         What was asked and changed, one phrase each (printed by :meth:`describe`).
     """
@@ -95,7 +95,7 @@ class CrossingSettings:
     unscented: bool = False
     revise: bool = False
     confirm_overlap: bool = False
-    curve_beyond: bool = False
+    calibrate: bool = False
     adjusted: tuple[str, ...] = ()
 
     def detector_options(self) -> dict[str, Any]:
@@ -105,7 +105,7 @@ class CrossingSettings:
                 "confirm": self.confirm, "level": self.level, "curve_alpha": self.curve_alpha,
                 "ladder_alpha": self.ladder_alpha, "unscented": self.unscented,
                 "revise": self.revise, "confirm_overlap": self.confirm_overlap,
-                "curve_beyond": self.curve_beyond}
+                "calibrate": self.calibrate}
 
     def describe(self) -> str:
         """One line saying what was chosen."""
@@ -115,11 +115,12 @@ class CrossingSettings:
                 f"predictions up to {self.lead_windows:g} window ahead, horizon "
                 f"{self.horizon_s:.4g} s, {self.confirm} sample(s) to confirm"
                 + (" (intervals overlapping)" if self.confirm_overlap else "")
-                + f", level {self.level:g}, "
+                + f", level {self.level:g}"
+                + (" (predictions calibrated on held-out samples)" if self.calibrate else "")
+                + ", "
                 + ("straight lines only" if self.curve_alpha is None else
                    f"curves kept at F-test level {self.curve_alpha:g}"
-                   + (", their variance unscented" if self.unscented else "")
-                   + (", intervals up to a window beyond the reach" if self.curve_beyond else ""))
+                   + (", their variance unscented" if self.unscented else ""))
                 + (", predictions revised" if self.revise else "")
                 + ("" if self.ladder_alpha is None else
                    f", longer windows only where they fit (F-test level {self.ladder_alpha:g})")
@@ -146,9 +147,9 @@ DEFAULT_UNSCENTED = True
 #: evening, benchmarks/RESULTS.md).
 DEFAULT_REVISE = True
 #: Default: a confirming sample's interval must overlap the one before (issue 19, evening).
-DEFAULT_CONFIRM_OVERLAP = False
-#: Default: a curved pair's interval may end up to a window beyond the reach (issue 19, evening).
-DEFAULT_CURVE_BEYOND = False
+DEFAULT_CONFIRM_OVERLAP = True
+#: Default: predictions' variances calibrated on held-out samples (issue 19, evening).
+DEFAULT_CALIBRATE = False
 #: Default number of samples in a row that confirm an alert.
 DEFAULT_CONFIRM = 2
 #: Default nominal level of the Fieller intervals (see :func:`crossing_settings`).
@@ -176,7 +177,7 @@ def crossing_settings(
     unscented: bool = DEFAULT_UNSCENTED,
     revise: bool = DEFAULT_REVISE,
     confirm_overlap: bool = DEFAULT_CONFIRM_OVERLAP,
-    curve_beyond: bool = DEFAULT_CURVE_BEYOND,
+    calibrate: bool = DEFAULT_CALIBRATE,
 ) -> CrossingSettings:
     """Window, horizon and grid period of a bearing table, in seconds, from the data.
 
@@ -196,7 +197,7 @@ def crossing_settings(
         Samples in the shortest window (default ``round(window_s / K)``, at least
         :data:`MIN_SAMPLES_PER_WINDOW`).
     n_windows, lead_windows, confirm, level, curve_alpha, \
-ladder_alpha, unscented, revise, confirm_overlap, curve_beyond
+ladder_alpha, unscented, revise, confirm_overlap, calibrate
         As in :class:`fusion.passive.crossing.CrossingDetector`.
 
     Returns
@@ -225,7 +226,8 @@ ladder_alpha, unscented, revise, confirm_overlap, curve_beyond
         step, track_span, window_s=window_s, horizon_s=horizon_s, period_s=period_s, J=J,
         n_windows=n_windows, lead_windows=lead_windows, confirm=confirm, level=level,
         curve_alpha=curve_alpha, ladder_alpha=ladder_alpha, unscented=unscented,
-        revise=revise, confirm_overlap=confirm_overlap, curve_beyond=curve_beyond)
+        revise=revise, confirm_overlap=confirm_overlap,
+        calibrate=calibrate)
 
 
 def crossing_settings_from_steps(
@@ -245,7 +247,7 @@ def crossing_settings_from_steps(
     unscented: bool = DEFAULT_UNSCENTED,
     revise: bool = DEFAULT_REVISE,
     confirm_overlap: bool = DEFAULT_CONFIRM_OVERLAP,
-    curve_beyond: bool = DEFAULT_CURVE_BEYOND,
+    calibrate: bool = DEFAULT_CALIBRATE,
 ) -> CrossingSettings:
     """:func:`crossing_settings` from the two numbers it takes of the data.
 
@@ -257,7 +259,7 @@ def crossing_settings_from_steps(
     track_span_s : float
         Median time span of the tracks, s.
     window_s, horizon_s, period_s, J, n_windows, lead_windows, confirm, level, curve_alpha, \
-ladder_alpha, unscented, revise, confirm_overlap, curve_beyond
+ladder_alpha, unscented, revise, confirm_overlap, calibrate
         As in :func:`crossing_settings`.
 
     Returns
@@ -303,5 +305,5 @@ ladder_alpha, unscented, revise, confirm_overlap, curve_beyond
                             ladder_alpha=None if ladder_alpha is None else float(ladder_alpha),
                             unscented=bool(unscented) and curve_alpha is not None,
                             revise=bool(revise), confirm_overlap=bool(confirm_overlap),
-                            curve_beyond=bool(curve_beyond) and curve_alpha is not None,
+                            calibrate=bool(calibrate),
                             adjusted=tuple(adjusted))

@@ -431,7 +431,7 @@ max_interval_s, lead_windows, confirm
         As in :func:`~fusion.passive.crossing.detect_crossings` (`K` required).
     **more
         ``curve_alpha``, ``split_repeats``, ``ladder_alpha``, ``unscented``, ``revise``,
-        ``confirm_overlap``, ``curve_beyond`` of
+        ``confirm_overlap``, ``calibrate`` of
         :class:`CrossingDetector`.
 
     Returns
