@@ -122,11 +122,6 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--curve-alpha", type=number(float, gt=0, le=0.5), default=DEFAULT_CURVE_ALPHA,
                    metavar="P", help="level of the F-test that keeps a curve instead of the "
                    f"line (default {DEFAULT_CURVE_ALPHA:g}; smaller keeps fewer curves)")
-    p.add_argument("--curve-variance", choices=("unscented", "linear"), default="unscented",
-                   help="variance of a curve's bearing ahead of its window: unscented "
-                        "(default; the bearings of sigma points of the curve's covariance, so an "
-                        "extrapolation that bends within its uncertainty gets that spread) or "
-                        "linear (the delta method, before)")
     p.add_argument("--ladder-alpha", type=number(float, ge=0, le=0.5),
                    default=DEFAULT_LADDER_ALPHA, metavar="P",
                    help="a track enters a longer window of the ladder only if its residual "
@@ -187,7 +182,6 @@ def _options(args: argparse.Namespace) -> dict:
             "confirm": args.confirm, "level": args.level,
             "curve_alpha": args.curve_alpha if args.bearing_model == "curve" else None,
             "ladder_alpha": args.ladder_alpha or None,
-            "unscented": args.curve_variance == "unscented",
             "revise": args.predictions == "revised",
             "confirm_overlap": args.confirm_rule == "overlap",
             "calibrate": args.extrapolation == "calibrated"}

@@ -84,7 +84,7 @@ def crossing_setup(table: Mapping[str, Any] | Any, *, strict: bool = False,
         Keywords of :func:`~fusion.passive.crossing.settings.crossing_settings` (``window_s``,
         ``horizon_s``, ``period_s``, ``J``, ``n_windows``, ``lead_windows``, ``confirm``,
         ``level``, ``curve_alpha`` (None: straight lines only), ``ladder_alpha``,
-        ``unscented``, ``revise``, ``confirm_overlap``, ``calibrate``); the others
+        ``revise``, ``confirm_overlap``, ``calibrate``); the others
         are estimated from the rows.
 
     Raises

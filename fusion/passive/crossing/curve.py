@@ -53,12 +53,6 @@ class CurveStats:
         Residual variance of the model kept, rad^2.
     curved : ndarray of bool, shape (n,)
         Whether the F-test kept the curve.
-    spread : ndarray, shape (n, 4, 3) or None
-        Sigma-point offsets of `p` (``sqrt(3 lambda_k) v_k`` of the three eigenpairs of `cov`
-        that are not the scale): when given, a curve's bearing variance is that of the bearings
-        of the six points ``p +- spread[:, :, k]`` (the unscented transform) rather than the
-        linearised one, so a curve whose extrapolation bends sharply within its uncertainty
-        gets the spread it has (None: the delta method).
     """
 
     line: LineStats
@@ -68,7 +62,6 @@ class CurveStats:
     dof: NDArray[np.float64]
     residual_var: NDArray[np.float64]
     curved: NDArray[np.bool_]
-    spread: NDArray[np.float64] | None = None
 
     def subset(self, index: NDArray[np.int64]) -> CurveStats:
         """The rows `index` of every array."""
@@ -76,8 +69,7 @@ class CurveStats:
         line = LineStats(*(getattr(ln, f)[index] for f in (
             "value", "slope", "n", "residual_var", "var_value", "var_slope", "cov")))
         return CurveStats(line, self.p[index], self.cov[index], self.scale[index],
-                          self.dof[index], self.residual_var[index], self.curved[index],
-                          None if self.spread is None else self.spread[index])
+                          self.dof[index], self.residual_var[index], self.curved[index])
 
     def bearing(self, index: NDArray[np.int64], tau: NDArray[np.float64]
                 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -95,19 +87,9 @@ class CurveStats:
         x = p[:, 0:1] + p[:, 1:2] * u
         y = p[:, 2:3] + p[:, 3:4] * u
         r2 = np.maximum(x * x + y * y, 1e-300)
+        g = np.stack([y, y * u, -x, -x * u], axis=-1) / r2[..., None]  # d bearing / d p
+        var_cv = np.einsum("pmi,pij,pmj->pm", g, self.cov[index], g)
         b_cv = np.arctan2(x, y)
-        if self.spread is None:
-            g = np.stack([y, y * u, -x, -x * u], axis=-1) / r2[..., None]  # d bearing / d p
-            var_cv = np.einsum("pmi,pij,pmj->pm", g, self.cov[index], g)
-        else:  # unscented: the bearings of the sigma points around the central one
-            sp = self.spread[index]
-            var_cv = np.zeros_like(b_cv)
-            for k in range(sp.shape[2]):
-                for sign in (1.0, -1.0):
-                    q = p + sign * sp[:, :, k]
-                    bk = np.arctan2(q[:, 0:1] + q[:, 1:2] * u, q[:, 2:3] + q[:, 3:4] * u)
-                    var_cv += _wrap(bk - b_cv) ** 2
-            var_cv /= 2.0 * sp.shape[2]
         c = self.curved[index][:, None]
         # the curve on the line's branch at tau = 0
         b_cv = b_line + _wrap(b_cv - b_line)
@@ -159,7 +141,6 @@ def curve_fits(
     *,
     alpha: float,
     iterations: int = 3,
-    unscented: bool = False,
 ) -> CurveStats:
     """Constant-velocity bearing curves of the windows, kept where an F-test finds them better.
 
@@ -174,9 +155,6 @@ def curve_fits(
         Level of the F-test of the curve against the line (smaller keeps fewer curves).
     iterations : int, optional
         Gauss-Newton steps after the pseudo-linear start (default 3).
-    unscented : bool, optional
-        Carry the sigma points of the covariance (:attr:`CurveStats.spread`): bearing variances
-        ahead of the window from the unscented transform instead of the delta method.
 
     Returns
     -------
@@ -231,17 +209,9 @@ def curve_fits(
     ok = (n >= 6) & np.all(np.isfinite(p), axis=1)
     curved = ok & (((rss_cv > 0) & (f_stat > f_quantile(alpha, n - 3.0)))
                    | ((rss_cv <= 0) & (rss_line > 0)))
-    spread = None
-    if unscented:  # the curved rows' sigma points (the others keep the line)
-        spread = np.zeros((n_tr, 4, 3))
-        c = np.flatnonzero(curved)
-        if c.size:
-            lam, vec = np.linalg.eigh(cov[c])  # ascending: the first is the free scale (~0)
-            spread[c] = vec[:, :, 1:] * np.sqrt(3.0 * np.maximum(lam[:, None, 1:], 0.0))
     return CurveStats(line=line, p=p, cov=cov, scale=scale,
                       dof=np.where(curved, n - 3.0, n - 2.0),
-                      residual_var=np.where(curved, s2, line.residual_var), curved=curved,
-                      spread=spread)
+                      residual_var=np.where(curved, s2, line.residual_var), curved=curved)
 
 
 def curved_pair_intervals(

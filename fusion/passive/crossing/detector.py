@@ -131,11 +131,6 @@ class CrossingDetector:
         Curves are fitted on this many of the shortest windows of the ladder (default 1: the
         shortest only; a constant-velocity curve over a long window of a manoeuvring vessel
         mimics a turn and extrapolates it, benchmarks/RESULTS.md).
-    unscented : bool, optional
-        A curve's bearing variance ahead of its window from the unscented transform of its
-        parameter covariance (the bearings of six sigma points) instead of the delta method
-        (default False): an extrapolation that bends sharply within the parameters'
-        uncertainty gets the spread it has (benchmarks/RESULTS.md, issue 19 evening).
     revise : bool, optional
         A crossing event whose interval, at a later sample, no longer overlaps the interval of
         the ``predicted`` alert it raised raises a new ``predicted`` alert (a revised
@@ -216,7 +211,6 @@ class CrossingDetector:
         split_repeats: bool = True,
         ladder_alpha: float | None = None,
         curve_windows: int = 1,
-        unscented: bool = False,
         revise: bool = False,
         confirm_overlap: bool = False,
         calibrate: bool = False,
@@ -267,7 +261,6 @@ class CrossingDetector:
         if int(curve_windows) != curve_windows or curve_windows < 1:
             raise ValueError(f"curve_windows must be a positive integer, got {curve_windows!r}")
         self.curve_windows = int(curve_windows)
-        self.unscented = bool(unscented)
         self.revise = bool(revise)
         self.confirm_overlap = bool(confirm_overlap)
         self.calibrate = bool(calibrate)
@@ -379,8 +372,7 @@ class CrossingDetector:
         if not curves or self.curve_alpha is None or self.level is None:
             return st, None
         tau, val, ok = fit.windows(ids, t)
-        return st, curve_fits(tau, val, ok, st, alpha=self.curve_alpha,
-                              unscented=self.unscented)
+        return st, curve_fits(tau, val, ok, st, alpha=self.curve_alpha)
 
     def _judge(
         self, model: tuple[LineStats, CurveStats | None], ia: NDArray[np.int64],

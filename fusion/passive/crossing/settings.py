@@ -27,7 +27,6 @@ __all__ = [
     "DEFAULT_LEVEL",
     "DEFAULT_N_WINDOWS",
     "DEFAULT_REVISE",
-    "DEFAULT_UNSCENTED",
     "DEFAULT_WINDOW_S",
     "MAX_SAMPLES_PER_WINDOW",
     "MIN_SAMPLES_PER_WINDOW",
@@ -66,9 +65,6 @@ class CrossingSettings:
         (None: lines only).
     ladder_alpha : float or None
         Level of the variance-ratio test that admits a track to a longer window (None: all).
-    unscented : bool
-        Curves' bearing variances ahead of the window from the unscented transform of their
-        covariance (False: the delta method).
     revise : bool
         A pair's prediction is raised again when its interval no longer overlaps that of the
         prediction raised (False: one prediction per crossing).
@@ -92,7 +88,6 @@ class CrossingSettings:
     level: float
     curve_alpha: float | None = None
     ladder_alpha: float | None = None
-    unscented: bool = False
     revise: bool = False
     confirm_overlap: bool = False
     calibrate: bool = False
@@ -103,9 +98,8 @@ class CrossingSettings:
         return {"J": self.J, "K": self.period_s, "horizon_s": self.horizon_s,
                 "n_windows": self.n_windows, "lead_windows": self.lead_windows,
                 "confirm": self.confirm, "level": self.level, "curve_alpha": self.curve_alpha,
-                "ladder_alpha": self.ladder_alpha, "unscented": self.unscented,
-                "revise": self.revise, "confirm_overlap": self.confirm_overlap,
-                "calibrate": self.calibrate}
+                "ladder_alpha": self.ladder_alpha, "revise": self.revise,
+                "confirm_overlap": self.confirm_overlap, "calibrate": self.calibrate}
 
     def describe(self) -> str:
         """One line saying what was chosen."""
@@ -119,8 +113,7 @@ class CrossingSettings:
                 + (" (predictions calibrated on held-out samples)" if self.calibrate else "")
                 + ", "
                 + ("straight lines only" if self.curve_alpha is None else
-                   f"curves kept at F-test level {self.curve_alpha:g}"
-                   + (", their variance unscented" if self.unscented else ""))
+                   f"curves kept at F-test level {self.curve_alpha:g}")
                 + (", predictions revised" if self.revise else "")
                 + ("" if self.ladder_alpha is None else
                    f", longer windows only where they fit (F-test level {self.ladder_alpha:g})")
@@ -140,9 +133,6 @@ DEFAULT_LEAD_WINDOWS = 0.5
 DEFAULT_CURVE_ALPHA = 0.001
 #: Default level of the variance-ratio test that admits a track to a longer window (issue 19).
 DEFAULT_LADDER_ALPHA = 0.01
-#: Default: curves' variances ahead of the window from the unscented transform (issue 19,
-#: evening: intervals of curved predictions that hold more often, benchmarks/RESULTS.md).
-DEFAULT_UNSCENTED = True
 #: Default: a prediction whose interval moved off the one raised is raised again (issue 19,
 #: evening, benchmarks/RESULTS.md).
 DEFAULT_REVISE = True
@@ -174,7 +164,6 @@ def crossing_settings(
     level: float = DEFAULT_LEVEL,
     curve_alpha: float | None = DEFAULT_CURVE_ALPHA,
     ladder_alpha: float | None = DEFAULT_LADDER_ALPHA,
-    unscented: bool = DEFAULT_UNSCENTED,
     revise: bool = DEFAULT_REVISE,
     confirm_overlap: bool = DEFAULT_CONFIRM_OVERLAP,
     calibrate: bool = DEFAULT_CALIBRATE,
@@ -197,7 +186,7 @@ def crossing_settings(
         Samples in the shortest window (default ``round(window_s / K)``, at least
         :data:`MIN_SAMPLES_PER_WINDOW`).
     n_windows, lead_windows, confirm, level, curve_alpha, \
-ladder_alpha, unscented, revise, confirm_overlap, calibrate
+ladder_alpha, revise, confirm_overlap, calibrate
         As in :class:`fusion.passive.crossing.CrossingDetector`.
 
     Returns
@@ -225,7 +214,7 @@ ladder_alpha, unscented, revise, confirm_overlap, calibrate
     return crossing_settings_from_steps(
         step, track_span, window_s=window_s, horizon_s=horizon_s, period_s=period_s, J=J,
         n_windows=n_windows, lead_windows=lead_windows, confirm=confirm, level=level,
-        curve_alpha=curve_alpha, ladder_alpha=ladder_alpha, unscented=unscented,
+        curve_alpha=curve_alpha, ladder_alpha=ladder_alpha,
         revise=revise, confirm_overlap=confirm_overlap,
         calibrate=calibrate)
 
@@ -244,7 +233,6 @@ def crossing_settings_from_steps(
     level: float = DEFAULT_LEVEL,
     curve_alpha: float | None = DEFAULT_CURVE_ALPHA,
     ladder_alpha: float | None = DEFAULT_LADDER_ALPHA,
-    unscented: bool = DEFAULT_UNSCENTED,
     revise: bool = DEFAULT_REVISE,
     confirm_overlap: bool = DEFAULT_CONFIRM_OVERLAP,
     calibrate: bool = DEFAULT_CALIBRATE,
@@ -259,7 +247,7 @@ def crossing_settings_from_steps(
     track_span_s : float
         Median time span of the tracks, s.
     window_s, horizon_s, period_s, J, n_windows, lead_windows, confirm, level, curve_alpha, \
-ladder_alpha, unscented, revise, confirm_overlap, calibrate
+ladder_alpha, revise, confirm_overlap, calibrate
         As in :func:`crossing_settings`.
 
     Returns
@@ -303,7 +291,6 @@ ladder_alpha, unscented, revise, confirm_overlap, calibrate
                             level=float(level),
                             curve_alpha=None if curve_alpha is None else float(curve_alpha),
                             ladder_alpha=None if ladder_alpha is None else float(ladder_alpha),
-                            unscented=bool(unscented) and curve_alpha is not None,
                             revise=bool(revise), confirm_overlap=bool(confirm_overlap),
                             calibrate=bool(calibrate),
                             adjusted=tuple(adjusted))
