@@ -104,12 +104,12 @@ def test_confirmation_needs_overlapping_intervals():
 
 
 def test_calibrated_predictions_hold_their_interval_on_traffic():
-    """Manoeuvring traffic (tuning seed 0): lines extrapolated half a window ahead miss more
+    """Manoeuvring traffic (tuning seed 1): lines extrapolated half a window ahead miss more
     often than their covariance says; grown by the held-out factor, the intervals of the alerts
-    hold the crossing at least 90 % of the time (measured 92.9 %, against 89.6 % without), at
-    the price of fewer predictions (132 against 185)."""
-    cal = _traffic_scores(0, calibrate=True)
-    raw = _traffic_scores(0)
+    hold the crossing at least 90 % of the time (measured 179 of 193, 92.7 %, against 245 of
+    315, 77.8 %, without), at the price of most predictions (28 against 98)."""
+    cal = _traffic_scores(1, calibrate=True)
+    raw = _traffic_scores(1)
     assert cal.coverage >= 0.9
-    assert cal.coverage >= raw.coverage + 0.02
+    assert cal.coverage >= raw.coverage + 0.1
     assert cal.n_predicted < raw.n_predicted
