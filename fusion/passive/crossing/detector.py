@@ -462,13 +462,15 @@ class CrossingDetector:
             else:
                 tau, low, high, ok, direction = self._judge(model, ia, ib, back_s=back,
                                                             reach_s=lead)
-                for lower in range(level):  # judged on the shortest window that resolves it
-                    ok &= ~self._judge(models[lower], ia, ib, back_s=reach[lower][0],
-                                       reach_s=reach[lower][1])[3]
             with np.errstate(invalid="ignore"):
                 pred = ok & (tau > 0.0) & (tau <= lead)  # inequality (3)
                 det = ok & (tau >= -back) & (tau <= 0.0)  # inequality (4)
             k = np.flatnonzero(pred | det)
+            if self.level is not None:
+                for lower in range(level):  # judged on the shortest window that resolves it
+                    # (only the hits need it: pair by pair, the same numbers as for all)
+                    k = k[~self._judge(models[lower], ia[k], ib[k], back_s=reach[lower][0],
+                                       reach_s=reach[lower][1])[3]]
             parts.append((ids[ia[k]], ids[ib[k]], t + tau[k], t + low[k], t + high[k], pred[k],
                           np.full(k.size, span), direction[k]))
         if not parts:
