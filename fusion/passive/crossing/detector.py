@@ -10,7 +10,6 @@ holds the batch entry point :func:`~fusion.passive.crossing.detect_crossings`.
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -22,6 +21,7 @@ from fusion.passive.crossing.curve import (
     curved_candidates,
     curved_pair_intervals,
 )
+from fusion.passive.crossing.events import _Events, _Hits
 from fusion.passive.crossing.interval import f_ratio_quantile, t_quantile
 from fusion.passive.crossing.pairs import pair_intervals, pairs_in_reach
 from fusion.passive.crossing.types import AlertKind, CrossingAlert
@@ -35,56 +35,6 @@ __all__ = ["CrossingDetector"]
 MAX_WINDOW_SAMPLES = 1_000_000
 
 logger = logging.getLogger(__name__)
-
-
-@dataclass
-class _Events:
-    """Open crossing events, one row per pair, sorted by pair key (internal, mutable).
-
-    ``key = slot_a * 2**32 + slot_b`` with the tracks' storage slots; ``t_cross``, ``low``,
-    ``high`` are the latest crossing time and interval seen for the event; ``direction`` is the
-    sign of the bearing difference's rate at the crossing (successive crossings of a pair
-    alternate it); ``predicted`` and ``detected`` say which alerts the event has raised;
-    ``said_low``, ``said_high`` are the interval of its latest ``predicted`` alert.
-    """
-
-    key: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, np.int64))
-    t_cross: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
-    low: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
-    high: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
-    direction: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
-    predicted: NDArray[np.bool_] = field(default_factory=lambda: np.zeros(0, bool))
-    detected: NDArray[np.bool_] = field(default_factory=lambda: np.zeros(0, bool))
-    said_low: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
-    said_high: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
-
-    _COLUMNS = ("key", "t_cross", "low", "high", "direction", "predicted", "detected",
-                "said_low", "said_high")
-
-    def keep(self, index: NDArray) -> None:
-        for name in self._COLUMNS:
-            setattr(self, name, getattr(self, name)[index])
-
-    def append(self, **cols: NDArray) -> None:
-        for name in self._COLUMNS:
-            setattr(self, name, np.concatenate([getattr(self, name), cols[name]]))
-        self.keep(np.argsort(self.key, kind="stable"))
-
-
-@dataclass(frozen=True)
-class _Hits:
-    """Pairs that satisfied an inequality at one sample, with their intervals (internal)."""
-
-    a: NDArray[np.int64]
-    b: NDArray[np.int64]
-    t_cross: NDArray[np.float64]
-    low: NDArray[np.float64]
-    high: NDArray[np.float64]
-    predicted: NDArray[np.bool_]
-    window_s: NDArray[np.float64]
-    direction: NDArray[np.float64]
-
-    _FIELDS = ("a", "b", "t_cross", "low", "high", "predicted", "window_s", "direction")
 
 
 class CrossingDetector:
@@ -468,7 +418,6 @@ class CrossingDetector:
             k = np.flatnonzero(pred | det)
             if self.level is not None:
                 for lower in range(level):  # judged on the shortest window that resolves it
-                    # (only the hits need it: pair by pair, the same numbers as for all)
                     k = k[~self._judge(models[lower], ia[k], ib[k], back_s=reach[lower][0],
                                        reach_s=reach[lower][1])[3]]
             parts.append((ids[ia[k]], ids[ib[k]], t + tau[k], t + low[k], t + high[k], pred[k],
