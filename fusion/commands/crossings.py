@@ -128,6 +128,19 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "variance there passes the variance-ratio test against the shortest "
                         f"window at level P (default {DEFAULT_LADDER_ALPHA:g}; 0: every track, "
                         "the ladder before)")
+    p.add_argument("--extrapolation", choices=("calibrated", "model"), default="model",
+                   help="variance of a fit extrapolated ahead (predictions): calibrated (grown "
+                        "by the factor that makes each track's earlier window predict the samples "
+                        "since as often as --level says, pooled over tracks) or model (default: "
+                        "the fits' own covariance)")
+    p.add_argument("--confirm-rule", choices=("overlap", "count"), default="overlap",
+                   help="overlap (default): each of the --confirm samples in a row must hit with "
+                        "a t_cross interval that overlaps the one before (a prediction that "
+                        "jumps is not confirmed); count: any hits in a row (before)")
+    p.add_argument("--predictions", choices=("revised", "once"), default="revised",
+                   help="revised (default): a pair's crossing is predicted again when its new "
+                        "interval no longer overlaps that of the prediction raised; once: one "
+                        "prediction per crossing (before)")
     p.add_argument("--merge-repeats", action="store_true",
                    help="merge a pair's crossings by time and interval overlap only (before: a "
                         "crossing in the other direction is always the pair's next crossing)")
@@ -168,7 +181,10 @@ def _options(args: argparse.Namespace) -> dict:
             "J": args.window, "n_windows": args.windows, "lead_windows": args.lead,
             "confirm": args.confirm, "level": args.level,
             "curve_alpha": args.curve_alpha if args.bearing_model == "curve" else None,
-            "ladder_alpha": args.ladder_alpha or None}
+            "ladder_alpha": args.ladder_alpha or None,
+            "revise": args.predictions == "revised",
+            "confirm_overlap": args.confirm_rule == "overlap",
+            "calibrate": args.extrapolation == "calibrated"}
 
 
 def _check_spans(args: argparse.Namespace, st: CrossingSettings, spans_s: np.ndarray) -> None:

@@ -83,7 +83,8 @@ def crossing_setup(table: Mapping[str, Any] | Any, *, strict: bool = False,
     **options
         Keywords of :func:`~fusion.passive.crossing.settings.crossing_settings` (``window_s``,
         ``horizon_s``, ``period_s``, ``J``, ``n_windows``, ``lead_windows``, ``confirm``,
-        ``level``, ``curve_alpha`` (None: straight lines only), ``ladder_alpha``); the others
+        ``level``, ``curve_alpha`` (None: straight lines only), ``ladder_alpha``,
+        ``revise``, ``confirm_overlap``, ``calibrate``); the others
         are estimated from the rows.
 
     Raises

@@ -39,6 +39,9 @@ def detect_crossings(
     curve_alpha: float | None = None,
     split_repeats: bool = True,
     ladder_alpha: float | None = None,
+    revise: bool = False,
+    confirm_overlap: bool = False,
+    calibrate: bool = False,
 ) -> list[CrossingAlert]:
     """Crossing alerts of a whole bearing table (batch entry point).
 
@@ -52,7 +55,8 @@ def detect_crossings(
     K : float, optional
         Sample period, s (default: the median time step within tracks).
     horizon_s, min_rate_diff_deg_per_s, merge_window_s, max_gap_s, n_windows, level, \
-max_interval_s, lead_windows, confirm, curve_alpha, split_repeats, ladder_alpha
+max_interval_s, lead_windows, confirm, curve_alpha, split_repeats, ladder_alpha, revise, \
+confirm_overlap, calibrate
         As in :class:`CrossingDetector` (`max_gap_s` also bounds interpolation gaps).
 
     Returns
@@ -81,6 +85,8 @@ max_interval_s, lead_windows, confirm, curve_alpha, split_repeats, ladder_alpha
         merge_window_s=merge_window_s, max_gap_s=max_gap_s, n_windows=n_windows, level=level,
         max_interval_s=max_interval_s, lead_windows=lead_windows, confirm=confirm,
         curve_alpha=curve_alpha, split_repeats=split_repeats, ladder_alpha=ladder_alpha,
+        revise=revise, confirm_overlap=confirm_overlap,
+        calibrate=calibrate,
     )
     rs = resample_bearings(
         tid, cols["time"], cols["bearing_deg"], period_s=det.K, max_gap_s=det.max_gap_s

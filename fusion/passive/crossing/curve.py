@@ -124,6 +124,18 @@ def _cv_jacobian(p: NDArray[np.float64], u: NDArray[np.float64]
     return np.arctan2(x, y), g
 
 
+def _free_scale(gg: NDArray[np.float64], p: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``G^T G + c p p^T`` (``c`` its mean eigenvalue, a ridge of 1e-12 c): invertible.
+
+    The bearing does not change along `p` (a unit vector; ``G p = 0``), so ``p`` spans the
+    null space of ``G^T G`` and is an eigenvector of the sum, which then solves the
+    minimum-norm Gauss-Newton step for any right-hand side ``G^T r`` (orthogonal to ``p``)
+    and gives ``(G^T G)^+ = M^-1 - p p^T / c`` without an eigendecomposition.
+    """
+    c = np.maximum(np.einsum("nii->n", gg) / 4.0, 1e-300)[:, None, None]
+    return gg + c * (p[:, :, None] * p[:, None, :]) + 1e-12 * c * np.eye(4)
+
+
 def curve_fits(
     tau: NDArray[np.float64],
     value: NDArray[np.float64],
@@ -182,9 +194,8 @@ def curve_fits(
         r = _wrap(value - b) * w
         g = g * w[..., None]
         gg = np.einsum("nji,njk->nik", g, g)
-        step = np.einsum("nij,nj->ni", np.linalg.pinv(gg, rcond=1e-10, hermitian=True),
-                         np.einsum("nji,nj->ni", g, r))
-        p = p + step
+        step = np.linalg.solve(_free_scale(gg, p), np.einsum("nji,nj->ni", g, r)[..., None])
+        p = p + step[..., 0]
         p = p / np.maximum(np.linalg.norm(p, axis=1, keepdims=True), 1e-300)
     b, g = _cv_jacobian(p, u)
     rss_cv = ((_wrap(value - b) * w) ** 2).sum(axis=1)
@@ -192,8 +203,10 @@ def curve_fits(
     dof = np.maximum(n - 3.0, 1.0)
     s2 = rss_cv / dof
     g = g * w[..., None]
-    cov = s2[:, None, None] * np.linalg.pinv(np.einsum("nji,njk->nik", g, g), rcond=1e-10,
-                                             hermitian=True)
+    gg = np.einsum("nji,njk->nik", g, g)
+    m_free = _free_scale(gg, p)
+    pp = p[:, :, None] * p[:, None, :] / np.einsum("nii->n", m_free - gg)[:, None, None]
+    cov = s2[:, None, None] * (np.linalg.inv(m_free) - pp)  # (G^T G)^+: p spans its null space
     with np.errstate(divide="ignore", invalid="ignore"):
         f_stat = (rss_line - rss_cv) / s2
     ok = (n >= 6) & np.all(np.isfinite(p), axis=1)
@@ -213,6 +226,7 @@ def curved_pair_intervals(
     reach_s: float,
     back_s: float,
     n_grid: int = 129,
+    ahead_var_scale: float = 1.0,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_],
            NDArray[np.float64]]:
     """Crossing time, interval and direction of pairs of window curves.
@@ -229,6 +243,9 @@ def curved_pair_intervals(
         Crossings are looked for in ``[-back_s, reach_s]`` (s from the current sample).
     n_grid : int, optional
         Points of the time grid the curves are evaluated on.
+    ahead_var_scale : float, optional
+        Factor on the difference's variance ahead of the sample (default 1; the extrapolation
+        factor of :class:`~fusion.passive.crossing.calibration.ExtrapolationScale`).
 
     Returns
     -------
@@ -258,6 +275,8 @@ def curved_pair_intervals(
     bb, vb = cs.bearing(index_b, tt)
     d = _wrap(bb - ba)
     var = va + vb
+    if ahead_var_scale != 1.0:
+        var = np.where(tt > 0, ahead_var_scale * var, var)
     q2 = (np.asarray(q, dtype=float) * np.ones(p))[:, None] ** 2
     gfun = d * d - q2 * var
     sc = (np.sign(d[:, :-1]) != np.sign(d[:, 1:])) & (np.abs(d[:, :-1]) < np.pi / 2) \

@@ -10,17 +10,18 @@ holds the batch entry point :func:`~fusion.passive.crossing.detect_crossings`.
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from fusion.passive.crossing.calibration import ExtrapolationScale, holdout_errors
 from fusion.passive.crossing.curve import (
     CurveStats,
     curve_fits,
     curved_candidates,
     curved_pair_intervals,
 )
+from fusion.passive.crossing.events import _Events, _Hits
 from fusion.passive.crossing.interval import f_ratio_quantile, t_quantile
 from fusion.passive.crossing.pairs import pair_intervals, pairs_in_reach
 from fusion.passive.crossing.types import AlertKind, CrossingAlert
@@ -34,52 +35,6 @@ __all__ = ["CrossingDetector"]
 MAX_WINDOW_SAMPLES = 1_000_000
 
 logger = logging.getLogger(__name__)
-
-
-@dataclass
-class _Events:
-    """Open crossing events, one row per pair, sorted by pair key (internal, mutable).
-
-    ``key = slot_a * 2**32 + slot_b`` with the tracks' storage slots; ``t_cross``, ``low``,
-    ``high`` are the latest crossing time and interval seen for the event; ``direction`` is the
-    sign of the bearing difference's rate at the crossing (successive crossings of a pair
-    alternate it); ``predicted`` and ``detected`` say which alerts the event has raised.
-    """
-
-    key: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, np.int64))
-    t_cross: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
-    low: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
-    high: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
-    direction: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
-    predicted: NDArray[np.bool_] = field(default_factory=lambda: np.zeros(0, bool))
-    detected: NDArray[np.bool_] = field(default_factory=lambda: np.zeros(0, bool))
-
-    _COLUMNS = ("key", "t_cross", "low", "high", "direction", "predicted", "detected")
-
-    def keep(self, index: NDArray) -> None:
-        for name in self._COLUMNS:
-            setattr(self, name, getattr(self, name)[index])
-
-    def append(self, **cols: NDArray) -> None:
-        for name in self._COLUMNS:
-            setattr(self, name, np.concatenate([getattr(self, name), cols[name]]))
-        self.keep(np.argsort(self.key, kind="stable"))
-
-
-@dataclass(frozen=True)
-class _Hits:
-    """Pairs that satisfied an inequality at one sample, with their intervals (internal)."""
-
-    a: NDArray[np.int64]
-    b: NDArray[np.int64]
-    t_cross: NDArray[np.float64]
-    low: NDArray[np.float64]
-    high: NDArray[np.float64]
-    predicted: NDArray[np.bool_]
-    window_s: NDArray[np.float64]
-    direction: NDArray[np.float64]
-
-    _FIELDS = ("a", "b", "t_cross", "low", "high", "predicted", "window_s", "direction")
 
 
 class CrossingDetector:
@@ -126,6 +81,22 @@ class CrossingDetector:
         Curves are fitted on this many of the shortest windows of the ladder (default 1: the
         shortest only; a constant-velocity curve over a long window of a manoeuvring vessel
         mimics a turn and extrapolates it, benchmarks/RESULTS.md).
+    revise : bool, optional
+        A crossing event whose interval, at a later sample, no longer overlaps the interval of
+        the ``predicted`` alert it raised raises a new ``predicted`` alert (a revised
+        prediction; default False: at most one per event, the rule below).
+    confirm_overlap : bool, optional
+        A sample confirms a pair's hit of the sample before only if their two crossing-time
+        intervals overlap (default False: any hit confirms): two honest intervals of one
+        crossing from windows sharing all but one sample overlap, and a prediction that jumps
+        from sample to sample is not yet one.
+    calibrate : bool, optional
+        Grow the variance of predictions (crossings ahead of the sample) by the factor the data
+        ask for (default False): each track's J-sample line of ``lead_windows J`` samples ago
+        is checked on the samples since, and the factor is the smallest that makes those
+        held-out errors fall within their intervals as often as the level says (pooled over
+        tracks and the recent past, :class:`~fusion.passive.crossing.calibration.ExtrapolationScale`,
+        :attr:`extrapolation_scale`). Needs a ladder window of ``J + lead_windows J`` samples.
     split_repeats : bool, optional
         A crossing whose bearing difference changes sign the other way from the pair's
         current event is the pair's next crossing, however close in time (default True;
@@ -190,6 +161,9 @@ class CrossingDetector:
         split_repeats: bool = True,
         ladder_alpha: float | None = None,
         curve_windows: int = 1,
+        revise: bool = False,
+        confirm_overlap: bool = False,
+        calibrate: bool = False,
     ) -> None:
         if int(J) != J or J < 3:
             raise ValueError(f"J (samples per window) must be an integer > 2, got {J!r}")
@@ -237,6 +211,9 @@ class CrossingDetector:
         if int(curve_windows) != curve_windows or curve_windows < 1:
             raise ValueError(f"curve_windows must be a positive integer, got {curve_windows!r}")
         self.curve_windows = int(curve_windows)
+        self.revise = bool(revise)
+        self.confirm_overlap = bool(confirm_overlap)
+        self.calibrate = bool(calibrate)
         self.reset()
 
     @property
@@ -252,6 +229,10 @@ class CrossingDetector:
         self._last_time = -np.inf
         self._streak_key = np.zeros(0, np.int64)  # pairs hit at the previous sample ...
         self._streak_count = np.zeros(0, np.int64)  # ... and for how many samples in a row
+        self._streak_low = np.zeros(0)  # ... with the interval of that sample
+        self._streak_high = np.zeros(0)
+        self._scale = ExtrapolationScale(self.level) if self._holdout() is not None else None
+        self.extrapolation_scale = 1.0  # the factor on predictions' variances (calibrate)
 
     @property
     def fit(self) -> SlidingLineFit:
@@ -308,6 +289,7 @@ class CrossingDetector:
         for fit in self._fits:
             fit.update(ids, t, np.radians(bdeg))
         self._prune(t)
+        self._calibrate(ids, t)
         hits = self._confirmed(self._hits(t, ids))
         return self._alerts(t, hits)
 
@@ -319,9 +301,14 @@ class CrossingDetector:
         pos_ok = np.minimum(pos, max(self._streak_key.size - 1, 0))
         seen = (pos < self._streak_key.size) & (self._streak_key[pos_ok] == key) \
             if self._streak_key.size else np.zeros(key.size, bool)
+        if self.confirm_overlap and self._streak_key.size:  # the same crossing, consistently
+            with np.errstate(invalid="ignore"):
+                seen &= ((h.low <= self._streak_high[pos_ok]) & (h.high >= self._streak_low[pos_ok])
+                         | np.isnan(h.low))
         count = np.where(seen, self._streak_count[pos_ok] + 1 if self._streak_key.size else 1, 1)
         order = np.argsort(key, kind="stable")
         self._streak_key, self._streak_count = key[order], count[order]
+        self._streak_low, self._streak_high = h.low[order], h.high[order]
         if self.confirm <= 1:
             return h
         keep = count >= self.confirm
@@ -345,18 +332,43 @@ class CrossingDetector:
         """Crossing time, interval, resolved flag and direction of pairs on one window."""
         st, cs = model
         tau, low, high, ok = pair_intervals(ia, ib, st.value, st, level=self.level)
+        k = self.extrapolation_scale
+        if k > 1.0:  # predictions: the lines' extrapolation variance grown by k
+            _, lk, hk, okk = pair_intervals(ia, ib, st.value, st, level=self.level, var_scale=k)
+            ahead = tau > 0
+            low, high, ok = (np.where(ahead, x, y) for x, y in ((lk, low), (hk, high), (okk, ok)))
         direction = np.sign(st.slope[ib] - st.slope[ia])
         if cs is not None:
             c = np.flatnonzero(cs.curved[ia] | cs.curved[ib])
             if c.size:
                 q = t_quantile(self.level, np.minimum(cs.dof[ia[c]], cs.dof[ib[c]]))
                 tc, lc, hc, okc, dc = curved_pair_intervals(
-                    ia[c], ib[c], cs, q=q, reach_s=reach_s, back_s=back_s)
+                    ia[c], ib[c], cs, q=q, back_s=back_s, reach_s=reach_s,
+                    ahead_var_scale=k)
                 tau, low, high, ok, direction = (x.copy() for x in (tau, low, high, ok, direction))
                 tau[c], low[c], high[c], ok[c], direction[c] = tc, lc, hc, okc, dc
         with np.errstate(invalid="ignore"):
             ok &= (high - low) <= self.max_interval_s
         return tau, low, high, ok, direction
+
+    def _holdout(self) -> tuple[int, int] | None:
+        """(ladder level, samples ahead) of the held-out check of `calibrate`, or None."""
+        if not self.calibrate or self.level is None:
+            return None
+        ahead = max(1, int(round(self.lead_windows * self.J)))
+        for level, w in enumerate(self.windows):
+            if w >= self.J + ahead:
+                return level, ahead
+        return None
+
+    def _calibrate(self, ids: NDArray[np.int64], t: float) -> None:
+        """Add this sample's held-out errors and update the extrapolation factor."""
+        hold = self._holdout()
+        if self._scale is None or hold is None or ids.size == 0:
+            return
+        tau, val, ok = self._fits[hold[0]].windows(ids, t)
+        self.extrapolation_scale = self._scale.add(
+            *holdout_errors(tau, val, ok, J=self.J, K=self.K, ahead=hold[1]))
 
     def _hits(self, t: float, ids: NDArray[np.int64]) -> _Hits:
         """Pairs satisfying an inequality on the shortest window that resolves them."""
@@ -400,13 +412,14 @@ class CrossingDetector:
             else:
                 tau, low, high, ok, direction = self._judge(model, ia, ib, back_s=back,
                                                             reach_s=lead)
-                for lower in range(level):  # judged on the shortest window that resolves it
-                    ok &= ~self._judge(models[lower], ia, ib, back_s=reach[lower][0],
-                                       reach_s=reach[lower][1])[3]
             with np.errstate(invalid="ignore"):
                 pred = ok & (tau > 0.0) & (tau <= lead)  # inequality (3)
                 det = ok & (tau >= -back) & (tau <= 0.0)  # inequality (4)
             k = np.flatnonzero(pred | det)
+            if self.level is not None:
+                for lower in range(level):  # judged on the shortest window that resolves it
+                    k = k[~self._judge(models[lower], ia[k], ib[k], back_s=reach[lower][0],
+                                       reach_s=reach[lower][1])[3]]
             parts.append((ids[ia[k]], ids[ib[k]], t + tau[k], t + low[k], t + high[k], pred[k],
                           np.full(k.size, span), direction[k]))
         if not parts:
@@ -451,6 +464,11 @@ class CrossingDetector:
         old_pred &= same  # a new event starts with no alerts
         old_det &= same
         emit_pred = h.predicted & ~old_pred & ~old_det
+        if self.revise:  # a prediction whose interval left the one said is said again
+            said_lo = np.full(key.size, np.nan)
+            said_hi = np.full(key.size, np.nan)
+            said_lo[found], said_hi[found] = ev.said_low[pf], ev.said_high[pf]
+            emit_pred |= h.predicted & old_pred & ~old_det & ((h.low > said_hi) | (h.high < said_lo))
         emit_det = ~h.predicted & ~old_det
         # Existing rows: the event (same or replaced) takes the latest t_c, interval and flags.
         ev.t_cross[pf] = h.t_cross[found]
@@ -459,11 +477,14 @@ class CrossingDetector:
         ev.direction[pf] = h.direction[found]
         ev.predicted[pf] = (old_pred | emit_pred)[found]
         ev.detected[pf] = (old_det | emit_det)[found]
+        ep = emit_pred[found]
+        ev.said_low[pf] = np.where(ep, h.low[found], ev.said_low[pf])
+        ev.said_high[pf] = np.where(ep, h.high[found], ev.said_high[pf])
         new = ~found
         if np.any(new):
             ev.append(key=key[new], t_cross=h.t_cross[new], low=h.low[new], high=h.high[new],
                       direction=h.direction[new], predicted=emit_pred[new],
-                      detected=emit_det[new])
+                      detected=emit_det[new], said_low=h.low[new], said_high=h.high[new])
         emit = np.flatnonzero(emit_pred | emit_det)
         kind_of = (AlertKind.PREDICTED, AlertKind.DETECTED)
         out = [

@@ -125,6 +125,7 @@ def pair_intervals(
     stats: LineStats,
     *,
     level: float,
+    var_scale: float = 1.0,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
     """Crossing time and its Fieller interval for given pairs, relative to the current sample.
 
@@ -138,6 +139,9 @@ def pair_intervals(
         The tracks' window fits (slopes and covariances), shape (n,) each.
     level : float
         Confidence level of the interval.
+    var_scale : float, optional
+        Factor on the lines' covariance (default 1; the extrapolation factor of
+        :class:`~fusion.passive.crossing.calibration.ExtrapolationScale` for predictions).
 
     Returns
     -------
@@ -161,7 +165,7 @@ def pair_intervals(
     dof = welch_dof(va, vb, stats.n[index_a] - 2.0, stats.n[index_b] - 2.0)
     with np.errstate(invalid="ignore", divide="ignore"):
         tau = np.where(den != 0, num / np.where(den != 0, den, 1.0), np.inf)  # equation (2)
-    q = t_quantile(level, dof)
+    q = t_quantile(level, dof) * np.sqrt(var_scale)
     low, high, bounded = crossing_time_interval(
         d0, d1, stats.var_value[index_a] + stats.var_value[index_b],
         stats.cov[index_a] + stats.cov[index_b], v11, q)

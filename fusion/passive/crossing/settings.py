@@ -17,13 +17,16 @@ from numpy.typing import ArrayLike
 from fusion.passive.bearing_grid import estimate_period
 
 __all__ = [
+    "DEFAULT_CALIBRATE",
     "DEFAULT_CONFIRM",
+    "DEFAULT_CONFIRM_OVERLAP",
     "DEFAULT_CURVE_ALPHA",
     "DEFAULT_HORIZON_S",
     "DEFAULT_LADDER_ALPHA",
     "DEFAULT_LEAD_WINDOWS",
     "DEFAULT_LEVEL",
     "DEFAULT_N_WINDOWS",
+    "DEFAULT_REVISE",
     "DEFAULT_WINDOW_S",
     "MAX_SAMPLES_PER_WINDOW",
     "MIN_SAMPLES_PER_WINDOW",
@@ -62,6 +65,14 @@ class CrossingSettings:
         (None: lines only).
     ladder_alpha : float or None
         Level of the variance-ratio test that admits a track to a longer window (None: all).
+    revise : bool
+        A pair's prediction is raised again when its interval no longer overlaps that of the
+        prediction raised (False: one prediction per crossing).
+    confirm_overlap : bool
+        A confirming sample's interval must overlap the one before (False: any hit confirms).
+    calibrate : bool
+        Predictions' variances grown by the factor the held-out check of each track's earlier
+        window asks for (False: the fits' own covariance).
     adjusted : tuple of str
         What was asked and changed, one phrase each (printed by :meth:`describe`).
     """
@@ -77,6 +88,9 @@ class CrossingSettings:
     level: float
     curve_alpha: float | None = None
     ladder_alpha: float | None = None
+    revise: bool = False
+    confirm_overlap: bool = False
+    calibrate: bool = False
     adjusted: tuple[str, ...] = ()
 
     def detector_options(self) -> dict[str, Any]:
@@ -84,7 +98,8 @@ class CrossingSettings:
         return {"J": self.J, "K": self.period_s, "horizon_s": self.horizon_s,
                 "n_windows": self.n_windows, "lead_windows": self.lead_windows,
                 "confirm": self.confirm, "level": self.level, "curve_alpha": self.curve_alpha,
-                "ladder_alpha": self.ladder_alpha}
+                "ladder_alpha": self.ladder_alpha, "revise": self.revise,
+                "confirm_overlap": self.confirm_overlap, "calibrate": self.calibrate}
 
     def describe(self) -> str:
         """One line saying what was chosen."""
@@ -92,10 +107,14 @@ class CrossingSettings:
         return (f"K={self.period_s:.4g} s (data step {self.data_step_s:.4g} s), windows "
                 f"{self.window_s:.4g}-{longest:.4g} s (J={self.J}, {self.n_windows} windows), "
                 f"predictions up to {self.lead_windows:g} window ahead, horizon "
-                f"{self.horizon_s:.4g} s, {self.confirm} sample(s) to confirm, "
-                f"level {self.level:g}, "
+                f"{self.horizon_s:.4g} s, {self.confirm} sample(s) to confirm"
+                + (" (intervals overlapping)" if self.confirm_overlap else "")
+                + f", level {self.level:g}"
+                + (" (predictions calibrated on held-out samples)" if self.calibrate else "")
+                + ", "
                 + ("straight lines only" if self.curve_alpha is None else
                    f"curves kept at F-test level {self.curve_alpha:g}")
+                + (", predictions revised" if self.revise else "")
                 + ("" if self.ladder_alpha is None else
                    f", longer windows only where they fit (F-test level {self.ladder_alpha:g})")
                 + "".join(f"; ADJUSTED {a}" for a in self.adjusted))
@@ -114,6 +133,13 @@ DEFAULT_LEAD_WINDOWS = 0.5
 DEFAULT_CURVE_ALPHA = 0.001
 #: Default level of the variance-ratio test that admits a track to a longer window (issue 19).
 DEFAULT_LADDER_ALPHA = 0.01
+#: Default: a prediction whose interval moved off the one raised is raised again (issue 19,
+#: evening, benchmarks/RESULTS.md).
+DEFAULT_REVISE = True
+#: Default: a confirming sample's interval must overlap the one before (issue 19, evening).
+DEFAULT_CONFIRM_OVERLAP = True
+#: Default: predictions' variances calibrated on held-out samples (issue 19, evening).
+DEFAULT_CALIBRATE = False
 #: Default number of samples in a row that confirm an alert.
 DEFAULT_CONFIRM = 2
 #: Default nominal level of the Fieller intervals (see :func:`crossing_settings`).
@@ -138,6 +164,9 @@ def crossing_settings(
     level: float = DEFAULT_LEVEL,
     curve_alpha: float | None = DEFAULT_CURVE_ALPHA,
     ladder_alpha: float | None = DEFAULT_LADDER_ALPHA,
+    revise: bool = DEFAULT_REVISE,
+    confirm_overlap: bool = DEFAULT_CONFIRM_OVERLAP,
+    calibrate: bool = DEFAULT_CALIBRATE,
 ) -> CrossingSettings:
     """Window, horizon and grid period of a bearing table, in seconds, from the data.
 
@@ -157,7 +186,7 @@ def crossing_settings(
         Samples in the shortest window (default ``round(window_s / K)``, at least
         :data:`MIN_SAMPLES_PER_WINDOW`).
     n_windows, lead_windows, confirm, level, curve_alpha, \
-ladder_alpha
+ladder_alpha, revise, confirm_overlap, calibrate
         As in :class:`fusion.passive.crossing.CrossingDetector`.
 
     Returns
@@ -185,7 +214,9 @@ ladder_alpha
     return crossing_settings_from_steps(
         step, track_span, window_s=window_s, horizon_s=horizon_s, period_s=period_s, J=J,
         n_windows=n_windows, lead_windows=lead_windows, confirm=confirm, level=level,
-        curve_alpha=curve_alpha, ladder_alpha=ladder_alpha)
+        curve_alpha=curve_alpha, ladder_alpha=ladder_alpha,
+        revise=revise, confirm_overlap=confirm_overlap,
+        calibrate=calibrate)
 
 
 def crossing_settings_from_steps(
@@ -202,6 +233,9 @@ def crossing_settings_from_steps(
     level: float = DEFAULT_LEVEL,
     curve_alpha: float | None = DEFAULT_CURVE_ALPHA,
     ladder_alpha: float | None = DEFAULT_LADDER_ALPHA,
+    revise: bool = DEFAULT_REVISE,
+    confirm_overlap: bool = DEFAULT_CONFIRM_OVERLAP,
+    calibrate: bool = DEFAULT_CALIBRATE,
 ) -> CrossingSettings:
     """:func:`crossing_settings` from the two numbers it takes of the data.
 
@@ -213,7 +247,7 @@ def crossing_settings_from_steps(
     track_span_s : float
         Median time span of the tracks, s.
     window_s, horizon_s, period_s, J, n_windows, lead_windows, confirm, level, curve_alpha, \
-ladder_alpha
+ladder_alpha, revise, confirm_overlap, calibrate
         As in :func:`crossing_settings`.
 
     Returns
@@ -257,4 +291,6 @@ ladder_alpha
                             level=float(level),
                             curve_alpha=None if curve_alpha is None else float(curve_alpha),
                             ladder_alpha=None if ladder_alpha is None else float(ladder_alpha),
+                            revise=bool(revise), confirm_overlap=bool(confirm_overlap),
+                            calibrate=bool(calibrate),
                             adjusted=tuple(adjusted))

@@ -430,7 +430,9 @@ def detect_crossings_streamed(
 max_interval_s, lead_windows, confirm
         As in :func:`~fusion.passive.crossing.detect_crossings` (`K` required).
     **more
-        ``curve_alpha``, ``split_repeats``, ``ladder_alpha`` of :class:`CrossingDetector`.
+        ``curve_alpha``, ``split_repeats``, ``ladder_alpha``, ``revise``,
+        ``confirm_overlap``, ``calibrate`` of
+        :class:`CrossingDetector`.
 
     Returns
     -------
