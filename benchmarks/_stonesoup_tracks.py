@@ -31,10 +31,10 @@ from __future__ import annotations
 import datetime
 
 import numpy as np
+from _jpda import T0, _Scans  # the one Stone Soup scan reader of the benchmarks
 from scipy.spatial import cKDTree
 from scipy.stats import chi2
 from stonesoup.base import Base, Property
-from stonesoup.buffered_generator import BufferedGenerator
 from stonesoup.dataassociator.neighbour import GNNWith2DAssignment
 from stonesoup.dataassociator.probability import JPDAwithEHM
 from stonesoup.deleter.time import UpdateTimeDeleter
@@ -48,7 +48,6 @@ from stonesoup.models.transition.linear import (
     ConstantVelocity,
 )
 from stonesoup.predictor.kalman import KalmanPredictor
-from stonesoup.reader.base import DetectionReader
 from stonesoup.tracker.simple import MultiTargetMixtureTracker, MultiTargetTracker
 from stonesoup.types.array import StateVector
 from stonesoup.types.detection import Detection
@@ -57,24 +56,9 @@ from stonesoup.updater.kalman import KalmanUpdater
 
 from fusion.active.bistatic import bistatic_covariance
 
-T0 = datetime.datetime(2000, 1, 1)
 #: Stated sensor accuracies of the measurement covariances (``fusion track --noise fixed``).
 RANGE_SUM_SIGMA_M = 100.0
 BEARING_SIGMA_DEG = 1.5
-
-
-class _Scans(DetectionReader):
-    scans: list = Property(doc="(time, set of Detection) per scan")
-
-    @property
-    def detections(self):
-        return self._dets
-
-    @BufferedGenerator.generator_method
-    def detections_gen(self):
-        for tm, dets in self.scans:
-            self._dets = dets
-            yield tm, dets
 
 
 class _NearbyMixIn(Base):
