@@ -204,6 +204,7 @@ DEPRECATED_PATHS = {
     ("fusion.clicks.competition", "CompetitionSettings"): "fusion.localization.competition",
     ("fusion.clicks.surfaces", "SearchRegion"): "fusion.localization.surfaces",
     ("fusion.clicks.scoring", "score_clicks"): "fusion.metrics.detections",
+    ("fusion.clicks.training", "synthetic_training_set"): "fusion.simulate.scm2",
     ("fusion.passive.crossing", "score_alerts"): "fusion.metrics.crossings",
     ("fusion.passive.crossing", "CrossingScore"): "fusion.metrics.crossings",
     ("fusion.passive.crossing.score", "score_intervals"): "fusion.metrics.crossings",
@@ -519,3 +520,40 @@ def test_upward_import_finder_sees_a_stage_importing_a_pipeline(tmp_path):
     (tmp_path / "fusion" / "passive" / "bad.py").write_text(
         "def f():\n    from fusion.pipelines.passive import PassivePipeline\n")
     assert _upward_imports(tmp_path) == [("fusion.passive.bad", "fusion.pipelines.passive")]
+
+
+#: The estimators (floor 3): they learn nothing from a simulator (docs/architecture.md).
+STAGES = ("fusion.passive", "fusion.clicks", "fusion.localization", "fusion.active")
+
+
+def _stages_importing_simulators(root: Path) -> list[tuple[str, str]]:
+    """(module, imported module) for every import of fusion.simulate by a stage, function-level
+    imports included."""
+    out = []
+    for path in sorted((root / "fusion").rglob("*.py")):
+        rel = path.relative_to(root).with_suffix("")
+        module = ".".join(p for p in rel.parts if p != "__init__")
+        if not any(f"{module}.".startswith(f"{s}.") for s in STAGES):
+            continue
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            names = ([a.name for a in node.names] if isinstance(node, ast.Import) else
+                     [node.module] if isinstance(node, ast.ImportFrom) and node.level == 0
+                     and node.module else [])
+            out += [(module, n) for n in names if f"{n}.".startswith("fusion.simulate.")]
+    return out
+
+
+def test_stages_do_not_import_simulators():
+    """No estimator imports a simulator: a stage that shared the simulator's model would only
+    prove it agrees with itself."""
+    assert _stages_importing_simulators(ROOT) == []
+
+
+def test_simulator_import_finder_sees_a_stage_importing_a_simulator(tmp_path):
+    """The check above is not vacuous: a stage's function-level import of a simulator is reported."""
+    (tmp_path / "fusion" / "clicks").mkdir(parents=True)
+    (tmp_path / "fusion" / "clicks" / "bad.py").write_text(
+        "def f():\n    from fusion.simulate.clicks import draw_emission_times\n")
+    (tmp_path / "fusion" / "simulate").mkdir(parents=True)
+    (tmp_path / "fusion" / "simulate" / "ok.py").write_text("import fusion.simulate.clicks\n")
+    assert _stages_importing_simulators(tmp_path) == [("fusion.clicks.bad", "fusion.simulate.clicks")]

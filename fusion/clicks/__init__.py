@@ -25,14 +25,15 @@ One module per stage, in the order data flows through them:
 ``associate`` click-matching association across time (eq. 12) and across sensor pairs (eq. 13)
 ``types``    the data that flows between them
 
-Support: ``mixture`` (Gaussian mixtures as plain arrays), ``training`` (synthetic SCM2s for the
-validator). Private helpers stay inside: ``_click_peaks``, ``_detect_statistic``, ``_frames``,
-``_kernels`` (detection), ``_waveform`` (replica), ``_scm2``, ``_scm_grid`` (click maps),
-``_tdoa_stats`` (refinement), ``_consensus`` (delay track).
+Support: ``mixture`` (Gaussian mixtures as plain arrays). Private helpers stay inside:
+``_click_peaks``, ``_detect_statistic``, ``_frames``, ``_kernels`` (detection), ``_waveform``
+(replica), ``_scm2``, ``_scm_grid`` (click maps), ``_tdoa_stats`` (refinement), ``_consensus``
+(delay track).
 
 The localization modules that lived here (``localize``, ``tracks``, ``events``, ...) are in
-:mod:`fusion.localization`, and ``scoring`` is :mod:`fusion.metrics.detections`; their old import
-paths here still work for one release, with a DeprecationWarning.
+:mod:`fusion.localization`, ``scoring`` is :mod:`fusion.metrics.detections` and ``training``
+(synthetic SCM2s, a simulator) is :mod:`fusion.simulate.scm2`; their old import paths here still
+work for one release, with a DeprecationWarning.
 """
 
 from fusion.clicks.associate import ClosureCheck, TdoaClicks, TimeAssociator, cross_pair_alpha

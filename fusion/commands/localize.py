@@ -297,7 +297,7 @@ def run(args: argparse.Namespace) -> int:
             raise ValueError("--events localizes one recording: give its file(s), not a folder")
 
         return run_events(args)
-    from fusion._output import STDOUT, output_lock, private_folder
+    from fusion._output import STDOUT, atomic_output, output_lock, private_folder
     from fusion.clicks.band import DEFAULT_BAND_HZ
     from fusion.clicks.scm import ClickMapCorrelator, ScmConfig, drift_grid
     from fusion.clicks.validate import TdoaValidator
@@ -305,9 +305,9 @@ def run(args: argparse.Namespace) -> int:
     from fusion.pipelines.clicks import LLR_THRESHOLD, ClickFrontEnd, default_validator
     from fusion.pipelines.clicks.chunks import (
         ChunkTask,
+        DocumentText,
         localize_chunk,
         plan_chunks,
-        write_document,
     )
     from fusion.pipelines.localization import ClickLocalization, settings_from_args
     from fusion.scale import PartStore, dask_client, progress, run_tasks
@@ -386,8 +386,10 @@ def run(args: argparse.Namespace) -> int:
                                       array.positions, array.sound_speed)
                 transform, speeds[str(out)] = cal.apply, cal.record()
                 notes.append(cal.note if len(recordings) == 1 else f"{out}: {cal.note}")
-            summary = write_document(out, (store.read(name(t)) for t in plan),
-                                     transform=transform)
+            document = DocumentText((store.read(name(t)) for t in plan), transform=transform)
+            with atomic_output(out) as tmp, open(tmp, "w", encoding="utf-8") as f:
+                f.writelines(document)
+            summary = document.summary
             emit(f"{summary.line()} -> {out}", err=True)
         store.remove()
         side = (Path(args.out) / "localize" if getattr(args, "out_is_dir", False)

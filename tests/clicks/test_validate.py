@@ -11,13 +11,6 @@ from sklearn.metrics import roc_auc_score
 from sklearn.mixture import GaussianMixture
 from threadpoolctl import threadpool_limits
 
-from fusion.clicks.training import (
-    INVALID_KINDS,
-    KINDS,
-    scm1_pulse,
-    synthetic_scm2,
-    synthetic_training_set,
-)
 from fusion.clicks.validate import (
     MODEL_FORMAT,
     MODEL_VERSION,
@@ -26,6 +19,13 @@ from fusion.clicks.validate import (
     default_freqs_hz,
     scm2_features,
     train_validator,
+)
+from fusion.simulate.scm2 import (
+    INVALID_KINDS,
+    KINDS,
+    scm1_pulse,
+    synthetic_scm2,
+    synthetic_training_set,
 )
 
 FS = 3000.0

@@ -32,7 +32,10 @@ calls to :func:`fusion.scale.run_tasks`, on Dask with ``--workers``)::
     source = AudioSource.of(check_audio_files(["audio.flac"], array.n_sensors))
     pipe = ClickLocalization()
     parts = [localize_chunk((pipe, array), task) for task in plan_chunks(source, pipe)]
-    write_document("result.json", parts)
+    document = DocumentText(parts)
+    with open("result.json", "w", encoding="utf-8") as f:
+        f.writelines(document)
+    print(document.summary.line())
 """
 
 from __future__ import annotations
@@ -46,14 +49,13 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from fusion._output import atomic_output
 from fusion._validation import check_positive
 from fusion.geometry import SensorArray
 from fusion.pipelines.clicks.stream import stream_start, window_starts_count
 from fusion.pipelines.localization import ClickLocalization, LocalizedWindow, result_document
 
-__all__ = ["FEW_TDOAS", "AudioSource", "ChunkTask", "DocumentSummary", "localize_chunk",
-           "plan_chunks", "source_flags", "write_document"]
+__all__ = ["FEW_TDOAS", "AudioSource", "ChunkTask", "DocumentSummary", "DocumentText",
+           "localize_chunk", "plan_chunks", "source_flags"]
 
 @dataclass(frozen=True)
 class AudioSource:
@@ -231,7 +233,7 @@ def localize_chunk(shared: tuple[ClickLocalization, SensorArray], task: ChunkTas
 
 @dataclass(frozen=True)
 class DocumentSummary:
-    """What :func:`write_document` wrote: windows, valid TDOAs and sources in all.
+    """What a :class:`DocumentText` held: windows, valid TDOAs and sources in all.
 
     Of the sources, `n_unobservable` are flagged unobservable, `n_mirror` mirror-ambiguous and
     `n_few_tdoas` rest on :data:`FEW_TDOAS` TDOAs or fewer (no redundancy to check the fix);
@@ -271,40 +273,47 @@ def source_flags(src: dict) -> tuple[bool, bool, bool]:
             int(src["tdoas_used"]) <= FEW_TDOAS)
 
 
-def write_document(path: str | Path, parts: Iterable[str],
-                   transform: Callable[[dict], dict] | None = None) -> DocumentSummary:
-    """Write the ``fusion localize`` JSON from the chunks' parts in order, one at a time.
+class DocumentText:
+    """The ``fusion localize`` JSON of the chunks' parts, in pieces of text, one window at a time.
 
-    The ``windows`` are byte for byte what :func:`fusion.io.write_json` writes for
+    Iterating yields the document piece by piece (the caller writes them to its file); the
+    ``windows`` are byte for byte what :func:`fusion.io.write_json` writes for
     :func:`result_document` of all the windows (indent 1), without holding them all; the
-    ``tracks`` follow from the windows' sources (:func:`track_document_sources`).
+    ``tracks`` follow from the windows' sources (:func:`track_document_sources`). Once iterated,
+    :attr:`summary` counts what was yielded.
 
     Parameters
     ----------
-    path : path-like
-        Output (written atomically; ``"-"`` for standard output).
     parts : iterable of str
         Parts (:func:`localize_chunk`) in chunk order.
     transform : callable, optional
-        Applied to each window entry before it is written (e.g. the fixes re-solved at the
+        Applied to each window entry before it is yielded (e.g. the fixes re-solved at the
         recording's sound speed, :meth:`fusion.pipelines.sound_speed.SpeedCalibration.apply`).
-
-    Returns
-    -------
-    DocumentSummary
-        Counts of what was written.
     """
-    n = n_valid = n_src = 0
-    flag_counts = np.zeros(4, dtype=int)  # unobservable, mirror, few TDOAs, any
-    n_failed, reason = 0, ""
-    sources_of: list[tuple[float, list[dict]]] = []  # per window: centre, sources (small)
-    with atomic_output(path) as tmp, open(tmp, "w", encoding="utf-8") as f:
-        f.write('{\n "windows": [')
-        for text in parts:
+
+    def __init__(self, parts: Iterable[str], transform: Callable[[dict], dict] | None = None):
+        self._parts = parts
+        self._transform = transform
+        self._summary: DocumentSummary | None = None
+
+    @property
+    def summary(self) -> DocumentSummary:
+        """Counts of the document (available once it has been iterated to its end)."""
+        if self._summary is None:
+            raise RuntimeError("DocumentText.summary is known once the document has been iterated")
+        return self._summary
+
+    def __iter__(self) -> Iterator[str]:
+        n = n_valid = n_src = 0
+        flag_counts = np.zeros(4, dtype=int)  # unobservable, mirror, few TDOAs, any
+        n_failed, reason = 0, ""
+        sources_of: list[tuple[float, list[dict]]] = []  # per window: centre, sources (small)
+        yield '{\n "windows": ['
+        for text in self._parts:
             for w in json.loads(text):
-                w = w if transform is None else transform(w)
+                w = w if self._transform is None else self._transform(w)
                 body = json.dumps(w, indent=1, allow_nan=False).replace("\n", "\n  ")
-                f.write(("," if n else "") + "\n  " + body)
+                yield ("," if n else "") + "\n  " + body
                 n += 1
                 n_valid += sum(1 for d in w["tdoas"] if d["valid"])
                 n_src += len(w["sources"])
@@ -317,8 +326,9 @@ def write_document(path: str | Path, parts: Iterable[str],
                 sources_of.append((0.5 * (w["t_start"] + w["t_end"]), w["sources"]))
         tracks = [t.to_dict() for t in track_document_sources(sources_of)]
         body = json.dumps(tracks, indent=1, allow_nan=False).replace("\n", "\n ")
-        f.write(("\n ]" if n else "]") + ',\n "tracks": ' + body + "\n}\n")
-    return DocumentSummary(n, n_valid, n_src, *(int(v) for v in flag_counts), n_failed, reason)
+        yield ("\n ]" if n else "]") + ',\n "tracks": ' + body + "\n}\n"
+        self._summary = DocumentSummary(n, n_valid, n_src, *(int(v) for v in flag_counts),
+                                        n_failed, reason)
 
 
 def track_document_sources(windows: Sequence[tuple[float, Sequence[dict]]]) -> tuple:

@@ -296,11 +296,18 @@ def test_audio_blocks_on_a_grid_from_any_start(recording):
     np.testing.assert_array_equal(np.concatenate([x for _, x in got]), whole[start:])
 
 
-def test_document_summary_counts_flagged_sources_apart(tmp_path):
-    """write_document counts sources flagged unobservable, mirror-ambiguous or on <= 3 TDOAs."""
-    import json
+def _write(path, parts):
+    """Write a DocumentText of `parts` to `path`; its summary."""
+    from fusion.pipelines.clicks.chunks import DocumentText
 
-    from fusion.pipelines.clicks.chunks import write_document
+    document = DocumentText(parts)
+    path.write_text("".join(document), encoding="utf-8")
+    return document.summary
+
+
+def test_document_summary_counts_flagged_sources_apart(tmp_path):
+    """DocumentText counts sources flagged unobservable, mirror-ambiguous or on <= 3 TDOAs."""
+    import json
 
     def src(used, observable=True, mirror=False):
         return {"x": 0.0, "y": 0.0, "z": -900.0, "cov": np.eye(3).tolist(), "tdoas_used": used,
@@ -310,7 +317,7 @@ def test_document_summary_counts_flagged_sources_apart(tmp_path):
           "sources": [src(7), src(3), src(6, observable=False)]}
     w2 = {"t_start": 2.0, "t_end": 14.0, "tdoas": [{"valid": True}],
           "sources": [src(3, mirror=True), src(9)]}
-    s = write_document(tmp_path / "r.json", [json.dumps([w1]), json.dumps([w2])])
+    s = _write(tmp_path / "r.json", [json.dumps([w1]), json.dumps([w2])])
     assert (s.n_windows, s.n_valid_tdoas, s.n_sources) == (2, 2, 5)
     assert (s.n_unobservable, s.n_mirror, s.n_few_tdoas, s.n_flagged) == (1, 1, 2, 3)
     assert s.line() == ("2 windows, 2 valid TDOAs, 5 sources (3 flagged: 1 unobservable, "
@@ -321,12 +328,10 @@ def test_windows_not_localized_are_written_and_counted(tmp_path):
     """A window whose localizer failed carries the reason; the summary counts it."""
     import json
 
-    from fusion.pipelines.clicks.chunks import write_document
-
     w1 = {"t_start": 0.0, "t_end": 12.0, "tdoas": [{"valid": True}] * 3, "sources": [],
           "not_localized": "too few independent pairs"}
     w2 = {"t_start": 2.0, "t_end": 14.0, "tdoas": [], "sources": []}
-    s = write_document(tmp_path / "r.json", [json.dumps([w1, w2])])
+    s = _write(tmp_path / "r.json", [json.dumps([w1, w2])])
     assert (s.n_not_localized, s.not_localized_reason) == (1, "too few independent pairs")
     assert s.line().endswith("; 1 windows not localized (e.g. too few independent pairs)")
     assert json.loads((tmp_path / "r.json").read_text())["windows"][0]["not_localized"] == \

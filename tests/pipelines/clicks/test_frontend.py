@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fusion.clicks.training import synthetic_training_set
 from fusion.clicks.validate import train_validator
 from fusion.pipelines.clicks import ClickFrontEnd, window_starts
 from fusion.pipelines.clicks.training import label_windows, scenario_labels
 from fusion.simulate.clicks import simulate_clicks
+from fusion.simulate.scm2 import synthetic_training_set
 
 
 @pytest.fixture(scope="module")
