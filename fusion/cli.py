@@ -106,6 +106,23 @@ def emit(text: str, *, err: bool = False) -> None:
     print(text, file=sys.stderr if err or _data_on_stdout else sys.stdout)
 
 
+#: Summary lines of the running command, printed after its held warnings (None: not held).
+_held_summaries: list[tuple[str, bool]] | None = None
+
+
+def summary(command: str, text: str, *, err: bool = False) -> None:
+    """The one summary line every command ends with: ``fusion COMMAND: TEXT`` (see :func:`emit`).
+
+    Inside :func:`main` the line is held and printed last, after the run's warnings (a failing
+    run prints only its error line).
+    """
+    line = f"fusion {command}: {text}"
+    if _held_summaries is None:
+        emit(line, err=err)
+    else:
+        _held_summaries.append((line, err))
+
+
 def path_argument(text: str) -> Path:
     """The value of a path option (``type=Path``): ``Path(text)``, but ``./-`` stays a file.
 
@@ -428,7 +445,7 @@ def _silence_stdout() -> None:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit code (2: bad input or usage, see module notes)."""
-    global _data_on_stdout
+    global _data_on_stdout, _held_summaries
     argv = list(sys.argv[1:] if argv is None else argv)
     command = chosen_command(argv)
     try:
@@ -447,12 +464,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     logging.basicConfig(level=logging.WARNING - 10 * min(args.verbose, 2), handlers=[handler])
     sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
     try:
+        _held_summaries = []
         with termination_as_interrupt(), held_notes(handler):  # SIGTERM, SIGHUP: like Ctrl-C
             for line in old_spelling_warnings(args):
                 warnings.warn(line, DeprecationWarning, stacklevel=1)
             _data_on_stdout = check_paths(args, _option_names(sub.choices[args.command]))
             with _run_outputs(args):
-                return int(args.handler(args) or 0)
+                code = int(args.handler(args) or 0)
+        held, _held_summaries = _held_summaries, None
+        for line, err in held:  # after the warnings: the command ends with its summary
+            emit(line, err=err)
+        return code
     except BrokenPipeError:  # `fusion ... --out - | head`: the reader left; not an error of ours
         _silence_stdout()
         return 1
@@ -471,7 +493,7 @@ def main(argv: Sequence[str] | None = None) -> int:
               file=sys.stderr)
         return 128 + signum
     finally:
-        _data_on_stdout = False
+        _data_on_stdout, _held_summaries = False, None
 
 
 if __name__ == "__main__":  # pragma: no cover

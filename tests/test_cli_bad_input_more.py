@@ -408,15 +408,17 @@ def test_rows_out_of_order_are_sorted_with_one_note(cmd, run_cli, tmp_path, capl
 
 
 def test_sort_note_is_one_stderr_line(tmp_path):
-    """In a real run the sort note is one line ``fusion tqi: warning: FILE: ... sorted ...``."""
+    """In a real run the sort note is one line ``fusion tqi: warning: FILE: ... sorted ...``,
+    before the summary line."""
     cols = _permuted("tqi", "amplitudes", amplitudes())
     inp = write_csv(tmp_path / "shuffled.csv", cols)
     r = subprocess.run([PYTHON, "-m", "fusion", "tqi", "--amplitudes", str(inp), "--out", "-"],
                        capture_output=True, text=True, check=False, timeout=120)
     assert r.returncode == 0, r.stderr
-    lines = r.stderr.splitlines()
-    assert len(lines) == 1 and lines[0].startswith("fusion tqi: warning: ")
+    lines = r.stderr.splitlines()  # the note, then the summary (on stderr: the data is on stdout)
+    assert len(lines) == 2 and lines[0].startswith("fusion tqi: warning: ")
     assert "shuffled.csv" in lines[0] and "sorted by time" in lines[0]
+    assert lines[1] == "fusion tqi: 2 track(s), 40 update(s) -> -"
     assert r.stdout.splitlines()[0] == "track_id,time,amplitude,residual,tqi"
     assert len(r.stdout.splitlines()) == 41
 

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fusion.cli import MAX_SCANS_OPTION, emit, number
+from fusion.cli import MAX_SCANS_OPTION, emit, number, summary
 from fusion.io import read_cube
 from fusion.passive.acquisition import Acquisition
 
@@ -87,4 +87,7 @@ def run(args: argparse.Namespace) -> int:
     except ValueError as e:
         raise ValueError(f"{args.cube}: {e}") from None
     emit(json.dumps(res.to_json()))
+    summary("acquire", f"bearing {res.bearing_deg:.2f} deg, rate {res.bearing_rate_deg_per_min:.3g} "
+            f"deg/min, SNR {res.snr_db:.1f} dB" + (" (defaults used)" if res.default_used else ""),
+            err=True)
     return 0

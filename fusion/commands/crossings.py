@@ -21,7 +21,7 @@ from collections.abc import Iterator
 import numpy as np
 
 from fusion._progress import track_progress
-from fusion.cli import MAX_SCANS_OPTION, emit, number
+from fusion.cli import MAX_SCANS_OPTION, emit, number, summary
 from fusion.io import RowOrderError, iter_bearings, read_bearings, write_table
 from fusion.passive.crossing import CrossingAlert
 from fusion.passive.crossing.settings import (
@@ -161,8 +161,8 @@ def run(args: argparse.Namespace) -> int:
         alerts, st = _whole_file(args)
     write_table(args.out, alert_columns(alerts))
     n_pred = sum(a.kind == "predicted" for a in alerts)
-    emit(f"{st.describe()}: {len(alerts)} alert(s) ({n_pred} predicted, "
-         f"{len(alerts) - n_pred} detected) -> {args.out}")
+    summary("crossings", f"{st.describe()}: {len(alerts)} alert(s) ({n_pred} predicted, "
+            f"{len(alerts) - n_pred} detected) -> {args.out}")
     return 0
 
 

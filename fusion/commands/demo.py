@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from fusion.cli import emit, number
+from fusion.cli import emit, number, summary
 from fusion.demo import run_demo
 
 
@@ -33,5 +33,7 @@ def run(args: argparse.Namespace) -> int:
         status = "ok" if r.ok else "FAILED"
         nums = ", ".join(f"{k}={v}" for k, v in r.summary.items())
         emit(f"{r.name:<18} {status:<6} {r.seconds:6.1f} s  {nums}")
-    emit(f"results in {args.out}/ (summary.md, summary.json)")
+    n_ok = sum(r.ok for r in results)
+    summary("demo", f"{n_ok} of {len(results)} part(s) ok -> {args.out}/ (summary.md, "
+            "summary.json)")
     return 0 if all(r.ok for r in results) else 1

@@ -13,7 +13,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from fusion.cli import emit
+from fusion.cli import emit, summary
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -38,7 +38,10 @@ def run(args: argparse.Namespace) -> int:
     """Import; one line per scenario."""
     from fusion.datasets.autoferry_files import import_autoferry
 
+    n = 0
     for imp in import_autoferry(args.source, args.out):
         counts = ", ".join(f"{k.removesuffix('.csv')} {v}" for k, v in imp.rows.items())
         emit(f"{imp.scenario}: t0 {imp.t0_unix:.3f} (Unix s) -> {imp.out_dir}: {counts} rows")
+        n += 1
+    summary("import", f"{n} scenario(s) -> {args.out}")
     return 0

@@ -60,6 +60,7 @@ import os
 from pathlib import Path
 
 from fusion.cli import emit, number
+from fusion.cli import summary as cli_summary
 
 #: Default of --max-tdoa-rate (fusion.clicks.scm.MAX_TDOA_RATE, not imported here: --help stays
 #: light).
@@ -376,7 +377,7 @@ def run(args: argparse.Namespace) -> int:
         run_tasks(localize_chunk, (pipe, array), tasks, names=name, store=store, client=client,
                   on_done=lambda t: bar.update(t.stop_window - t.first_window))
         bar.close()
-        speeds = {}
+        speeds, summaries = {}, []
         for (_, out), plan in zip(recordings, plans, strict=True):
             transform = None
             if args.sound_speed == "estimate" and localizer is not None:
@@ -389,8 +390,7 @@ def run(args: argparse.Namespace) -> int:
             document = DocumentText((store.read(name(t)) for t in plan), transform=transform)
             with atomic_output(out) as tmp, open(tmp, "w", encoding="utf-8") as f:
                 f.writelines(document)
-            summary = document.summary
-            emit(f"{summary.line()} -> {out}", err=True)
+            summaries.append(f"{document.summary.line()} -> {out}")
         store.remove()
         side = (Path(args.out) / "localize" if getattr(args, "out_is_dir", False)
                 else args.out)
@@ -400,4 +400,6 @@ def run(args: argparse.Namespace) -> int:
                        inputs=[*audio, args.array, args.events, args.validator])
     for note in [*decided.notes, *notes]:
         emit(note, err=True)
+    for line in summaries:  # the command ends with its summary (one line per recording)
+        cli_summary("localize", line, err=True)
     return 0

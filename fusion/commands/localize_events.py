@@ -33,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from fusion.cli import emit, number
+from fusion.cli import number, summary
 
 __all__ = ["add_event_options", "event_document", "read_events", "run_events"]
 
@@ -137,5 +137,6 @@ def run_events(args: argparse.Namespace) -> int:
     fixes = localizer.localize(audio, fs, array, events)
     write_json(args.out, event_document(fixes, sound_speed=array.sound_speed, fs=fs))
     n_obs = sum(f.observable for f in fixes)
-    emit(f"{len(fixes)} events, {n_obs} localized (observable) -> {args.out}", err=True)
+    summary("localize", f"{len(fixes)} events, {n_obs} localized (observable) -> {args.out}",
+            err=True)
     return 0

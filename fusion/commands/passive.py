@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from fusion._output import atomic_outputs
-from fusion.cli import DB_RANGE, MAX_SCANS_OPTION, emit, number
+from fusion.cli import DB_RANGE, MAX_SCANS_OPTION, number, summary
 from fusion.io import Cube, read_cube, read_table, write_table
 
 logger = logging.getLogger(__name__)
@@ -154,7 +154,7 @@ def run(args: argparse.Namespace) -> int:
     near = [r.fallback for r in res.resolutions if r.method == "nearest"]
     why = "" if not near else (f" ({len(near)} by nearest assignment: " + ", ".join(
         f"{near.count(w)} {w}" for w in sorted(set(near))) + ")")
-    emit(f"{len(res.tracks)} track(s) ({n_lost} ended lost) over {res.n_scans} scans, "
-         f"{len(res.alerts)} alert(s) ({n_pred} predicted), {len(res.resolutions)} crossing(s) "
-         f"resolved{why} -> {out}/tracks.csv, {out}/alerts.csv")
+    summary("passive", f"{len(res.tracks)} track(s) ({n_lost} ended lost) over {res.n_scans} "
+            f"scans, {len(res.alerts)} alert(s) ({n_pred} predicted), {len(res.resolutions)} "
+            f"crossing(s) resolved{why} -> {out}/tracks.csv, {out}/alerts.csv")
     return 0

@@ -11,7 +11,7 @@ import argparse
 import inspect
 from pathlib import Path
 
-from fusion.cli import DB_RANGE, emit, number
+from fusion.cli import DB_RANGE, emit, number, summary
 from fusion.simulate import SIMULATORS, get_writer
 
 #: Options of ``fusion simulate clicks`` only: dest -> (option as written, keyword of the writer).
@@ -94,4 +94,6 @@ def run(args: argparse.Namespace) -> int:
     paths = writer(args.out, seed=args.seed, **({"vary": True} if args.vary else {}), **extra)
     for path in paths:
         emit(str(path))
+    summary("simulate", f"{args.kind} scenario, seed {args.seed}"
+            f"{' (varied)' if args.vary else ''}: {len(paths)} file(s) -> {args.out}", err=True)
     return 0

@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from fusion._progress import track_progress
-from fusion.cli import DB_RANGE, MAX_SCANS_OPTION, number
+from fusion.cli import DB_RANGE, MAX_SCANS_OPTION, number, summary
 from fusion.io import (
     RowOrderError,
     TableChunk,
@@ -113,7 +113,7 @@ def run(args: argparse.Namespace) -> int:
     except RowOrderError as e:  # rows out of order or repeated: the whole-file reader decides
         logger.debug("%s; reading the whole file", e)
         n_tracks, n_rows = _whole_file(args, tqi)
-    logger.info("TQI of %d tracks, %d updates written to %s", n_tracks, n_rows, args.out)
+    summary("tqi", f"{n_tracks} track(s), {n_rows} update(s) -> {args.out}")
     return 0
 
 

@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from fusion._progress import track_progress
-from fusion.cli import emit, number
+from fusion.cli import emit, number, summary
 from fusion.commands.localize import MIN_HOP_S
 
 logger = logging.getLogger(__name__)
@@ -176,8 +176,8 @@ def run(args: argparse.Namespace) -> int:
             write_replica(tmps[1], replica)
     for line in counts:
         emit(line, err=True)
-    emit(f"validator: {int(data.valid.sum())} valid / {int((~data.valid).sum())} invalid "
-         f"candidates, threshold {model.threshold:.3g} -> {args.out}", err=True)
-    if replica is not None:
-        emit(f"replica re-estimated from {n_clicks} clicks -> {args.replica_out}", err=True)
+    also = ("" if replica is None else
+            f"; replica re-estimated from {n_clicks} clicks -> {args.replica_out}")
+    summary("train-validator", f"{int(data.valid.sum())} valid / {int((~data.valid).sum())} "
+            f"invalid candidates, threshold {model.threshold:.3g} -> {args.out}{also}", err=True)
     return 0

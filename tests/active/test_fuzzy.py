@@ -380,6 +380,7 @@ class TestSkippedAndDefault:
         assert not first.strengths[list(first.skipped)].any()
         messages = [r.getMessage() for r in caplog.records if "left out" in r.getMessage()]
         assert len(messages) == 1 and "aspect_deg" in messages[0]
+        assert "rules[3, 4, 5, 6] left out" in messages[0]  # numbered as the API numbers them
         # Skipped rules contribute nothing: equal to a system without them.
         reduced = FuzzySystem(system.variables, system.output, system.rules[:3], default=0.5)
         assert_allclose(first.crisp, reduced.evaluate({"likelihood": np.array([0.9, 0.05])}).crisp)

@@ -232,8 +232,8 @@ class FuzzySystem:
         if skipped and frozenset(missing) not in self._reported:
             self._reported.add(frozenset(missing))
             logger.warning(
-                "fuzzy system: inputs %s absent, rules %s left out",
-                ", ".join(missing), ", ".join(str(i + 1) for i in skipped),
+                "fuzzy system: inputs %s absent, rules[%s] left out (numbered from 0, as in "
+                "FuzzyResult.skipped)", ", ".join(missing), ", ".join(str(i) for i in skipped),
             )
 
         memberships: dict[tuple[str, str], NDArray[np.float64]] = {}
