@@ -389,7 +389,9 @@ class PassivePipeline:
     def _auto_starts(self, scan: Scan) -> list[TrackStart]:
         """Candidates of the line starter that the acquisition confirms."""
         g = self._geometry
-        lobe = 0.886 * g.sound_speed / g.freqs / g.aperture * (g.n_beams - 1) / 2.0
+        # the main lobe per frequency bin in beams (beams are uniform in cosine over [-1, 1])
+        lobe = np.array([beamwidth_cos(g.sound_speed / f, g.aperture) for f in g.freqs]
+                        ) * (g.n_beams - 1) / 2.0
         history = np.stack(list(self._history))
         cands = self.starter.candidates(history, held=self._held(), lobe_beams=lobe)
         if not cands:
