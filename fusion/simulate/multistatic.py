@@ -12,7 +12,7 @@ Per ping and receiver:
   ``SNR = FOM - TL(R_s) - TL(R_r) + TS(aspect)``, ``TL(R) = 20 log10(R / 1 m) + alpha R``,
   with ``R_s``, ``R_r`` the source-target and target-receiver ranges and an aspect-dependent
   target strength ``TS = TS_0 + TS_spec exp(-((aspect - 90) / 12)^2)`` (strong near the specular
-  equivalent aspect of 90 deg, see :func:`fusion.active.tracker.equivalent_aspect_deg`); the
+  equivalent aspect of 90 deg, see :func:`fusion.active.bistatic.equivalent_aspect_deg`); the
   measured SNR adds Gaussian fluctuation, and a detection is made when it reaches the
   detection threshold (so the probability of detection follows the SNR).
 - **Position** from the bistatic range sum ``rho = R_s + R_r`` and the bearing ``theta`` at the
