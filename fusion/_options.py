@@ -74,7 +74,8 @@ def number(
 #: docs/options.md has the table of the ideas, their one spelling and unit.
 OLD_SPELLINGS: dict[str, dict[str, str]] = {
     "simulate": {"--duration": "--duration-s"},
-    "acquire": {"--freq": "--freq-hz", "--ibw": "--ibw-hz", "--lag": "--display-lag-s"},
+    "acquire": {"--freq": "--freq-hz", "--ibw": "--ibw-hz", "--lag": "--display-lag-s",
+                "--freq-tolerance": "--freq-tolerance-bins"},
     "report": {"--freq": "--freq-hz", "--lag": "--display-lag-s"},
     "crossings": {
         "--horizon": "--horizon-s",
@@ -117,6 +118,8 @@ OLD_SPELLINGS: dict[str, dict[str, str]] = {
         "--chunk": "--chunk-s",
         "--event-band-floor": "--event-band-floor-hz",
         "--event-default-band": "--event-default-band-hz",
+        "--sea-floor-z": "--sea-floor-z-m",
+        "--event-region": "--event-region-apertures",
     },
     "train-validator": {"--window": "--window-s", "--hop": "--hop-s", "--tolerance": "--tolerance-s"},
     "tqi": {"--omega": "--omega-per-deg"},

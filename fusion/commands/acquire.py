@@ -41,7 +41,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--noise-dof", type=number(float, gt=0), default=None,
                    help="degrees of freedom of the noise per cell (2: one periodogram look; "
                         "default: estimated from the cube)")
-    p.add_argument("--freq-tolerance", type=number(int, ge=0, le=MAX_SCANS_OPTION), default=1,
+    p.add_argument("--freq-tolerance-bins", dest="freq_tolerance",
+                   type=number(int, ge=0, le=MAX_SCANS_OPTION), default=1, metavar="BINS",
                    help="bins the clicked frequency may be off the line: the initialisation band "
                         "is also tried shifted by up to this many bins (default 1; 0: the "
                         "clicked band only)")

@@ -39,7 +39,7 @@ along direct paths; when every sensor is below the sea surface (z = 0, z up as i
 formats) and the direct sources leave more than a fifth of the window's valid TDOAs unexplained,
 it is solved again reading every TDOA along direct and surface-reflected paths, and that
 solution is kept if it explains more (``--surface-paths`` / ``--direct-only`` decide for every
-window instead); ``--sea-floor-z`` bounds the search
+window instead); ``--sea-floor-z-m`` bounds the search
 below, ``--candidates`` and ``--min-source-tdoas`` set the candidates per window and the weight
 a source needs (by default those of the path reading).
 
@@ -149,7 +149,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     paths.add_argument("--direct-only", dest="surface_paths", action="store_const", const=False,
                        help="read TDOAs along direct paths only (always so, with one logged "
                             "line, when a sensor is not below z = 0)")
-    p.add_argument("--sea-floor-z", type=number(float), default=None, metavar="Z",
+    p.add_argument("--sea-floor-z-m", dest="sea_floor_z", type=number(float), default=None, metavar="Z",
                    help="height of the sea floor, m (z up, e.g. -1700; at or below every sensor): "
                         "sources are searched between it and the surface (default: 30 m under "
                         "the deepest sensor, which hears bottom echoes or is taken as "

@@ -50,7 +50,8 @@ def add_event_options(parser: argparse.ArgumentParser) -> None:
                    metavar=("LOW", "HIGH"),
                    help="band of an event without f_low/f_high whose band cannot be estimated "
                         "(default: the band floor to 0.45 of the sample rate)")
-    g.add_argument("--event-region", type=number(float, gt=0), default=3.0, metavar="APERTURES",
+    g.add_argument("--event-region-apertures", dest="event_region", type=number(float, gt=0),
+                   default=3.0, metavar="APERTURES",
                    help="half-width of the search box in array apertures (default 3)")
     g.add_argument("--event-no-surface", action="store_true",
                    help="skip the intensity-surface check")

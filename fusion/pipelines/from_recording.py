@@ -15,7 +15,7 @@ Before the windows are processed, the first minute of a recording is examined on
 * when no floor echo is heard, the hydrophones (all below the surface, no sea floor given) are
   taken as bottom-mounted, the method's range, and sources are searched above the same bound:
   a nearly flat array cannot tell a whale from its mirror image below it, and on a range that
-  image is in the sea bed. ``--sea-floor-z`` gives another floor (hydrophones moored above it).
+  image is in the sea bed. ``--sea-floor-z-m`` gives another floor (hydrophones moored above it).
 
 :func:`decide_from_recording` returns the detector and localizer settings to use, one line per
 decision for the user and a JSON-ready record; ``fusion localize`` prints the lines and writes the
@@ -179,7 +179,7 @@ def decide_from_recording(
         floor_record.update(source="bottom-mounted (no bottom echo heard)", sea_floor_z=floor)
         notes.append(f"no bottom echo heard in {span}: the hydrophones are taken as bottom-mounted "
                      f"(the method's range): sources searched above z = {floor:g} m "
-                     "(--sea-floor-z for hydrophones moored above the floor)")
+                     "(--sea-floor-z-m for hydrophones moored above the floor)")
     return RecordingDecisions(det, settings, est, echoes, tuple(notes),
                               {"replica": replica_record, "band": band_record,
                                "sea_floor": floor_record})

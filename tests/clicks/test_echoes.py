@@ -77,10 +77,10 @@ def test_half_the_channels_decide_and_few_clicks_abstain():
 
 @pytest.mark.parametrize("echo", ["bottom", "none"])
 def test_localize_decides_the_sea_floor_from_the_recording(tmp_path, echo):
-    """`fusion localize` without --sea-floor-z: the detection band from the estimated replica;
+    """`fusion localize` without --sea-floor-z-m: the detection band from the estimated replica;
     a recording with bottom echoes gets the floor
     below the deepest sensor (printed, in the settings file); one without takes the hydrophones
-    as bottom-mounted (the same bound, another source named); with --sea-floor-z, that one."""
+    as bottom-mounted (the same bound, another source named); with --sea-floor-z-m, that one."""
     from fusion.cli import main
 
     assert main(["simulate", "clicks", "--seed", "21", "--out", str(tmp_path / "s"),
@@ -105,7 +105,7 @@ def test_localize_decides_the_sea_floor_from_the_recording(tmp_path, echo):
         assert side["localization"]["sea_floor_z"] == pytest.approx(deepest - FLOOR_MARGIN_M)
         assert main(["localize", "--audio", str(tmp_path / "s" / "audio.flac"), "--array",
                      str(tmp_path / "s" / "array.json"), "--out", str(tmp_path / "g.json"),
-                     "--quiet", "--sea-floor-z", str(deepest - 500.0),
+                     "--quiet", "--sea-floor-z-m", str(deepest - 500.0),
                      "--band-hz", "15000", "41000"]) == 0
         given = json.loads((tmp_path / "g.settings.json").read_text())
         assert given["band"] == {"source": "given", "band_hz": [15000.0, 41000.0]}

@@ -183,7 +183,7 @@ def test_cli_options_give_the_settings():
     base = ["localize", "--audio", "a.flac", "--array", "j.json", "--out", "r.json"]
     parser = build_parser("localize")
     assert settings_from_args(parser.parse_args(base)) == LocalizerSettings()
-    args = parser.parse_args(base + ["--direct-only", "--sea-floor-z", "-1700", "--candidates",
+    args = parser.parse_args(base + ["--direct-only", "--sea-floor-z-m", "-1700", "--candidates",
                                      "12", "--min-source-tdoas", "6", "--method", "eq17"])
     assert settings_from_args(args) == LocalizerSettings(
         method="eq17", surface_paths=False, sea_floor_z=-1700.0, max_candidates=12,
