@@ -28,7 +28,6 @@ from fusion.passive.smoothing.candidates import end_candidates, gap_candidates
 from fusion.passive.smoothing.em import SharedBearingPosterior
 from fusion.passive.smoothing.graph import (
     _check_detections,
-    _check_loss,
     _initial_states,
     _Measurements,
     _Model,
@@ -167,13 +166,8 @@ class MultiTrackSmoother:
         min_length: int = 5,
         extend_ends: bool = False,
     ) -> None:
-        self.model = _Model(
-            sigma_bearing=check_positive("sigma_bearing", sigma_bearing),
-            q=check_positive("q", q),
-            loss=_check_loss(robust),
-            k=check_positive("robust_k", robust_k),
-            max_iterations=50,
-        )
+        self.model = _Model.checked(sigma_bearing=sigma_bearing, q=q, robust=robust,
+                                    robust_k=robust_k, max_iterations=50)
         self.clutter_density = (None if clutter_density is None
                                 else check_positive("clutter_density", clutter_density))
         if p_detect is not None and not 0 < p_detect <= 1:
