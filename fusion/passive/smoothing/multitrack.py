@@ -64,10 +64,8 @@ class MultiTrackSmoother:
 
     Parameters
     ----------
-    sigma_bearing : float, keyword-only
-        Bearing measurement standard deviation, rad.
-    q : float, keyword-only
-        Bearing acceleration PSD, rad^2/s^3.
+    sigma_bearing, q : float, keyword-only
+        As in :class:`~fusion.passive.smoothing.batch.BearingSmoother`.
     clutter_density : float or None, keyword-only
         Expected false detections per scan per radian (the clutter term of the association
         probabilities); None: counted from the detections no track owns
@@ -210,10 +208,8 @@ class MultiTrackSmoother:
 
         Parameters
         ----------
-        times : array_like, shape (n,)
-            Detection times, s, non-decreasing; equal times form a scan.
-        bearings : array_like, shape (n,)
-            Bearings, rad.
+        times, bearings : array_like, shape (n,)
+            Unlabeled detections (:mod:`fusion.passive.smoothing`), times non-decreasing.
         on_progress : callable, optional, keyword-only
             ``on_progress(f)`` as the work goes on, with the fraction done: the tracker's pass
             over the scans is the first half (after each scan), the tracks' smoothing the
