@@ -83,14 +83,7 @@ def target_bearing_jacobian(
 ) -> NDArray[np.float64]:
     """Derivative of :func:`target_bearing` with respect to the state (vectorised).
 
-    Parameters
-    ----------
-    states : array_like, shape (..., 4)
-        Target states ``[x, y, vx, vy]``, m and m/s.
-    platform_xy : array_like, shape (..., 2)
-        Platform positions, m.
-    dt : float or array_like, shape (...), keyword-only
-        Time from the state's epoch to the bearing time, s.
+    `states`, `platform_xy` and `dt` as in :func:`target_bearing`.
 
     Returns
     -------

@@ -99,7 +99,13 @@ def wrap_deg(a: ArrayLike) -> NDArray[np.float64] | float:
     """
     out = np.mod(np.asarray(a, dtype=float) + 180.0, 360.0) - 180.0
     out = np.where(out >= 180.0, out - 360.0, out)  # mod rounded up to 360: -180, not +180
-    return float(out) if out.ndim == 0 else out
+    return _scalar_or_array(out)
+
+
+def _scalar_or_array(out: NDArray[np.float64] | np.floating) -> NDArray[np.float64] | float:
+    """A float for a 0-d result (scalar input), else the array: the functions here return
+    what they were given."""
+    return float(out) if np.ndim(out) == 0 else out
 
 
 def _check_n_beams(n_beams: int) -> None:
@@ -125,7 +131,7 @@ def bearing_from_beam(beam: ArrayLike, n_beams: int) -> NDArray[np.float64] | fl
     _check_n_beams(n_beams)
     c = 1.0 - 2.0 * np.asarray(beam, dtype=float) / (n_beams - 1)
     out = np.arccos(np.clip(c, -1.0, 1.0))
-    return float(out) if np.ndim(out) == 0 else out
+    return _scalar_or_array(out)
 
 
 def beam_from_bearing(theta: ArrayLike, n_beams: int) -> NDArray[np.float64] | float:
@@ -145,7 +151,7 @@ def beam_from_bearing(theta: ArrayLike, n_beams: int) -> NDArray[np.float64] | f
     """
     _check_n_beams(n_beams)
     out = (n_beams - 1) * (1.0 - np.cos(np.asarray(theta, dtype=float))) / 2.0
-    return float(out) if np.ndim(out) == 0 else out
+    return _scalar_or_array(out)
 
 
 def beam_rate_from_bearing_rate(
@@ -169,7 +175,7 @@ def beam_rate_from_bearing_rate(
     """
     _check_n_beams(n_beams)
     out = (n_beams - 1) / 2.0 * np.sin(np.asarray(theta, dtype=float)) * np.asarray(theta_dot)
-    return float(out) if np.ndim(out) == 0 else out
+    return _scalar_or_array(out)
 
 
 def bearing_rate_from_beam_rate(
@@ -199,7 +205,7 @@ def bearing_rate_from_beam_rate(
     sin_floor = np.sin(float(bearing_from_beam(0.5, n_beams)))
     s = np.maximum(np.sin(theta), sin_floor)
     out = 2.0 * np.asarray(beam_rate, dtype=float) / ((n_beams - 1) * s)
-    return float(out) if np.ndim(out) == 0 else out
+    return _scalar_or_array(out)
 
 
 def beamwidth_cos(wavelength: float, aperture: float) -> float:
@@ -264,7 +270,7 @@ def beamwidth_deg(
     lo = np.maximum(-1.0, u - 0.5 * w)
     hi = np.minimum(1.0, u + 0.5 * w)
     out = np.degrees(np.arccos(lo) - np.arccos(hi))
-    return float(out) if np.ndim(out) == 0 else out
+    return _scalar_or_array(out)
 
 
 def beam_tolerance(wavelength: float, aperture: float, n_beams: int) -> int:
@@ -304,7 +310,7 @@ def compass_bearing_deg(from_xy: ArrayLike, to_xy: ArrayLike) -> NDArray[np.floa
     """
     d = np.asarray(to_xy, dtype=float) - np.asarray(from_xy, dtype=float)
     out = np.mod(np.degrees(np.arctan2(d[..., 0], d[..., 1])), 360.0)
-    return float(out) if np.ndim(out) == 0 else out
+    return _scalar_or_array(out)
 
 
 @dataclass(frozen=True)

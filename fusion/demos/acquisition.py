@@ -20,12 +20,7 @@ __all__ = ["run_demo"]
 def run_demo(out_dir: Path, *, seed: int) -> dict[str, float | bool]:
     """Demo part: acquire a high bearing-rate line; write ``btr.png`` and ``result.json``.
 
-    Parameters
-    ----------
-    out_dir : pathlib.Path
-        Output folder.
-    seed : int
-        Scenario seed.
+    A demo part (:mod:`fusion.demos`: `out_dir`, `seed`).
 
     Returns
     -------

@@ -167,12 +167,7 @@ def _draw_tracks(plt, path: Path, done, tracks, array, sc) -> None:
 def run_demo(out_dir: Path, *, seed: int) -> dict[str, Any]:
     """Run the click localization on a seeded scenario; write the result and four figures.
 
-    Parameters
-    ----------
-    out_dir : pathlib.Path
-        Output folder.
-    seed : int
-        Scenario seed.
+    A demo part (:mod:`fusion.demos`: `out_dir`, `seed`).
 
     Returns
     -------

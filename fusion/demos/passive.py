@@ -22,12 +22,7 @@ __all__ = ["run_demo"]
 def run_demo(out_dir: Path, *, seed: int) -> dict:
     """Run the passive pipeline on a seeded scenario; write tracks, alerts and ``passive.png``.
 
-    Parameters
-    ----------
-    out_dir : pathlib.Path
-        Output folder (created if missing).
-    seed : int
-        Scenario seed.
+    A demo part (:mod:`fusion.demos`: `out_dir`, `seed`).
 
     Returns
     -------

@@ -28,12 +28,7 @@ def run_demo(out_dir: Path, *, seed: int) -> dict:
     time cube, initialises the bearing tracker from the acquisition, tracks 60 scans and writes
     ``cube_track.csv`` and ``cube_track.png``.
 
-    Parameters
-    ----------
-    out_dir : pathlib.Path
-        Output folder.
-    seed : int
-        Scenario seed.
+    A demo part (:mod:`fusion.demos`: `out_dir`, `seed`).
 
     Returns
     -------

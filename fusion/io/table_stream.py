@@ -4,7 +4,8 @@
 chunks (:class:`~fusion.io.tables.TableChunk`) with every check of the whole-file readers of
 :mod:`fusion.io.table_kinds` -- header and columns, text, NaN/inf, numbers beyond the bound,
 over-long lines and fields, allowed values -- and the row-order checks carried across chunk
-boundaries by a :class:`TimeOrderCheck`.
+boundaries by a :class:`TimeOrderCheck`. Each takes the CSV file `path` and `rows_per_chunk`
+(rows per chunk, default 65,536), as :func:`~fusion.io.tables.iter_table` does.
 
 Row order is where a chunked reader differs: the whole-file readers sort rows that are out of time
 order (with one warning) and name the first repeated time in track order; a chunked reader cannot
@@ -154,13 +155,6 @@ def iter_amplitudes(path: PathLike, *, rows_per_chunk: int = _ROWS_PER_CHUNK) ->
     The checks of :func:`fusion.io.read_amplitudes`, chunk by chunk; each track's rows must
     come in strictly increasing time (tracks may interleave), else :class:`RowOrderError`.
 
-    Parameters
-    ----------
-    path : path-like
-        CSV file.
-    rows_per_chunk : int, optional
-        Rows per chunk (default 65,536).
-
     Yields
     ------
     TableChunk
@@ -179,13 +173,6 @@ def iter_bearings(path: PathLike, *, rows_per_chunk: int = _ROWS_PER_CHUNK) -> I
     in strictly increasing time (rows of track -1 in non-decreasing time), else
     :class:`RowOrderError`.
 
-    Parameters
-    ----------
-    path : path-like
-        CSV file.
-    rows_per_chunk : int, optional
-        Rows per chunk (default 65,536).
-
     Yields
     ------
     TableChunk
@@ -202,14 +189,7 @@ def iter_detections(path: PathLike, *, rows_per_chunk: int = _ROWS_PER_CHUNK) ->
 
     The checks of :func:`fusion.io.read_detections`, chunk by chunk (``score`` in [0, 1]);
     rows must come in non-decreasing ``event`` (many detections share an event), else
-    :class:`RowOrderError`.
-
-    Parameters
-    ----------
-    path : path-like
-        CSV file.
-    rows_per_chunk : int, optional
-        Rows per chunk (default 65,536). An event may be split between two chunks.
+    :class:`RowOrderError`. An event may be split between two chunks.
 
     Yields
     ------

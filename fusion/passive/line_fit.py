@@ -160,6 +160,14 @@ class SlidingLineFit:
             return self.slots(ids)
         return out
 
+    def _known(self, track_ids: ArrayLike) -> NDArray[np.int64]:
+        """Storage slots of `track_ids`, all known (else :class:`ValueError` naming some)."""
+        s = self.slots(track_ids)
+        if np.any(s < 0):
+            unknown = np.asarray(track_ids)[s < 0]
+            raise ValueError(f"unknown track id(s) {unknown.tolist()[:5]}")
+        return s
+
     @property
     def track_ids(self) -> list[int]:
         """Ids of every track seen so far."""
@@ -290,22 +298,14 @@ class SlidingLineFit:
         n : ndarray of int64, shape (n,)
             Samples in each window (J when full).
         """
-        s = self.slots(track_ids)
-        if np.any(s < 0):
-            unknown = np.asarray(track_ids)[s < 0]
-            raise ValueError(f"unknown track id(s) {unknown.tolist()[:5]}")
+        s = self._known(track_ids)
         icpt, slope = self._coeffs(s)
         return icpt + slope * (float(time) - self._t0[s]), slope, self._n[s].copy()
 
     def stats(self, track_ids: ArrayLike, time: float) -> LineStats:
         """Each track's window line at `time` with its covariance from the window residuals.
 
-        Parameters
-        ----------
-        track_ids : array_like of int, shape (n,)
-            Known track ids.
-        time : float
-            Where to evaluate the line, s.
+        `track_ids` and `time` as in :meth:`line`.
 
         Returns
         -------
@@ -321,10 +321,7 @@ class SlidingLineFit:
         The fitted value at ``t`` and the slope have variances ``s^2 (1/n + (t - tbar)^2 / S_xx)``
         and ``s^2 / S_xx`` and covariance ``s^2 (t - tbar) / S_xx``.
         """
-        s = self.slots(track_ids)
-        if np.any(s < 0):
-            unknown = np.asarray(track_ids)[s < 0]
-            raise ValueError(f"unknown track id(s) {unknown.tolist()[:5]}")
+        s = self._known(track_ids)
         icpt, slope = self._coeffs(s)
         n = self._n[s].astype(float)
         st, sy, stt, syy = self._s[0, s], self._s[1, s], self._s[2, s], self._s[4, s]
@@ -369,10 +366,7 @@ class SlidingLineFit:
         valid : ndarray of bool, shape (n, J)
             Entries holding a sample.
         """
-        s = self.slots(track_ids)
-        if np.any(s < 0):
-            unknown = np.asarray(track_ids)[s < 0]
-            raise ValueError(f"unknown track id(s) {unknown.tolist()[:5]}")
+        s = self._known(track_ids)
         v = self._bv[s].copy()
         tau = np.where(v, self._bt[s] + (self._t0[s] - float(time))[:, None], 0.0)
         return tau, np.where(v, self._by[s], 0.0), v

@@ -1,8 +1,10 @@
 """Seeded scenario generators; ``fusion simulate KIND`` writes their files.
 
 Each kind's ``write_scenario(out_dir, *, seed) -> list[Path]`` writes the scenario in the
-project's file formats plus its ground truth. The same generators serve tests, examples,
-benchmarks and ``fusion demo``.
+project's file formats plus its ground truth: `out_dir` is the output folder (created if
+missing), `seed` the scenario seed, and the paths of the written files are returned. Options a
+kind takes beyond these (such as ``vary``) are documented by its writer, which refers here for
+the rest. The same generators serve tests, examples, benchmarks and ``fusion demo``.
 """
 
 from __future__ import annotations

@@ -348,21 +348,14 @@ def write_scenario(out_dir: Path, *, seed: int, vary: bool = False) -> list[Path
     ``truth.csv`` holds ``track_id,time,condition,snr_linear,segment`` per update (``snr_linear``
     0 when lost).
 
+    A scenario writer (:mod:`fusion.simulate`: `out_dir`, `seed`, the written files returned).
+
     Parameters
     ----------
-    out_dir : pathlib.Path
-        Output folder (created if missing).
-    seed : int
-        Scenario seed.
     vary : bool, optional
         Draw the update period, SNR levels, manoeuvre biases and segment lengths from
         :data:`VARIED_RANGES` (:func:`varied_settings`) instead of the defaults of
         :func:`simulate_amplitudes`.
-
-    Returns
-    -------
-    list of pathlib.Path
-        The written files.
     """
     sc = simulate_amplitudes(**varied_settings(seed)) if vary else simulate_amplitudes(seed=seed)
     out_dir = Path(out_dir)

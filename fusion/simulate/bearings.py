@@ -418,12 +418,10 @@ def write_scenario(out_dir: Path, *, seed: int, vary: bool = False,
                    traffic: bool = False) -> list[Path]:
     """Write a bearing scenario: ``bearings.csv``, ``truth.json``, ``truth_bearings.csv``.
 
+    A scenario writer (:mod:`fusion.simulate`: `out_dir`, `seed`, the written files returned).
+
     Parameters
     ----------
-    out_dir : pathlib.Path
-        Output folder (created if missing).
-    seed : int
-        Scenario seed.
     vary : bool, optional
         Draw the physical assumptions from :data:`VARIED_RANGES` (:func:`varied_settings`)
         instead of the fixed scenario below; ``truth.json`` then records them under
@@ -431,11 +429,6 @@ def write_scenario(out_dir: Path, *, seed: int, vary: bool = False,
     traffic : bool, optional
         Manoeuvring vessel traffic around a fixed sensor (:func:`simulate_traffic`) instead;
         not with `vary`.
-
-    Returns
-    -------
-    list of pathlib.Path
-        The written files.
 
     Notes
     -----

@@ -400,14 +400,14 @@ def write_scenario(
     snr_db: float | None = None,
     echo: str | None = None,
 ) -> list[Path]:
-    """``fusion simulate clicks``: a click scenario (:func:`simulate_clicks`) written out.
+    """``fusion simulate clicks``: a click scenario (:func:`simulate_clicks`) written out:
+    ``audio.flac`` (96 kHz, channel i = sensor i), ``array.json``, ``truth.json``,
+    ``tdoa_labels.csv``.
+
+    A scenario writer (:mod:`fusion.simulate`: `out_dir`, `seed`, the written files returned).
 
     Parameters
     ----------
-    out_dir : pathlib.Path
-        Output folder.
-    seed : int
-        Scenario seed.
     vary : bool, optional
         Draw the physics of a real bottom-mounted range from
         :data:`fusion.simulate.whale_range.varied.VARIED_RANGES` (floor, profile, echoes, survey
@@ -420,12 +420,6 @@ def write_scenario(
     duration_s, n_sources, n_sensors, snr_db, echo : optional
         Explicit values; they override the varied (or default) ones. Without any of them and
         without `vary` the files are those of the default scenario, byte for byte.
-
-    Returns
-    -------
-    list of pathlib.Path
-        ``audio.flac`` (96 kHz, channel i = sensor i), ``array.json``, ``truth.json``,
-        ``tdoa_labels.csv``.
     """
     out = Path(out_dir)
     if out.exists() and not out.is_dir():

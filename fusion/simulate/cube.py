@@ -197,21 +197,14 @@ def write_scenario(out_dir: Path, *, seed: int, vary: bool = False) -> list[Path
     The scenario (a 35 deg/min line at 6 dB per-bin SNR, start bearing drawn from the seed) is the
     input of ``fusion acquire --cube cube.npz --beam B --freq-hz F`` with the click in ``truth.json``.
 
+    A scenario writer (:mod:`fusion.simulate`: `out_dir`, `seed`, the written files returned).
+
     Parameters
     ----------
-    out_dir : pathlib.Path
-        Output folder (created if missing).
-    seed : int
-        Scenario seed.
     vary : bool, optional
         A varied cube instead (:func:`fusion.simulate.cube_varied.simulate_varied_cube`: line
         frequency, rate, SNR, noise statistics and level, lag drawn from the seed); its draws go
         to ``truth.json`` under ``parameters``.
-
-    Returns
-    -------
-    list of pathlib.Path
-        The written files.
     """
     out_dir = Path(out_dir)
     if vary:

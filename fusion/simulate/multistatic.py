@@ -302,20 +302,13 @@ def write_scenario(out_dir: Path, *, seed: int, vary: bool = False) -> list[Path
     """Write ``detections.csv`` (formats section 3, clue columns included), ``truth.csv``
     (target per ping), ``origins.csv`` (origin of each detection row) and ``truth.json``.
 
+    A scenario writer (:mod:`fusion.simulate`: `out_dir`, `seed`, the written files returned).
+
     Parameters
     ----------
-    out_dir : pathlib.Path
-        Output folder.
-    seed : int
-        Scenario seed.
     vary : bool, optional
         A varied scenario (:func:`simulate_multistatic` with ``vary=True``); its drawn
         parameters go to ``truth.json`` under ``parameters``.
-
-    Returns
-    -------
-    list of pathlib.Path
-        The written files.
     """
     out = Path(out_dir)
     sc = simulate_multistatic(seed=seed, vary=vary)

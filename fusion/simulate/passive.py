@@ -389,17 +389,7 @@ def write_scenario(out_dir: Path, *, seed: int) -> list[Path]:
     line, three free lines; ``clicks.csv`` (``time,beam,freq``) holds an operator click on every
     line at scan 59, the input of ``fusion passive --cube cube.npz --clicks clicks.csv``.
 
-    Parameters
-    ----------
-    out_dir : pathlib.Path
-        Output folder (created if missing).
-    seed : int
-        Scenario seed.
-
-    Returns
-    -------
-    list of pathlib.Path
-        The written files.
+    A scenario writer (:mod:`fusion.simulate`: `out_dir`, `seed`, the written files returned).
     """
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)

@@ -161,17 +161,7 @@ def simulate_tma(
 def write_scenario(out_dir: Path, *, seed: int) -> list[Path]:
     """Write a TMA scenario: ``bearings.csv``, ``ownship.csv`` and ``truth.csv``.
 
-    Parameters
-    ----------
-    out_dir : Path
-        Output folder (created if needed).
-    seed : int, keyword-only
-        Random seed.
-
-    Returns
-    -------
-    list of Path
-        The written files.
+    A scenario writer (:mod:`fusion.simulate`: `out_dir`, `seed`, the written files returned).
     """
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)

@@ -7,6 +7,11 @@ the bearing-rate graph of the project's design notes ("Factor graphs"), built an
 :mod:`~fusion.passive.smoothing.graph` from GTSAM's built-in linear factors with the bearings
 re-centred on the wrap.
 
+Unlabeled detections -- the input of :class:`MultiTrackSmoother`,
+:func:`~fusion.passive.smoothing.settings.pair_scatter` and
+:func:`~fusion.passive.smoothing.merge.merge_scan_detections` -- are two arrays of equal length:
+``times`` (s; equal times form a scan) and ``bearings`` (rad).
+
 Modules, one role each:
 
 - :mod:`~fusion.passive.smoothing.types` -- :class:`TrackPrior`, :class:`SmoothedTrack`,

@@ -18,7 +18,6 @@ from fusion._validation import check_positive
 from fusion.geometry import wrap_angle
 from fusion.passive.smoothing.graph import (
     _check_detections,
-    _check_loss,
     _default_prior,
     _initial_states,
     _Measurements,
@@ -79,13 +78,8 @@ class BearingSmoother:
         prior_sigma_rate: float = 0.05,
         max_iterations: int = 100,
     ) -> None:
-        self.model = _Model(
-            sigma_bearing=check_positive("sigma_bearing", sigma_bearing),
-            q=check_positive("q", q),
-            loss=_check_loss(robust),
-            k=check_positive("robust_k", robust_k),
-            max_iterations=int(max_iterations),
-        )
+        self.model = _Model.checked(sigma_bearing=sigma_bearing, q=q, robust=robust,
+                                    robust_k=robust_k, max_iterations=max_iterations)
         self.prior_sigma_rate = check_positive("prior_sigma_rate", prior_sigma_rate)
 
     def smooth(

@@ -35,6 +35,7 @@ from factors.motion import constant_velocity_chain
 from factors.weighted import sqrt_weights, weighted_factor
 from fusion._progress import RowShare
 from fusion._stack import with_deep_stack
+from fusion._validation import check_positive
 from fusion.geometry import check_radians, wrap_angle
 from fusion.passive.smoothing.huber import huber_minimum
 from fusion.passive.smoothing.types import TrackPrior
@@ -110,6 +111,20 @@ class _Model:
     loss: str
     k: float
     max_iterations: int
+
+    @classmethod
+    def checked(cls, *, sigma_bearing: float, q: float, robust: str, robust_k: float,
+                max_iterations: int) -> _Model:
+        """The model of a smoother's settings, each checked (:class:`ValueError` names the bad
+        one): `sigma_bearing` (rad), `q` (rad^2/s^3), `robust` (one of :data:`ROBUST_LOSSES`),
+        `robust_k` and positive; `max_iterations` as an int."""
+        return cls(
+            sigma_bearing=check_positive("sigma_bearing", sigma_bearing),
+            q=check_positive("q", q),
+            loss=_check_loss(robust),
+            k=check_positive("robust_k", robust_k),
+            max_iterations=int(max_iterations),
+        )
 
 
 def _build_graph(

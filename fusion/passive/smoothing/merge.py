@@ -23,10 +23,8 @@ def merge_scan_detections(
 
     Parameters
     ----------
-    times : array_like, shape (n,)
-        Detection times, s; equal times form a scan.
-    bearings : array_like, shape (n,)
-        Bearings, rad.
+    times, bearings : array_like, shape (n,)
+        Unlabeled detections (:mod:`fusion.passive.smoothing`).
     within : float, keyword-only
         Largest gap between neighbouring bearings of one group, rad (0: nothing merged).
 

@@ -28,7 +28,6 @@ from fusion.passive.smoothing.candidates import end_candidates, gap_candidates
 from fusion.passive.smoothing.em import SharedBearingPosterior
 from fusion.passive.smoothing.graph import (
     _check_detections,
-    _check_loss,
     _initial_states,
     _Measurements,
     _Model,
@@ -65,10 +64,8 @@ class MultiTrackSmoother:
 
     Parameters
     ----------
-    sigma_bearing : float, keyword-only
-        Bearing measurement standard deviation, rad.
-    q : float, keyword-only
-        Bearing acceleration PSD, rad^2/s^3.
+    sigma_bearing, q : float, keyword-only
+        As in :class:`~fusion.passive.smoothing.batch.BearingSmoother`.
     clutter_density : float or None, keyword-only
         Expected false detections per scan per radian (the clutter term of the association
         probabilities); None: counted from the detections no track owns
@@ -167,13 +164,8 @@ class MultiTrackSmoother:
         min_length: int = 5,
         extend_ends: bool = False,
     ) -> None:
-        self.model = _Model(
-            sigma_bearing=check_positive("sigma_bearing", sigma_bearing),
-            q=check_positive("q", q),
-            loss=_check_loss(robust),
-            k=check_positive("robust_k", robust_k),
-            max_iterations=50,
-        )
+        self.model = _Model.checked(sigma_bearing=sigma_bearing, q=q, robust=robust,
+                                    robust_k=robust_k, max_iterations=50)
         self.clutter_density = (None if clutter_density is None
                                 else check_positive("clutter_density", clutter_density))
         if p_detect is not None and not 0 < p_detect <= 1:
@@ -216,10 +208,8 @@ class MultiTrackSmoother:
 
         Parameters
         ----------
-        times : array_like, shape (n,)
-            Detection times, s, non-decreasing; equal times form a scan.
-        bearings : array_like, shape (n,)
-            Bearings, rad.
+        times, bearings : array_like, shape (n,)
+            Unlabeled detections (:mod:`fusion.passive.smoothing`), times non-decreasing.
         on_progress : callable, optional, keyword-only
             ``on_progress(f)`` as the work goes on, with the fraction done: the tracker's pass
             over the scans is the first half (after each scan), the tracks' smoothing the

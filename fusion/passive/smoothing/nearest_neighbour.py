@@ -60,10 +60,8 @@ class NearestNeighbourTracker:
 
     Parameters
     ----------
-    sigma_bearing : float, keyword-only
-        Bearing measurement standard deviation, rad.
-    q : float, keyword-only
-        Bearing acceleration PSD, rad^2/s^3.
+    sigma_bearing, q : float, keyword-only
+        As in :class:`~fusion.passive.smoothing.batch.BearingSmoother`.
     gate : float, keyword-only
         Gate on the normalised innovation, standard deviations (default 4).
     init_sigma_rate : float, keyword-only

@@ -14,10 +14,9 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-from fusion._validation import check_positive
 from fusion.geometry import check_radians, wrap_angle
 from fusion.passive.smoothing.fixed_lag import FixedLagBearingTrack
-from fusion.passive.smoothing.graph import _check_loss, _Model
+from fusion.passive.smoothing.graph import _Model
 from fusion.passive.smoothing.types import SmoothedTrack, TrackPrior
 
 __all__ = ["OnlineBearingSmoother"]
@@ -70,13 +69,8 @@ class OnlineBearingSmoother:
         robust_k: float = 1.345,
         relinearize_threshold: float = 1e-3,
     ) -> None:
-        self.model = _Model(
-            sigma_bearing=check_positive("sigma_bearing", sigma_bearing),
-            q=check_positive("q", q),
-            loss=_check_loss(robust),
-            k=check_positive("robust_k", robust_k),
-            max_iterations=1,
-        )
+        self.model = _Model.checked(sigma_bearing=sigma_bearing, q=q, robust=robust,
+                                    robust_k=robust_k, max_iterations=1)
         if not isinstance(prior, TrackPrior):
             raise ValueError("prior must be a TrackPrior")
         if not np.isfinite(t0):

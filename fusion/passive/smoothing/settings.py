@@ -145,10 +145,8 @@ def pair_scatter(
 
     Parameters
     ----------
-    times : array_like, shape (n,)
-        Detection times, s; equal times form a scan.
-    bearings : array_like, shape (n,)
-        Bearings, rad.
+    times, bearings : array_like, shape (n,)
+        Unlabeled detections (:mod:`fusion.passive.smoothing`).
     window : float, keyword-only
         Half-width ``W`` of the pairing window, rad.
     max_iterations : int, keyword-only

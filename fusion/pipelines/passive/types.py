@@ -44,14 +44,8 @@ class Scan:
         from forward endfire.
     time : float
         Scan time, s.
-    freqs : ndarray, shape (n_bins,)
-        Bin centre frequencies, Hz.
-    scan_period : float
-        Time between scans, s.
-    aperture : float
-        Array aperture, m.
-    sound_speed : float
-        Sound speed, m/s.
+    freqs, scan_period, aperture, sound_speed
+        Those of the cube the scan belongs to (:class:`fusion.types.Cube`).
     """
 
     power: FloatArray
