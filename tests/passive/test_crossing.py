@@ -432,7 +432,7 @@ def test_cli_round_trip(tmp_path, capsys):
     printed = capsys.readouterr().out.strip().splitlines()
     assert len(printed) == 1 and "alert(s)" in printed[0]
     st = crossing_settings(sc.track_id, sc.time)
-    assert printed[0].startswith(st.describe())
+    assert printed[0].startswith(f"fusion crossings: {st.describe()}")
     got = read_table(out, required=("time", "track_a", "track_b", "t_cross", "kind",
                                     "t_cross_low", "t_cross_high"),
                      integer=("track_a", "track_b"), text=("kind",))
