@@ -244,18 +244,23 @@ def _run_forked(fn: Callable[[Any, T], str], shared: Any, todo: Sequence[T], poo
     if not todo:
         return
     _INHERITED[:] = [shared]  # before the fork: every worker inherits it
+    ex = ProcessPoolExecutor(max_workers=min(pool.workers, len(todo)),
+                             mp_context=multiprocessing.get_context("fork"))
     try:
-        with ProcessPoolExecutor(max_workers=min(pool.workers, len(todo)),
-                                 mp_context=multiprocessing.get_context("fork")) as ex:
-            futures = {ex.submit(_inherited_call, fn, t): t for t in todo}
-            try:
-                while futures:
-                    finished, _ = wait(list(futures), return_when=FIRST_COMPLETED)
-                    for fut in finished:
-                        done(futures.pop(fut), fut.result())
-            finally:
-                for fut in futures:
-                    fut.cancel()
+        futures = {ex.submit(_inherited_call, fn, t): t for t in todo}
+        while futures:
+            finished, _ = wait(list(futures), return_when=FIRST_COMPLETED)
+            for fut in finished:
+                done(futures.pop(fut), fut.result())
+    except BaseException:
+        # a failed task, an interrupt or a signal: stop the workers now rather than wait for
+        # their chunks (the parts already stored are kept for a resume)
+        for proc in list((getattr(ex, "_processes", None) or {}).values()):
+            proc.terminate()
+        ex.shutdown(wait=False, cancel_futures=True)
+        raise
+    else:
+        ex.shutdown(wait=True)
     finally:
         _INHERITED.clear()
 

@@ -379,3 +379,21 @@ def test_windows_not_localized_are_written_and_counted(tmp_path):
     assert s.line().endswith("; 1 windows not localized (e.g. too few independent pairs)")
     assert json.loads((tmp_path / "r.json").read_text())["windows"][0]["not_localized"] == \
         "too few independent pairs"
+
+
+def _fails_or_sleeps(shared, task):
+    """Task 0 fails at once; the others would run for a minute."""
+    if task == 0:
+        raise ValueError("task 0 failed")
+    time.sleep(60)
+    return "never"
+
+
+def test_local_pool_stops_its_workers_when_a_task_fails(tmp_path):
+    """A failed task is raised in the command at once; the workers still running are stopped
+    rather than waited for, and nothing is stored for the unfinished tasks."""
+    store = PartStore(tmp_path / "parts", key="k")
+    t0 = time.monotonic()
+    with pytest.raises(ValueError, match="task 0 failed"), task_runner(workers=2) as pool:
+        run_tasks(_fails_or_sleeps, None, [0, 1, 2], names=str, store=store, client=pool)
+    assert time.monotonic() - t0 < 30.0 and store.names() == set()
