@@ -201,8 +201,9 @@ class LocalPool:
     run (nothing is pickled but each task and its text result), so it starts in milliseconds;
     a local Dask cluster (:func:`dask_client`) spends seconds of CPU per worker on its
     scheduler, its nannies and the workers' imports (``benchmarks/RESULTS.md``, issue 17,
-    second pass). Needs the ``fork`` start method (Linux, macOS); elsewhere
-    :func:`task_runner` falls back to a local Dask cluster.
+    second pass). Used on Linux, where ``fork`` is the usual start method; elsewhere (macOS,
+    where system libraries are not fork-safe, and Windows) :func:`task_runner` falls back to a
+    local Dask cluster.
     """
 
     def __init__(self, workers: int) -> None:
@@ -217,8 +218,9 @@ def task_runner(*, workers: int | None = None, scheduler: str | None = None) -> 
     :class:`LocalPool` of `workers` forked processes, or a Dask client of the scheduler at
     `scheduler` (:func:`dask_client`)."""
     import multiprocessing
+    import sys
 
-    if workers is not None and scheduler is None and (
+    if workers is not None and scheduler is None and sys.platform.startswith("linux") and (
             "fork" in multiprocessing.get_all_start_methods()):
         yield LocalPool(workers)
         return
