@@ -8,11 +8,13 @@ Three pieces any long command can share:
   that is killed leaves the parts it finished; the same command run again finds them and
   computes only the rest. A changed command (another input file, a changed file, another
   option) has another fingerprint: its parts are never mixed with stale ones, which are removed.
-* :func:`dask_client` -- where the tasks run: in this process, one after the other (no
-  Dask: the default), on a local Dask cluster of ``workers`` processes (one thread each), or on
-  an existing Dask scheduler at ``scheduler`` (its workers must import this package and read
-  the same paths; run them with one thread each, and preferably without Dask's default
+* :func:`task_runner` -- where the tasks run: in this process, one after the other (the
+  default), on ``workers`` local processes forked from this one (:class:`LocalPool`: they
+  inherit its imported modules and the shared object, so they start in milliseconds), or on an
+  existing Dask scheduler at ``scheduler`` (its workers must import this package and read the
+  same paths; run them with one thread each, and preferably without Dask's default
   ``MALLOC_TRIM_THRESHOLD_``, which slows numpy-heavy tasks, see :func:`dask_client`).
+  :func:`dask_client` starts a local Dask cluster instead (``LocalCluster``), for library users.
 * :func:`run_tasks` -- runs the tasks that have no part yet, stores each result as it arrives
   (in any order) and reports progress; :func:`progress` is the progress bar of the project's
   long commands (a tqdm bar on a terminal, none when ``quiet`` or not a terminal).
@@ -37,7 +39,8 @@ from typing import Any, TypeVar
 from fusion._output import TMP_MARK, atomic_output
 from fusion._progress import progress
 
-__all__ = ["PartStore", "dask_client", "file_identity", "fingerprint", "progress", "run_tasks"]
+__all__ = ["LocalPool", "PartStore", "dask_client", "file_identity", "fingerprint", "progress",
+           "run_tasks", "task_runner"]
 
 logger = logging.getLogger(__name__)
 
@@ -191,6 +194,79 @@ def _client(Client: Any, LocalCluster: Any, workers: int | None,
         cluster.close()
 
 
+class LocalPool:
+    """``workers`` local processes forked from this one when :func:`run_tasks` starts.
+
+    A forked worker inherits the modules this process imported and the shared object of the
+    run (nothing is pickled but each task and its text result), so it starts in milliseconds;
+    a local Dask cluster (:func:`dask_client`) spends seconds of CPU per worker on its
+    scheduler, its nannies and the workers' imports (``benchmarks/RESULTS.md``, issue 17,
+    second pass). Used on Linux, where ``fork`` is the usual start method; elsewhere (macOS,
+    where system libraries are not fork-safe, and Windows) :func:`task_runner` falls back to a
+    local Dask cluster.
+    """
+
+    def __init__(self, workers: int) -> None:
+        if isinstance(workers, bool) or int(workers) != workers or workers < 1:
+            raise ValueError(f"workers must be a positive integer, got {workers!r}")
+        self.workers = int(workers)
+
+
+@contextlib.contextmanager
+def task_runner(*, workers: int | None = None, scheduler: str | None = None) -> Iterator[Any]:
+    """Where :func:`run_tasks` runs the tasks: None (this process, in order, the default), a
+    :class:`LocalPool` of `workers` forked processes, or a Dask client of the scheduler at
+    `scheduler` (:func:`dask_client`)."""
+    import multiprocessing
+    import sys
+
+    if workers is not None and scheduler is None and sys.platform.startswith("linux") and (
+            "fork" in multiprocessing.get_all_start_methods()):
+        yield LocalPool(workers)
+        return
+    with dask_client(workers=workers, scheduler=scheduler) as client:
+        yield client
+
+
+#: The shared object of the run on a :class:`LocalPool`, read by its forked workers.
+_INHERITED: list[Any] = []
+
+
+def _inherited_call(fn: Callable[[Any, T], str], task: T) -> str:
+    """``fn(shared, task)`` in a forked worker, with the shared object it inherited."""
+    return fn(_INHERITED[0], task)
+
+
+def _run_forked(fn: Callable[[Any, T], str], shared: Any, todo: Sequence[T], pool: LocalPool,
+                done: Callable[[T, str], None]) -> None:
+    """The tasks on `pool.workers` processes forked now; `done` with each result as it comes."""
+    import multiprocessing
+    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+
+    if not todo:
+        return
+    _INHERITED[:] = [shared]  # before the fork: every worker inherits it
+    ex = ProcessPoolExecutor(max_workers=min(pool.workers, len(todo)),
+                             mp_context=multiprocessing.get_context("fork"))
+    try:
+        futures = {ex.submit(_inherited_call, fn, t): t for t in todo}
+        while futures:
+            finished, _ = wait(list(futures), return_when=FIRST_COMPLETED)
+            for fut in finished:
+                done(futures.pop(fut), fut.result())
+    except BaseException:
+        # a failed task, an interrupt or a signal: stop the workers now rather than wait for
+        # their chunks (the parts already stored are kept for a resume)
+        for proc in list((getattr(ex, "_processes", None) or {}).values()):
+            proc.terminate()
+        ex.shutdown(wait=False, cancel_futures=True)
+        raise
+    else:
+        ex.shutdown(wait=True)
+    finally:
+        _INHERITED.clear()
+
+
 def run_tasks(
     fn: Callable[[Any, T], str],
     shared: Any,
@@ -216,8 +292,9 @@ def run_tasks(
         ``task -> part name``, unique.
     store : PartStore
         Where parts are kept; tasks whose part exists are skipped.
-    client : distributed.Client, optional
-        Run on Dask (any order, as workers free up); default: in this process, in order.
+    client : LocalPool or distributed.Client, optional
+        Run on forked local processes or on Dask (any order, as workers free up); default: in
+        this process, in order.
     on_done : callable, optional
         Called with each task when its part is stored (also for the ones skipped, first).
     """
@@ -236,6 +313,14 @@ def run_tasks(
             store.write(names(t), fn(shared, t))
             if on_done is not None:
                 on_done(t)
+        return
+    if isinstance(client, LocalPool):
+        def done(t: T, text: str) -> None:
+            store.write(names(t), text)
+            if on_done is not None:
+                on_done(t)
+
+        _run_forked(fn, shared, todo, client, done)
         return
     from distributed import as_completed
 

@@ -25,6 +25,7 @@ Examples
 
 from __future__ import annotations
 
+import copy
 import logging
 
 import numpy as np
@@ -184,6 +185,28 @@ class TdoaRefiner:
         self._w = 2.0 * np.pi * self._f
         n_up = self.upsample * self._nfft
         self._roots = np.exp(2j * np.pi * np.arange(n_up) / n_up)  # exp(j w_k tau) on the grid
+        self._memo: _CutMemo | None = None
+
+    def remember_cuts(self) -> TdoaRefiner:
+        """Keep the spectra of the click cuts and the correlations of the cut pairs, by
+        recording sample, for later calls on the same recording (a new refiner: this one
+        unchanged).
+
+        A click is cut in every pair of its sensor and every window it falls in (about 6 at
+        the default window and hop): its spectrum and the correlation of each cut pair are
+        then computed once. Each row of a batched FFT is the FFT of that row alone, so the
+        results are the same to the bit. Valid while every call reads the same recording with
+        ``audio_t0_s`` on its sample grid; :meth:`forget_before` drops what is no longer
+        needed.
+        """
+        out = copy.copy(self)
+        out._memo = _CutMemo()
+        return out
+
+    def forget_before(self, sample: int) -> None:
+        """Drop the remembered cuts starting before recording sample `sample`."""
+        if self._memo is not None:
+            self._memo.forget_before(int(sample))
 
     # ------------------------------------------------------------------------------------------
     def refine(
@@ -238,8 +261,13 @@ class TdoaRefiner:
         tj = tj[inside]
         if ti.size == 0:
             return None
-        spec_i = self._spectra(x[:, i], ai)  # (n, n_band)
-        spec_j = self._spectra(x[:, j], aj)
+        memo, first = self._memo, None
+        if memo is not None:  # the cuts by recording sample (audio_t0_s on the sample grid)
+            first = int(round(audio_t0_s * fs))
+            if abs(first - audio_t0_s * fs) > 1e-6:
+                memo, first = None, None
+        spec_i = self._spectra(x[:, i], ai, memo, i, first)  # (n, n_band)
+        spec_j = self._spectra(x[:, j], aj, memo, j, first)
         var_i = self._noise_var(x[:, i], ai)
         var_j = self._noise_var(x[:, j], aj)
         enr_i, enr_j = self._enr(spec_i, var_i), self._enr(spec_j, var_j)
@@ -249,7 +277,8 @@ class TdoaRefiner:
             logger.debug("pair %s: no matched click above %.1f dB", pair, self.min_snr_db)
             return None
         ti, base = ti[ok], (ai[ok] - aj[ok]) / fs  # delay of cut j relative to cut i
-        g, r_up = self._correlate(spec_i[ok], spec_j[ok])
+        g, r_up = self._correlate(spec_i[ok], spec_j[ok], None if memo is None else (
+            memo, (i, j), ai[ok] + first, aj[ok] + first))
         delays = base + self._peak(g, r_up, np.zeros(base.size), self.max_lag_s)[0]
         sig = tdoa_crb_s(beta, enr_i[ok], enr_j[ok])
         enr_eff = 2.0 / (1.0 / enr_i[ok] + 1.0 / enr_j[ok])
@@ -284,10 +313,20 @@ class TdoaRefiner:
                              first_pass)
 
     # ------------------------------------------------------------------------------------------
-    def _spectra(self, x: NDArray, starts: NDArray) -> NDArray[np.complex128]:
-        """In-band spectra of the cuts ``x[a : a + 2h]``, zero-padded to the FFT length."""
-        seg = np.asarray(x[starts[:, None] + np.arange(2 * self._h)], dtype=float)
-        return scipy.fft.rfft(seg, self._nfft, axis=-1)[:, self._band]
+    def _spectra(self, x: NDArray, starts: NDArray, memo: _CutMemo | None = None,
+                 channel: int = 0, first: int | None = None) -> NDArray[np.complex128]:
+        """In-band spectra of the cuts ``x[a : a + 2h]``, zero-padded to the FFT length (with
+        `memo`: those of channel `channel` remembered by recording sample ``first + a``)."""
+        def full(rows: NDArray) -> NDArray[np.complex128]:
+            seg = np.asarray(x[starts[rows, None] + np.arange(2 * self._h)], dtype=float)
+            return scipy.fft.rfft(seg, self._nfft, axis=-1)
+
+        if memo is None or first is None:
+            return full(np.arange(starts.size))[:, self._band]
+        keys = [(channel, int(a) + first) for a in starts]
+        # whole spectra kept and the band taken as a view, as above: the same memory layout
+        # (contiguous in-band rows gave results that differed in the last bit)
+        return memo.rows(memo.spectra, keys, full)[:, self._band]
 
     def _noise_var(self, x: NDArray, click_starts: NDArray) -> float:
         """White-equivalent noise variance per sample in the band, from cuts away from clicks."""
@@ -331,12 +370,23 @@ class TdoaRefiner:
             return rms_frequency_hz(np.ones(self._f.size), self._f)
         return rms_frequency_hz(p, self._f)
 
-    def _correlate(self, si: NDArray, sj: NDArray) -> tuple[NDArray, NDArray]:
-        """In-band cross-spectra and the upsampled cross-correlations of the cut pairs."""
+    def _correlate(self, si: NDArray, sj: NDArray, memo: tuple | None = None
+                   ) -> tuple[NDArray, NDArray]:
+        """In-band cross-spectra and the upsampled cross-correlations of the cut pairs (with
+        `memo`, ``(memo, pair, first samples i, first samples j)``: the correlations
+        remembered by pair and recording samples)."""
         g = si * np.conj(sj)  # the transform of g peaks at the delay of cut i after cut j
-        full = np.zeros((g.shape[0], self._nfft // 2 + 1), dtype=complex)
-        full[:, self._band] = g
-        return g, scipy.fft.irfft(full, self.upsample * self._nfft, axis=-1)
+
+        def upsampled(rows: NDArray) -> NDArray:
+            full = np.zeros((rows.size, self._nfft // 2 + 1), dtype=complex)
+            full[:, self._band] = g[rows]
+            return scipy.fft.irfft(full, self.upsample * self._nfft, axis=-1)
+
+        if memo is None:
+            return g, upsampled(np.arange(g.shape[0]))
+        store, pair, a_i, a_j = memo
+        keys = [(*pair, int(p), int(q)) for p, q in zip(a_i, a_j, strict=True)]
+        return g, store.rows(store.correlations, keys, upsampled)
 
     def _peak(self, g: NDArray, r_up: NDArray, centre_s: NDArray, halfwidth_s: float,
               rows: NDArray | None = None) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -410,3 +460,30 @@ class TdoaRefiner:
             click_times_s=frozen_array(tk), click_delays_s=frozen_array(dk),
             click_sigma_s=frozen_array(sk),
         )
+
+
+class _CutMemo:
+    """Spectra of click cuts and correlations of cut pairs, by recording sample
+    (:meth:`TdoaRefiner.remember_cuts`)."""
+
+    def __init__(self) -> None:
+        self.spectra: dict[tuple[int, int], NDArray] = {}  # (channel, first sample)
+        self.correlations: dict[tuple[int, int, int, int], NDArray] = {}  # (i, j, a_i, a_j)
+
+    @staticmethod
+    def rows(table: dict, keys: list, compute) -> NDArray:
+        """The rows of `keys`, those not in `table` computed (one batch) and kept:
+        ``compute(index array of the missing keys)`` gives their rows."""
+        missing = [k for k, key in enumerate(keys) if key not in table]
+        if missing:
+            new = compute(np.array(missing, dtype=np.intp))
+            for k, row in zip(missing, new, strict=True):
+                table[keys[k]] = row
+        return np.stack([table[key] for key in keys]) if keys else compute(
+            np.zeros(0, dtype=np.intp))
+
+    def forget_before(self, sample: int) -> None:
+        for key in [k for k in self.spectra if k[1] < sample]:
+            del self.spectra[key]
+        for key in [k for k in self.correlations if min(k[2], k[3]) < sample]:
+            del self.correlations[key]

@@ -15,9 +15,10 @@ processed in chunks of ``--chunk-s`` seconds of consecutive windows (default 60;
 reads its own audio (its windows, one neighbour window on each side and the detector's guards)
 from the file(s) with soundfile and localizes its windows, and the chunks are stitched in order.
 Memory does not grow with the length of the recording. By default the chunks run one after the
-other in this process (no Dask); ``--workers N`` runs them on a local Dask cluster of N worker
-processes, ``--scheduler ADDRESS`` on an existing Dask scheduler (its workers must read the same
-paths). The output is byte for byte the same in every case, and the same as one pass over the
+other in this process (no Dask); ``--workers N`` runs them on N worker processes forked from
+this one (:class:`fusion.scale.LocalPool`: they inherit its imports and pipeline, no Dask
+cluster to start), ``--scheduler ADDRESS`` on an existing Dask scheduler (its workers must read
+the same paths). The output is byte for byte the same in every case, and the same as one pass over the
 whole recording.
 
 Resume: each finished chunk is written atomically to ``R.json.parts/<key>/chunk-NNNNNN.json``
@@ -72,7 +73,7 @@ MAX_CANDIDATES = 256
 #: windows closer than that repeat one map (and a hop of 1 us made 3 million windows of a 3-s
 #: recording, hours of work).
 MIN_HOP_S = 1e-3
-#: Most local Dask worker processes per core (--workers): each holds its own audio blocks and
+#: Most local worker processes per core (--workers): each holds its own audio blocks and
 #: models; past a few per core they add memory, not speed.
 MAX_WORKERS_PER_CORE = 4
 
@@ -89,7 +90,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="localize clicking sources (whales) from multichannel audio",
         description="Detect clicks, measure, validate and associate TDOAs, localize sources.",
         epilog="Long recordings are read in blocks and processed in chunks of --chunk-s seconds: "
-               "serially in this process by default, on Dask with --workers or --scheduler (the "
+               "serially in this process by default, on forked worker processes with --workers, on "
+               "Dask with --scheduler (the "
                "output is the same byte for byte). Finished chunks are kept in OUT.parts/ "
                "beside the output; after an interruption, run the same command again to resume. "
                "The folder is removed when the output is written. Each window is solved "
@@ -174,8 +176,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "recordings would give fewer than N chunks)")
     where = p.add_mutually_exclusive_group()
     where.add_argument("--workers", type=number(int, ge=1, le=max_workers()), default=None,
-                       help="run the chunks on a local Dask cluster of this many worker "
-                            f"processes, at most {MAX_WORKERS_PER_CORE} per core ({max_workers()} "
+                       help="run the chunks on this many worker processes forked from this "
+                            f"one, at most {MAX_WORKERS_PER_CORE} per core ({max_workers()} "
                             "here) (default: serially in this process, no Dask)")
     where.add_argument("--scheduler", default=None, metavar="ADDRESS",
                        help="run the chunks on the Dask scheduler at ADDRESS (tcp://host:8786); "
@@ -311,7 +313,7 @@ def run(args: argparse.Namespace) -> int:
         plan_chunks,
     )
     from fusion.pipelines.localization import ClickLocalization, settings_from_args
-    from fusion.scale import PartStore, dask_client, progress, run_tasks
+    from fusion.scale import PartStore, progress, run_tasks, task_runner
 
     if args.hop > args.window:
         raise ValueError(f"--hop-s {args.hop} is longer than --window-s {args.window}")
@@ -372,7 +374,7 @@ def run(args: argparse.Namespace) -> int:
                        desc="localize", unit="window")
         stack.callback(bar.close)
         missing = {name(t) for t in tasks} - store.names()
-        client = (stack.enter_context(dask_client(workers=args.workers, scheduler=args.scheduler))
+        client = (stack.enter_context(task_runner(workers=args.workers, scheduler=args.scheduler))
                   if missing else None)  # nothing left to compute: no cluster
         run_tasks(localize_chunk, (pipe, array), tasks, names=name, store=store, client=client,
                   on_done=lambda t: bar.update(t.stop_window - t.first_window))

@@ -23,7 +23,7 @@ Per chunk the two neighbour windows are measured twice (once by each chunk that 
 Examples
 --------
 The chunks of a recording, run here one after the other (``fusion localize`` hands the same
-calls to :func:`fusion.scale.run_tasks`, on Dask with ``--workers``)::
+calls to :func:`fusion.scale.run_tasks`, on forked worker processes with ``--workers``)::
 
     from fusion.io import check_audio_files, read_array
     from fusion.pipelines.localization import ClickLocalization

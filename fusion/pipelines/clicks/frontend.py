@@ -196,6 +196,7 @@ class ClickFrontEnd:
         audio: NDArray | None = None,
         audio_t0_s: float = 0.0,
         fs: float | None = None,
+        refiner: TdoaRefiner | None = None,
     ) -> list[WindowTdoa]:
         """Candidate TDOAs of one window, validated (not yet associated across time).
 
@@ -214,6 +215,9 @@ class ClickFrontEnd:
             Time of ``audio[0]``, s.
         fs : float, optional
             Sample rate of `audio`, Hz.
+        refiner : TdoaRefiner, optional
+            The refiner to use (e.g. :meth:`stream_refiner`'s, which remembers the click cuts
+            of a recording from window to window); default a new one for `fs`.
 
         Returns
         -------
@@ -225,8 +229,10 @@ class ClickFrontEnd:
         corr = self.correlator.correlate(inside, t0_s=t0_s, sensors=sensors)
         if not corr.peaks:
             return []
-        refiner = (self._make_refiner(fs) if (self._make_refiner is not None and audio is not None
-                                              and fs is not None) else None)
+        if audio is None or fs is None:
+            refiner = None
+        elif refiner is None and self._make_refiner is not None:
+            refiner = self._make_refiner(fs)
         maps = self._scm2s(inside, corr.peaks, t0_s)
         z = scm2_features(np.stack([m.series for m in maps]), self.config.fs_hz, T=self.window_s,
                           decimate=self.feature_decimation)
@@ -267,6 +273,16 @@ class ClickFrontEnd:
             out = [dataclasses.replace(d, passes=False) if alias else d
                    for d, alias in zip(out, train_aliases(out), strict=True)]
         return out
+
+    def stream_refiner(self, fs: float) -> TdoaRefiner | None:
+        """The refiner of one stream of audio at `fs` (None without refinement): it remembers
+        the click cuts from window to window when it can
+        (:meth:`fusion.clicks.tdoa.TdoaRefiner.remember_cuts`; the same results)."""
+        if self._make_refiner is None:
+            return None
+        refiner = self._make_refiner(fs)
+        remember = getattr(refiner, "remember_cuts", None)
+        return refiner if remember is None else remember()
 
     def _scm2s(self, inside: list[ChannelClicks], peaks, t0_s: float) -> list:
         """The SCM2 of each candidate peak, sensor j's clicks moved along the peak's drift."""

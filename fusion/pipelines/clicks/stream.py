@@ -20,7 +20,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -72,7 +72,8 @@ class WindowMeasurer(Protocol):
 
     def measure_window(self, clicks: Sequence[ChannelClicks], *, t0_s: float,
                        sensors: SensorArray, audio: NDArray | None = None,
-                       audio_t0_s: float = 0.0, fs: float | None = None) -> list[WindowTdoa]: ...
+                       audio_t0_s: float = 0.0, fs: float | None = None,
+                       refiner: Any = None) -> list[WindowTdoa]: ...
 
 
 def stream_start(window_start: int, *, block: int, guard: int) -> tuple[int, int]:
@@ -212,6 +213,9 @@ def measure_stream(
     if int(round(first_window * front.hop_s * fs)) < final_from:
         raise ValueError(f"window {first_window} starts before final_from {final_from}")
     margin = int(math.ceil(0.01 * fs))  # audio beyond the window for click cuts
+    # one refiner for the stream: a click's cuts are measured once for all windows it is in
+    stream_refiner = getattr(front, "stream_refiner", None)
+    refiner = stream_refiner(fs) if stream_refiner is not None else None
     ring = _AudioRing(start_sample)
     final_until = final_from  # clicks before this sample are final
     clicks: list[list[ChannelClicks]] = [[] for _ in range(sensors.n_sensors)]
@@ -241,11 +245,14 @@ def measure_stream(
         a, b = int(round(t0 * fs)) - margin, int(round(t1 * fs)) + margin
         first, x = ring.cut(a, b)
         window_clicks = merged(t0, t1)
+        extra = {} if refiner is None else {"refiner": refiner}
         tdoas = front.measure_window(window_clicks, t0_s=t0, sensors=sensors, audio=x,
-                                     audio_t0_s=first / fs, fs=fs)
+                                     audio_t0_s=first / fs, fs=fs, **extra)
         # forget clicks and audio no later window needs
         keep_from = t0 + hop_s
         ring.drop_before(int(round(keep_from * fs)) - margin - 2 * g)
+        if refiner is not None and hasattr(refiner, "forget_before"):
+            refiner.forget_before(int(round(keep_from * fs)) - margin - 2 * g)
         for ch in range(len(clicks)):
             clicks[ch] = [p for p in clicks[ch] if p.n_clicks and p.times_s[-1] >= keep_from]
         return MeasuredWindow(k, t0, t1, tuple(window_clicks), tuple(tdoas))

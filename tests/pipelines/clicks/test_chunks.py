@@ -26,7 +26,15 @@ from fusion.pipelines.clicks.chunks import (
 )
 from fusion.pipelines.clicks.stream import stream_start
 from fusion.pipelines.localization import ClickLocalization, result_document
-from fusion.scale import PartStore, dask_client, file_identity, fingerprint, run_tasks
+from fusion.scale import (
+    LocalPool,
+    PartStore,
+    dask_client,
+    file_identity,
+    fingerprint,
+    run_tasks,
+    task_runner,
+)
 from fusion.simulate.clicks import simulate_clicks, write_click_scenario
 
 ROOT = Path(__file__).resolve().parents[3]
@@ -198,6 +206,46 @@ def test_folder_of_recordings_on_dask(recording, serial_bytes, cluster, tmp_path
     assert (out / "a.json").read_bytes() == serial_bytes == (out / "b.json").read_bytes()
 
 
+def test_workers_run_on_forked_processes_identical_to_serial(recording, serial_bytes, tmp_path,
+                                                            monkeypatch):
+    """``--workers 2`` runs the chunks on two processes forked from the command (no Dask
+    cluster: it would cost seconds of CPU per worker); the result is byte-identical."""
+    import distributed
+
+    from fusion.cli import main
+
+    def no_cluster(*args, **kwargs):
+        raise AssertionError("--workers must not start a Dask cluster")
+
+    monkeypatch.setattr(distributed, "LocalCluster", no_cluster)
+    out = tmp_path / "r.json"
+    assert main(_args(recording, out, "--workers", "2")) == 0
+    assert out.read_bytes() == serial_bytes
+    assert not Path(f"{out}.parts").exists()
+
+
+def _part_of(shared, task):
+    """A task of the forked-pool test: the worker's process id, the shared object, the task."""
+    return json.dumps([os.getpid(), shared, task])
+
+
+def test_local_pool_runs_each_task_once_in_other_processes(tmp_path):
+    """Each task once, in a forked worker (another process id) that sees the shared object;
+    a task whose part is stored is not run again."""
+    store = PartStore(tmp_path / "parts", key="k")
+    store.write("3", json.dumps([0, "old", 3]))
+    with task_runner(workers=2) as pool:
+        assert isinstance(pool, LocalPool) and pool.workers == 2
+        run_tasks(_part_of, {"a": 1}, [0, 1, 2, 3], names=str, store=store, client=pool)
+    got = {n: json.loads(store.read(n)) for n in sorted(store.names())}
+    assert [got[n][1:] for n in "012"] == [[{"a": 1}, k] for k in range(3)]
+    assert all(got[n][0] != os.getpid() for n in "012") and got["3"] == [0, "old", 3]
+    with task_runner() as none:
+        assert none is None
+    with pytest.raises(ValueError, match="positive integer"):
+        LocalPool(0)
+
+
 def test_kill_then_rerun_resumes_byte_identical(recording, serial_bytes, tmp_path, caplog):
     """A killed run resumes from its own parts only; the result is byte-identical."""
     from fusion.cli import main
@@ -336,3 +384,21 @@ def test_windows_not_localized_are_written_and_counted(tmp_path):
     assert s.line().endswith("; 1 windows not localized (e.g. too few independent pairs)")
     assert json.loads((tmp_path / "r.json").read_text())["windows"][0]["not_localized"] == \
         "too few independent pairs"
+
+
+def _fails_or_sleeps(shared, task):
+    """Task 0 fails at once; the others would run for a minute."""
+    if task == 0:
+        raise ValueError("task 0 failed")
+    time.sleep(60)
+    return "never"
+
+
+def test_local_pool_stops_its_workers_when_a_task_fails(tmp_path):
+    """A failed task is raised in the command at once; the workers still running are stopped
+    rather than waited for, and nothing is stored for the unfinished tasks."""
+    store = PartStore(tmp_path / "parts", key="k")
+    t0 = time.monotonic()
+    with pytest.raises(ValueError, match="task 0 failed"), task_runner(workers=2) as pool:
+        run_tasks(_fails_or_sleeps, None, [0, 1, 2], names=str, store=store, client=pool)
+    assert time.monotonic() - t0 < 30.0 and store.names() == set()
