@@ -65,6 +65,9 @@ class _NoBar:
     def update(self, n: int = 1) -> None:
         """Nothing to show."""
 
+    def set_description(self, desc: str, refresh: bool = True) -> None:
+        """Nothing to label."""
+
     def close(self) -> None:
         """Nothing to close."""
 

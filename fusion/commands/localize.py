@@ -254,6 +254,32 @@ def _recordings(args: argparse.Namespace, n_sensors: int) -> list:
 CHUNK_S = 60.0
 
 
+class _WindowProgress:
+    """The bar of ``fusion localize``: windows localized, and the stage that runs.
+
+    In this process the bar moves per window and names the stage (measuring: clicks, TDOAs,
+    validation; localizing); on workers it moves per chunk as each part is stored.
+    """
+
+    def __init__(self, bar, *, in_process: bool) -> None:
+        self.bar, self.counted = bar, 0
+        self.bar.set_description("localize" if in_process else "localize (chunks on workers)")
+
+    def window(self, stage: str) -> None:
+        """One window passed `stage` (:func:`fusion.pipelines.clicks.chunks.chunk_windows`)."""
+        if stage == "localizing":
+            self.bar.set_description("localize: localizing", refresh=False)
+            self.bar.update(1)
+            self.counted += 1
+        else:
+            self.bar.set_description(f"localize: {stage}")
+
+    def chunk_done(self, task) -> None:
+        """A chunk's part is stored (or was, by an earlier run): its windows not yet counted."""
+        self.bar.update(task.stop_window - task.first_window - self.counted)
+        self.counted = 0
+
+
 def _default_chunk_s(recordings: list, pipe, workers: int | None) -> float:
     """:data:`CHUNK_S`, or with `workers` local workers and fewer chunks than workers, the
     hop multiple that gives each worker a chunk of the longest recording (the result is the
@@ -376,8 +402,10 @@ def run(args: argparse.Namespace) -> int:
         missing = {name(t) for t in tasks} - store.names()
         client = (stack.enter_context(task_runner(workers=args.workers, scheduler=args.scheduler))
                   if missing else None)  # nothing left to compute: no cluster
-        run_tasks(localize_chunk, (pipe, array), tasks, names=name, store=store, client=client,
-                  on_done=lambda t: bar.update(t.stop_window - t.first_window))
+        shown = _WindowProgress(bar, in_process=client is None)
+        shared = (pipe, array) if client is not None else (pipe, array, shown.window)
+        run_tasks(localize_chunk, shared, tasks, names=name, store=store, client=client,
+                  on_done=shown.chunk_done)
         bar.close()
         speeds, summaries = {}, []
         for (_, out), plan in zip(recordings, plans, strict=True):

@@ -191,10 +191,20 @@ def plan_chunks(
 
 
 def chunk_windows(
-    pipe: ClickLocalization, sensors: SensorArray, task: ChunkTask
+    pipe: ClickLocalization, sensors: SensorArray, task: ChunkTask,
+    on_window: Callable[[str], None] | None = None,
 ) -> list[LocalizedWindow]:
-    """The localized windows of one chunk (read, detect, measure, associate, localize)."""
+    """The localized windows of one chunk (read, detect, measure, associate, localize).
+
+    `on_window(stage)` is called as each window passes a stage: ``"measuring"`` (clicks,
+    TDOAs, validation; the chunk's neighbour windows too) and ``"localizing"`` (its own windows).
+    """
     from threadpoolctl import threadpool_limits
+
+    def told(windows: Iterable, stage: str) -> Iterator:
+        for w in windows:
+            yield w
+            on_window(stage)
 
     front, source = pipe.front_end, task.source
     with threadpool_limits(1):
@@ -202,22 +212,27 @@ def chunk_windows(
                                  fs=source.fs, sensors=sensors, duration_s=source.duration_s,
                                  start_sample=task.start_sample, final_from=task.final_from,
                                  first_window=task.measure_first, stop_window=task.measure_stop)
+        if on_window is not None:
+            measured = told(measured, "measuring")
         windows = list(front.associate(measured))
         skip = task.first_window - task.measure_first
         own = windows[skip:skip + task.stop_window - task.first_window]
         if len(own) != task.stop_window - task.first_window:
             raise ValueError(f"chunk {task.index}: measured {len(windows)} windows, expected "
                              f"{task.measure_stop - task.measure_first}")
-        return [pipe.localize(w, sensors) for w in own]
+        if on_window is None:
+            return [pipe.localize(w, sensors) for w in own]
+        return list(told((pipe.localize(w, sensors) for w in own), "localizing"))
 
 
-def localize_chunk(shared: tuple[ClickLocalization, SensorArray], task: ChunkTask) -> str:
+def localize_chunk(shared: tuple, task: ChunkTask) -> str:
     """One chunk's part: its windows in the ``fusion localize`` JSON, as one JSON list (text).
 
     Parameters
     ----------
-    shared : (ClickLocalization, SensorArray)
-        The pipeline and the array (the same for every chunk, of every recording).
+    shared : (ClickLocalization, SensorArray) or (ClickLocalization, SensorArray, on_window)
+        The pipeline and the array (the same for every chunk, of every recording); in this
+        process also `on_window` of :func:`chunk_windows` (a progress report).
     task : ChunkTask
         The chunk.
 
@@ -226,8 +241,8 @@ def localize_chunk(shared: tuple[ClickLocalization, SensorArray], task: ChunkTas
     str
         ``json.dumps`` of the chunk's ``windows`` entries (:func:`result_document`).
     """
-    pipe, sensors = shared
-    doc = result_document(chunk_windows(pipe, sensors, task))
+    doc = result_document(chunk_windows(*shared, task) if len(shared) == 2 else
+                          chunk_windows(shared[0], shared[1], task, on_window=shared[2]))
     return json.dumps(doc["windows"], allow_nan=False)
 
 

@@ -21,6 +21,7 @@ from threadpoolctl import threadpool_limits
 from fusion.io import check_audio_files, read_array, write_json
 from fusion.pipelines.clicks.chunks import (
     AudioSource,
+    localize_chunk,
     plan_chunks,
     track_document_sources,
 )
@@ -402,3 +403,40 @@ def test_local_pool_stops_its_workers_when_a_task_fails(tmp_path):
     with pytest.raises(ValueError, match="task 0 failed"), task_runner(workers=2) as pool:
         run_tasks(_fails_or_sleeps, None, [0, 1, 2], names=str, store=store, client=pool)
     assert time.monotonic() - t0 < 30.0 and store.names() == set()
+
+
+def test_chunk_reports_each_window_per_stage_without_changing_its_part(recording):
+    """In this process a chunk reports every window it measures (its neighbours too) and every
+    window it localizes; its part is the same text as without the report."""
+    from fusion.commands.localize import _WindowProgress
+
+    pipe = ClickLocalization()
+    sensors = read_array(recording / "array.json")
+    src = AudioSource.of(check_audio_files([recording / "audio.flac"], 4))
+    tasks = plan_chunks(src, pipe, chunk_s=4.0)
+
+    class Bar:
+        def __init__(self):
+            self.n, self.labels = 0, []
+
+        def update(self, n=1):
+            self.n += n
+
+        def set_description(self, desc, refresh=True):
+            self.labels.append(desc)
+
+    bar = Bar()
+    shown = _WindowProgress(bar, in_process=True)
+    stages = []
+    for t in tasks[:2]:
+        before = bar.n
+        quiet = localize_chunk((pipe, sensors), t)
+        told = localize_chunk((pipe, sensors, lambda s: (stages.append(s), shown.window(s))), t)
+        assert told == quiet
+        assert bar.n - before == t.stop_window - t.first_window  # one step per own window
+        shown.chunk_done(t)
+        assert bar.n - before == t.stop_window - t.first_window  # nothing counted twice
+    assert stages == (["measuring"] * 3 + ["localizing"] * 2) + (["measuring"] * 4 + ["localizing"] * 2)
+    assert "localize: measuring" in bar.labels and bar.labels[-1] == "localize: localizing"
+    shown.chunk_done(tasks[2])  # a chunk done elsewhere (a worker, an earlier run): whole
+    assert bar.n == 5
