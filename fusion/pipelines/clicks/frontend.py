@@ -50,6 +50,7 @@ import dataclasses
 import logging
 import math
 from collections.abc import Callable, Iterable, Iterator, Sequence
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -327,24 +328,17 @@ class ClickFrontEnd:
     def measure(
         self,
         blocks: Iterable[tuple[float, ArrayLike]] | Iterable[tuple[float, ArrayLike, float]],
-        *,
-        fs: float,
-        sensors: SensorArray,
-        duration_s: float | None = None,
-        start_sample: int = 0,
-        final_from: int = 0,
-        first_window: int = 0,
-        stop_window: int | None = None,
+        **stream: Any,
     ) -> Iterator[MeasuredWindow]:
         """Measure the windows of a stream of audio blocks, not yet associated across time.
 
-        See :func:`fusion.pipelines.clicks.stream.measure_stream` (the same parameters): clicks
-        are detected once per sample and each window is measured (:meth:`measure_window`) as
-        soon as its clicks are final; a stream may start part-way through a recording.
+        :func:`fusion.pipelines.clicks.stream.measure_stream` with this front end: `stream` are
+        its keyword parameters (``fs``, ``sensors``, ``duration_s``, ``start_sample``, ...).
+        Clicks are detected once per sample and each window is measured
+        (:meth:`measure_window`) as soon as its clicks are final; a stream may start part-way
+        through a recording.
         """
-        return measure_stream(self, blocks, fs=fs, sensors=sensors, duration_s=duration_s,
-                              start_sample=start_sample, final_from=final_from,
-                              first_window=first_window, stop_window=stop_window)
+        return measure_stream(self, blocks, **stream)
 
     def associate(self, measured: Iterable[MeasuredWindow]) -> Iterator[ClickWindow]:
         """Associate consecutive measured windows across time (eq. 12), then across pairs.
