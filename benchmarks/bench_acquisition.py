@@ -104,7 +104,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--ibw", type=float, default=None, help="IBW width, Hz (default: one bin)")
     ap.add_argument("--noise-dof", type=float, default=None,
                     help="the acquisition's noise degrees of freedom (default: estimated)")
-    ap.add_argument("--freq-tolerance", type=int, default=1,
+    ap.add_argument("--freq-tolerance-bins", dest="freq_tolerance", type=int, default=1,
                     help="bins the click may be off (the acquisition's freq_tolerance_bins)")
     ap.add_argument("--trace", default="bearing", choices=("bearing", "beam"))
     ap.add_argument("--repeats", type=int, default=50, help="timed repeats")
