@@ -26,7 +26,9 @@ from fusion.io import RowOrderError, iter_bearings, read_bearings, write_table
 from fusion.passive.crossing import CrossingAlert
 from fusion.passive.crossing.settings import (
     DEFAULT_CONFIRM,
+    DEFAULT_CONFIRM_LEAD,
     DEFAULT_CURVE_ALPHA,
+    DEFAULT_EXTRAPOLATION,
     DEFAULT_HORIZON_S,
     DEFAULT_LADDER_ALPHA,
     DEFAULT_LEAD_WINDOWS,
@@ -97,6 +99,11 @@ def register(sub: argparse._SubParsersAction) -> None:
                    metavar="N",
                    help="samples in a row a pair must satisfy an inequality before it alerts "
                         f"(default {DEFAULT_CONFIRM}; the method: 1)")
+    p.add_argument("--confirm-lead", type=number(float, gt=0), default=DEFAULT_CONFIRM_LEAD,
+                   metavar="F",
+                   help="confirming samples may predict up to F window spans ahead (default: "
+                        "--lead); alerts still only within --lead, so a pair watched from "
+                        "further out alerts as soon as its crossing comes within reach")
     p.add_argument("--level", type=number(float, gt=0, le=0.99999), default=DEFAULT_LEVEL,
                    metavar="P", help="nominal level of the fits' t_cross intervals (default "
                    f"{DEFAULT_LEVEL:g}: on varied scenarios about 95 %% of such intervals hold "
@@ -128,11 +135,14 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "variance there passes the variance-ratio test against the shortest "
                         f"window at level P (default {DEFAULT_LADDER_ALPHA:g}; 0: every track, "
                         "the ladder before)")
-    p.add_argument("--extrapolation", choices=("calibrated", "model"), default="model",
+    p.add_argument("--extrapolation", choices=("calibrated", "curvature", "model"),
+                   default=DEFAULT_EXTRAPOLATION,
                    help="variance of a fit extrapolated ahead (predictions): calibrated (grown "
                         "by the factor that makes each track's earlier window predict the samples "
-                        "since as often as --level says, pooled over tracks) or model (default: "
-                        "the fits' own covariance)")
+                        "since as often as --level says, pooled over tracks), curvature (the "
+                        "fits' covariance plus the window's quadratic term the line leaves out, "
+                        "at the predicted crossing) or model (the fits' own covariance); default "
+                        f"{DEFAULT_EXTRAPOLATION}")
     p.add_argument("--confirm-rule", choices=("overlap", "count"), default="overlap",
                    help="overlap (default): each of the --confirm samples in a row must hit with "
                         "a t_cross interval that overlaps the one before (a prediction that "
@@ -184,7 +194,9 @@ def _options(args: argparse.Namespace) -> dict:
             "ladder_alpha": args.ladder_alpha or None,
             "revise": args.predictions == "revised",
             "confirm_overlap": args.confirm_rule == "overlap",
-            "calibrate": args.extrapolation == "calibrated"}
+            "calibrate": args.extrapolation == "calibrated",
+            "curvature": args.extrapolation == "curvature",
+            "confirm_lead_windows": args.confirm_lead}
 
 
 def _check_spans(args: argparse.Namespace, st: CrossingSettings, spans_s: np.ndarray) -> None:

@@ -230,6 +230,31 @@ def test_vectorised_pairs_equal_brute_force(seed):
     assert len(ref) > 0
 
 
+@pytest.mark.parametrize("seed", range(4))
+def test_rate_grouped_screen_equals_brute_force(seed):
+    """Many tracks, rates spread too wide for one sweep: the rate groups keep every passing pair
+    (the result equals the double loop) and leave out most of the others."""
+    from fusion.passive.crossing.pairs import _candidate_pairs, _triu
+
+    rng = np.random.default_rng(100 + seed)
+    n = 300
+    b = rng.uniform(-np.pi, np.pi, n)
+    spread = [1.0, 3.0, 6.0, 30.0][seed]  # times 3 deg/min
+    r = rng.normal(0, np.radians(0.05) * spread, n)  # rad/s
+    J, K, t_i = 10, 30.0, 500.0  # reach J K = 300 s
+    ia, ib = _candidate_pairs(np.mod(b + np.pi, 2 * np.pi) - np.pi, r, J * K)
+    assert np.all(ia < ib) and np.unique(ia * n + ib).size == ia.size  # each pair once
+    chk = evaluate_pairs(t_i, b, r, J=J, K=K, min_rate_diff_rad_per_s=0.0)
+    got = list(zip(chk.index_a.tolist(), chk.index_b.tolist(), chk.predicted.tolist(),
+                   strict=True))
+    ref = _brute_force(t_i, b.tolist(), r.tolist(), J=J, K=K)
+    assert got == [(a, c, p) for a, c, _, p in ref]
+    if spread in (3.0, 6.0):  # one sweep would take every pair; the groups leave out many
+        assert J * K * np.ptp(r) >= np.pi
+        assert ia.size < {3.0: 0.5, 6.0: 0.8}[spread] * _triu(n)[0].size  # 45 %, 72 %
+    assert len(ref) > 0
+
+
 def test_evaluate_pairs_bad_input():
     """Bad J, K, horizon and shapes raise ValueError."""
     with pytest.raises(ValueError, match="J must"):

@@ -42,6 +42,8 @@ def detect_crossings(
     revise: bool = False,
     confirm_overlap: bool = False,
     calibrate: bool = False,
+    curvature: bool = False,
+    confirm_lead_windows: float | None = None,
 ) -> list[CrossingAlert]:
     """Crossing alerts of a whole bearing table (batch entry point).
 
@@ -56,7 +58,7 @@ def detect_crossings(
         Sample period, s (default: the median time step within tracks).
     horizon_s, min_rate_diff_deg_per_s, merge_window_s, max_gap_s, n_windows, level, \
 max_interval_s, lead_windows, confirm, curve_alpha, split_repeats, ladder_alpha, revise, \
-confirm_overlap, calibrate
+confirm_overlap, calibrate, curvature, confirm_lead_windows
         As in :class:`CrossingDetector` (`max_gap_s` also bounds interpolation gaps).
 
     Returns
@@ -86,7 +88,7 @@ confirm_overlap, calibrate
         max_interval_s=max_interval_s, lead_windows=lead_windows, confirm=confirm,
         curve_alpha=curve_alpha, split_repeats=split_repeats, ladder_alpha=ladder_alpha,
         revise=revise, confirm_overlap=confirm_overlap,
-        calibrate=calibrate,
+        calibrate=calibrate, curvature=curvature, confirm_lead_windows=confirm_lead_windows,
     )
     rs = resample_bearings(
         tid, cols["time"], cols["bearing_deg"], period_s=det.K, max_gap_s=det.max_gap_s

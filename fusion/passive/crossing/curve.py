@@ -81,18 +81,24 @@ class CurveStats:
         b_line = v + r * tau
         var_line = (ln.var_value[index][:, None] + 2.0 * tau * ln.cov[index][:, None]
                     + tau * tau * ln.var_slope[index][:, None])
-        u = tau / self.scale[index][:, None]
-        p = self.p[index]
+        c = np.flatnonzero(self.curved[index])  # only these rows need the curve
+        if c.size == 0:
+            return b_line, var_line
+        ic = index[c]
+        tc = tau[c] if tau.shape[0] == index.size else np.broadcast_to(tau, b_line.shape)[c]
+        u = tc / self.scale[ic][:, None]
+        p = self.p[ic]
         x = p[:, 0:1] + p[:, 1:2] * u
         y = p[:, 2:3] + p[:, 3:4] * u
         r2 = np.maximum(x * x + y * y, 1e-300)
         g = np.stack([y, y * u, -x, -x * u], axis=-1) / r2[..., None]  # d bearing / d p
-        var_cv = np.einsum("pmi,pij,pmj->pm", g, self.cov[index], g)
+        var_cv = np.einsum("pmi,pij,pmj->pm", g, self.cov[ic], g)
         b_cv = np.arctan2(x, y)
-        c = self.curved[index][:, None]
         # the curve on the line's branch at tau = 0
-        b_cv = b_line + _wrap(b_cv - b_line)
-        return np.where(c, b_cv, b_line), np.where(c, var_cv, var_line)
+        b_cv = b_line[c] + _wrap(b_cv - b_line[c])
+        b_out, var_out = b_line.copy(), var_line.copy()
+        b_out[c], var_out[c] = b_cv, var_cv
+        return b_out, var_out
 
 
 def _wrap(a: NDArray[np.float64]) -> NDArray[np.float64]:

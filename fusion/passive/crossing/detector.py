@@ -15,16 +15,17 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from fusion.passive.crossing.calibration import ExtrapolationScale, holdout_errors
+from fusion.passive.crossing.curvature import CurvatureStats, curvature_stats
 from fusion.passive.crossing.curve import (
     CurveStats,
     curve_fits,
     curved_candidates,
     curved_pair_intervals,
 )
-from fusion.passive.crossing.events import _Events, _Hits
+from fusion.passive.crossing.events import _Events, _Hits, raise_alerts
 from fusion.passive.crossing.interval import f_ratio_quantile, t_quantile
 from fusion.passive.crossing.pairs import pair_intervals, pairs_in_reach
-from fusion.passive.crossing.types import AlertKind, CrossingAlert
+from fusion.passive.crossing.types import CrossingAlert
 from fusion.passive.line_fit import LineStats, SlidingLineFit
 
 __all__ = ["CrossingDetector"]
@@ -97,6 +98,14 @@ class CrossingDetector:
         held-out errors fall within their intervals as often as the level says (pooled over
         tracks and the recent past, :class:`~fusion.passive.crossing.calibration.ExtrapolationScale`,
         :attr:`extrapolation_scale`). Needs a ladder window of ``J + lead_windows J`` samples.
+    confirm_lead_windows : float, optional
+        Samples that confirm a prediction may predict up to this many window spans ahead
+        (default `lead_windows`); alerts are still raised only within `lead_windows`, so a pair
+        watched from further out alerts as soon as its crossing comes within reach.
+    curvature : bool, optional
+        Predictions from lines also carry the variance of the curvature each window's line
+        leaves out, at the predicted crossing (default False;
+        :mod:`fusion.passive.crossing.curvature`).
     split_repeats : bool, optional
         A crossing whose bearing difference changes sign the other way from the pair's
         current event is the pair's next crossing, however close in time (default True;
@@ -164,6 +173,8 @@ class CrossingDetector:
         revise: bool = False,
         confirm_overlap: bool = False,
         calibrate: bool = False,
+        curvature: bool = False,
+        confirm_lead_windows: float | None = None,
     ) -> None:
         if int(J) != J or J < 3:
             raise ValueError(f"J (samples per window) must be an integer > 2, got {J!r}")
@@ -198,6 +209,8 @@ class CrossingDetector:
                 "fewer --window-samples or --windows")
         self.max_interval_s = self.horizon_s if max_interval_s is None else float(max_interval_s)
         self.lead_windows = float(lead_windows)
+        self.confirm_lead = self.lead_windows if confirm_lead_windows is None else max(
+            self.lead_windows, float(confirm_lead_windows))
         if int(confirm) != confirm or confirm < 1:
             raise ValueError(f"confirm must be a positive integer, got {confirm!r}")
         self.confirm = int(confirm)
@@ -214,6 +227,7 @@ class CrossingDetector:
         self.revise = bool(revise)
         self.confirm_overlap = bool(confirm_overlap)
         self.calibrate = bool(calibrate)
+        self.curvature = bool(curvature) and self.level is not None
         self.reset()
 
     @property
@@ -291,6 +305,11 @@ class CrossingDetector:
         self._prune(t)
         self._calibrate(ids, t)
         hits = self._confirmed(self._hits(t, ids))
+        if self.confirm_lead > self.lead_windows:  # watched further out, raised within reach
+            with np.errstate(invalid="ignore"):
+                keep = ~hits.predicted | (hits.t_cross - t <= (1.0 + 1e-12) * np.minimum(
+                    self.horizon_s, self.lead_windows * hits.window_s))
+            hits = _Hits(*(getattr(hits, f)[keep] for f in hits._FIELDS))
         return self._alerts(t, hits)
 
     def _confirmed(self, h: _Hits) -> _Hits:
@@ -316,25 +335,31 @@ class CrossingDetector:
 
     # -- pairs -------------------------------------------------------------------------------
     def _models(self, fit: SlidingLineFit, ids: NDArray[np.int64], t: float, *, curves: bool
-                ) -> tuple[LineStats, CurveStats | None]:
-        """The windows' lines and (`curves`, with a curve level) their F-tested curves."""
+                ) -> tuple[LineStats, CurveStats | None, CurvatureStats | None]:
+        """The windows' lines and, on the shortest windows (`curves`), their F-tested curves and
+        (`curvature`) quadratic terms."""
         st = fit.stats(ids, t)
-        if not curves or self.curve_alpha is None or self.level is None:
-            return st, None
+        quad = self.curvature
+        curves = curves and self.curve_alpha is not None and self.level is not None
+        if not curves and not quad:
+            return st, None, None
         tau, val, ok = fit.windows(ids, t)
-        return st, curve_fits(tau, val, ok, st, alpha=self.curve_alpha)
+        cs = curve_fits(tau, val, ok, st, alpha=self.curve_alpha) if curves else None
+        return st, cs, curvature_stats(tau, val, ok, st) if quad else None
 
     def _judge(
-        self, model: tuple[LineStats, CurveStats | None], ia: NDArray[np.int64],
+        self, model: tuple[LineStats, CurveStats | None, CurvatureStats | None],
+        ia: NDArray[np.int64],
         ib: NDArray[np.int64], *, back_s: float, reach_s: float,
     ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_],
                NDArray[np.float64]]:
         """Crossing time, interval, resolved flag and direction of pairs on one window."""
-        st, cs = model
-        tau, low, high, ok = pair_intervals(ia, ib, st.value, st, level=self.level)
+        st, cs, qs = model
+        tau, low, high, ok = pair_intervals(ia, ib, st.value, st, level=self.level, curvature=qs)
         k = self.extrapolation_scale
         if k > 1.0:  # predictions: the lines' extrapolation variance grown by k
-            _, lk, hk, okk = pair_intervals(ia, ib, st.value, st, level=self.level, var_scale=k)
+            _, lk, hk, okk = pair_intervals(ia, ib, st.value, st, level=self.level, var_scale=k,
+                                            curvature=qs)
             ahead = tau > 0
             low, high, ok = (np.where(ahead, x, y) for x, y in ((lk, low), (hk, high), (okk, ok)))
         direction = np.sign(st.slope[ib] - st.slope[ia])
@@ -373,13 +398,13 @@ class CrossingDetector:
     def _hits(self, t: float, ids: NDArray[np.int64]) -> _Hits:
         """Pairs satisfying an inequality on the shortest window that resolves them."""
         parts: list[tuple] = []
-        models: list[tuple[LineStats, CurveStats | None]] = []
+        models: list[tuple[LineStats, CurveStats | None, CurvatureStats | None]] = []
         reach: list[tuple[float, float]] = []
         admitted = np.ones(ids.size, bool)  # tracks whose longer windows fit as well
         var_prev = dof_prev = np.zeros(ids.size)
         for level, (fit, J) in enumerate(zip(self._fits, self.windows, strict=True)):
             model = self._models(fit, ids, t, curves=level < self.curve_windows)
-            st, cs = model
+            st, cs, _ = model
             models.append(model)
             var = st.residual_var if cs is None else cs.residual_var
             dof = st.n - 2.0 if cs is None else cs.dof
@@ -394,8 +419,8 @@ class CrossingDetector:
             if sel.size < 2:
                 break
             span = J * self.K
-            lead = min(self.horizon_s, self.lead_windows * span)
-            back = min(span, lead)
+            lead = min(self.horizon_s, self.confirm_lead * span)  # alerts: lead_windows
+            back = min(span, self.horizon_s, self.lead_windows * span)
             reach.append((back, lead))
             ia, ib, tau = pairs_in_reach(
                 st.value[sel], st.slope[sel], reach_s=lead,
@@ -409,17 +434,18 @@ class CrossingDetector:
                 low = high = np.full(tau.size, np.nan)
                 ok = np.ones(tau.size, bool)
                 direction = np.sign(st.slope[ib] - st.slope[ia])
-            else:
+            else:  # judged on the shortest window that resolves it, so first the pairs that no
+                k = np.arange(ia.size)  # shorter window resolves (longest first: fewest left)
+                for lower in range(level - 1, -1, -1):
+                    k = k[~self._judge(models[lower], ia[k], ib[k], back_s=reach[lower][0],
+                                       reach_s=reach[lower][1])[3]]
+                ia, ib = ia[k], ib[k]
                 tau, low, high, ok, direction = self._judge(model, ia, ib, back_s=back,
                                                             reach_s=lead)
             with np.errstate(invalid="ignore"):
                 pred = ok & (tau > 0.0) & (tau <= lead)  # inequality (3)
                 det = ok & (tau >= -back) & (tau <= 0.0)  # inequality (4)
             k = np.flatnonzero(pred | det)
-            if self.level is not None:
-                for lower in range(level):  # judged on the shortest window that resolves it
-                    k = k[~self._judge(models[lower], ia[k], ib[k], back_s=reach[lower][0],
-                                       reach_s=reach[lower][1])[3]]
             parts.append((ids[ia[k]], ids[ib[k]], t + tau[k], t + low[k], t + high[k], pred[k],
                           np.full(k.size, span), direction[k]))
         if not parts:
@@ -445,55 +471,9 @@ class CrossingDetector:
         if h.a.size == 0:
             return []
         fit = self._fits[0]
-        key = fit.slots(h.a) * (1 << 32) + fit.slots(h.b)
-        ev = self._events
-        pos = np.searchsorted(ev.key, key)
-        found = pos < ev.key.size
-        found[found] = ev.key[pos[found]] == key[found]
-        pf = pos[found]
-        same = np.zeros(key.size, bool)
-        near = np.abs(h.t_cross[found] - ev.t_cross[pf]) <= self.merge_window_s
-        overlap = (h.low[found] <= ev.high[pf]) & (h.high[found] >= ev.low[pf])  # NaN: False
-        same[found] = near | overlap
-        if self.split_repeats:  # a crossing the other way is the pair's next crossing
-            same[found] &= h.direction[found] == ev.direction[pf]
-        old_pred = np.zeros(key.size, bool)
-        old_det = np.zeros(key.size, bool)
-        old_pred[found] = ev.predicted[pf]
-        old_det[found] = ev.detected[pf]
-        old_pred &= same  # a new event starts with no alerts
-        old_det &= same
-        emit_pred = h.predicted & ~old_pred & ~old_det
-        if self.revise:  # a prediction whose interval left the one said is said again
-            said_lo = np.full(key.size, np.nan)
-            said_hi = np.full(key.size, np.nan)
-            said_lo[found], said_hi[found] = ev.said_low[pf], ev.said_high[pf]
-            emit_pred |= h.predicted & old_pred & ~old_det & ((h.low > said_hi) | (h.high < said_lo))
-        emit_det = ~h.predicted & ~old_det
-        # Existing rows: the event (same or replaced) takes the latest t_c, interval and flags.
-        ev.t_cross[pf] = h.t_cross[found]
-        ev.low[pf] = h.low[found]
-        ev.high[pf] = h.high[found]
-        ev.direction[pf] = h.direction[found]
-        ev.predicted[pf] = (old_pred | emit_pred)[found]
-        ev.detected[pf] = (old_det | emit_det)[found]
-        ep = emit_pred[found]
-        ev.said_low[pf] = np.where(ep, h.low[found], ev.said_low[pf])
-        ev.said_high[pf] = np.where(ep, h.high[found], ev.said_high[pf])
-        new = ~found
-        if np.any(new):
-            ev.append(key=key[new], t_cross=h.t_cross[new], low=h.low[new], high=h.high[new],
-                      direction=h.direction[new], predicted=emit_pred[new],
-                      detected=emit_det[new], said_low=h.low[new], said_high=h.high[new])
-        emit = np.flatnonzero(emit_pred | emit_det)
-        kind_of = (AlertKind.PREDICTED, AlertKind.DETECTED)
-        out = [
-            CrossingAlert(t, ta, tb, tc, kind_of[k], lo, hi, w)
-            for ta, tb, tc, k, lo, hi, w in zip(
-                h.a[emit].tolist(), h.b[emit].tolist(), h.t_cross[emit].tolist(),
-                np.where(emit_pred[emit], 0, 1).tolist(), h.low[emit].tolist(),
-                h.high[emit].tolist(), h.window_s[emit].tolist(), strict=True)
-        ]
+        out = raise_alerts(self._events, fit.slots(h.a) * (1 << 32) + fit.slots(h.b), h, t,
+                           merge_window_s=self.merge_window_s,
+                           split_repeats=self.split_repeats, revise=self.revise)
         if out:
             logger.debug("t=%.3f: %d crossing alert(s)", t, len(out))
         return out

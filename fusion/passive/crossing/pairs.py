@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from fusion.passive.crossing.curvature import CurvatureStats, curvature_variance
 from fusion.passive.crossing.interval import crossing_time_interval, t_quantile, welch_dof
 from fusion.passive.crossing.timing import crossing_time_terms
 from fusion.passive.crossing.types import PairCheck
@@ -48,25 +49,10 @@ def _triu(n: int) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
     return _TRIU_CACHE[n]
 
 
-def _candidate_pairs(
-    b: NDArray[np.float64], r: NDArray[np.float64], horizon: float
-) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
-    """Index pairs (i < j) that can pass the in-range check, all others left out exactly.
-
-    A pair passes only if ``|wrap(b_j - b_i)| <= horizon |r_i - r_j|``, which is at most
-    ``W_i = horizon max(r_i - min r, max r - r_i)`` (and likewise ``W_j``). When every
-    ``W_i < pi`` the bearings are sorted around the circle and each track is paired with the
-    tracks up to ``W_i`` ahead of it (a sweep with ``searchsorted``): a passing pair lies
-    within ``W`` ahead of one of its tracks, and no pair can be listed from both sides (that
-    would need ``W_i + W_j >= 2 pi``). Otherwise every pair is returned.
-    """
+def _sweep(b: NDArray[np.float64], w: NDArray[np.float64]
+           ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """Pairs (i < j) of one set within ``w_i`` ahead of ``b_i`` on the circle (every ``w < pi``)."""
     n = b.size
-    if n < 2:
-        return np.zeros(0, np.int64), np.zeros(0, np.int64)
-    w = horizon * np.maximum(r - r.min(), r.max() - r)
-    w = w * (1.0 + 1e-9) + 1e-12  # margin for round-off: never drops a pair that passes
-    if not np.all(w < np.pi):
-        return _triu(n)
     order = np.argsort(b, kind="stable")
     bs = b[order]
     ext = np.concatenate([bs, bs + _TWO_PI])
@@ -80,6 +66,81 @@ def _candidate_pairs(
     i, j = order[p], order[q]
     return np.minimum(i, j), np.maximum(i, j)
 
+
+def _cross(b_g: NDArray[np.float64], b_h: NDArray[np.float64], w: float
+           ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """Positions (i in g, j in h) with ``|wrap(b_h[j] - b_g[i])| <= w`` or more (``w < pi``)."""
+    m = b_h.size
+    order = np.argsort(b_h, kind="stable")
+    bs = b_h[order]
+    ext = np.concatenate([bs - _TWO_PI, bs, bs + _TWO_PI])
+    lo = np.searchsorted(ext, b_g - w, side="left")
+    cnt = np.searchsorted(ext, b_g + w, side="right") - lo
+    cnt = np.minimum(cnt, m)  # an arc shorter than the circle holds each point at most once
+    total = int(cnt.sum())
+    i = np.repeat(np.arange(b_g.size), cnt)
+    first = np.repeat(np.cumsum(cnt) - cnt, cnt)
+    j = order[(np.repeat(lo, cnt) + np.arange(total) - first) % m]
+    return i, j
+
+
+#: Rate groups of the screen when one sweep cannot bound the pairs (see _candidate_pairs).
+_RATE_GROUPS = 16
+#: Fewest tracks per rate group.
+_GROUP_MIN = 32
+
+
+def _candidate_pairs(
+    b: NDArray[np.float64], r: NDArray[np.float64], horizon: float
+) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """Index pairs (i < j) that can pass the in-range check, all others left out exactly.
+
+    A pair passes only if ``|wrap(b_j - b_i)| <= horizon |r_i - r_j|``, which is at most
+    ``W_i = horizon max(r_i - min r, max r - r_i)`` (and likewise ``W_j``). When every
+    ``W_i < pi`` the bearings are sorted around the circle and each track is paired with the
+    tracks up to ``W_i`` ahead of it (a sweep with ``searchsorted``): a passing pair lies
+    within ``W`` ahead of one of its tracks, and no pair can be listed from both sides (that
+    would need ``W_i + W_j >= 2 pi``). Otherwise (a wide spread of rates over a long reach)
+    the tracks are cut into groups of neighbouring rates: within a group the same sweep with
+    the group's rates, between groups ``g`` and ``h`` the bearings within
+    ``horizon max |r_h - r_g|`` of each other (every pair of the two groups where that bound
+    reaches half the circle).
+    """
+    n = b.size
+    if n < 2:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+    w = horizon * np.maximum(r - r.min(), r.max() - r)
+    w = w * (1.0 + 1e-9) + 1e-12  # margin for round-off: never drops a pair that passes
+    if np.all(w < np.pi):
+        return _sweep(b, w)
+    n_groups = min(_RATE_GROUPS, n // _GROUP_MIN)
+    if n_groups < 2:
+        return _triu(n)
+    by_rate = np.argsort(r, kind="stable")
+    groups = np.array_split(by_rate, n_groups)
+    rmin = [float(r[g].min()) for g in groups]
+    rmax = [float(r[g].max()) for g in groups]
+    out_i, out_j = [], []
+    for g, grp in enumerate(groups):
+        wg = horizon * np.maximum(r[grp] - rmin[g], rmax[g] - r[grp]) * (1.0 + 1e-9) + 1e-12
+        if np.all(wg < np.pi):
+            i, j = _sweep(b[grp], wg)
+        else:
+            i, j = _triu(grp.size)
+        out_i.append(grp[i])
+        out_j.append(grp[j])
+        for h in range(g + 1, n_groups):
+            oth = groups[h]
+            wgh = horizon * (rmax[h] - rmin[g]) * (1.0 + 1e-9) + 1e-12  # rates sorted: h >= g
+            if wgh < np.pi:
+                i, j = _cross(b[grp], b[oth], wgh)
+            else:
+                i = np.repeat(np.arange(grp.size), oth.size)
+                j = np.tile(np.arange(oth.size), grp.size)
+            out_i.append(grp[i])
+            out_j.append(oth[j])
+    i, j = np.concatenate(out_i), np.concatenate(out_j)
+    return np.minimum(i, j), np.maximum(i, j)
 
 
 def pairs_in_reach(
@@ -126,6 +187,7 @@ def pair_intervals(
     *,
     level: float,
     var_scale: float = 1.0,
+    curvature: CurvatureStats | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
     """Crossing time and its Fieller interval for given pairs, relative to the current sample.
 
@@ -142,6 +204,11 @@ def pair_intervals(
     var_scale : float, optional
         Factor on the lines' covariance (default 1; the extrapolation factor of
         :class:`~fusion.passive.crossing.calibration.ExtrapolationScale` for predictions).
+    curvature : CurvatureStats, optional
+        The windows' second-order terms: a crossing ahead of the sample (``tau > 0``) gets the
+        variance the lines miss at ``tau`` from the curvature they leave out
+        (:func:`~fusion.passive.crossing.curvature.curvature_variance`) added to the
+        difference's variance (default None: the lines' covariance only).
 
     Returns
     -------
@@ -166,8 +233,13 @@ def pair_intervals(
     with np.errstate(invalid="ignore", divide="ignore"):
         tau = np.where(den != 0, num / np.where(den != 0, den, 1.0), np.inf)  # equation (2)
     q = t_quantile(level, dof) * np.sqrt(var_scale)
+    v00 = stats.var_value[index_a] + stats.var_value[index_b]
+    if curvature is not None:  # the curvature the lines leave out, at the predicted crossing
+        ahead = np.isfinite(tau) & (tau > 0)
+        v00 = v00 + np.where(ahead, curvature_variance(curvature, index_a, index_b,
+                                                       np.where(ahead, tau, 0.0)), 0.0)
     low, high, bounded = crossing_time_interval(
-        d0, d1, stats.var_value[index_a] + stats.var_value[index_b],
+        d0, d1, v00,
         stats.cov[index_a] + stats.cov[index_b], v11, q)
     bounded &= np.isfinite(low) & np.isfinite(high)
     return tau, low, high, bounded

@@ -18,7 +18,10 @@ from fusion.passive.bearing_grid import estimate_period
 
 __all__ = [
     "DEFAULT_CALIBRATE",
+    "DEFAULT_CURVATURE",
+    "DEFAULT_EXTRAPOLATION",
     "DEFAULT_CONFIRM",
+    "DEFAULT_CONFIRM_LEAD",
     "DEFAULT_CONFIRM_OVERLAP",
     "DEFAULT_CURVE_ALPHA",
     "DEFAULT_HORIZON_S",
@@ -70,6 +73,12 @@ class CrossingSettings:
         prediction raised (False: one prediction per crossing).
     confirm_overlap : bool
         A confirming sample's interval must overlap the one before (False: any hit confirms).
+    confirm_lead_windows : float or None
+        Confirming samples may predict up to this many window spans ahead (None: as
+        `lead_windows`); alerts only within `lead_windows`.
+    curvature : bool
+        Predictions from lines carry the variance of the curvature the window's line leaves
+        out (False: the lines' covariance only).
     calibrate : bool
         Predictions' variances grown by the factor the held-out check of each track's earlier
         window asks for (False: the fits' own covariance).
@@ -91,6 +100,8 @@ class CrossingSettings:
     revise: bool = False
     confirm_overlap: bool = False
     calibrate: bool = False
+    curvature: bool = False
+    confirm_lead_windows: float | None = None
     adjusted: tuple[str, ...] = ()
 
     def detector_options(self) -> dict[str, Any]:
@@ -99,7 +110,8 @@ class CrossingSettings:
                 "n_windows": self.n_windows, "lead_windows": self.lead_windows,
                 "confirm": self.confirm, "level": self.level, "curve_alpha": self.curve_alpha,
                 "ladder_alpha": self.ladder_alpha, "revise": self.revise,
-                "confirm_overlap": self.confirm_overlap, "calibrate": self.calibrate}
+                "confirm_overlap": self.confirm_overlap, "calibrate": self.calibrate,
+                "curvature": self.curvature, "confirm_lead_windows": self.confirm_lead_windows}
 
     def describe(self) -> str:
         """One line saying what was chosen."""
@@ -109,8 +121,11 @@ class CrossingSettings:
                 f"predictions up to {self.lead_windows:g} window ahead, horizon "
                 f"{self.horizon_s:.4g} s, {self.confirm} sample(s) to confirm"
                 + (" (intervals overlapping)" if self.confirm_overlap else "")
+                + ("" if self.confirm_lead_windows is None else
+                   f" (counted from {self.confirm_lead_windows:g} window ahead)")
                 + f", level {self.level:g}"
                 + (" (predictions calibrated on held-out samples)" if self.calibrate else "")
+                + (" (predictions with the curvature lines leave out)" if self.curvature else "")
                 + ", "
                 + ("straight lines only" if self.curve_alpha is None else
                    f"curves kept at F-test level {self.curve_alpha:g}")
@@ -140,6 +155,13 @@ DEFAULT_REVISE = True
 DEFAULT_CONFIRM_OVERLAP = True
 #: Default: predictions' variances calibrated on held-out samples (issue 19, evening).
 DEFAULT_CALIBRATE = False
+#: Default: line predictions' variance includes the curvature the window leaves out (issue 19,
+#: 2026-12-03).
+DEFAULT_CURVATURE = True
+#: The ``--extrapolation`` default of the command line.
+DEFAULT_EXTRAPOLATION = "curvature" if DEFAULT_CURVATURE else "model"
+#: Default: confirming samples counted within the prediction reach only (None).
+DEFAULT_CONFIRM_LEAD = None
 #: Default number of samples in a row that confirm an alert.
 DEFAULT_CONFIRM = 2
 #: Default nominal level of the Fieller intervals (see :func:`crossing_settings`).
@@ -167,6 +189,8 @@ def crossing_settings(
     revise: bool = DEFAULT_REVISE,
     confirm_overlap: bool = DEFAULT_CONFIRM_OVERLAP,
     calibrate: bool = DEFAULT_CALIBRATE,
+    curvature: bool = DEFAULT_CURVATURE,
+    confirm_lead_windows: float | None = DEFAULT_CONFIRM_LEAD,
 ) -> CrossingSettings:
     """Window, horizon and grid period of a bearing table, in seconds, from the data.
 
@@ -186,7 +210,7 @@ def crossing_settings(
         Samples in the shortest window (default ``round(window_s / K)``, at least
         :data:`MIN_SAMPLES_PER_WINDOW`).
     n_windows, lead_windows, confirm, level, curve_alpha, \
-ladder_alpha, revise, confirm_overlap, calibrate
+ladder_alpha, revise, confirm_overlap, calibrate, curvature, confirm_lead_windows
         As in :class:`fusion.passive.crossing.CrossingDetector`.
 
     Returns
@@ -216,7 +240,7 @@ ladder_alpha, revise, confirm_overlap, calibrate
         n_windows=n_windows, lead_windows=lead_windows, confirm=confirm, level=level,
         curve_alpha=curve_alpha, ladder_alpha=ladder_alpha,
         revise=revise, confirm_overlap=confirm_overlap,
-        calibrate=calibrate)
+        calibrate=calibrate, curvature=curvature, confirm_lead_windows=confirm_lead_windows)
 
 
 def crossing_settings_from_steps(
@@ -236,6 +260,8 @@ def crossing_settings_from_steps(
     revise: bool = DEFAULT_REVISE,
     confirm_overlap: bool = DEFAULT_CONFIRM_OVERLAP,
     calibrate: bool = DEFAULT_CALIBRATE,
+    curvature: bool = DEFAULT_CURVATURE,
+    confirm_lead_windows: float | None = DEFAULT_CONFIRM_LEAD,
 ) -> CrossingSettings:
     """:func:`crossing_settings` from the two numbers it takes of the data.
 
@@ -247,7 +273,7 @@ def crossing_settings_from_steps(
     track_span_s : float
         Median time span of the tracks, s.
     window_s, horizon_s, period_s, J, n_windows, lead_windows, confirm, level, curve_alpha, \
-ladder_alpha, revise, confirm_overlap, calibrate
+ladder_alpha, revise, confirm_overlap, calibrate, curvature, confirm_lead_windows
         As in :func:`crossing_settings`.
 
     Returns
@@ -292,5 +318,7 @@ ladder_alpha, revise, confirm_overlap, calibrate
                             curve_alpha=None if curve_alpha is None else float(curve_alpha),
                             ladder_alpha=None if ladder_alpha is None else float(ladder_alpha),
                             revise=bool(revise), confirm_overlap=bool(confirm_overlap),
-                            calibrate=bool(calibrate),
+                            calibrate=bool(calibrate), curvature=bool(curvature),
+                            confirm_lead_windows=None if confirm_lead_windows is None
+                            else float(confirm_lead_windows),
                             adjusted=tuple(adjusted))

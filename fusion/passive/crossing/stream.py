@@ -431,7 +431,7 @@ max_interval_s, lead_windows, confirm
         As in :func:`~fusion.passive.crossing.detect_crossings` (`K` required).
     **more
         ``curve_alpha``, ``split_repeats``, ``ladder_alpha``, ``revise``,
-        ``confirm_overlap``, ``calibrate`` of
+        ``confirm_overlap``, ``calibrate``, ``curvature``, ``confirm_lead_windows`` of
         :class:`CrossingDetector`.
 
     Returns
