@@ -7,6 +7,7 @@ other before any work: exit 2, one stderr line, nothing written, nothing changed
 
 from __future__ import annotations
 
+import json
 import os
 from pathlib import Path
 
@@ -69,7 +70,10 @@ def test_passive_writes_both_tables(run_cli, passive_files, tmp_path):
     code, _, err = run_cli("passive", "--cube", passive_files / "cube.npz", "--clicks",
                            passive_files / "clicks.csv", "--out", tmp_path / "o", "--quiet")
     assert code == 0, err
-    assert sorted(p.name for p in (tmp_path / "o").iterdir()) == ["alerts.csv", "tracks.csv"]
+    assert sorted(p.name for p in (tmp_path / "o").iterdir()) == [
+        "alerts.csv", "passive.settings.json", "tracks.csv"]
+    settings = json.loads((tmp_path / "o" / "passive.settings.json").read_text())
+    assert settings["normalize"][str(passive_files / "cube.npz")]["normalized"] is False
 
 
 @pytest.mark.parametrize("name", ["audio.flac", "array.json", "tdoa_labels.csv"])

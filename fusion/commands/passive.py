@@ -18,8 +18,8 @@ from pathlib import Path
 import numpy as np
 
 from fusion._output import atomic_outputs
-from fusion.cli import DB_RANGE, MAX_SCANS_OPTION, number, summary
-from fusion.io import Cube, read_cube, read_table, write_table
+from fusion.cli import DB_RANGE, MAX_SCANS_OPTION, emit, number, summary
+from fusion.io import Cube, read_cube, read_table, write_settings, write_table
 
 logger = logging.getLogger(__name__)
 
@@ -82,9 +82,14 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="TQI design SNR of the tracker threshold, dB (default 3)")
     g.add_argument("--snr1-db", type=number(float, ge=DB_RANGE[0], le=DB_RANGE[1]), default=10.0,
                    help="TQI design SNR of a strong track, dB (default 10)")
-    g.add_argument("--normalize", action="store_true",
-                   help="normalise the cubes to unit noise mean first (split-window median over "
-                        "frequency, pooled over 60 scans); default: cubes are already normalised")
+    norm = g.add_mutually_exclusive_group()
+    norm.add_argument("--normalize", dest="normalize", action="store_const", const=True,
+                      default=None,
+                      help="normalise the cubes to unit noise mean first (split-window median "
+                           "over frequency, pooled over 60 scans); default: when a cube's median "
+                           "noise level (first 60 scans) is outside 0.8-1.25, as printed")
+    norm.add_argument("--no-normalize", dest="normalize", action="store_const", const=False,
+                      help="the cubes are already normalised to unit noise mean: use them as read")
     p.add_argument("--quiet", action="store_true",
                    help="no progress bar (none either when standard error is not a terminal)")
     p.set_defaults(handler=run, inputs=("cube", "clicks"), out_is_dir=True,
@@ -112,6 +117,29 @@ def _normalized(cube: Cube) -> Cube:
                 sound_speed=cube.sound_speed)
 
 
+def _normalize_decided(cubes: list[Cube], given: bool | None,
+                       paths: list) -> tuple[list[Cube], dict, list[str]]:
+    """The cubes the tracker reads, normalised where given or where their noise level says so;
+    what was decided (written beside the output) and its lines (printed when the run succeeds)."""
+    from fusion.passive.acquisition.normalise import UNIT_NOISE_TOLERANCE, noise_mean_level
+
+    out, record, notes = [], {}, []
+    for path, cube in zip(paths, cubes, strict=True):
+        if given is None:
+            level = noise_mean_level(cube.power)
+            apply = not 1.0 / UNIT_NOISE_TOLERANCE <= level <= UNIT_NOISE_TOLERANCE
+            notes.append(f"{path}: median noise level {level:.3g} -> "
+                         + ("normalised to unit noise mean" if apply else
+                            "already at unit noise mean, used as read")
+                         + " (--normalize, --no-normalize)")
+            record[str(path)] = {"normalized": apply, "noise_level": level, "source": "estimated"}
+        else:
+            apply = given
+            record[str(path)] = {"normalized": apply, "source": "given"}
+        out.append(_normalized(cube) if apply else cube)
+    return out, record, notes
+
+
 def run(args: argparse.Namespace) -> int:
     """Read the cubes and clicks, run the pipeline, write the tracks and alerts."""
     from fusion._progress import progress
@@ -123,8 +151,7 @@ def run(args: argparse.Namespace) -> int:
     if not args.snr1_db > args.snr0_db:
         raise ValueError(f"--snr1-db ({args.snr1_db:g}) must exceed --snr0-db ({args.snr0_db:g})")
     cubes = [read_cube(c) for c in args.cube]
-    if args.normalize:
-        cubes = [_normalized(c) for c in cubes]
+    cubes, normalised, notes = _normalize_decided(cubes, args.normalize, args.cube)
     n_scans = sum(c.n_scans for c in cubes)
     if n_scans < args.acq_scans:
         raise ValueError(f"the cubes hold {n_scans} scans, fewer than --acq-scans "
@@ -149,6 +176,11 @@ def run(args: argparse.Namespace) -> int:
     with atomic_outputs(out / "tracks.csv", out / "alerts.csv") as (tracks, alerts):
         write_table(tracks, res.track_columns())  # both renamed into place together
         write_table(alerts, res.alert_columns())
+    write_settings(out / "passive", {"command": "passive", "normalize": normalised,
+                                     "crossing_period_s": period},
+                   inputs=[*args.cube, args.clicks])
+    for note in notes:
+        emit(note, err=True)
     n_lost = sum(t.end is not None for t in res.tracks)
     n_pred = int(np.sum(res.alert_columns()["kind"] == "predicted"))
     near = [r.fallback for r in res.resolutions if r.method == "nearest"]

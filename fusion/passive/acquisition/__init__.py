@@ -50,7 +50,11 @@ from fusion.passive.acquisition.fans import (
     StraightLineFans,
 )
 from fusion.passive.acquisition.lines import FanSearch, best_lines_in_fans, slope_grid
-from fusion.passive.acquisition.normalise import expected_median_fraction, normalize_spectra
+from fusion.passive.acquisition.normalise import (
+    expected_median_fraction,
+    noise_mean_level,
+    normalize_spectra,
+)
 from fusion.passive.acquisition.prior import AcquisitionPrior
 from fusion.passive.acquisition.refine import (
     MATCHED_STEP_BEAMS,
@@ -91,6 +95,7 @@ __all__ = [
     "ibw_bins",
     "ibw_btr",
     "matched_trace_score",
+    "noise_mean_level",
     "normalize_spectra",
     "refine_trace",
     "slope_grid",

@@ -14,7 +14,11 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy import integrate, optimize, stats
 
-__all__ = ["estimate_noise_dof", "expected_median_fraction", "normalize_spectra"]
+__all__ = ["UNIT_NOISE_TOLERANCE", "estimate_noise_dof", "expected_median_fraction",
+           "noise_mean_level", "normalize_spectra"]
+
+#: A cube whose median noise level is within this factor of 1 is taken as already normalised.
+UNIT_NOISE_TOLERANCE = 1.25
 
 
 @lru_cache(maxsize=256)
@@ -227,3 +231,37 @@ def normalize_spectra(
             raise ValueError(f"noise level of bin {k} is zero in some spectra (all-zero window)")
         out[:, :, i] = p[:, :, k] / level
     return out
+
+
+def noise_mean_level(power: ArrayLike, *, pool_scans: int = 60) -> float:
+    """The median noise level of a cube: 1 when it is already normalised to unit noise mean.
+
+    Parameters
+    ----------
+    power : array_like, shape (n_scans, n_beams, n_bins)
+        Beam spectra (power, linear).
+    pool_scans : int
+        The first scans, pooled into one noise estimate per beam and bin
+        (:func:`normalize_spectra`).
+
+    Returns
+    -------
+    float
+        The median over the cells of ``power / normalize_spectra(power)``: the split-window
+        noise estimate of :func:`normalize_spectra`, robust to lines (a median of medians).
+        ``fusion passive`` normalises a cube whose level is outside
+        ``[1 / UNIT_NOISE_TOLERANCE, UNIT_NOISE_TOLERANCE]``.
+
+    Examples
+    --------
+    >>> rng = np.random.default_rng(1)
+    >>> round(noise_mean_level(40.0 * rng.exponential(size=(60, 4, 32))) / 40.0, 1)
+    1.0
+    """
+    p = np.asarray(power, dtype=float)
+    if p.ndim == 3:  # the first pool of scans tells the level (and bounds the cost)
+        p = p[:max(1, int(pool_scans))]
+    normalised = normalize_spectra(p, pool_scans=p.shape[0] if p.ndim == 3 else pool_scans)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = p / normalised
+    return float(np.nanmedian(ratio[np.isfinite(ratio)]))
