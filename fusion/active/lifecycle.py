@@ -142,10 +142,8 @@ def next_lifecycle(
 
     Parameters
     ----------
-    state : Lifecycle
-        Counters before the ping.
-    hit : bool
-        Whether the track got a detection on this ping.
+    state, hit
+        As in :func:`advance_status`.
     dropped : bool
         A tentative track within reach of a hotspot whose detections do not move: deleted.
     held : bool

@@ -60,15 +60,10 @@ def scan_depth(
         Vertical spacing (and smoothing scale) of the scan, m.
     z_range : (float, float)
         Lowest and highest ``z`` scanned, m.
-    equation : {17, 18}, keyword-only
-        Which intensity.
-    cells : float, keyword-only
-        Smoothing in grid cells (:func:`smoothing_sigma`).
     max_points : int, keyword-only
         Largest number of heights (the spacing widens to fit).
-    groups : array_like of int, shape (M,), optional, keyword-only
-        The measurement each TDOA column reads
-        (:func:`fusion.localization.intensity.combine_intensities`).
+    equation, cells, groups : keyword-only
+        As in :func:`refine_peak`.
 
     Returns
     -------

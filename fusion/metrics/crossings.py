@@ -87,18 +87,14 @@ def crossing_outcomes(
     >>> crossing_outcomes(true, true, t, [(0, 1, 5.0)], guard_s=0.5, window_s=4).tolist()
     ['kept']
     """
-    tl = np.asarray(true_labels)
-    el = np.asarray(est_labels)
-    t = np.asarray(times, float)
-    if not (tl.shape == el.shape == t.shape and tl.ndim == 1):
-        raise ValueError("true_labels, est_labels and times must be 1-D of equal length")
+    tl, el, t = _labelled(true_labels, est_labels, times)
 
     def follower(trk: int, sel_t: NDArray[np.bool_]) -> int | None:
         return _follower(tl, el, trk, sel_t, min_fraction)
 
     out = []
     for a, b, tc in crossings:
-        before = (t >= tc - guard_s - window_s) & (t < tc - guard_s)
+        before = _before(t, tc, guard_s, window_s)
         after = (t > tc + guard_s) & (t <= tc + guard_s + window_s)
         fb = [follower(x, before) for x in (a, b)]
         fa = [follower(x, after) for x in (a, b)]
@@ -113,6 +109,23 @@ def crossing_outcomes(
         else:
             out.append("kept")
     return np.array(out, dtype="<U8")
+
+
+def _labelled(true_labels: ArrayLike, est_labels: ArrayLike, times: ArrayLike
+              ) -> tuple[NDArray, NDArray, NDArray[np.float64]]:
+    """The true and estimated labels and times of the detections, checked 1-D of equal length."""
+    tl = np.asarray(true_labels)
+    el = np.asarray(est_labels)
+    t = np.asarray(times, float)
+    if not (tl.shape == el.shape == t.shape and tl.ndim == 1):
+        raise ValueError("true_labels, est_labels and times must be 1-D of equal length")
+    return tl, el, t
+
+
+def _before(t: NDArray[np.float64], tc: float, guard_s: float, window_s: float
+            ) -> NDArray[np.bool_]:
+    """The scored window before a crossing at `tc`: ``[t_c - guard - window, t_c - guard)``."""
+    return (t >= tc - guard_s - window_s) & (t < tc - guard_s)
 
 
 def _follower(tl: NDArray, el: NDArray, trk: int, sel_t: NDArray[np.bool_],
@@ -165,14 +178,10 @@ def crossing_window_identity(
     >>> crossing_window_identity(true, est, t, [(0, 1, 5.0)], guard_s=1, window_s=4).tolist()
     [[6, 5]]
     """
-    tl = np.asarray(true_labels)
-    el = np.asarray(est_labels)
-    t = np.asarray(times, float)
-    if not (tl.shape == el.shape == t.shape and tl.ndim == 1):
-        raise ValueError("true_labels, est_labels and times must be 1-D of equal length")
+    tl, el, t = _labelled(true_labels, est_labels, times)
     out = np.zeros((len(crossings), 2), np.int64)
     for i, (a, b, tc) in enumerate(crossings):
-        before = (t >= tc - guard_s - window_s) & (t < tc - guard_s)
+        before = _before(t, tc, guard_s, window_s)
         inside = np.abs(t - tc) <= guard_s
         for x in (a, b):
             f = _follower(tl, el, x, before, min_fraction)
@@ -221,13 +230,11 @@ def crossing_bearing_errors(
     ndarray, shape (n_samples,)
         Wrapped errors, rad (NaN where not covered), all crossings and both targets in turn.
     """
-    tl = np.asarray(true_labels)
-    el = np.asarray(est_labels)
-    t = np.asarray(times, float)
+    tl, el, t = _labelled(true_labels, est_labels, times)
     tt = np.asarray(truth_time, float)
     errs: list[NDArray[np.float64]] = []
     for a, b, tc in crossings:
-        before = (t >= tc - guard_s - window_s) & (t < tc - guard_s)
+        before = _before(t, tc, guard_s, window_s)
         near = np.abs(tt - tc) <= within_s
         for x in (a, b):
             truth = np.asarray(truth_bearing[x], float)[near]

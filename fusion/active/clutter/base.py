@@ -122,7 +122,6 @@ class ClutterMapBase(ABC):
     _t0: float | None
     _cache: object
 
-    @abstractmethod
     def update(
         self, xy: ArrayLike, time: float | None = None, *, cov: ArrayLike | None = None
     ) -> None:
@@ -133,10 +132,24 @@ class ClutterMapBase(ABC):
         xy : array_like, shape (n, 2)
             Detection positions (x east, y north), m; n may be 0 (the ping still counts).
         time : float, optional
-            Ping time, s; default: the ping's index.
+            Ping time, s (for the drift test); default: the ping's index.
         cov : array_like, shape (n, 2, 2), optional
-            Position-error covariance of each detection, m^2.
+            Position-error covariance of each detection, m^2, positive definite (default
+            ``position_sigma_m**2 I``).
+
+        Raises
+        ------
+        ValueError
+            Wrong shape or non-finite values.
         """
+        pts, c = self._checked(xy, cov)
+        t_rel = self._next_ping(time)
+        self._add_ping(pts, c, t_rel)
+
+    @abstractmethod
+    def _add_ping(self, pts: NDArray[np.float64], cov: NDArray[np.float64], t_rel: float) -> None:
+        """Store one ping's checked detections (:meth:`update`; the ping is already counted:
+        its number is ``n_pings - 1``, its time `t_rel` s from the first ping's)."""
 
     def _checked(self, xy: ArrayLike, cov: ArrayLike | None) -> tuple[NDArray, NDArray]:
         """A ping's positions (n, 2) and covariances (n, 2, 2), checked; the covariances default

@@ -50,7 +50,7 @@ from __future__ import annotations
 import logging
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import NDArray
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
@@ -205,31 +205,12 @@ class DensityClutterMap(ClutterMapBase):
             drift_probability=self.drift_probability, max_sigma_m=self.max_sigma_m,
             memory_pings=self.memory_pings)
 
-    def update(
-        self, xy: ArrayLike, time: float | None = None, *, cov: ArrayLike | None = None
-    ) -> None:
-        """Add the detections of one ping.
-
-        Parameters
-        ----------
-        xy : array_like, shape (n, 2)
-            Detection positions (x east, y north), m; n may be 0 (the ping still counts).
-        time : float, optional
-            Ping time, s (for the drift test); default: the ping's index.
-        cov : array_like, shape (n, 2, 2), optional
-            Position-error covariance of each detection, m^2, positive definite (default
-            ``position_sigma_m**2 I``).
-
-        Raises
-        ------
-        ValueError
-            Wrong shape or non-finite values.
-        """
-        pts, c = self._checked(xy, cov)
+    def _add_ping(self, pts: NDArray[np.float64], c: NDArray[np.float64], t_rel: float) -> None:
+        """Store one ping's detections (:meth:`ClutterMapBase.update`): those whose error
+        ellipse is no longer than `max_sigma_m`, linked to the stored ones they match."""
         small = np.linalg.eigvalsh(c)[:, -1] <= self.max_sigma_m**2
         pts, c = pts[small], c[small]
-        k = self.n_pings
-        t_rel = self._next_ping(time)
+        k = self.n_pings - 1
         self._seen = np.concatenate([self._seen, np.zeros((self._seen.shape[0], 1), bool)], axis=1)
         n_old, n_new = self._xy.shape[0], pts.shape[0]
         seen_new = np.zeros((n_new, self._seen.shape[1]), dtype=bool)

@@ -54,7 +54,7 @@ from __future__ import annotations
 import logging
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import NDArray
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.stats import chi2
@@ -184,28 +184,9 @@ class ClutterMap(ClutterMapBase):
         self._count = np.insert(self._count, at, 0)
         self._sum = np.insert(self._sum, at, 0.0, axis=0)
 
-    def update(
-        self, xy: ArrayLike, time: float | None = None, *, cov: ArrayLike | None = None
-    ) -> None:
-        """Add the detections of one ping.
-
-        Parameters
-        ----------
-        xy : array_like, shape (n, 2)
-            Detection positions (x east, y north), m; n may be 0 (the ping still counts).
-        time : float, optional
-            Ping time, s (for the drift test); default: the ping's index.
-        cov : array_like, shape (n, 2, 2), optional
-            Position-error covariance of each detection, m^2, positive definite (default
-            ``position_sigma_m**2 I``): the floor of a hotspot's extent is their mean.
-
-        Raises
-        ------
-        ValueError
-            Wrong shape or non-finite values.
-        """
-        pts, c = self._checked(xy, cov)
-        t = self._next_ping(time)
+    def _add_ping(self, pts: NDArray[np.float64], c: NDArray[np.float64], t: float) -> None:
+        """Count one ping's detections in their cells (:meth:`ClutterMapBase.update`); the mean
+        of their covariances is the floor of a hotspot's extent."""
         if pts.shape[0] == 0:
             return
         cells = self._cells(pts)

@@ -46,47 +46,24 @@ Pieces:
 
 from fusion._deprecated import moved_names
 from fusion.passive.bearing_grid import ResampledBearings, estimate_period, resample_bearings
+from fusion.passive.crossing import settings as _settings
 from fusion.passive.crossing.batch import detect_crossings
 from fusion.passive.crossing.detector import CrossingDetector
 from fusion.passive.crossing.pairs import evaluate_pairs
-from fusion.passive.crossing.settings import (
-    DEFAULT_CONFIRM,
-    DEFAULT_CURVE_ALPHA,
-    DEFAULT_HORIZON_S,
-    DEFAULT_LADDER_ALPHA,
-    DEFAULT_LEAD_WINDOWS,
-    DEFAULT_LEVEL,
-    DEFAULT_N_WINDOWS,
-    DEFAULT_WINDOW_S,
-    MAX_SAMPLES_PER_WINDOW,
-    MIN_SAMPLES_PER_WINDOW,
-    CrossingSettings,
-    crossing_settings,
-)
+from fusion.passive.crossing.settings import *  # noqa: F403 (its __all__: defaults, settings)
 from fusion.passive.crossing.types import AlertKind, CrossingAlert, PairCheck
 from fusion.passive.line_fit import LineStats, SlidingLineFit
 
 __all__ = [
-    "DEFAULT_CONFIRM",
-    "DEFAULT_CURVE_ALPHA",
-    "DEFAULT_HORIZON_S",
-    "DEFAULT_LADDER_ALPHA",
-    "DEFAULT_LEAD_WINDOWS",
-    "DEFAULT_LEVEL",
-    "DEFAULT_N_WINDOWS",
-    "DEFAULT_WINDOW_S",
-    "MAX_SAMPLES_PER_WINDOW",
-    "MIN_SAMPLES_PER_WINDOW",
+    *_settings.__all__,
     "Alert",
     "AlertKind",
     "CrossingAlert",
     "CrossingDetector",
-    "CrossingSettings",
     "LineStats",
     "PairCheck",
     "ResampledBearings",
     "SlidingLineFit",
-    "crossing_settings",
     "detect_crossings",
     "estimate_period",
     "evaluate_pairs",

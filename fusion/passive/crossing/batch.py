@@ -12,12 +12,13 @@ from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from fusion.passive.bearing_grid import estimate_period, resample_bearings
 from fusion.passive.crossing.detector import CrossingDetector
 from fusion.passive.crossing.types import CrossingAlert
 
-__all__ = ["detect_crossings"]
+__all__ = ["detect_crossings", "step_grid", "warn_unpaired"]
 
 logger = logging.getLogger(__name__)
 
@@ -25,25 +26,8 @@ logger = logging.getLogger(__name__)
 def detect_crossings(
     table: Any,
     *,
-    J: int = 10,
     K: float | None = None,
-    horizon_s: float | None = None,
-    min_rate_diff_deg_per_s: float = 1e-9,
-    merge_window_s: float | None = None,
-    max_gap_s: float | None = None,
-    n_windows: int = 1,
-    level: float | None = 0.95,
-    max_interval_s: float | None = None,
-    lead_windows: float = 1.0,
-    confirm: int = 1,
-    curve_alpha: float | None = None,
-    split_repeats: bool = True,
-    ladder_alpha: float | None = None,
-    revise: bool = False,
-    confirm_overlap: bool = False,
-    calibrate: bool = False,
-    curvature: bool = False,
-    confirm_lead_windows: float | None = None,
+    **options: Any,
 ) -> list[CrossingAlert]:
     """Crossing alerts of a whole bearing table (batch entry point).
 
@@ -52,14 +36,13 @@ def detect_crossings(
     table : fusion.io.Table or mapping
         Columns ``track_id`` (int), ``time`` (s) and ``bearing_deg`` (deg), shape (m,) each;
         rows with ``track_id`` -1 (unknown origin) are ignored.
-    J : int, optional
-        Samples per least-squares window.
     K : float, optional
         Sample period, s (default: the median time step within tracks).
-    horizon_s, min_rate_diff_deg_per_s, merge_window_s, max_gap_s, n_windows, level, \
-max_interval_s, lead_windows, confirm, curve_alpha, split_repeats, ladder_alpha, revise, \
-confirm_overlap, calibrate, curvature, confirm_lead_windows
-        As in :class:`CrossingDetector` (`max_gap_s` also bounds interpolation gaps).
+    **options
+        The other keywords of :class:`CrossingDetector` (``J``, ``horizon_s``,
+        ``merge_window_s``, ``max_gap_s``, ``n_windows``, ``level``, ``lead_windows``,
+        ``confirm``, ``curve_alpha``, ...), with its defaults; `max_gap_s` also bounds
+        interpolation gaps.
 
     Returns
     -------
@@ -82,26 +65,48 @@ confirm_overlap, calibrate, curvature, confirm_lead_windows
         logger.info("ignoring %d detection(s) of unknown origin (track_id -1)", n_unknown)
     keep = tid >= 0
     period = estimate_period(tid[keep], np.asarray(cols["time"])[keep]) if K is None else K
-    det = CrossingDetector(
-        J=J, K=period, horizon_s=horizon_s, min_rate_diff_deg_per_s=min_rate_diff_deg_per_s,
-        merge_window_s=merge_window_s, max_gap_s=max_gap_s, n_windows=n_windows, level=level,
-        max_interval_s=max_interval_s, lead_windows=lead_windows, confirm=confirm,
-        curve_alpha=curve_alpha, split_repeats=split_repeats, ladder_alpha=ladder_alpha,
-        revise=revise, confirm_overlap=confirm_overlap,
-        calibrate=calibrate, curvature=curvature, confirm_lead_windows=confirm_lead_windows,
-    )
+    det = CrossingDetector(K=period, **options)
     rs = resample_bearings(
         tid, cols["time"], cols["bearing_deg"], period_s=det.K, max_gap_s=det.max_gap_s
     )
-    for k in np.unique(rs.track_id):
-        if np.sum(rs.track_id == k) < det.J:
-            logger.warning("track %d has fewer than J=%d samples on the grid: never paired", k, det.J)
+    warn_unpaired(det, rs.track_id)
+    return step_grid(det, rs.track_id, rs.time, rs.bearing_deg)
+
+
+def step_grid(
+    det: CrossingDetector,
+    track_id: NDArray[np.int64],
+    time: NDArray[np.float64],
+    bearing_deg: NDArray[np.float64],
+) -> list[CrossingAlert]:
+    """One :meth:`CrossingDetector.step` per grid time of grid rows sorted by time.
+
+    Parameters
+    ----------
+    det : CrossingDetector
+        The detector, stepped in place.
+    track_id, time, bearing_deg : ndarray, shape (m,)
+        Grid rows (:func:`resample_bearings` or :class:`~fusion.passive.crossing.stream.StreamingGrid`),
+        sorted by time.
+
+    Returns
+    -------
+    list of CrossingAlert
+        The alerts of the steps, in order.
+    """
     alerts: list[CrossingAlert] = []
-    if rs.time.size == 0:
+    if time.size == 0:
         return alerts
-    bounds = np.flatnonzero(np.diff(rs.time)) + 1
+    bounds = np.flatnonzero(np.diff(time)) + 1
     starts = np.concatenate([[0], bounds])
-    stops = np.concatenate([bounds, [rs.time.size]])
+    stops = np.concatenate([bounds, [time.size]])
     for s0, s1 in zip(starts.tolist(), stops.tolist(), strict=True):
-        alerts += det.step(float(rs.time[s0]), rs.track_id[s0:s1], rs.bearing_deg[s0:s1])
+        alerts += det.step(float(time[s0]), track_id[s0:s1], bearing_deg[s0:s1])
     return alerts
+
+
+def warn_unpaired(det: CrossingDetector, track_id: NDArray[np.int64]) -> None:
+    """Warn of each track with fewer than ``det.J`` samples among grid rows `track_id`."""
+    tracks, counts = np.unique(track_id, return_counts=True)
+    for k in tracks[counts < det.J].tolist():
+        logger.warning("track %d has fewer than J=%d samples on the grid: never paired", k, det.J)

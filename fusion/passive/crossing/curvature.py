@@ -59,11 +59,8 @@ def curvature_stats(
 
     Parameters
     ----------
-    tau, value, valid : ndarray, shape (n, J)
-        The windows (:meth:`fusion.passive.line_fit.SlidingLineFit.windows`): times from the
-        current sample, s, unwrapped bearings, rad, and which entries hold a sample.
-    line : LineStats
-        The same windows' lines at the current sample.
+    tau, value, valid, line
+        The windows and their lines, as in :func:`~fusion.passive.crossing.curve.curve_fits`.
 
     Returns
     -------

@@ -175,22 +175,7 @@ MAX_SAMPLES_PER_WINDOW = 30
 def crossing_settings(
     track_id: ArrayLike,
     time: ArrayLike,
-    *,
-    window_s: float | None = None,
-    horizon_s: float | None = None,
-    period_s: float | None = None,
-    J: int | None = None,
-    n_windows: int = DEFAULT_N_WINDOWS,
-    lead_windows: float = DEFAULT_LEAD_WINDOWS,
-    confirm: int = DEFAULT_CONFIRM,
-    level: float = DEFAULT_LEVEL,
-    curve_alpha: float | None = DEFAULT_CURVE_ALPHA,
-    ladder_alpha: float | None = DEFAULT_LADDER_ALPHA,
-    revise: bool = DEFAULT_REVISE,
-    confirm_overlap: bool = DEFAULT_CONFIRM_OVERLAP,
-    calibrate: bool = DEFAULT_CALIBRATE,
-    curvature: bool = DEFAULT_CURVATURE,
-    confirm_lead_windows: float | None = DEFAULT_CONFIRM_LEAD,
+    **options: Any,
 ) -> CrossingSettings:
     """Window, horizon and grid period of a bearing table, in seconds, from the data.
 
@@ -198,20 +183,9 @@ def crossing_settings(
     ----------
     track_id, time : array_like, shape (m,)
         Track of each sample (negative ids are ignored) and sample times, s.
-    window_s : float, optional
-        Span of the shortest window, s (default :data:`DEFAULT_WINDOW_S`, or ``J K`` when `J`
-        is given).
-    horizon_s : float, optional
-        Prediction horizon, s (default :data:`DEFAULT_HORIZON_S`, at least the window).
-    period_s : float, optional
-        Grid period K, s (default: the median time step within tracks, made coarser when the
-        window would hold more than :data:`MAX_SAMPLES_PER_WINDOW` samples).
-    J : int, optional
-        Samples in the shortest window (default ``round(window_s / K)``, at least
-        :data:`MIN_SAMPLES_PER_WINDOW`).
-    n_windows, lead_windows, confirm, level, curve_alpha, \
-ladder_alpha, revise, confirm_overlap, calibrate, curvature, confirm_lead_windows
-        As in :class:`fusion.passive.crossing.CrossingDetector`.
+    **options
+        ``window_s``, ``horizon_s``, ``period_s``, ``J`` and the detector's options, as in
+        :func:`crossing_settings_from_steps` (with its defaults).
 
     Returns
     -------
@@ -235,12 +209,7 @@ ladder_alpha, revise, confirm_overlap, calibrate, curvature, confirm_lead_window
     step = estimate_period(tid[tid >= 0], tt[tid >= 0])
     ids = np.unique(tid[tid >= 0])
     track_span = float(np.median([np.ptp(tt[tid == k]) for k in ids]))
-    return crossing_settings_from_steps(
-        step, track_span, window_s=window_s, horizon_s=horizon_s, period_s=period_s, J=J,
-        n_windows=n_windows, lead_windows=lead_windows, confirm=confirm, level=level,
-        curve_alpha=curve_alpha, ladder_alpha=ladder_alpha,
-        revise=revise, confirm_overlap=confirm_overlap,
-        calibrate=calibrate, curvature=curvature, confirm_lead_windows=confirm_lead_windows)
+    return crossing_settings_from_steps(step, track_span, **options)
 
 
 def crossing_settings_from_steps(
@@ -272,9 +241,20 @@ def crossing_settings_from_steps(
         (:func:`~fusion.passive.bearing_grid.estimate_period`).
     track_span_s : float
         Median time span of the tracks, s.
-    window_s, horizon_s, period_s, J, n_windows, lead_windows, confirm, level, curve_alpha, \
+    window_s : float, optional
+        Span of the shortest window, s (default :data:`DEFAULT_WINDOW_S`, or ``J K`` when `J`
+        is given).
+    horizon_s : float, optional
+        Prediction horizon, s (default :data:`DEFAULT_HORIZON_S`, at least the window).
+    period_s : float, optional
+        Grid period K, s (default: the median time step within tracks, made coarser when the
+        window would hold more than :data:`MAX_SAMPLES_PER_WINDOW` samples).
+    J : int, optional
+        Samples in the shortest window (default ``round(window_s / K)``, at least
+        :data:`MIN_SAMPLES_PER_WINDOW`).
+    n_windows, lead_windows, confirm, level, curve_alpha, \
 ladder_alpha, revise, confirm_overlap, calibrate, curvature, confirm_lead_windows
-        As in :func:`crossing_settings`.
+        As in :class:`fusion.passive.crossing.CrossingDetector`.
 
     Returns
     -------

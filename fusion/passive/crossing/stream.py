@@ -23,21 +23,20 @@ again with that knowledge, which leaves nothing to assume.
 
 from __future__ import annotations
 
-import logging
 import math
-from collections.abc import Iterable, Iterator, Mapping
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from fusion._validation import check_grid
+from fusion.passive.crossing.batch import step_grid, warn_unpaired
 from fusion.passive.crossing.detector import CrossingDetector
 from fusion.passive.crossing.types import CrossingAlert
 
 __all__ = ["GridAssumptionBroken", "StreamingGrid", "detect_crossings_streamed", "scan_long_gaps"]
-
-logger = logging.getLogger(__name__)
 
 _TAU = 2.0 * np.pi
 
@@ -400,18 +399,8 @@ def detect_crossings_streamed(
     *,
     origin_s: float,
     next_knots: Mapping[int, Mapping[float, tuple[float, float]]] | None = None,
-    J: int = 10,
     K: float,
-    horizon_s: float | None = None,
-    min_rate_diff_deg_per_s: float = 1e-9,
-    merge_window_s: float | None = None,
-    max_gap_s: float | None = None,
-    n_windows: int = 1,
-    level: float | None = 0.95,
-    max_interval_s: float | None = None,
-    lead_windows: float = 1.0,
-    confirm: int = 1,
-    **more: float | bool | None,
+    **options: Any,
 ) -> list[CrossingAlert]:
     """Crossing alerts of a bearing table read in chunks (streaming entry point).
 
@@ -426,13 +415,11 @@ def detect_crossings_streamed(
     next_knots : mapping, optional
         :func:`scan_long_gaps` of the same rows: nothing assumed, never a
         :class:`GridAssumptionBroken`.
-    J, K, horizon_s, min_rate_diff_deg_per_s, merge_window_s, max_gap_s, n_windows, level, \
-max_interval_s, lead_windows, confirm
-        As in :func:`~fusion.passive.crossing.detect_crossings` (`K` required).
-    **more
-        ``curve_alpha``, ``split_repeats``, ``ladder_alpha``, ``revise``,
-        ``confirm_overlap``, ``calibrate``, ``curvature``, ``confirm_lead_windows`` of
-        :class:`CrossingDetector`.
+    K : float
+        Grid period, s.
+    **options
+        The other keywords of :class:`CrossingDetector`, as in
+        :func:`~fusion.passive.crossing.detect_crossings`.
 
     Returns
     -------
@@ -462,11 +449,7 @@ max_interval_s, lead_windows, confirm
     >>> sorted({a.kind.value for a in alerts})
     ['detected', 'predicted']
     """
-    det = CrossingDetector(
-        J=J, K=K, horizon_s=horizon_s, min_rate_diff_deg_per_s=min_rate_diff_deg_per_s,
-        merge_window_s=merge_window_s, max_gap_s=max_gap_s, n_windows=n_windows, level=level,
-        max_interval_s=max_interval_s, lead_windows=lead_windows, confirm=confirm, **more,
-    )
+    det = CrossingDetector(K=K, **options)
     grid = StreamingGrid(period_s=det.K, origin_s=origin_s, max_gap_s=det.max_gap_s,
                          next_knots=next_knots)
     alerts: list[CrossingAlert] = []
@@ -474,26 +457,11 @@ max_interval_s, lead_windows, confirm
 
     def steps(rows: tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.float64]]) -> None:
         ids_seen.append(rows[0])
-        for t, ids, bearings in _by_time(*rows):
-            alerts.extend(det.step(t, ids, bearings))
+        alerts.extend(step_grid(det, *rows))
 
     for tid, tt, bb in chunks:
         steps(grid.push(tid, tt, bb))
     steps(grid.finish())
-    tracks, counts = np.unique(np.concatenate(ids_seen), return_counts=True)
-    for k in tracks[counts < det.J].tolist():
-        logger.warning("track %d has fewer than J=%d samples on the grid: never paired", k, det.J)
+    warn_unpaired(det, np.concatenate(ids_seen))
     return alerts
 
-
-def _by_time(
-    ids: NDArray[np.int64], times: NDArray[np.float64], bearings: NDArray[np.float64]
-) -> Iterator[tuple[float, NDArray[np.int64], NDArray[np.float64]]]:
-    """Rows sorted by time, one grid time at a time."""
-    if times.size == 0:
-        return
-    bounds = np.flatnonzero(np.diff(times)) + 1
-    starts = np.concatenate([[0], bounds])
-    stops = np.concatenate([bounds, [times.size]])
-    for s0, s1 in zip(starts.tolist(), stops.tolist(), strict=True):
-        yield float(times[s0]), ids[s0:s1], bearings[s0:s1]
