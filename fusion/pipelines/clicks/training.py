@@ -14,7 +14,8 @@ With a ``source`` column the TDOA of each source is interpolated in time; withou
 labelled click in time is used. ``fusion simulate clicks`` writes such a file
 (``tdoa_labels.csv``) from its ground truth; an analyst writes one from manual picks.
 
-The shipped model (``fusion/clicks/data/validator_v1.npz``) comes from
+The shipped model (``fusion/clicks/data/validator_v2.npz``; ``validator_v1.npz`` before issue 17's
+ICI range) comes from
 :func:`simulated_training_set` over the tuning seeds named in
 ``benchmarks/bench_click_frontend.py``, with the simulator's assumptions varied
 (:func:`varied_scenario`).
