@@ -55,6 +55,7 @@ from fusion.clicks.validate_features import FEATURE_NAMES, default_freqs_hz, scm
 
 __all__ = [
     "DEFAULT_MODEL_PATH",
+    "V1_MODEL_PATH",
     "FEATURE_NAMES",
     "MODEL_FORMAT",
     "MODEL_VERSION",
@@ -71,9 +72,12 @@ logger = logging.getLogger(__name__)
 MODEL_FORMAT = "fusion.clicks.TdoaValidator"
 #: ``version`` key of a saved validator model this module reads and writes.
 MODEL_VERSION = 1
-#: Where the default model goes once trained on simulated SCM2s of the full chain (not yet
-#: present; installing it needs ``data/*.npz`` in the package data of ``fusion.clicks``).
-DEFAULT_MODEL_PATH = Path(__file__).parent / "data" / "validator_v1.npz"
+#: The shipped model: ``fusion train-validator --simulated 40`` (varied scenarios, mean ICIs
+#: over 0.2-1.0 s; docs/localization.md section 11).
+DEFAULT_MODEL_PATH = Path(__file__).parent / "data" / "validator_v2.npz"
+#: The model shipped before it (mean ICIs 0.25-0.6 s only), kept for the ablation
+#: ``fusion localize --validator .../validator_v1.npz --llr-threshold 0``.
+V1_MODEL_PATH = Path(__file__).parent / "data" / "validator_v1.npz"
 
 
 # --------------------------------------------------------------------------------------------

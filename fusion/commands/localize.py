@@ -136,6 +136,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--keep-aliases", action="store_true",
                    help="keep TDOAs that re-pair the clicks of a stronger TDOA of their pair one "
                         "click apart (default: they fail validation: one delay per click train)")
+    p.add_argument("--strong-echoes-only", action="store_true",
+                   help="count a sensor's bottom echo only at the full evidence threshold "
+                        "(default: once one sensor shows one, weaker evidence on the others "
+                        "counts too and widens the echo window)")
     p.add_argument("--no-refine", action="store_true",
                    help="keep TDOAs on the smoothed-click-map grid (no waveform refinement)")
     p.add_argument("--method", choices=("competition", "eq18", "eq17", "lsq", "none"),
@@ -206,7 +210,8 @@ def _decisions(args: argparse.Namespace, det_opts: dict, settings, source, array
         first, source.fs, array, detector=detector, settings=settings,
         estimate_replica=args.replica is None, estimate_band=args.band is None,
         replica_source=str(args.replica) if given else "generic",
-        span=f"the first {n / source.fs:.3g} s of {Path(source.paths[0]).name}")
+        span=f"the first {n / source.fs:.3g} s of {Path(source.paths[0]).name}",
+        weak_echoes=not args.strong_echoes_only)
 
 
 class _AudioPaths(argparse.Action):
@@ -299,9 +304,9 @@ def _run_key(args: argparse.Namespace, audio: list) -> str:
     """Fingerprint of the inputs and of every option that changes the result (resume key)."""
     from fusion import __version__
     from fusion.clicks.replica import GENERIC_PATH
+    from fusion.clicks.validate import DEFAULT_MODEL_PATH as shipped_validator
     from fusion.scale import file_identity, fingerprint
 
-    shipped_validator = Path(__file__).resolve().parents[1] / "clicks" / "data" / "validator_v1.npz"
     return fingerprint({
         "version": __version__,
         "audio": [file_identity(p) for p in audio],
@@ -312,7 +317,8 @@ def _run_key(args: argparse.Namespace, audio: list) -> str:
         "generic_replica": file_identity(GENERIC_PATH, content=True),
         "options": {k: getattr(args, k) for k in (
             "window", "hop", "band", "min_centre_freq", "detect_threshold", "llr_threshold",
-            "no_refine", "keep_aliases", "max_tdoa_rate", "method", "chunk", "surface_paths", "sea_floor_z",
+            "no_refine", "keep_aliases", "strong_echoes_only", "max_tdoa_rate", "method", "chunk",
+            "surface_paths", "sea_floor_z",
             "candidates", "min_source_tdoas")},
     })
 

@@ -93,6 +93,7 @@ def decide_from_recording(
     estimate_band: bool = True,
     replica_source: str = "generic",
     span: str = "the recording",
+    weak_echoes: bool = True,
 ) -> RecordingDecisions:
     """Decide the replica, the detection band, the echo suppression and the sea floor from a
     recording's start.
@@ -118,6 +119,10 @@ def decide_from_recording(
         What the starting replica is, for the notes (e.g. a file name).
     span : str, optional
         How to name `samples` in the notes (e.g. "the first 60 s of a.flac").
+    weak_echoes : bool, optional
+        Once one channel shows a bottom echo, read the weaker echo evidence of the others
+        (:attr:`fusion.clicks.echoes.BottomEchoes.heard`) for the majority and the echo window
+        (False: every channel needs the full threshold, ``--strong-echoes-only``).
 
     Returns
     -------
@@ -149,14 +154,15 @@ def decide_from_recording(
     det, band_note, band_record = _band(det, est if estimate_band else None,
                                         given=not estimate_band, span=span)
 
-    echoes = bottom_echoes(x, fs, det.detect(x, fs), band_hz=det.band_hz)
+    echoes = bottom_echoes(x, fs, det.detect(x, fs), band_hz=det.band_hz, weak=weak_echoes)
     given = settings is not None and settings.sea_floor_z is not None
     floor_record: dict[str, Any] = {
         "source": "given" if given else "none",
         "sea_floor_z": settings.sea_floor_z if given else None,
         "near_floor": echoes.near_floor,
         "bottom_echo_z": [None if not np.isfinite(v) else round(float(v), 2) for v in echoes.z],
-        "bottom_echo_lag_s": [None if not np.isfinite(v) else float(v) for v in echoes.lag_s]}
+        "bottom_echo_lag_s": [None if not np.isfinite(v) else float(v) for v in echoes.lag_s],
+        "bottom_echo_heard": [bool(v) for v in echoes.heard], "weak_echoes": bool(weak_echoes)}
     notes = [replica_note, band_note]
     below = bool(np.all(sensors.positions[:, 2] < SEA_SURFACE_Z))
     if echoes.near_floor:

@@ -7,7 +7,13 @@ import json
 import numpy as np
 import pytest
 
-from fusion.clicks.echoes import FLOOR_MARGIN_M, bottom_echoes
+from fusion.clicks.echoes import (
+    ECHO_Z,
+    FLOOR_MARGIN_M,
+    WEAK_ECHO_Z,
+    bottom_echoes,
+    echo_window,
+)
 from fusion.clicks.types import ChannelClicks
 
 FS = 96_000.0
@@ -139,3 +145,47 @@ def test_echo_window_drops_the_echoes_and_keeps_the_clicks():
         assert _echoes_after(p, c) >= 0.9 * c.times_s.size  # without the window: clicks too
     with pytest.raises(ValueError, match="echo_window_s"):
         ClickDetector(echo_window_s=(0.01, 0.001))
+
+
+def _sparse_audio(lags, levels_db, *, seed):
+    """Clicks about every 0.8 s (37 in 30 s) on each channel, each followed by an echo at the
+    channel's lag and level (None: no echo)."""
+    rng = np.random.default_rng(seed)
+    x = rng.normal(0.0, 0.02, (int(30 * FS), len(lags)))
+    clicks = []
+    for ch, (lag, db) in enumerate(zip(lags, levels_db, strict=True)):
+        times = np.cumsum(rng.uniform(0.75, 0.85, 40)) + 0.1
+        times = times[times < 29.8]
+        for t in times:
+            i = int(round(t * FS))
+            x[i - 16:i + 17, ch] += _click()
+            if db is not None:
+                j = i + int(round(lag * FS))
+                x[j - 16:j + 17, ch] += 10 ** (db / 20) * _click()
+        clicks.append(ChannelClicks(ch, times, np.ones(times.size), np.full(times.size, 3e4)))
+    return x, clicks
+
+
+def test_weak_echoes_count_once_one_channel_shows_an_echo():
+    """One channel's echo at -10 dB, the others' at -33 dB, 37 clicks each: the others' averaged
+    echoes stand 5-8 robust sigmas above the control, under the full threshold. With the weak
+    evidence read (the default) the array is near the floor and the echo window covers the
+    longest lag (14 ms); with every channel at the full threshold (``weak=False``, ``fusion
+    localize --strong-echoes-only``) only one channel of four shows an echo: no floor, no
+    suppression. Channels with no echo at all stay unheard."""
+    lags = np.array([3e-3, 6e-3, 9e-3, 14e-3])
+    x, clicks = _sparse_audio(lags, [-10.0, -33.0, -33.0, -33.0], seed=2)
+    e = bottom_echoes(x, FS, clicks)
+    assert e.present.tolist() == [True, False, False, False]
+    assert np.all((e.z[1:] >= WEAK_ECHO_Z) & (e.z[1:] < ECHO_Z))
+    assert e.heard.all() and e.near_floor
+    assert np.allclose(e.lag_s, lags, atol=5e-5)
+    lo, hi = echo_window(e)
+    assert hi == pytest.approx(2 * e.lag_s[3]) and hi > lags[3]
+    strict = bottom_echoes(x, FS, clicks, weak=False)
+    assert np.array_equal(strict.z, e.z) and not strict.near_floor
+    assert strict.heard.tolist() == [True, False, False, False]
+    for seed in (0, 1, 2):  # no echo on the other channels: only the first one hears one
+        x, clicks = _sparse_audio(lags, [-10.0, None, None, None], seed=seed)
+        e = bottom_echoes(x, FS, clicks)
+        assert e.heard.tolist() == [True, False, False, False] and not e.near_floor

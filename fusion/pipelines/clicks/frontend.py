@@ -89,12 +89,13 @@ LLR_THRESHOLD = 0.0
 
 
 def default_validator(threshold: float | None = None) -> TdoaValidator:
-    """The validator shipped with the package (``fusion/clicks/data/validator_v1.npz``), at its
-    own threshold or at `threshold` (e.g. :data:`LLR_THRESHOLD`)."""
+    """The validator shipped with the package (:data:`fusion.clicks.validate.DEFAULT_MODEL_PATH`,
+    ``validator_v2.npz``), at its own threshold or at `threshold` (e.g. :data:`LLR_THRESHOLD`)."""
     import dataclasses
-    from pathlib import Path
 
-    v = TdoaValidator.load(Path(__file__).resolve().parents[2] / "clicks" / "data" / "validator_v1.npz")
+    from fusion.clicks.validate import DEFAULT_MODEL_PATH
+
+    v = TdoaValidator.load(DEFAULT_MODEL_PATH)
     return v if threshold is None else dataclasses.replace(v, threshold=float(threshold))
 
 
