@@ -10,7 +10,7 @@ scores. Methods:
 
 * ``project``: ``fusion localize`` with its defaults, run in this process on the written files
   exactly as a user runs it (replica estimated from the recording, paths decided per window;
-  no sea floor unless ``--sea-floor deepest``, then ``--sea-floor-z``);
+  no sea floor unless ``--sea-floor deepest``, then ``--sea-floor-z-m``);
 * ``baseline``: :func:`click_baseline.localize_recording` (``benchmarks/click_baseline.py``).
 
 Scores, per window, as ``benchmarks/bench_localize_e2e.py`` counts them: a whale's truth is
@@ -133,7 +133,7 @@ PROJECT_OPTIONS: list[str] = []
 
 
 def run_project(folder: Path, audio_path: Path, sensors, sea_floor_z):
-    """``fusion localize`` as a user runs it (its defaults; ``--sea-floor-z`` when given) on
+    """``fusion localize`` as a user runs it (its defaults; ``--sea-floor-z-m`` when given) on
     the written files: per window (t_start, t_end, sources, flagged, valid TDOAs with t)."""
     import contextlib
     import io
@@ -144,7 +144,7 @@ def run_project(folder: Path, audio_path: Path, sensors, sea_floor_z):
     argv = ["localize", "--audio", str(audio_path), "--array", str(folder / "array.json"),
             "--out", str(out), "--quiet"]
     if sea_floor_z is not None:
-        argv += ["--sea-floor-z", repr(sea_floor_z)]
+        argv += ["--sea-floor-z-m", repr(sea_floor_z)]
     argv += PROJECT_OPTIONS
     with contextlib.redirect_stderr(io.StringIO()):
         if fusion_main(argv) != 0:

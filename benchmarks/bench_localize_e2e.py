@@ -17,7 +17,7 @@ The localizer is that of ``fusion localize``'s defaults
 (:class:`fusion.pipelines.localization.LocalizerSettings`, i.e.
 :func:`fusion.pipelines.localization.whale_localizer` for these arrays below the surface): TDOAs
 read along direct and surface-reflected paths (the surface at z = 0), and, with
-``--water-column bottom`` (default; ``fusion localize --sea-floor-z``), the sea floor at the
+``--water-column bottom`` (default; ``fusion localize --sea-floor-z-m``), the sea floor at the
 deepest hydrophone (the simulated arrays are bottom-mounted: what a user
 knows of the deployment, not of the whales). ``competition-direct`` is the competition reading
 direct paths only, with the same water column (``--direct-only``, the earlier default).
@@ -93,7 +93,7 @@ def scenario(seed: int, n_sources: int, snr_db: float, duration: float, snr_def:
 def localizer_for(method: str, sensors, water_column: str) -> LocalizerSettings:
     """The ``fusion localize`` settings benchmarked as `method` for an array (module docstring).
 
-    ``competition`` with ``--water-column bottom`` is ``fusion localize --sea-floor-z Z`` (Z the
+    ``competition`` with ``--water-column bottom`` is ``fusion localize --sea-floor-z-m Z`` (Z the
     deepest hydrophone); ``competition-direct`` adds ``--direct-only``, the others ``--method``.
     """
     bottom = float(np.min(sensors.positions[:, 2])) if water_column == "bottom" else None
