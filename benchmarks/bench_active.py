@@ -195,38 +195,43 @@ def _grid_variants() -> dict:
         "motion_recent_half": {"motion_recent": True},              # --motion-recent-half
         "no_track_score": {"confirm_llr": None},                    # --no-track-score (M-of-N)
         "kalman": {"mode": "kalman", "triplet_speed": True},        # --mode kalman
+        # --intensity-leave-one-out --confirm-llr 5 (the pilot run with the same options)
+        "leave_one_out": {"intensity_leave_one_out": True, "confirm_llr": 5.0,
+                          "pilot_same": True},
     }
 
 
-def bench_grid(seeds) -> dict:
-    """Coverage and false confirmed tracks per (P_D, clutter) cell of the varied scenarios."""
-    variants = _grid_variants()
+def bench_grid(seeds, cells=None, names=None) -> dict:
+    """Coverage and false confirmed tracks per (P_D, clutter) cell of the varied scenarios
+    (`cells`: (P_D, clutter) pairs, default the whole grid; `names`: variants, default all)."""
+    variants = {k: v for k, v in _grid_variants().items() if names is None or k in names}
     out: dict = {name: {} for name in variants}
-    for pd in GRID_PD:
-        for cl in GRID_CLUTTER:
-            acc = {name: ([], []) for name in variants}
-            for s in seeds:
-                sc = simulate_varied(s, target_pd=pd, clutter_per_receiver=cl)
-                pings = pings_from_columns(sc.detections)
-                fitted = fitted_options(pings)
-                triplet = track_settings(pings).tracker_options()
-                for name, kw in variants.items():
-                    kw = dict(kw)
-                    if kw.pop("triplet_speed", False):
-                        fitted_here = triplet
-                    else:
-                        fitted_here = fitted
-                    score = score_tracks(
-                        Tracker(**{**fitted_here, **kw}).run(pings).columns(), sc.truth)
-                    acc[name][0].append(score.coverage)
-                    acc[name][1].append(score.false_tracks)
-            for name, (cov, false) in acc.items():
-                out[name][f"pd{pd:g}_clutter{cl:g}"] = {
-                    "coverage": round(float(np.mean(cov)), 3),
-                    "coverage_worst_decile": round(_worst(cov, False), 3),
-                    "false_tracks_per_run": round(float(np.mean(false)), 3),
-                    "max_false_tracks": int(np.max(false))}
-            print(f"grid P_D {pd} clutter {cl} done", file=sys.stderr, flush=True)
+    for pd, cl in (cells or _cells(None)):
+        acc = {name: ([], []) for name in variants}
+        for s in seeds:
+            sc = simulate_varied(s, target_pd=pd, clutter_per_receiver=cl)
+            pings = pings_from_columns(sc.detections)
+            fitted = fitted_options(pings)
+            triplet = track_settings(pings).tracker_options()
+            for name, kw in variants.items():
+                kw = dict(kw)
+                if kw.pop("triplet_speed", False):
+                    fitted_here = triplet
+                elif kw.pop("pilot_same", False):
+                    fitted_here = fitted_tracker_options(pings, **kw)
+                else:
+                    fitted_here = fitted
+                score = score_tracks(
+                    Tracker(**{**fitted_here, **kw}).run(pings).columns(), sc.truth)
+                acc[name][0].append(score.coverage)
+                acc[name][1].append(score.false_tracks)
+        for name, (cov, false) in acc.items():
+            out[name][f"pd{pd:g}_clutter{cl:g}"] = {
+                "coverage": round(float(np.mean(cov)), 3),
+                "coverage_worst_decile": round(_worst(cov, False), 3),
+                "false_tracks_per_run": round(float(np.mean(false)), 3),
+                "max_false_tracks": int(np.max(false))}
+        print(f"grid P_D {pd} clutter {cl} done", file=sys.stderr, flush=True)
     return out
 
 
@@ -353,6 +358,9 @@ def main(argv=None) -> None:
                         "variants (benchmarks/_stonesoup_tracks.py)")
     p.add_argument("--cells", default=None,
                    help="with --grid: only these P_D/clutter cells, e.g. '0.4/10,0.9/2'")
+    p.add_argument("--variants", default=None,
+                   help="with --grid (fusion track): only these variants, comma separated, "
+                        "e.g. 'fuzzy,leave_one_out' (default all)")
     p.add_argument("--stonesoup-min-points", type=int, default=STONESOUP_DEFAULTS["min_points"],
                    help="updates of a holding track that confirm it")
     p.add_argument("--stonesoup-max-misses", type=float,
@@ -396,10 +404,18 @@ def main(argv=None) -> None:
             if args.report else (GRID_TUNING_SEEDS[0] if args.first_seed ==
                                  TUNING_SEEDS["varied"][0] else args.first_seed, args.seeds)
         logging.getLogger("fusion.active.fuzzy").setLevel(logging.ERROR)
-        grid = bench_grid(range(first, first + n))
-        fz = grid["fuzzy"]
-        ok = {k: (v["coverage"] >= (0.8 if k.startswith("pd0.4_") else 0.9)
-                  and v["false_tracks_per_run"] <= 1) for k, v in fz.items()}
+        try:
+            cells = _cells(args.cells)
+        except ValueError:
+            p.error(f"--cells must be P_D/clutter pairs like '0.4/10,0.9/2', got {args.cells!r}")
+        names = None if args.variants is None else args.variants.split(",")
+        unknown = set(names or ()) - set(_grid_variants())
+        if unknown:
+            p.error(f"--variants: unknown {sorted(unknown)}; known: {sorted(_grid_variants())}")
+        grid = bench_grid(range(first, first + n), cells, names)
+        ok = {name: {k: (v["coverage"] >= (0.8 if k.startswith("pd0.4_") else 0.9)
+                         and v["false_tracks_per_run"] <= 1) for k, v in g.items()}
+              for name, g in grid.items()}
         result = {"scenarios": "varied grid", "seeds_per_cell": [first, first + n - 1],
                   "grid_tuning_seeds": GRID_TUNING_SEEDS, "grid_report_seeds": GRID_REPORT_SEEDS,
                   "grid": grid, "targets_met": ok}

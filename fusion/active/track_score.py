@@ -93,6 +93,10 @@ class TrackScorer:
     score_evidence : bool, optional
         Add the classifier score's likelihood ratio to each hit (default True; see
         :meth:`score_delta`), when the detections carry a ``score``.
+    leave_one_out : bool, optional
+        The estimated clutter intensity at a detection leaves out that detection's own kernel
+        (:meth:`fusion.active.clutter.intensity.ClutterIntensity.self_intensity`; default
+        False): the leave-one-out kernel estimate.
 
     Examples
     --------
@@ -112,6 +116,7 @@ class TrackScorer:
         prior_hits: float = 7.0,
         prior_misses: float = 3.0,
         score_evidence: bool = True,
+        leave_one_out: bool = False,
     ) -> None:
         if not (np.isfinite(confirm_llr) and np.isfinite(delete_llr)) or delete_llr >= confirm_llr:
             raise ValueError(f"need finite delete_llr < confirm_llr, got {delete_llr!r}, "
@@ -132,6 +137,7 @@ class TrackScorer:
         self.prior_hits = float(prior_hits)
         self.prior_misses = float(prior_misses)
         self.score_evidence = bool(score_evidence)
+        self.leave_one_out = bool(leave_one_out)
         self.reset()
 
     def reset(self) -> None:
@@ -218,6 +224,10 @@ class TrackScorer:
         keep = np.ones(pts.shape[0], bool) if clutter is None else np.asarray(clutter, bool)
         est.update(pts[keep], None if cov is None else np.asarray(cov, float)[keep])
         lam = est.intensity(pts)
+        if self.leave_one_out and pts.shape[0]:
+            added = keep.copy()
+            added[keep] = est.last_kept
+            lam[added] = np.maximum(lam[added] - est.self_intensity(), est.min_intensity)
         if hotspots is not None and len(hotspots) and pts.shape[0]:
             c = np.zeros((pts.shape[0], 2, 2)) if cov is None else np.asarray(cov, float)
             S = hotspots.covariances[None] + c[:, None]                  # (n, h, 2, 2)

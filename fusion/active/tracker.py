@@ -162,6 +162,8 @@ class Tracker:
     coast_probability : float, optional
         Confirmed tracks coast for :func:`fusion.active.lifecycle.coast_misses` misses
         (default 0.01); None: `max_misses`.
+    intensity_leave_one_out : bool, optional
+        Leave-one-out clutter intensity in the track score (default False; `TrackScorer`).
     shadow : bool, optional
         Fuzzy mode, monostatic sensors (detections with ``own_x, own_y`` and no ``rcv_x,
         rcv_y``): hold tentative tracks behind a near confirmed track (default True;
@@ -207,7 +209,7 @@ class Tracker:
         pd_from_tentative: bool = True,
         coast_probability: float | None = 0.01,
         shadow: bool = True,
-        shadow_extent_sigmas: float = 8.0,
+        shadow_extent_sigmas: float = 8.0, intensity_leave_one_out: bool = False,
     ) -> None:
         if mode not in ("fuzzy", "kalman"):
             raise ValueError(f"mode must be 'fuzzy' or 'kalman', got {mode!r}")
@@ -245,14 +247,13 @@ class Tracker:
         self.coast_probability = coast_probability
         self.scorer = (TrackScorer(confirm_llr=confirm_llr, delete_llr=delete_llr,
                                    detection_probability=detection_probability,
-                                   clutter_intensity=clutter_intensity,
-                                   score_evidence=score_evidence,
+                                   clutter_intensity=clutter_intensity, score_evidence=score_evidence,
+                                   leave_one_out=intensity_leave_one_out,
                                    intensity=ClutterIntensity(bandwidth_m=intensity_bandwidth_m))
                        if mode == "fuzzy" and confirm_llr is not None else None)
         self.motion_test = MotionTest(probability=motion_probability,
                                       min_speed_mps=min_speed_mps, recent=motion_recent)
-        self.shadow_test = (ShadowTest(position_sigma_m=position_sigma_m,
-                                       extent_sigmas=shadow_extent_sigmas)
+        self.shadow_test = (ShadowTest(position_sigma_m=position_sigma_m, extent_sigmas=shadow_extent_sigmas)
                             if mode == "fuzzy" and shadow else None)
         self.platform_test = (PlatformTest(probability=motion_probability, min_speed_mps=min_speed_mps)
                               if mode == "fuzzy" and reject_platform_fixed else None)

@@ -157,6 +157,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--clutter-density", type=number(float, gt=0), default=None,
                    help="clutter detections per m^2 per ping and receiver, for the track score "
                         "(default: estimated over the field from the detections)")
+    p.add_argument("--intensity-leave-one-out", action="store_true",
+                   help="the estimated clutter intensity at a detection leaves out the "
+                        "detection's own kernel (leave-one-out estimate; measured with "
+                        "--confirm-llr 5, see docs/tracking.md; default: off)")
     p.add_argument("--no-pilot-speed", dest="pilot_speed", action="store_false",
                    help="the speed prior (when --speed-sigma-mps is not given) stays the one of "
                         "straight-line triplets of detections (default: the median speed of the "

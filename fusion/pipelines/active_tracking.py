@@ -76,6 +76,7 @@ class TrackOptions:
     pilot_speed: bool = True
     pd_from_confirmed: bool = False
     coast_probability: float = 0.01
+    intensity_leave_one_out: bool = False
     shadow_test: bool = True
     shadow_extent_sigmas: float = 8.0
     motion_recent_half: bool = False
@@ -129,6 +130,7 @@ def tracker_from(opts: TrackOptions, st: TrackSettings, system: object | None) -
         max_misses=opts.max_misses, hold_stationary=not opts.confirm_stationary,
         pd_from_tentative=not opts.pd_from_confirmed,
         coast_probability=opts.coast_probability or None,
+        intensity_leave_one_out=opts.intensity_leave_one_out,
         motion_recent=opts.motion_recent_half, shadow=opts.shadow_test,
         shadow_extent_sigmas=opts.shadow_extent_sigmas,
         reject_platform_fixed=not opts.keep_platform_fixed,

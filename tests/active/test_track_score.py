@@ -123,3 +123,34 @@ def test_receiver_groups_split_by_geometry():
     assert [i.tolist() for _, i in groups] == [[0, 2], [1, 3]]
     assert [(k, i.tolist()) for k, i in receiver_groups(Ping(0, 0.0, np.zeros((2, 2))))] == \
         [(None, [0, 1])]
+
+
+def test_leave_one_out_intensity_equals_estimate_without_the_detection():
+    """With ``leave_one_out`` the clutter intensity at a detection of the ping is the kernel
+    estimate of the other remembered detections (cross-check: an estimator fed everything
+    but that detection), not raised by the detection's own kernel; without it the detection's
+    own kernel is added (on the first pings many times the clutter around it)."""
+    from fusion.active.clutter.intensity import ClutterIntensity
+
+    rng = np.random.default_rng(7)
+    pings = [rng.uniform(-10000, 10000, (4, 2)) for _ in range(5)]     # sparse clutter
+    key = None
+    loo = TrackScorer(leave_one_out=True)
+    plain = TrackScorer()
+    for xy in pings[:-1]:
+        loo.observe(key, xy, None)
+        plain.observe(key, xy, None)
+    last = pings[-1]
+    lam_loo = loo.observe(key, last, None)
+    lam_plain = plain.observe(key, last, None)
+    for j in range(last.shape[0]):
+        ref = ClutterIntensity()
+        for xy in pings[:-1]:
+            ref.update(xy)
+        ref.update(np.delete(last, j, axis=0))
+        expected = ref.intensity(last[j:j + 1])[0]
+        assert lam_loo[j] == pytest.approx(expected, rel=0.05, abs=2e-9)
+        # the detection's own kernel, 1 / (5 pings 2 pi 1000^2) = 3.2e-8 (to the grid's binning,
+        # a few per cent), dominates sparse clutter
+        assert lam_plain[j] - lam_loo[j] == pytest.approx(1 / (5 * 2 * np.pi * 1e6), rel=0.1)
+        assert lam_plain[j] > 3 * lam_loo[j]

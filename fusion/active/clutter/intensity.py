@@ -116,7 +116,10 @@ class ClutterIntensity:
                 raise ValueError("clutter intensity: one covariance per position")
             tr, det = c[:, 0, 0] + c[:, 1, 1], c[:, 0, 0] * c[:, 1, 1] - c[:, 0, 1] ** 2
             big = 0.5 * (tr + np.sqrt(np.maximum(tr * tr - 4 * det, 0.0)))  # largest eigenvalue
-            pts = pts[~(big > self.max_sigma_m**2)]
+            self.last_kept = ~(big > self.max_sigma_m**2)
+            pts = pts[self.last_kept]
+        else:
+            self.last_kept = np.ones(pts.shape[0], dtype=bool)
         self._pings.append(pts)
         if len(self._pings) > self.memory_pings:
             self._pings.pop(0)
@@ -146,6 +149,23 @@ class ClutterIntensity:
         dens = gaussian_filter(hist, self.bandwidth_m / cell, mode="constant", truncate=4.0)
         self._grid = (dens / (cell * cell * self.n_pings), lo, cell)
         return self._grid
+
+    def self_intensity(self) -> float:
+        """What one remembered detection adds to the estimate at its own position, per m^2
+        per ping: ``1 / (n_pings 2 pi (bandwidth^2 + cell^2 / 3))`` (the kernel's peak; the
+        cloud-in-cell binning and the bilinear reading each widen it by a tent of one cell,
+        variance ``cell^2 / 6`` per axis). 0 before any detection.
+
+        Subtracting it from :meth:`intensity` at a detection of the latest ping gives the
+        leave-one-out estimate there: the clutter intensity at a detection judged from the
+        other detections, not raised by the detection itself (on the first pings, where
+        ``n_pings`` is small, a detection's own kernel can be ten times the clutter around it).
+        """
+        grid = self._smoothed()
+        if grid is None:
+            return 0.0
+        cell = grid[2]
+        return 1.0 / (self.n_pings * 2.0 * np.pi * (self.bandwidth_m**2 + cell * cell / 3.0))
 
     def intensity(self, xy: ArrayLike) -> NDArray[np.float64]:
         """Clutter intensity at points, detections per m^2 per ping.
