@@ -7,8 +7,7 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from fusion.metrics.crossings import score_intervals
-from fusion.passive.crossing import CrossingDetector, crossing_settings, detect_crossings
+from fusion.passive.crossing import CrossingDetector
 from fusion.passive.crossing.calibration import ExtrapolationScale, holdout_errors
 
 
@@ -69,18 +68,6 @@ def test_revised_prediction_after_a_turn():
     assert not out[False][0].t_cross_low <= tc <= out[False][0].t_cross_high
 
 
-def _traffic_scores(seed: int, **options):
-    from fusion.simulate.bearings import simulate_traffic
-
-    sc = simulate_traffic(seed=seed)
-    cols = {"track_id": sc.track_id, "time": sc.time, "bearing_deg": sc.bearing_deg}
-    crossings = [(c.track_a, c.track_b, c.t_cross) for c in sc.crossings]
-    st = crossing_settings(sc.track_id, sc.time, **options)
-    alerts = detect_crossings(cols, **st.detector_options())
-    K = sc.sample_period_s
-    return score_intervals(alerts, crossings, tol_s=K, lead_min_s=K)
-
-
 def test_confirmation_needs_overlapping_intervals():
     """An accelerating bearing fitted by lines at a level too low for its lack of fit: the
     predicted crossing time moves from sample to sample by more than its interval. Counting
@@ -103,13 +90,13 @@ def test_confirmation_needs_overlapping_intervals():
     assert [a.kind for a in out[True]] == ["detected"]
 
 
-def test_calibrated_predictions_hold_their_interval_on_traffic():
+def test_calibrated_predictions_hold_their_interval_on_traffic(traffic_interval_scores):
     """Manoeuvring traffic (tuning seed 1): lines extrapolated half a window ahead miss more
     often than their covariance says; grown by the held-out factor, the intervals of the alerts
     hold the crossing at least 90 % of the time (measured 179 of 193, 92.7 %, against 245 of
     315, 77.8 %, without), at the price of most predictions (28 against 98)."""
-    cal = _traffic_scores(1, calibrate=True)
-    raw = _traffic_scores(1)
+    cal = traffic_interval_scores(1, calibrate=True)
+    raw = traffic_interval_scores(1)
     assert cal.coverage >= 0.9
     assert cal.coverage >= raw.coverage + 0.1
     assert cal.n_predicted < raw.n_predicted

@@ -6,8 +6,6 @@ from __future__ import annotations
 import numpy as np
 from numpy.testing import assert_allclose
 
-from fusion.metrics.crossings import score_intervals
-from fusion.passive.crossing import crossing_settings, detect_crossings
 from fusion.passive.crossing.curvature import curvature_stats, curvature_variance
 from fusion.passive.crossing.pairs import pair_intervals
 from fusion.passive.line_fit import SlidingLineFit
@@ -75,23 +73,11 @@ def test_curving_track_interval_holds_with_the_allowance():
     assert lo2[0] <= lo[0] and hi2[0] >= hi[0]
 
 
-def _traffic(seed: int, **options):
-    from fusion.simulate.bearings import simulate_traffic
-
-    sc = simulate_traffic(seed=seed)
-    cols = {"track_id": sc.track_id, "time": sc.time, "bearing_deg": sc.bearing_deg}
-    crossings = [(c.track_a, c.track_b, c.t_cross) for c in sc.crossings]
-    st = crossing_settings(sc.track_id, sc.time, **options)
-    alerts = detect_crossings(cols, **st.detector_options())
-    K = sc.sample_period_s
-    return score_intervals(alerts, crossings, tol_s=K, lead_min_s=K)
-
-
-def test_curvature_allowance_holds_more_intervals_on_traffic():
+def test_curvature_allowance_holds_more_intervals_on_traffic(traffic_interval_scores):
     """Manoeuvring traffic (tuning seed 0): with the allowance the alerts' intervals hold the
     crossing more often and as many crossings are predicted."""
-    with_c = _traffic(0, curvature=True)
-    without = _traffic(0, curvature=False)
+    with_c = traffic_interval_scores(0, curvature=True)
+    without = traffic_interval_scores(0, curvature=False)
     assert with_c.coverage >= without.coverage + 0.02
     assert with_c.n_predicted >= without.n_predicted - 2
 
