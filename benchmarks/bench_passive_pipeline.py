@@ -41,6 +41,7 @@ Usage::
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import sys
 import time
@@ -53,7 +54,7 @@ from fusion.passive.acquisition import Acquisition
 from fusion.passive.crossing import CrossingDetector
 from fusion.passive.quality import TrackQuality, TrackQualityIndicator
 from fusion.passive.tracker import BearingTracker
-from fusion.pipelines.passive import PassivePipeline, SmootherSettings
+from fusion.pipelines.passive import PassivePipeline, SmootherSettings, unit_noise_cubes
 from fusion.pipelines.passive.types import Click, scans_of
 from fusion.simulate.passive import PassiveScenario, random_targets, simulate_passive
 
@@ -72,6 +73,8 @@ def make_pipeline(a: argparse.Namespace) -> PassivePipeline:
 #: How the pipeline's crossing episodes were resolved, over all seeds run: ``multitrack`` or
 #: ``nearest: <why the graph's association was not used>`` (printed, never silent).
 RESOLUTIONS: dict[str, int] = {}
+#: Per seed run with ``--cube-scale`` or ``--normalize``: whether its cube was normalised.
+NORMALIZED: list[bool] = []
 
 
 def run_pipeline(sc: PassiveScenario, a: argparse.Namespace
@@ -192,6 +195,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--timing-scans", type=int, default=200)
     ap.add_argument("--timing-seed", type=int, default=7)
     ap.add_argument("--no-timing", action="store_true")
+    ap.add_argument("--cube-scale", type=float, default=1.0,
+                    help="multiply the simulated cubes' power by this (a beamformer's own scale; "
+                         "default 1: unit noise mean)")
+    ap.add_argument("--normalize", choices=("auto", "yes", "no"), default="auto",
+                    help="the cubes both chains read: normalised where their noise level is off "
+                         "unit (auto, as `fusion passive` by default), always, or never")
     a = ap.parse_args(argv)
     seeds = a.tuning_seeds if a.tuning else a.seeds
     t_start = time.perf_counter()
@@ -204,6 +213,12 @@ def main(argv: list[str] | None = None) -> int:
                                  crossing_rate_deg_per_min=tuple(a.crossing_rate))
         sc = simulate_passive(seed=seed, targets=targets, n_scans=a.scans, n_bins=N_BINS,
                               first_bin_hz=FIRST_BIN_HZ)
+        if a.cube_scale != 1.0 or a.normalize != "auto":
+            cube = dataclasses.replace(sc.cube, power=sc.cube.power * a.cube_scale)
+            (cube,), record, _ = unit_noise_cubes(
+                [cube], {"auto": None, "yes": True, "no": False}[a.normalize], [f"seed {seed}"])
+            NORMALIZED.append(record[f"seed {seed}"]["normalized"])
+            sc = dataclasses.replace(sc, cube=cube)
         sm, fi, _ = run_pipeline(sc, a)
         isl, _ = run_island(sc)
         smoothed.append(score_tracks(sm, sc))
@@ -223,6 +238,8 @@ def main(argv: list[str] | None = None) -> int:
         "pipeline_filtered_rmse_deg": summary(filtered)["rmse_deg"],
         "island": summary(island),
         "crossing_resolutions": dict(sorted(RESOLUTIONS.items())),
+        "cube_scale": a.cube_scale, "normalize": a.normalize,
+        "cubes_normalized": sum(NORMALIZED) if NORMALIZED else None,
     }
     if not a.no_timing:
         result["timing"] = timing(a)

@@ -19,7 +19,7 @@ import numpy as np
 
 from fusion._output import atomic_outputs
 from fusion.cli import DB_RANGE, MAX_SCANS_OPTION, emit, number, summary
-from fusion.io import Cube, read_cube, read_table, write_settings, write_table
+from fusion.io import read_cube, read_table, write_settings, write_table
 
 logger = logging.getLogger(__name__)
 
@@ -108,38 +108,6 @@ def _read_clicks(path: Path) -> list:
         raise ValueError(f"{path}: {e}") from None
 
 
-def _normalized(cube: Cube) -> Cube:
-    from fusion.passive.acquisition import normalize_spectra
-
-    pool = min(60, cube.n_scans)
-    return Cube(power=normalize_spectra(cube.power, pool_scans=pool), freqs=cube.freqs,
-                scan_period=cube.scan_period, aperture=cube.aperture,
-                sound_speed=cube.sound_speed)
-
-
-def _normalize_decided(cubes: list[Cube], given: bool | None,
-                       paths: list) -> tuple[list[Cube], dict, list[str]]:
-    """The cubes the tracker reads, normalised where given or where their noise level says so;
-    what was decided (written beside the output) and its lines (printed when the run succeeds)."""
-    from fusion.passive.acquisition.normalise import UNIT_NOISE_TOLERANCE, noise_mean_level
-
-    out, record, notes = [], {}, []
-    for path, cube in zip(paths, cubes, strict=True):
-        if given is None:
-            level = noise_mean_level(cube.power)
-            apply = not 1.0 / UNIT_NOISE_TOLERANCE <= level <= UNIT_NOISE_TOLERANCE
-            notes.append(f"{path}: median noise level {level:.3g} -> "
-                         + ("normalised to unit noise mean" if apply else
-                            "already at unit noise mean, used as read")
-                         + " (--normalize, --no-normalize)")
-            record[str(path)] = {"normalized": apply, "noise_level": level, "source": "estimated"}
-        else:
-            apply = given
-            record[str(path)] = {"normalized": apply, "source": "given"}
-        out.append(_normalized(cube) if apply else cube)
-    return out, record, notes
-
-
 def run(args: argparse.Namespace) -> int:
     """Read the cubes and clicks, run the pipeline, write the tracks and alerts."""
     from fusion._progress import progress
@@ -147,11 +115,13 @@ def run(args: argparse.Namespace) -> int:
     from fusion.passive.crossing import CrossingDetector
     from fusion.passive.quality import TrackQualityIndicator
     from fusion.pipelines.passive import PassivePipeline, SmootherSettings
+    from fusion.pipelines.passive.noise import unit_noise_cubes
 
     if not args.snr1_db > args.snr0_db:
         raise ValueError(f"--snr1-db ({args.snr1_db:g}) must exceed --snr0-db ({args.snr0_db:g})")
     cubes = [read_cube(c) for c in args.cube]
-    cubes, normalised, notes = _normalize_decided(cubes, args.normalize, args.cube)
+    cubes, normalised, notes = unit_noise_cubes(cubes, args.normalize,
+                                                [str(c) for c in args.cube])
     n_scans = sum(c.n_scans for c in cubes)
     if n_scans < args.acq_scans:
         raise ValueError(f"the cubes hold {n_scans} scans, fewer than --acq-scans "

@@ -12,14 +12,17 @@ algorithm of its own and imports no I/O. A user builds a :class:`PassivePipeline
 
 Modules: the parts are
 :mod:`~fusion.pipelines.passive.pipeline` (the pipeline), :mod:`~fusion.pipelines.passive.crossing`
-(crossing episodes) and :mod:`~fusion.pipelines.passive.types` (scans and clicks in, results
-out). The algorithms it calls live in their stages: the peak measurement in
+(crossing episodes), :mod:`~fusion.pipelines.passive.types` (scans and clicks in, results
+out) and :mod:`~fusion.pipelines.passive.noise` (the cubes on the unit-noise scale the tracker
+reads, normalised where their noise level says so: :func:`unit_noise_cubes`). The algorithms
+it calls live in their stages: the peak measurement in
 :mod:`fusion.passive.measurement`, automatic starts and the acquisition prior in
 :mod:`fusion.passive.acquisition` (:class:`LineStarter` is re-exported here, as the pipeline's
 ``starter``), the fixed-lag graph of one track in :mod:`fusion.passive.smoothing.fixed_lag`.
 """
 
 from fusion.passive.acquisition.starts import LineStarter
+from fusion.pipelines.passive.noise import unit_noise_cubes
 from fusion.pipelines.passive.pipeline import PassivePipeline
 from fusion.pipelines.passive.types import (
     Click,
@@ -47,4 +50,5 @@ __all__ = [
     "TrackStart",
     "TrackUpdate",
     "scans_of",
+    "unit_noise_cubes",
 ]

@@ -7,9 +7,10 @@ import dataclasses
 import numpy as np
 import pytest
 
-from fusion.commands.passive import _normalize_decided, _normalized
 from fusion.io import Cube
 from fusion.passive.acquisition import noise_mean_level, normalize_spectra
+from fusion.pipelines.passive import unit_noise_cubes
+from fusion.pipelines.passive.noise import normalized
 
 
 def _cube(scale: float, seed: int = 0) -> Cube:
@@ -37,17 +38,17 @@ def test_passive_normalises_only_cubes_off_unit_noise():
     """By default a raw cube is normalised (as --normalize) and a normalised one is used as read
     (as --no-normalize); the decision is printed and recorded."""
     unit, raw = _cube(1.0), _cube(250.0, seed=1)
-    cubes, record, err = _normalize_decided([unit, raw], None, ["u.npz", "r.npz"])
+    cubes, record, err = unit_noise_cubes([unit, raw], None, ["u.npz", "r.npz"])
     assert cubes[0] is unit
-    np.testing.assert_array_equal(cubes[1].power, _normalized(raw).power)
+    np.testing.assert_array_equal(cubes[1].power, normalized(raw).power)
     assert [record[k]["normalized"] for k in ("u.npz", "r.npz")] == [False, True]
     assert record["r.npz"]["noise_level"] == pytest.approx(250.0, rel=0.05)
     assert err[0].startswith("u.npz: median noise level ") and "used as read" in err[0]
     assert err[1].startswith("r.npz: median noise level 25") and "normalised" in err[1]
     # given: no estimate, no line
-    forced, rec, lines = _normalize_decided([unit], True, ["u.npz"])
-    np.testing.assert_array_equal(forced[0].power, _normalized(unit).power)
+    forced, rec, lines = unit_noise_cubes([unit], True, ["u.npz"])
+    np.testing.assert_array_equal(forced[0].power, normalized(unit).power)
     assert rec == {"u.npz": {"normalized": True, "source": "given"}} and lines == []
-    kept, _, lines = _normalize_decided([dataclasses.replace(raw)], False, ["r.npz"])
+    kept, _, lines = unit_noise_cubes([dataclasses.replace(raw)], False, ["r.npz"])
     np.testing.assert_array_equal(kept[0].power, raw.power)
     assert lines == []
