@@ -32,9 +32,11 @@ def localized():
 
 
 @pytest.mark.xfail(strict=True, reason=(
-    "regression of validator_v2.npz (issue 17, docs/localization.md section 11): with the "
-    "library's defaults (the model's own threshold, no echo decisions) one fix of this "
-    "recording lies ~1 km from both whales; it passed with validator_v1.npz"))
+    "issue 17, docs/localization.md section 13: with validator_v2.npz more of whale 1's "
+    "direct-path TDOAs pass at the model's own threshold (pairs 1-3, 2-3: LLR 5.8-8 against "
+    "2.7-2.9 with v1), and the library's default chain, which reads every TDOA along surface "
+    "paths too (no path decisions from the data), fits them in windows 8 and 14 as a "
+    "surface-path source ~1 km from both whales; not a validator false pass"))
 def test_observable_sources_lie_on_a_whale(localized):
     """Every source flagged observable is within 5 m of one of the whales' tracks."""
     sc, lws = localized
