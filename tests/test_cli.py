@@ -116,3 +116,16 @@ def test_localize_help_default_drift_is_the_library_default():
     from fusion.commands import localize
 
     assert localize.MAX_TDOA_RATE == MAX_TDOA_RATE
+
+
+def test_localize_help_states_the_validation_threshold_in_use(run_cli):
+    """The --llr-threshold help names the library's LLR_THRESHOLD (the value the command uses)."""
+    import re
+
+    from fusion.pipelines.clicks import LLR_THRESHOLD
+
+    code, out, _ = run_cli("localize", "--help")
+    text = " ".join(out.split())
+    assert code == 0
+    assert re.search(r"--llr-threshold LLR_THRESHOLD validation threshold on the log-likelihood "
+                     rf"ratio \(default: {LLR_THRESHOLD:g},", text)

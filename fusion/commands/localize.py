@@ -126,8 +126,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "estimated from the strongest clicks of the first 60 s "
                         "of the recording, starting from the shipped one)")
     p.add_argument("--llr-threshold", type=float, default=None,
-                   help="validation threshold on the log-likelihood ratio (default: 0, even "
-                        "odds, with the shipped validator; a --validator file's own threshold)")
+                   help="validation threshold on the log-likelihood ratio (default: 0.5, just "
+                        "above even odds, with the shipped validator; a --validator file's own "
+                        "threshold)")
     p.add_argument("--max-tdoa-rate", type=number(float, ge=0, le=0.05), default=MAX_TDOA_RATE,
                    metavar="S_PER_S",
                    help="largest delay drift d tau/dt the click-map correlation compensates, s/s "
