@@ -279,6 +279,25 @@ def test_a_window_the_localizer_cannot_solve_says_why():
     assert good.note == "" and "not_localized" not in result_document([good])["windows"][0]
 
 
+def _localized_within_10_m(tmp_path, name, extra, truth):
+    """`fusion localize` on the recording in ``tmp_path/s`` with options `extra`: fixes within
+    10 m of a whale, false fixes (observable, not mirror-ambiguous) and windows."""
+    from fusion.cli import main
+    from fusion.metrics.localization import match_fixes, true_positions
+
+    out = tmp_path / f"{name}.json"
+    assert main(["localize", "--audio", str(tmp_path / "s" / "audio.flac"), "--array",
+                 str(tmp_path / "s" / "array.json"), "--out", str(out), "--quiet", *extra]) == 0
+    doc = json.loads(out.read_text())
+    n = false = 0
+    for w in doc["windows"]:
+        fixes = [[s["x"], s["y"], s["z"]] for s in w["sources"]
+                 if s["observable"] and not s["mirror_ambiguous"]]
+        m = match_fixes(true_positions(truth, 0.5 * (w["t_start"] + w["t_end"])), fixes)
+        n, false = n + m.found, false + m.false
+    return n, false, len(doc["windows"])
+
+
 def test_even_odds_validation_keeps_the_pairs_a_fix_needs(tmp_path):
     """`fusion localize` validates near even odds (LLR 0.5, section 13) with the shipped validator: on a range
     where two hydrophones hear the whale 2 km away (tuning seed 2), the model's own threshold
@@ -289,7 +308,6 @@ def test_even_odds_validation_keeps_the_pairs_a_fix_needs(tmp_path):
     on this seed too (10 of 10)."""
     from fusion.cli import main
     from fusion.clicks.validate import V1_MODEL_PATH, TdoaValidator
-    from fusion.metrics.localization import match_fixes, true_positions
     from fusion.pipelines.clicks import LLR_THRESHOLD
 
     v1 = TdoaValidator.load(V1_MODEL_PATH)
@@ -299,18 +317,7 @@ def test_even_odds_validation_keeps_the_pairs_a_fix_needs(tmp_path):
     truth = json.loads((tmp_path / "s" / "truth.json").read_text())
     found = {}
     for name, extra in (("even", []), ("model", ["--validator", str(V1_MODEL_PATH)])):
-        out = tmp_path / f"{name}.json"
-        assert main(["localize", "--audio", str(tmp_path / "s" / "audio.flac"), "--array",
-                     str(tmp_path / "s" / "array.json"), "--out", str(out), "--quiet",
-                     *extra]) == 0
-        doc = json.loads(out.read_text())
-        n = false = 0
-        for w in doc["windows"]:
-            fixes = [[s["x"], s["y"], s["z"]] for s in w["sources"]
-                     if s["observable"] and not s["mirror_ambiguous"]]
-            m = match_fixes(true_positions(truth, 0.5 * (w["t_start"] + w["t_end"])), fixes)
-            n, false = n + m.found, false + m.false
-        found[name] = (n, false, len(doc["windows"]))
+        found[name] = _localized_within_10_m(tmp_path, name, extra, truth)
     assert found["even"] == (10, 0, 10)
     assert found["model"][0] <= 8
 
@@ -321,7 +328,6 @@ def test_llr_bar_above_even_odds_drops_surface_echo_trains(tmp_path):
     pass and make false fixes; at the default bar (0.5, docs/localization.md section 13) every
     window is localized within 10 m and no fix is false."""
     from fusion.cli import main
-    from fusion.metrics.localization import match_fixes, true_positions
     from fusion.pipelines.clicks import LLR_THRESHOLD
 
     assert LLR_THRESHOLD == 0.5
@@ -331,17 +337,6 @@ def test_llr_bar_above_even_odds_drops_surface_echo_trains(tmp_path):
     truth = json.loads((tmp_path / "s" / "truth.json").read_text())
     found = {}
     for name, extra in (("default", []), ("even", ["--llr-threshold", "0"])):
-        out = tmp_path / f"{name}.json"
-        assert main(["localize", "--audio", str(tmp_path / "s" / "audio.flac"), "--array",
-                     str(tmp_path / "s" / "array.json"), "--out", str(out), "--quiet",
-                     *extra]) == 0
-        doc = json.loads(out.read_text())
-        n = false = 0
-        for w in doc["windows"]:
-            fixes = [[s["x"], s["y"], s["z"]] for s in w["sources"]
-                     if s["observable"] and not s["mirror_ambiguous"]]
-            m = match_fixes(true_positions(truth, 0.5 * (w["t_start"] + w["t_end"])), fixes)
-            n, false = n + m.found, false + m.false
-        found[name] = (n, false)
+        found[name] = _localized_within_10_m(tmp_path, name, extra, truth)[:2]
     assert found["default"] == (10, 0)
     assert found["even"][1] >= 1
