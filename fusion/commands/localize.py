@@ -60,8 +60,7 @@ import json
 import os
 from pathlib import Path
 
-from fusion.cli import emit, number
-from fusion.cli import summary as cli_summary
+from fusion.cli import emit, number, summary
 
 #: Default of --max-tdoa-rate (fusion.clicks.scm.MAX_TDOA_RATE, not imported here: --help stays
 #: light).
@@ -438,5 +437,5 @@ def run(args: argparse.Namespace) -> int:
     for note in [*decided.notes, *notes]:
         emit(note, err=True)
     for line in summaries:  # the command ends with its summary (one line per recording)
-        cli_summary("localize", line, err=True)
+        summary("localize", line, err=True)
     return 0

@@ -264,4 +264,4 @@ def noise_mean_level(power: ArrayLike, *, pool_scans: int = 60) -> float:
     normalised = normalize_spectra(p, pool_scans=p.shape[0] if p.ndim == 3 else pool_scans)
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = p / normalised
-    return float(np.nanmedian(ratio[np.isfinite(ratio)]))
+    return float(np.median(ratio[np.isfinite(ratio)]))
