@@ -5,13 +5,15 @@ Prints one JSON line of measured metrics (human lines on stderr)::
     python benchmarks/bench_smoothing.py [--seeds N] [--min-crossings M] [--tracks T]
     python benchmarks/bench_smoothing.py --association [--report]   # the ablation alone
     python benchmarks/bench_smoothing.py --association --seeds-from 9700 --seed-count 30 \
-        [--variants weighted ends nearest nn jpda]
+        [--variants weighted no-relink ends nearest nn jpda] [--slow-deg-per-min 6]
 
 The association ablation (``--association``, issue 18) runs on :data:`TUNING_SEEDS` (the seeds
 the association was developed on), with ``--report`` once on :data:`REPORT_SEEDS`, or on a
-fresh range (``--seeds-from``). Variants: weighted (the default smoother), ``ends`` (weighted,
+fresh range (``--seeds-from``). Variants: weighted (the default smoother), ``no-relink``
+(weighted, no second link assignment: ``fusion smooth --relink-gate 30``), ``ends`` (weighted,
 tracks extended over their ambiguous ends: ``fusion smooth --end-extension``), nearest
-assignment, the nearest-neighbour tracker alone, Stone Soup's JPDA.
+assignment, the nearest-neighbour tracker alone, Stone Soup's JPDA. Every crossing not kept
+is classified (``crossing_failure_causes``: one stderr line each, counts in the JSON).
 """
 
 from __future__ import annotations
@@ -26,7 +28,9 @@ from _realdata import AUTOFERRY as REALDATA
 
 from fusion.metrics.crossings import (
     CROSSING_OUTCOMES,
+    FAILURE_CAUSES,
     crossing_bearing_errors,
+    crossing_failure_causes,
     crossing_outcomes,
     crossing_window_identity,
 )
@@ -153,7 +157,8 @@ def _association_scenario(seed: int):
 
 
 def _smoother_from_data(t, z, association: str, st=None,
-                        extend_ends: bool = False) -> tuple[MultiTrackSmoother, object]:
+                        extend_ends: bool = False, relink_gate: float = 100.0
+                        ) -> tuple[MultiTrackSmoother, object]:
     """The multi-track smoother as ``fusion smooth`` builds it: every setting fitted to the
     unlabelled rows (nothing from the truth; `st` those settings if already fitted); the
     clutter density of the association counted by the smoother itself from the detections
@@ -164,21 +169,24 @@ def _smoother_from_data(t, z, association: str, st=None,
         q=st.q_deg2_per_s3 * np.radians(1.0) ** 2, clutter_density=None,
         p_detect=st.p_detect, min_length=st.min_length, association=association,
         init_sigma_rate=np.radians(st.init_sigma_rate_deg_per_s), max_misses=st.max_misses,
-        max_gap_scans=st.max_gap_scans, extend_ends=extend_ends)
+        max_gap_scans=st.max_gap_scans, extend_ends=extend_ends, relink_gate=relink_gate)
     return mts, st
 
 
 #: Variants of the association ablation.
-VARIANTS = ("weighted", "ends", "nearest", "nn", "jpda")
+VARIANTS = ("weighted", "no-relink", "ends", "nearest", "nn", "jpda")
 
 
-def bench_association(seeds, within_s: float = 60.0, names=VARIANTS) -> dict:
+def bench_association(seeds, within_s: float = 60.0, names=VARIANTS,
+                      slow_deg_per_min: float = 6.0) -> dict:
     """Weighted against nearest association, the plain nearest-neighbour tracker and Stone
     Soup's JPDA tracker (:mod:`_jpda`) on the same unlabelled bearings (settings fitted once
     per scenario, outside the timings): outcomes around each crossing (15-scan guard, 20-scan
     windows),
     identity per detection inside the guard, bearing RMS within `within_s` of each crossing
-    (per crossing target, the track that followed it before), divided by the noise."""
+    (per crossing target, the track that followed it before), divided by the noise; the
+    cause of every crossing not kept (:func:`~fusion.metrics.crossings.
+    crossing_failure_causes`, one stderr line each)."""
     if "jpda" in names:
         from _jpda import run_jpda  # Stone Soup, only for this part
 
@@ -186,6 +194,7 @@ def bench_association(seeds, within_s: float = 60.0, names=VARIANTS) -> dict:
     inside = {n: np.zeros(2, np.int64) for n in names}
     err = {n: [] for n in names}
     secs = {n: 0.0 for n in names}
+    causes = {n: dict.fromkeys(FAILURE_CAUSES, 0) for n in names}
     noise_sq = []
     for seed in seeds:
         sc, info = _association_scenario(seed)
@@ -210,9 +219,11 @@ def bench_association(seeds, within_s: float = 60.0, names=VARIANTS) -> dict:
                 lab = res.labels
                 tracks = {m: (res.scan_times[res.first_scan[m]: res.last_scan[m] + 1],
                               res.states[m][:, 0]) for m in range(res.n_tracks)}
-            else:  # "ends": weighted, tracks extended beyond their end segments
-                mts, _ = _smoother_from_data(t, z, "weighted" if name == "ends" else name, st,
-                                             extend_ends=name == "ends")
+            else:  # "ends": weighted, tracks extended beyond their end segments;
+                # "no-relink": weighted, no second link assignment (relink_gate = link_gate)
+                mts, _ = _smoother_from_data(
+                    t, z, "nearest" if name == "nearest" else "weighted", st,
+                    extend_ends=name == "ends", relink_gate=30.0 if name == "no-relink" else 100.0)
                 res = mts.run(t, z)
                 if name == "weighted":
                     lam_counted = mts.used_clutter_density
@@ -221,6 +232,14 @@ def bench_association(seeds, within_s: float = 60.0, names=VARIANTS) -> dict:
             secs[name] += time.perf_counter() - t0
             for o in crossing_outcomes(sc.track_id, lab, t, cr, **kw):
                 tally[name][str(o)] += 1
+            rd = sc.crossing_rate_diff_deg_per_min
+            for (a, b, tc), c, r in zip(cr, crossing_failure_causes(
+                    sc.track_id, lab, t, cr, rd, slow_deg_per_min=slow_deg_per_min, **kw),
+                    rd, strict=True):
+                if c:
+                    causes[name][c] += 1
+                    _log(f"  {name} seed {seed} crossing {a}-{b} at {tc:.0f} s, "
+                         f"rate diff {r:+.1f} deg/min: {c}")
             inside[name] += crossing_window_identity(sc.track_id, lab, t, cr, **kw).sum(axis=0)
             e = crossing_bearing_errors(sc.track_id, lab, t, cr, tracks, sc.truth_time, truth,
                                         within_s=within_s, **kw)
@@ -242,7 +261,8 @@ def bench_association(seeds, within_s: float = 60.0, names=VARIANTS) -> dict:
                   "rms_60s_deg": float(np.degrees(np.sqrt(np.mean(e[cov] ** 2)))) if cov.any()
                   else float("nan"),
                   "rms_60s_covered": float(cov.mean()) if e.size else 0.0,
-                  "seconds_per_scenario": secs[n] / len(seeds)}
+                  "seconds_per_scenario": secs[n] / len(seeds),
+                  "failure_causes": causes[n]}
     return out
 
 
@@ -319,6 +339,9 @@ def main(argv=None) -> int:
     ap.add_argument("--seeds-from", type=int, default=None,
                     help="the ablation on --seed-count seeds from this one instead of a named "
                          "set (a fresh report set)")
+    ap.add_argument("--slow-deg-per-min", type=float, default=6.0,
+                    help="a swapped crossing whose bearing rates differ by less than this is "
+                         "counted as a slow-crossing swap")
     ap.add_argument("--variants", nargs="+", choices=VARIANTS, default=list(VARIANTS),
                     help="variants of the ablation (default all)")
     a = ap.parse_args(argv)
@@ -330,7 +353,8 @@ def main(argv=None) -> int:
             seeds = tuple(range(a.seeds_from, a.seeds_from + (a.seed_count or 30)))
             label = f"from {a.seeds_from}"
         names = tuple(v for v in VARIANTS if v in a.variants)  # jpda after weighted
-        out = {"seed_set": label, **bench_association(seeds, names=names)}
+        out = {"seed_set": label, **bench_association(seeds, names=names,
+                                                           slow_deg_per_min=a.slow_deg_per_min)}
         print(json.dumps(out))
         return 0
     out = {}

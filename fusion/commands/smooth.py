@@ -29,7 +29,7 @@ from pathlib import Path
 from fusion._progress import progress
 from fusion.cli import MAX_SCANS_OPTION, emit, number
 from fusion.io import read_bearings, write_settings, write_table
-from fusion.passive.smoothing.multitrack import ASSOCIATIONS
+from fusion.passive.smoothing.multitrack import ASSOCIATIONS, END_DETECTIONS
 from fusion.pipelines.bearing_smoothing import check_track_lengths, fit_smoothing, smooth_bearings
 
 logger = logging.getLogger(__name__)
@@ -62,6 +62,18 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "before its first and after its last segment (where it starts or ends "
                         "beside another track), weighted like the detections of its gaps "
                         "(default: off; on real camera bearings it added false crossing alerts)")
+    p.add_argument("--end-detections", choices=END_DETECTIONS, default="own",
+                   help="with --end-extension: extend a track's ends only over the detections "
+                        "the initial tracker gave the track its end segment came from or left "
+                        "shared with it (own, default), or over any it took (tracked)")
+    p.add_argument("--link-gate", type=number(float, gt=0), default=30.0,
+                   help="unknown-origin rows: gate on the squared Mahalanobis distance (2 "
+                        "degrees of freedom) of a link between two segments of one track "
+                        "(default 30)")
+    p.add_argument("--relink-gate", type=number(float, gt=0), default=100.0,
+                   help="unknown-origin rows: the wider gate of a second link assignment "
+                        "among the segment ends and starts the first left unlinked (default "
+                        "100; not above --link-gate: no second assignment)")
     p.add_argument("--output-times", choices=("grid", "states"), default="states",
                    help="states (default): the smoother's own state times; grid: every track "
                         "on the regular grid of --period-s through gaps up to --max-gap-scans "
@@ -135,6 +147,8 @@ def run(args: argparse.Namespace) -> int:
                                  clutter_density=args.clutter_density, merge_deg=args.merge_deg,
                                  twin_deg=args.twin_deg, output_times=args.output_times,
                                  extend_ends=args.extend_ends,
+                                 end_detections=args.end_detections,
+                                 link_gate=args.link_gate, relink_gate=args.relink_gate,
                                  on_rows=bar.update)
     except RuntimeError as e:  # gtsam: an ill-posed graph
         bar.close()
@@ -145,7 +159,9 @@ def run(args: argparse.Namespace) -> int:
     tracks = result.tracks
     write_table(args.out, result.columns())
     counted = result.association_clutter_density
-    assoc = {"association": args.association, "output_times": args.output_times}
+    assoc = {"association": args.association, "output_times": args.output_times,
+             "end_extension": args.extend_ends, "end_detections": args.end_detections,
+             "link_gate": args.link_gate, "relink_gate": args.relink_gate}
     if counted is not None:
         assoc["association_clutter_density"] = float(counted)
     write_settings(args.out, {"command": "smooth", "tracks": len(tracks), "settings": st.as_dict(),

@@ -25,7 +25,9 @@ __all__ = [
     "CROSSING_OUTCOMES",
     "CrossingScore",
     "IntervalScore",
+    "FAILURE_CAUSES",
     "crossing_bearing_errors",
+    "crossing_failure_causes",
     "crossing_outcomes",
     "crossing_window_identity",
     "identity_swaps",
@@ -271,3 +273,70 @@ def identity_swaps(
     """
     return crossing_outcomes(true_labels, est_labels, times, crossings, guard_s=guard_s,
                              window_s=window_s) == "swap"
+
+
+#: Causes of a crossing not kept (see :func:`crossing_failure_causes`).
+FAILURE_CAUSES = ("slow swap", "swap", "late start", "merge", "third-target swap",
+                  "fragmentation", "clutter capture", "dropped")
+
+
+def crossing_failure_causes(
+    true_labels: ArrayLike,
+    est_labels: ArrayLike,
+    times: ArrayLike,
+    crossings: Sequence[tuple[int, int, float]],
+    rate_diff_deg_per_min: Sequence[float],
+    *,
+    guard_s: float,
+    window_s: float,
+    slow_deg_per_min: float = 6.0,
+    min_fraction: float = 0.5,
+) -> list[str]:
+    """Why each true crossing was not kept ("" for kept and unscored ones).
+
+    With ``f(x, W)`` as in :func:`crossing_outcomes` (before / after windows):
+
+    - ``"slow swap"`` / ``"swap"``: swapped, the targets' bearing rates differing by less /
+      more than `slow_deg_per_min` at the crossing (`rate_diff_deg_per_min`, one per crossing);
+    - ``"late start"``: a target followed by no track before the crossing;
+    - ``"merge"``: one track follows both targets before or after;
+    - ``"third-target swap"``: after the crossing a target is followed by the track that
+      followed a third target before (identity exchanged with a target not in this crossing);
+    - ``"fragmentation"``: after the crossing a target is followed by a track that followed
+      no target before (a track ended and a new one began);
+    - ``"clutter capture"``: a target followed by no track after, its former track still
+      alive there but owning mostly clutter or the other target's detections;
+    - ``"dropped"``: a target followed by no track after and its former track gone.
+    """
+    tl, el, t = _labelled(true_labels, est_labels, times)
+    outcomes = crossing_outcomes(tl, el, t, crossings, guard_s=guard_s, window_s=window_s,
+                                 min_fraction=min_fraction)
+    out = []
+    for (a, b, tc), o, rd in zip(crossings, outcomes, rate_diff_deg_per_min, strict=True):
+        if o in ("kept", "unscored"):
+            out.append("")
+            continue
+        if o == "swap":
+            out.append("slow swap" if abs(rd) < slow_deg_per_min else "swap")
+            continue
+        before = _before(t, tc, guard_s, window_s)
+        after = (t > tc + guard_s) & (t <= tc + guard_s + window_s)
+        fb = [_follower(tl, el, x, before, min_fraction) for x in (a, b)]
+        fa = [_follower(tl, el, x, after, min_fraction) for x in (a, b)]
+        if -1 in fb:
+            out.append("late start")
+        elif fb[0] == fb[1] or fa[0] == fa[1]:
+            out.append("merge")
+        elif any(f >= 0 and f not in fb for f in fa):
+            others = {_follower(tl, el, int(c), before, min_fraction)
+                      for c in np.unique(tl[before & (tl >= 0)]) if c not in (a, b)}
+            new = [f for f in fa if f >= 0 and f not in fb]
+            out.append("third-target swap" if all(f in others for f in new)
+                       else "fragmentation")
+        else:
+            x = fa.index(-1)
+            owned = after & (el == fb[x])
+            others = owned & (tl != (a, b)[x])
+            out.append("clutter capture" if owned.any() and others.sum() * 2 >= owned.sum()
+                       else "dropped")
+    return out

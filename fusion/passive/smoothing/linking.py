@@ -21,14 +21,22 @@ FloatArray = NDArray[np.float64]
 
 
 def link_segments(ends: list[tuple], scan_times: FloatArray, *, q: float, link_gate: float,
-                  max_gap_scans: int) -> list[list[int]]:
-    """Chain segments by one assignment of segment ends to later segment starts."""
+                  max_gap_scans: int, relink_gate: float | None = None,
+                  relink_allowed: NDArray[np.bool_] | None = None) -> list[list[int]]:
+    """Chain segments by one assignment of segment ends to later segment starts.
+
+    With `relink_gate` (> `link_gate`), the ends and starts the first assignment left unlinked
+    are offered a second assignment among themselves with that wider gate: a fragment whose
+    rate changed too much for the first gate (bearing curvature through a dense crossing zone)
+    is linked to the one end left free for it instead of starting a new track; links made
+    by the first assignment are not changed; `relink_allowed` (n x n, end x start; default
+    all) limits the second assignment's pairs."""
     n = len(ends)
     if n == 0:
         return []
     period = float(np.median(np.diff(scan_times))) if scan_times.size > 1 else 1.0
-    big = 1e9
-    cost = np.full((n, n), np.inf)
+    d2 = np.full((n, n), np.inf)
+    lndet = np.zeros((n, n))
     for e in range(n):
         _, _, _, s1, x_e, p_e = ends[e]
         for s in range(n):
@@ -40,18 +48,17 @@ def link_segments(ends: list[tuple], scan_times: FloatArray, *, q: float, link_g
             cov = f @ p_e @ f.T + wna_covariance(dt, q, 1) + p_s
             nu = x_s - f @ x_e
             nu[0] = wrap_angle(nu[0])
-            d2 = float(nu @ np.linalg.solve(cov, nu))
-            if d2 <= link_gate:
-                cost[e, s] = d2 + float(np.log(np.linalg.det(cov)))
-    finite = np.isfinite(cost)
-    if not finite.any():
-        return [[p] for p in range(n)]
-    # admissible links cost less than any pair of non-links: the most links, then the
-    # cheapest
-    shift = cost[finite].min()
-    c = np.where(finite, cost - shift, big)
-    rr, cc = linear_sum_assignment(c)
-    nxt = {int(r): int(s) for r, s in zip(rr, cc, strict=True) if finite[r, s]}
+            d2[e, s] = float(nu @ np.linalg.solve(cov, nu))
+            lndet[e, s] = float(np.log(np.linalg.det(cov)))
+    nxt = _assign(np.where(d2 <= link_gate, d2 + lndet, np.inf))
+    if relink_gate is not None and relink_gate > link_gate:
+        free_e = np.array([e not in nxt for e in range(n)])
+        free_s = np.ones(n, bool)
+        free_s[list(nxt.values())] = False
+        ok = (d2 <= relink_gate) & free_e[:, None] & free_s[None, :]
+        if relink_allowed is not None:
+            ok &= relink_allowed
+        nxt.update(_assign(np.where(ok, d2 + lndet, np.inf)))
     has_prev = set(nxt.values())
     chains = []
     for p in range(n):
@@ -62,6 +69,18 @@ def link_segments(ends: list[tuple], scan_times: FloatArray, *, q: float, link_g
             ch.append(nxt[ch[-1]])
         chains.append(ch)
     return chains
+
+
+def _assign(cost: FloatArray) -> dict[int, int]:
+    """One assignment of ends (rows) to starts (columns) over the finite costs, the most
+    links first, then the cheapest."""
+    finite = np.isfinite(cost)
+    if not finite.any():
+        return {}
+    # admissible links cost less than any pair of non-links
+    c = np.where(finite, cost - cost[finite].min(), 1e9)
+    rr, cc = linear_sum_assignment(c)
+    return {int(r): int(s) for r, s in zip(rr, cc, strict=True) if finite[r, s]}
 
 
 def crossing_clusters(shared_idx: NDArray[np.int64], cands: tuple[tuple[int, ...], ...],

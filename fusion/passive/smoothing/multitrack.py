@@ -18,7 +18,6 @@ from numpy.typing import ArrayLike, NDArray
 
 from fusion._validation import check_positive
 from fusion.geometry import wrap_angle
-from fusion.passive.crossing.timing import crossing_time
 from fusion.passive.smoothing.association import (
     clutter_and_detection,
     joint_weights,
@@ -36,6 +35,7 @@ from fusion.passive.smoothing.graph import (
 )
 from fusion.passive.smoothing.linking import crossing_clusters, link_segments
 from fusion.passive.smoothing.nearest_neighbour import NearestNeighbourTracker
+from fusion.passive.smoothing.segments import across_crossings, cut_segments
 from fusion.passive.smoothing.types import (
     MultiTrackResult,
     SmoothedTrack,
@@ -43,12 +43,17 @@ from fusion.passive.smoothing.types import (
     TrackPrior,
 )
 
-__all__ = ["ASSOCIATIONS", "MultiTrackSmoother"]
+__all__ = ["ASSOCIATIONS", "END_DETECTIONS", "MultiTrackSmoother"]
 
 #: Association of the shared detections: ``weighted`` (posterior association probabilities
 #: as the weights of the bearing factors) or ``nearest`` (per scan a gated nearest assignment,
 #: weights 0 or 1: the measured baseline).
 ASSOCIATIONS = ("weighted", "nearest")
+
+#: Detections a track's ends may be extended over: ``own`` those the initial tracker gave the
+#: tracker track its end segment came from (or left shared with it), ``tracked`` any the
+#: tracker took.
+END_DETECTIONS = ("own", "tracked")
 
 #: Largest number of shared detections of one scan whose joint events are enumerated; a busier
 #: scan gets per-detection responsibilities (counted in ``MultiTrackResult.fallbacks``).
@@ -88,6 +93,12 @@ class MultiTrackSmoother:
         Gate on the squared Mahalanobis distance (2 degrees of freedom) of a segment link
         (default 30; the 99.9 % point of chi-square is 13.8, but the constant-rate model
         underrates the curvature of bearing tracks near closest approach).
+    relink_gate : float, keyword-only
+        Wider gate of a second link assignment among the segment ends and starts the first
+        left unlinked, where the gap holds an ambiguous scan of either (default 100; not above
+        `link_gate`: no second assignment). A fragment
+        whose rate changed too much for `link_gate` through a dense crossing zone joins the
+        one track end left free for it instead of starting a new track (Notes, 3).
     max_gap_scans : int, keyword-only
         Longest gap, in scan periods, that a segment link may bridge (default 40).
     fit_scans : int, keyword-only
@@ -105,6 +116,10 @@ class MultiTrackSmoother:
     extend_ends : bool, keyword-only
         Extend each track over the unassigned detections before its first and after its last
         segment (default False: on real camera bearings it added false crossing alerts; see Notes, 4).
+    end_detections : {"own", "tracked"}, keyword-only
+        Detections an end may be extended over: ``own`` (default) those the initial tracker
+        gave the tracker track the end segment came from, or left shared with it; ``tracked``
+        any the tracker took (:data:`END_DETECTIONS`).
 
     Notes
     -----
@@ -122,6 +137,9 @@ class MultiTrackSmoother:
        state, ``S`` its covariance; links with ``d^2`` above `link_gate` are not allowed. One
        assignment over all ends and starts, preferring more links, chains the segments into
        tracks: the identity after a crossing is the one whose bearing and rate continue it.
+       The ends and starts left unlinked get a second assignment among themselves with the
+       wider `relink_gate`, only across a crossing (an ambiguous scan of either tracker track
+       in the gap); the first assignment's links are kept.
     4. The released detections in a track's gaps, gated against its interpolation across the
        gap (:mod:`~fusion.passive.smoothing.candidates`; with `extend_ends` also those before
        its first and after its last segment, where it starts or ends beside another track),
@@ -154,6 +172,7 @@ class MultiTrackSmoother:
         window_scans: int = 20,
         separation: float | None = None,
         link_gate: float = 30.0,
+        relink_gate: float = 100.0,
         max_gap_scans: int = 40,
         fit_scans: int = 30,
         margin_scans: int = 10,
@@ -163,6 +182,7 @@ class MultiTrackSmoother:
         robust_k: float = 1.345,
         min_length: int = 5,
         extend_ends: bool = False,
+        end_detections: str = "own",
     ) -> None:
         self.model = _Model.checked(sigma_bearing=sigma_bearing, q=q, robust=robust,
                                     robust_k=robust_k, max_iterations=50)
@@ -186,6 +206,7 @@ class MultiTrackSmoother:
         sep = 2.5 * np.sqrt(2.0) * sigma_bearing if separation is None else separation
         self.separation = check_positive("separation", sep)
         self.link_gate = check_positive("link_gate", link_gate)
+        self.relink_gate = check_positive("relink_gate", relink_gate)
         if max_gap_scans < 1 or fit_scans < 2 or margin_scans < 0:
             raise ValueError("max_gap_scans must be >= 1, fit_scans >= 2, margin_scans >= 0")
         self.max_gap_scans = int(max_gap_scans)
@@ -195,6 +216,10 @@ class MultiTrackSmoother:
         self.em_max_iterations = int(em_max_iterations)
         self.min_length = int(min_length)
         self.extend_ends = bool(extend_ends)
+        if end_detections not in END_DETECTIONS:
+            raise ValueError(f"end_detections must be one of {', '.join(END_DETECTIONS)}, got "
+                             f"{end_detections!r}")
+        self.end_detections = end_detections
 
     def _density(self, z: FloatArray, theta: FloatArray) -> FloatArray:
         """Measurement density ``N(wrap(z - theta); 0, sigma^2)``, 1/rad."""
@@ -226,6 +251,8 @@ class MultiTrackSmoother:
         scan_of = np.searchsorted(scan_times, t)
         segments = self._segments(tr, z, scan_of)
         # what a track may be extended over beyond its ends: detections the tracker took
+        # (``tracked``) or only those of the tracker track its end segment came from, and
+        # those it left shared with that track as a candidate (``own``)
         tracked = (tr.labels >= 0) | np.array([len(c) > 0 for c in tr.candidates], bool)
         self._failed_fits: list[tuple[int, int, str]] = []
         self._n_fits = 0
@@ -237,7 +264,9 @@ class MultiTrackSmoother:
                            self._failed_fits[0][2], len(self._failed_fits), self._n_fits, spans,
                            ", ..." if len(self._failed_fits) > 5 else "")
         chains = link_segments(ends, scan_times, q=self.model.q, link_gate=self.link_gate,
-                               max_gap_scans=self.max_gap_scans)
+                               max_gap_scans=self.max_gap_scans, relink_gate=self.relink_gate,
+                               relink_allowed=across_crossings(self._ambiguous, tr, segments,
+                                                               ends))
         # hard labels per track, drop short tracks
         labels = np.full(t.size, -1, np.int64)
         kept: list[list[int]] = []
@@ -259,10 +288,11 @@ class MultiTrackSmoother:
                                         **gating):
                     cand[j].append(m)
             if self.extend_ends:  # and beyond its first and last segment
-                for fwd, end in ((False, ends[ch[0]]), (True, ends[ch[-1]])):
-                    js = end_candidates(end, fwd, scan_times, z, scan_of, labels, **gating,
+                for fwd, p in ((False, ch[0]), (True, ch[-1])):
+                    js = end_candidates(ends[p], fwd, scan_times, z, scan_of, labels, **gating,
                                         max_misses=self.tracker.max_misses,
-                                        max_scans=self.max_gap_scans, eligible=tracked)
+                                        max_scans=self.max_gap_scans,
+                                        eligible=self._eligible(tr, segments[p], tracked))
                     for j in js:
                         cand[j].append(m)
                     if js:
@@ -330,49 +360,21 @@ class MultiTrackSmoother:
 
     def _segments(self, tr: TrackerResult, z: FloatArray,
                   scan_of: NDArray[np.int64]) -> list[NDArray[np.int64]]:
-        """Cut the tracker's tracks where two of them are ambiguous; detections per segment."""
-        n_scans = tr.scan_times.size
-        period = float(np.median(np.diff(tr.scan_times))) if n_scans > 1 else 1.0
-        ambiguous = np.zeros((tr.n_tracks, n_scans), bool)
-        # a track too short to be kept does not cut others
-        counts = np.bincount(tr.labels[tr.labels >= 0], minlength=tr.n_tracks)
-        for a in range(tr.n_tracks):
-            if counts[a] < self.min_length:
-                continue
-            for b in range(a + 1, tr.n_tracks):
-                if counts[b] < self.min_length:
-                    continue
-                lo = max(tr.first_scan[a], tr.first_scan[b])
-                hi = min(tr.last_scan[a], tr.last_scan[b])
-                if hi < lo:
-                    continue
-                xa = tr.states[a][lo - tr.first_scan[a]: hi - tr.first_scan[a] + 1]
-                xb = tr.states[b][lo - tr.first_scan[b]: hi - tr.first_scan[b] + 1]
-                sep = np.abs(wrap_angle(xa[:, 0] - xb[:, 0]))
-                tc = np.asarray(crossing_time(xa[:, 0], xa[:, 1], xb[:, 0], xb[:, 1]))
-                # eq. (3) predicted or eq. (4) detected crossing, and close in bearing
-                amb = (sep < self.separation) & (np.abs(tc) <= self._window_s(period))
-                if amb.any():
-                    k = np.flatnonzero(amb) + lo
-                    for d in (-1, 0, 1):  # one scan of margin
-                        kk = np.clip(k + d, 0, n_scans - 1)
-                        ambiguous[a, kk] = True
-                        ambiguous[b, kk] = True
-        segments: list[NDArray[np.int64]] = []
-        for m in range(tr.n_tracks):
-            own = np.flatnonzero(tr.labels == m)
-            own = own[np.argsort(scan_of[own], kind="stable")]
-            keep = own[~ambiguous[m, scan_of[own]]]
-            if keep.size == 0:
-                continue
-            amb_scans = np.flatnonzero(ambiguous[m])
-            # a new segment starts after every ambiguous scan between two kept detections
-            cut = np.searchsorted(amb_scans, scan_of[keep])
-            for c in np.unique(cut):
-                seg = keep[cut == c]
-                if seg.size >= self.tracker.n_confirm:
-                    segments.append(seg)
+        """Cut the tracker's tracks where two of them are ambiguous (Notes, 2); the
+        ambiguous scans are kept for the second link assignment."""
+        period = float(np.median(np.diff(tr.scan_times))) if tr.scan_times.size > 1 else 1.0
+        segments, self._ambiguous = cut_segments(
+            tr, scan_of, separation=self.separation, min_length=self.min_length,
+            window_s=self._window_s(period), n_confirm=self.tracker.n_confirm)
         return segments
+
+    def _eligible(self, tr: TrackerResult, seg: NDArray[np.int64],
+                  tracked: NDArray[np.bool_]) -> NDArray[np.bool_]:
+        """Detections an end of segment `seg` may be extended over (``end_detections``)."""
+        if self.end_detections == "tracked":
+            return tracked
+        k = int(tr.labels[seg[0]])  # the tracker track the segment came from
+        return (tr.labels == k) | np.array([k in c for c in tr.candidates], bool)
 
     def _window_s(self, period: float) -> float:
         """``J K`` of eq. (3)-(4), s."""
@@ -488,3 +490,4 @@ class MultiTrackSmoother:
         return TrackPrior(bearing=float(init[0, 0]), rate=float(init[0, 1]),
                           sigma_bearing=10.0 * self.model.sigma_bearing,
                           sigma_rate=self.tracker.init_sigma_rate)
+

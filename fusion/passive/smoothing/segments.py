@@ -1,0 +1,81 @@
+"""Segments of the initial tracks and which of them may be linked across a crossing.
+
+- :func:`cut_segments` -- the tracker's tracks cut where two of them are ambiguous (step 2 of
+  :class:`~fusion.passive.smoothing.multitrack.MultiTrackSmoother`);
+- :func:`across_crossings` -- the (end, start) pairs of the second link assignment.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from fusion.geometry import wrap_angle
+from fusion.passive.crossing.timing import crossing_time
+from fusion.passive.smoothing.types import TrackerResult
+
+__all__ = ["across_crossings", "cut_segments"]
+
+
+def cut_segments(tr: TrackerResult, scan_of: NDArray[np.int64], *, separation: float,
+                 min_length: int, window_s: float, n_confirm: int
+                 ) -> tuple[list[NDArray[np.int64]], NDArray[np.bool_]]:
+    """Cut the tracker's tracks where two of them are ambiguous; detections per segment and
+    the ambiguous scans of each tracker track (n_tracks x n_scans)."""
+    n_scans = tr.scan_times.size
+    ambiguous = np.zeros((tr.n_tracks, n_scans), bool)
+    # a track too short to be kept does not cut others
+    counts = np.bincount(tr.labels[tr.labels >= 0], minlength=tr.n_tracks)
+    for a in range(tr.n_tracks):
+        if counts[a] < min_length:
+            continue
+        for b in range(a + 1, tr.n_tracks):
+            if counts[b] < min_length:
+                continue
+            lo = max(tr.first_scan[a], tr.first_scan[b])
+            hi = min(tr.last_scan[a], tr.last_scan[b])
+            if hi < lo:
+                continue
+            xa = tr.states[a][lo - tr.first_scan[a]: hi - tr.first_scan[a] + 1]
+            xb = tr.states[b][lo - tr.first_scan[b]: hi - tr.first_scan[b] + 1]
+            sep = np.abs(wrap_angle(xa[:, 0] - xb[:, 0]))
+            tc = np.asarray(crossing_time(xa[:, 0], xa[:, 1], xb[:, 0], xb[:, 1]))
+            # eq. (3) predicted or eq. (4) detected crossing, and close in bearing
+            amb = (sep < separation) & (np.abs(tc) <= window_s)
+            if amb.any():
+                k = np.flatnonzero(amb) + lo
+                for d in (-1, 0, 1):  # one scan of margin
+                    kk = np.clip(k + d, 0, n_scans - 1)
+                    ambiguous[a, kk] = True
+                    ambiguous[b, kk] = True
+    segments: list[NDArray[np.int64]] = []
+    for m in range(tr.n_tracks):
+        own = np.flatnonzero(tr.labels == m)
+        own = own[np.argsort(scan_of[own], kind="stable")]
+        keep = own[~ambiguous[m, scan_of[own]]]
+        if keep.size == 0:
+            continue
+        amb_scans = np.flatnonzero(ambiguous[m])
+        # a new segment starts after every ambiguous scan between two kept detections
+        cut = np.searchsorted(amb_scans, scan_of[keep])
+        for c in np.unique(cut):
+            seg = keep[cut == c]
+            if seg.size >= n_confirm:
+                segments.append(seg)
+    return segments, ambiguous
+
+
+def across_crossings(ambiguous: NDArray[np.bool_], tr: TrackerResult,
+                     segments: list[NDArray[np.int64]], ends: list[tuple]) -> NDArray[np.bool_]:
+    """Pairs (end, start) of the second link assignment: the gap between them (one scan of
+    margin) holds an ambiguous scan of the end's or the start's tracker track -- a fragment
+    across a crossing, not a track that ended and another that began."""
+    k = [int(tr.labels[seg[0]]) for seg in segments]
+    n = len(segments)
+    out = np.zeros((n, n), bool)
+    for e in range(n):
+        for s in range(n):
+            lo, hi = ends[e][3], ends[s][0] + 2
+            if hi > lo + 1:
+                out[e, s] = bool(ambiguous[k[e], lo:hi].any() or ambiguous[k[s], lo:hi].any())
+    return out
