@@ -368,6 +368,9 @@ class CrossingResolver:
             p_detect=self.p_detect, window_scans=max(3, n_scans // 2), max_gap_scans=n_scans,
             fit_scans=max(2, min(30, len(ctx_t) // max(1, len(episode.members)))),
             margin_scans=5,
+            # one link assignment, as measured for this resolver (the second assignment
+            # across crossings, relink_gate > link_gate, was measured for fusion smooth only)
+            relink_gate=30.0,
         )
         try:
             labels_sorted = mts.run(t[order], z[order]).labels
