@@ -136,6 +136,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--keep-aliases", action="store_true",
                    help="keep TDOAs that re-pair the clicks of a stronger TDOA of their pair one "
                         "click apart (default: they fail validation: one delay per click train)")
+    p.add_argument("--no-closure-support", action="store_true",
+                   help="admit no TDOA that failed validation (default: where the validated "
+                        "TDOAs of a window span fewer than four sensors, partial click trains "
+                        "of another sensor that close with them are admitted)")
     p.add_argument("--strong-echoes-only", action="store_true",
                    help="count a sensor's bottom echo only at the full evidence threshold "
                         "(default: once one sensor shows one, weaker evidence on the others "
@@ -315,7 +319,8 @@ def _run_key(args: argparse.Namespace, audio: list) -> str:
         "generic_replica": file_identity(GENERIC_PATH, content=True),
         "options": {k: getattr(args, k) for k in (
             "window", "hop", "band", "min_centre_freq", "detect_threshold", "llr_threshold",
-            "no_refine", "keep_aliases", "strong_echoes_only", "max_tdoa_rate", "method", "chunk",
+            "no_refine", "keep_aliases", "no_closure_support", "strong_echoes_only",
+            "max_tdoa_rate", "method", "chunk",
             "surface_paths", "sea_floor_z",
             "candidates", "min_source_tdoas")},
     })
@@ -377,7 +382,7 @@ def run(args: argparse.Namespace) -> int:
         correlator=ClickMapCorrelator(config=ScmConfig(window_s=args.window),
                                       rates=drift_grid(args.max_tdoa_rate)),
         validator=validator, refiner=not args.no_refine, hop_s=args.hop,
-        alias_screen=not args.keep_aliases)
+        alias_screen=not args.keep_aliases, closure_support=not args.no_closure_support)
     pipe, decided = _decided(args, ClickLocalization(front_end=front, localizer=localizer),
                              recordings[0][0], array)
     localizer = pipe.settings
