@@ -312,7 +312,10 @@ def test_even_odds_validation_keeps_the_pairs_a_fix_needs(tmp_path):
                  "--duration-s", "30", "--echo", "both", "--out", str(tmp_path / "s")]) == 0
     truth = json.loads((tmp_path / "s" / "truth.json").read_text())
     found = {}
-    for name, extra in (("even", []), ("model", ["--validator", str(V1_MODEL_PATH)])):
+    # the model's threshold alone: closure support (section 15) admits the far pairs' partial
+    # trains that this threshold drops where the others span three sensors
+    for name, extra in (("even", []), ("model", ["--validator", str(V1_MODEL_PATH),
+                                                 "--no-closure-support"])):
         found[name] = _localized_within_10_m(tmp_path, name, extra, truth)
     assert found["even"] == (10, 0, 10)
     assert found["model"][0] <= 8
