@@ -136,6 +136,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--keep-aliases", action="store_true",
                    help="keep TDOAs that re-pair the clicks of a stronger TDOA of their pair one "
                         "click apart (default: they fail validation: one delay per click train)")
+    p.add_argument("--no-closure-support", action="store_true",
+                   help="admit no TDOA that failed validation (default: where the validated "
+                        "TDOAs of a window span fewer than four sensors, partial click trains "
+                        "of another sensor that close with them are admitted)")
     p.add_argument("--strong-echoes-only", action="store_true",
                    help="count a sensor's bottom echo only at the full evidence threshold "
                         "(default: once one sensor shows one, weaker evidence on the others "
@@ -194,21 +198,19 @@ def register(sub: argparse._SubParsersAction) -> None:
                    outputs_together=False)  # resumes from its parts: reads back what it wrote
 
 
-def _decisions(args: argparse.Namespace, det_opts: dict, settings, source, array):
-    """Replica, echo suppression and sea floor decided from the first minute of the first
-    recording (:func:`fusion.pipelines.from_recording.decide_from_recording`)."""
-    from fusion.clicks.detect import ClickDetector
-    from fusion.clicks.replica import load_replica
-    from fusion.pipelines.from_recording import RECORDING_SPAN_S, decide_from_recording
+def _decided(args: argparse.Namespace, pipe, source, array):
+    """The pipeline with the replica, band, echo suppression and sea floor decided from the
+    first minute of the first recording, and the decisions: the library's own step
+    (:meth:`fusion.pipelines.localization.ClickLocalization.with_recording_decisions`, which
+    ``ClickLocalization()`` takes on every recording), with the options of this command."""
+    from fusion.pipelines.from_recording import RECORDING_SPAN_S
 
     given = args.replica not in (None, "generic")
-    detector = ClickDetector(**det_opts, **({"replica": load_replica(Path(args.replica))}
-                                            if given else {}))
     n = min(source.frames, int(round(RECORDING_SPAN_S * source.fs)))
     _, first = next(source.blocks(block=n))
-    return decide_from_recording(
-        first, source.fs, array, detector=detector, settings=settings,
-        estimate_replica=args.replica is None, estimate_band=args.band is None,
+    return pipe.with_recording_decisions(
+        first, source.fs, array, estimate_replica=args.replica is None,
+        estimate_band=args.band is None,
         replica_source=str(args.replica) if given else "generic",
         span=f"the first {n / source.fs:.3g} s of {Path(source.paths[0]).name}",
         weak_echoes=not args.strong_echoes_only)
@@ -317,7 +319,8 @@ def _run_key(args: argparse.Namespace, audio: list) -> str:
         "generic_replica": file_identity(GENERIC_PATH, content=True),
         "options": {k: getattr(args, k) for k in (
             "window", "hop", "band", "min_centre_freq", "detect_threshold", "llr_threshold",
-            "no_refine", "keep_aliases", "strong_echoes_only", "max_tdoa_rate", "method", "chunk",
+            "no_refine", "keep_aliases", "no_closure_support", "strong_echoes_only",
+            "max_tdoa_rate", "method", "chunk",
             "surface_paths", "sea_floor_z",
             "candidates", "min_source_tdoas")},
     })
@@ -334,6 +337,8 @@ def run(args: argparse.Namespace) -> int:
         return run_events(args)
     from fusion._output import STDOUT, atomic_output, output_lock, private_folder
     from fusion.clicks.band import DEFAULT_BAND_HZ
+    from fusion.clicks.detect import ClickDetector
+    from fusion.clicks.replica import load_replica
     from fusion.clicks.scm import ClickMapCorrelator, ScmConfig, drift_grid
     from fusion.clicks.validate import TdoaValidator
     from fusion.io import read_array, write_settings
@@ -370,15 +375,17 @@ def run(args: argparse.Namespace) -> int:
     localizer = None if args.method == "none" else settings_from_args(args)
     if localizer is not None:
         localizer.localizers(array.positions)
-    decided = _decisions(args, det_opts, localizer, recordings[0][0], array)
-    detector, localizer = decided.detector, decided.settings
+    given = args.replica not in (None, "generic")
     front = ClickFrontEnd(
-        detector=detector,
+        detector=ClickDetector(**det_opts, **({"replica": load_replica(Path(args.replica))}
+                                              if given else {})),
         correlator=ClickMapCorrelator(config=ScmConfig(window_s=args.window),
                                       rates=drift_grid(args.max_tdoa_rate)),
         validator=validator, refiner=not args.no_refine, hop_s=args.hop,
-        alias_screen=not args.keep_aliases)
-    pipe = ClickLocalization(front_end=front, localizer=localizer)
+        alias_screen=not args.keep_aliases, closure_support=not args.no_closure_support)
+    pipe, decided = _decided(args, ClickLocalization(front_end=front, localizer=localizer),
+                             recordings[0][0], array)
+    localizer = pipe.settings
     if args.chunk is None:
         args.chunk = _default_chunk_s(recordings, pipe, args.workers)
     plans = [plan_chunks(source, pipe, chunk_s=args.chunk) for source, _ in recordings]

@@ -187,7 +187,6 @@ def run_demo(out_dir: Path, *, seed: int) -> dict[str, Any]:
 
     from fusion.pipelines.clicks import LLR_THRESHOLD, ClickFrontEnd, default_validator
     from fusion.pipelines.clicks.training import label_windows, scenario_labels
-    from fusion.pipelines.from_recording import RECORDING_SPAN_S, decide_from_recording
     from fusion.pipelines.localization import (
         ClickLocalization,
         LocalizerSettings,
@@ -206,12 +205,11 @@ def run_demo(out_dir: Path, *, seed: int) -> dict[str, Any]:
     audio, fs = read_audio(out / "scenario" / "audio.flac", n_channels=array.n_sensors)
 
     # fusion localize's defaults: replica, echo suppression and sea floor decided from the
-    # recording, surface paths per window
-    decided = decide_from_recording(audio[:int(RECORDING_SPAN_S * fs)], fs, array,
-                                    settings=LocalizerSettings(), span="the demo recording")
-    pipe = ClickLocalization(front_end=ClickFrontEnd(detector=decided.detector,
-                                                     validator=default_validator(LLR_THRESHOLD)),
-                             localizer=decided.settings)
+    # recording (the library chain's own step), surface paths per window
+    pipe, decided = ClickLocalization(
+        front_end=ClickFrontEnd(validator=default_validator(LLR_THRESHOLD)),
+        localizer=LocalizerSettings()).with_recording_decisions(
+            audio, fs, array, span="the demo recording")
     step = int(round(pipe.front_end.hop_s * fs))
     blocks = ((a / fs, audio[a:a + step]) for a in range(0, audio.shape[0], step))
     done = list(pipe.iter_windows(blocks, fs=fs, sensors=array, duration_s=audio.shape[0] / fs))

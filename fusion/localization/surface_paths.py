@@ -32,7 +32,10 @@ from numpy.typing import ArrayLike, NDArray
 from fusion.localization.window_tdoas import WindowTdoas
 from fusion.types import frozen_array
 
-__all__ = ["PATHS", "PathTdoas", "surface_paths"]
+__all__ = ["PATHS", "SEA_SURFACE_Z", "PathTdoas", "surface_paths"]
+
+#: Height of the sea surface in the project's convention (z up, formats section 2), m.
+SEA_SURFACE_Z = 0.0
 
 #: Path pairs of the columns, in column-block order: (path to sensor i, path to sensor j).
 PATHS: tuple[str, ...] = ("direct", "surface", "direct-surface", "surface-direct")

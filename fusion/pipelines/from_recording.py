@@ -18,11 +18,14 @@ Before the windows are processed, the first minute of a recording is examined on
   image is in the sea bed. ``--sea-floor-z-m`` gives another floor (hydrophones moored above it).
 
 :func:`decide_from_recording` returns the detector and localizer settings to use, one line per
-decision for the user and a JSON-ready record; ``fusion localize`` prints the lines and writes the
-record beside its output, and the demo uses the same function.
+decision for the user and a JSON-ready record. Its one caller is
+:meth:`fusion.pipelines.localization.ClickLocalization.with_recording_decisions`, which the
+library's default chain (``ClickLocalization()`` run on a recording), ``fusion localize`` (which
+prints the lines and writes the record beside its output) and the demo all go through.
 
 Examples
 --------
+>>> from fusion.pipelines.localization import LocalizerSettings
 >>> from fusion.simulate.clicks import simulate_clicks
 >>> sc = simulate_clicks(seed=21, n_sources=1, duration_s=20.0, echo="both")
 >>> d = decide_from_recording(sc.audio, sc.fs, sc.sensors, settings=LocalizerSettings())
@@ -35,8 +38,9 @@ Examples
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -46,9 +50,12 @@ from fusion.clicks.detect import ClickDetector
 from fusion.clicks.echoes import FLOOR_MARGIN_M, BottomEchoes, bottom_echoes, echo_window
 from fusion.clicks.replica import ReplicaEstimate
 from fusion.geometry import SensorArray
-from fusion.pipelines.localization import SEA_SURFACE_Z, LocalizerSettings
+from fusion.localization.surface_paths import SEA_SURFACE_Z
 
-__all__ = ["RECORDING_SPAN_S", "RecordingDecisions", "decide_from_recording"]
+if TYPE_CHECKING:  # the settings are built by fusion.pipelines.localization, which calls this
+    from fusion.pipelines.localization import LocalizerSettings
+
+__all__ = ["RECORDING_SPAN_S", "RecordingDecisions", "decide_from_recording", "recording_start"]
 
 #: Seconds at the start of a recording examined for the decisions.
 RECORDING_SPAN_S = 60.0
@@ -207,3 +214,45 @@ def _band(det: ClickDetector, est: ReplicaEstimate | None, *, given: bool, span:
             "(--band-hz LOW HIGH to give one)")
     return det, note, {"source": "estimated replica", "band_hz": [lo, hi],
                        "drop_db": BAND_DROP_DB, "min_width_hz": MIN_BAND_WIDTH_HZ}
+
+
+def recording_start(blocks: Iterable[tuple], fs: float, span_s: float = RECORDING_SPAN_S
+                    ) -> tuple[np.ndarray, Iterator[tuple]]:
+    """The first `span_s` seconds of a stream of audio blocks, and the whole stream again.
+
+    Parameters
+    ----------
+    blocks : iterable of (t0, samples) or (t0, samples, fs)
+        Consecutive blocks (n, n_sensors), as :meth:`fusion.pipelines.clicks.ClickFrontEnd.
+        iter_windows` takes them.
+    fs : float
+        Sample rate, Hz.
+    span_s : float, optional
+        Seconds wanted (default :data:`RECORDING_SPAN_S`; all of a shorter stream).
+
+    Returns
+    -------
+    samples : ndarray, shape (m, n_sensors)
+        The first ``min(span_s fs, length)`` samples.
+    blocks : iterator
+        Every block of the stream from the first (those read to get `samples` are held).
+    """
+    want = int(round(span_s * fs))
+    it = iter(blocks)
+    held: list[tuple] = []
+    n = 0
+    while n < want:
+        block = next(it, None)
+        if block is None:
+            break
+        held.append(block)
+        n += np.shape(block[1])[0]
+    if not held:
+        raise ValueError("no audio: the stream of blocks is empty")
+    first = np.concatenate([np.asarray(b[1]) for b in held])[:want]
+
+    def again() -> Iterator[tuple]:
+        yield from held
+        yield from it
+
+    return first, again()

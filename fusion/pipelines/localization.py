@@ -13,10 +13,12 @@ leaves unbounded is written as :data:`UNBOUNDED_M2`.
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import logging
 from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -27,9 +29,15 @@ from fusion.localization.competition import CompetitionSettings
 from fusion.localization.localize import METHODS, LocalizationOutput, MultiSourceLocalizer
 from fusion.localization.retime import retime_owned
 from fusion.localization.search_grid import SearchRegion
-from fusion.localization.surface_paths import PATHS
+from fusion.localization.surface_paths import PATHS, SEA_SURFACE_Z
 from fusion.localization.tracks import SourceTracker, Track, WindowSources
 from fusion.pipelines.clicks import ClickFrontEnd, ClickWindow
+from fusion.pipelines.from_recording import (
+    RECORDING_SPAN_S,
+    RecordingDecisions,
+    decide_from_recording,
+    recording_start,
+)
 
 __all__ = ["AUTO_EXPLAINED", "ClickLocalization", "LocalizedWindow", "LocalizerSettings",
            "explained_fraction", "result_document", "settings_from_args", "track_windows",
@@ -66,8 +74,6 @@ class LocalizedWindow:
 WHALE_MAX_CANDIDATES = 16
 WHALE_MIN_TDOAS = 5.5
 
-#: Height of the sea surface in the project's convention (z up, formats section 2), m.
-SEA_SURFACE_Z = 0.0
 #: Added in quadrature to every TDOA sigma by default, s (:class:`ClickLocalization`): what the
 #: measured sigma does not hold -- sensor positions, sound speed, the drift model.
 SIGMA_FLOOR_S = 1e-6
@@ -258,6 +264,20 @@ class ClickLocalization:
     sigma_floor_s : float, optional
         Added in quadrature to every TDOA sigma, s (default 1 us): what the measured sigma
         does not hold -- sensor positions, sound speed, the drift model.
+    decide : bool, optional
+        Decide the replica, the detection band, the echo suppression and the sea floor from
+        the first :data:`~fusion.pipelines.from_recording.RECORDING_SPAN_S` seconds of each
+        recording run through :meth:`iter_windows` or :meth:`run_array`, as ``fusion
+        localize`` does (default True; :meth:`with_recording_decisions`,
+        ``docs/localization.md`` sections 1, 2, 9 and 14). False runs the front end and the
+        localizer as given (the ablation). :meth:`localize` of one window and the chunks of
+        :mod:`fusion.pipelines.clicks.chunks` never decide: decide once first.
+
+    Attributes
+    ----------
+    decisions : RecordingDecisions or None
+        The decisions made for the last recording run (None before one, or with
+        ``decide=False``).
     """
 
     def __init__(
@@ -267,6 +287,7 @@ class ClickLocalization:
         localizer: MultiSourceLocalizer | LocalizerSettings | None | bool = True,
         min_tdoas: int = 3,
         sigma_floor_s: float = SIGMA_FLOOR_S,
+        decide: bool = True,
     ) -> None:
         self.front_end = front_end if front_end is not None else ClickFrontEnd()
         if localizer is True:
@@ -276,6 +297,52 @@ class ClickLocalization:
         self._resolved: tuple[bytes, tuple] | None = None
         self.min_tdoas = int(min_tdoas)
         self.sigma_floor_s = float(sigma_floor_s)
+        self.decide = bool(decide)
+        self.decisions: RecordingDecisions | None = None
+
+    def with_recording_decisions(
+        self, samples: ArrayLike, fs: float, sensors: SensorArray, **options: Any
+    ) -> tuple[ClickLocalization, RecordingDecisions]:
+        """This pipeline with the decisions made from a recording's start (``fusion localize``'s).
+
+        :func:`fusion.pipelines.from_recording.decide_from_recording` on the first
+        :data:`~fusion.pipelines.from_recording.RECORDING_SPAN_S` seconds of `samples`
+        (n, n_sensors), starting from this front end's detector and these settings: the
+        replica (step 32), the detection band, the bottom echoes (echo suppression) and the
+        sea floor. A localizer given as a :class:`MultiSourceLocalizer` keeps its own search
+        region (only the detector's decisions apply).
+
+        Parameters
+        ----------
+        samples : array_like, shape (n, n_sensors)
+            The recording, or at least its first minute.
+        fs : float
+            Sample rate, Hz.
+        sensors : SensorArray
+            The array.
+        **options
+            Passed on to :func:`~fusion.pipelines.from_recording.decide_from_recording`
+            (``estimate_replica``, ``estimate_band``, ``replica_source``, ``span``,
+            ``weak_echoes``).
+
+        Returns
+        -------
+        pipeline : ClickLocalization
+            A new pipeline (``decide`` False) with the decided detector and settings; its
+            ``decisions`` set.
+        decisions : RecordingDecisions
+        """
+        x = np.asarray(samples)[:int(round(RECORDING_SPAN_S * fs))]
+        decided = decide_from_recording(x, fs, sensors, detector=self.front_end.detector,
+                                        settings=self.settings, **options)
+        front = copy.copy(self.front_end)
+        front.detector = decided.detector
+        pipe = ClickLocalization(
+            front_end=front, localizer=decided.settings if self.settings is not None
+            else self.localizer, min_tdoas=self.min_tdoas, sigma_floor_s=self.sigma_floor_s,
+            decide=False)
+        pipe.decisions = decided
+        return pipe, decided
 
     def localizers_for(self, sensors: SensorArray
                        ) -> tuple[MultiSourceLocalizer | None, MultiSourceLocalizer | None]:
@@ -361,10 +428,31 @@ class ClickLocalization:
     def iter_windows(
         self, blocks: Iterable, *, fs: float, sensors: SensorArray, duration_s: float | None = None
     ) -> Iterator[LocalizedWindow]:
-        """Stream audio blocks (see :meth:`ClickFrontEnd.iter_windows`); yield each window."""
-        for w in self.front_end.iter_windows(blocks, fs=fs, sensors=sensors,
+        """Stream audio blocks (see :meth:`ClickFrontEnd.iter_windows`); yield each window.
+
+        With ``decide`` (the default) the first minute of blocks is held, the decisions are
+        made from it (:meth:`with_recording_decisions`, kept in ``decisions``) and the stream
+        is run through the decided pipeline.
+        """
+        pipe = self
+        if self.decide:
+            first, blocks = recording_start(blocks, fs)
+            pipe, self.decisions = self.with_recording_decisions(first, fs, sensors)
+        for w in pipe.front_end.iter_windows(blocks, fs=fs, sensors=sensors,
                                              duration_s=duration_s):
-            yield self.localize(w, sensors)
+            yield pipe.localize(w, sensors)
+
+    def run_array(self, audio: ArrayLike, fs: float, sensors: SensorArray
+                  ) -> list[LocalizedWindow]:
+        """Every localized window of audio held in memory (n, n_sensors), in blocks of one
+        update (:meth:`iter_windows`)."""
+        x = np.asarray(audio)
+        if x.ndim != 2:
+            raise ValueError(f"audio must have shape (n, n_sensors), got {x.shape}")
+        step = int(round(self.front_end.hop_s * fs))
+        blocks = ((a / fs, x[a:a + step]) for a in range(0, x.shape[0], step))
+        return list(self.iter_windows(blocks, fs=fs, sensors=sensors,
+                                      duration_s=x.shape[0] / fs))
 
 
 def explained_fraction(out: LocalizationOutput | None) -> float:

@@ -20,35 +20,31 @@ from fusion.simulate.clicks import simulate_clicks
 
 @pytest.fixture(scope="module")
 def localized():
-    """Two whales, a bottom-mounted 5-sensor array, 30 s at 30 dB, every window localized.
-
-    The sea floor is the deepest hydrophone's depth (what a user knows of the deployment).
-    """
+    """Two whales, a bottom-mounted 5-sensor array, 30 s at 30 dB, every window localized by the
+    library's default chain (``ClickLocalization()``: replica, band, echoes and sea floor decided
+    from the recording, paths per window)."""
     sc = simulate_clicks(seed=0, n_sensors=5, n_sources=2, duration_s=30.0, snr_db=30.0)
-    bottom = float(sc.sensors.positions[:, 2].min())
-    pipe = ClickLocalization(localizer=whale_localizer(bottom_z=bottom))
-    windows = pipe.front_end.run_array(sc.audio, sc.fs, sc.sensors)
-    return sc, [pipe.localize(w, sc.sensors) for w in windows]
+    pipe = ClickLocalization()
+    lws = pipe.run_array(sc.audio, sc.fs, sc.sensors)
+    return sc, lws
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "issue 17, docs/localization.md section 13: with validator_v2.npz more of whale 1's "
-    "direct-path TDOAs pass at the model's own threshold (pairs 1-3, 2-3: LLR 5.8-8 against "
-    "2.7-2.9 with v1), and the library's default chain, which reads every TDOA along surface "
-    "paths too (no path decisions from the data), fits them in windows 8 and 14 as a "
-    "surface-path source ~1 km from both whales; not a validator false pass"))
 def test_observable_sources_lie_on_a_whale(localized):
-    """Every source flagged observable is within 5 m of one of the whales' tracks."""
+    """Every source flagged observable is within 5 m of one of the whales' tracks, and the
+    recording's decisions find the whales in most windows (20 fixes in 15 windows of two
+    whales; 12 with ``ClickLocalization(decide=False)``). Every window read along surface paths
+    too (``LocalizerSettings(surface_paths=True)``, or ``whale_localizer()`` as this chain ran
+    before) adds fixes ~1 km from both whales (docs/localization.md section 14)."""
     sc, lws = localized
     fixes = [(lw, f) for lw in lws if lw.output is not None for f in lw.output.sources
              if f.observable]
-    assert len(fixes) >= 5
     for lw, f in fixes:
         mid = 0.5 * (lw.window.t_start + lw.window.t_end)
         times = np.linspace(mid - 4.0, mid, 81)  # emission times around the window
         d = min(np.min(np.linalg.norm(s.position_at(times) - f.position, axis=1))
                 for s in sc.sources)
         assert d < 5.0
+    assert len(fixes) >= 16
 
 
 def test_track_follows_the_whale(localized):
@@ -316,7 +312,10 @@ def test_even_odds_validation_keeps_the_pairs_a_fix_needs(tmp_path):
                  "--duration-s", "30", "--echo", "both", "--out", str(tmp_path / "s")]) == 0
     truth = json.loads((tmp_path / "s" / "truth.json").read_text())
     found = {}
-    for name, extra in (("even", []), ("model", ["--validator", str(V1_MODEL_PATH)])):
+    # the model's threshold alone: closure support (section 15) admits the far pairs' partial
+    # trains that this threshold drops where the others span three sensors
+    for name, extra in (("even", []), ("model", ["--validator", str(V1_MODEL_PATH),
+                                                 "--no-closure-support"])):
         found[name] = _localized_within_10_m(tmp_path, name, extra, truth)
     assert found["even"] == (10, 0, 10)
     assert found["model"][0] <= 8

@@ -30,7 +30,9 @@ calls to :func:`fusion.scale.run_tasks`, on forked worker processes with ``--wor
 
     array = read_array("array.json")
     source = AudioSource.of(check_audio_files(["audio.flac"], array.n_sensors))
-    pipe = ClickLocalization()
+    # decided once, from the first minute (the chunks run the pipeline as given)
+    _, first = next(source.blocks(block=int(60 * source.fs)))
+    pipe, decided = ClickLocalization().with_recording_decisions(first, source.fs, array)
     parts = [localize_chunk((pipe, array), task) for task in plan_chunks(source, pipe)]
     document = DocumentText(parts)
     with open("result.json", "w", encoding="utf-8") as f:

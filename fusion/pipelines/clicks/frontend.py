@@ -65,6 +65,7 @@ from fusion.clicks.associate import (
 from fusion.clicks.delaytrack import match_along_track
 from fusion.clicks.detect import ClickDetector
 from fusion.clicks.scm import ClickMapCorrelator, ScmConfig, drift_grid, scm2_many
+from fusion.clicks.support import SUPPORT_MIN_LLR, closure_support
 from fusion.clicks.tdoa import TdoaRefiner
 from fusion.clicks.types import ChannelClicks
 from fusion.clicks.validate import TdoaValidator, scm2_features
@@ -142,6 +143,10 @@ class ClickFrontEnd:
     alias_screen : bool, optional
         Fail a TDOA that re-pairs the clicks of a stronger TDOA of its pair one click apart
         (:func:`fusion.clicks.aliases.train_aliases`; default True).
+    closure_support : bool, optional
+        Where the validated TDOAs of a window span fewer than four sensors, admit the partial
+        trains of another sensor that close with them (:func:`fusion.clicks.support.
+        closure_support`; default True, ``docs/localization.md`` section 15).
     """
 
     def __init__(
@@ -157,6 +162,7 @@ class ClickFrontEnd:
         scm_level: float = 0.5,
         feature_decimation: int = 10,
         alias_screen: bool = True,
+        closure_support: bool = True,
     ) -> None:
         check_positive("hop_s", hop_s)
         check_positive("sigma_t_s", sigma_t_s)
@@ -183,6 +189,7 @@ class ClickFrontEnd:
         self.scm_level = float(scm_level)
         self.feature_decimation = int(feature_decimation)
         self.alias_screen = bool(alias_screen)
+        self.closure_support = bool(closure_support)
 
     @property
     def window_s(self) -> float:
@@ -245,14 +252,14 @@ class ClickFrontEnd:
         else:
             llr = self.validator.llr(z)
             passes = llr >= self.validator.threshold
-        out = []
-        for k, (peak, s2) in enumerate(zip(corr.peaks, maps, strict=True)):
+        def measured(k: int, refine: bool) -> WindowTdoa:
+            """Candidate k, refined when `refine` (a TDOA to be used) and a refiner is given."""
+            peak, s2 = corr.peaks[k], maps[k]
             i, j = peak.pair
             tau, sigma, crb, snr, rate = (peak.tau_s, self.config.pulse_halfwidth_s, math.nan,
                                           math.nan, peak.rate)
             times = s2.click_times_s
-            # refine only what passed validation: the rest is dropped downstream anyway
-            if refiner is not None and passes[k] and s2.index_i.size:
+            if refine and refiner is not None and s2.index_i.size:
                 # the SCM2's matches, extended through the window along the delay's drift
                 ii, jj = match_along_track(inside[i].times_s, inside[j].times_s, s2.index_i,
                                            s2.index_j, t_start_s=t0_s, t_end_s=t1)
@@ -266,16 +273,42 @@ class ClickFrontEnd:
                     # (the SCM2 matches only those within its pulse width of the coarse delay)
                     if ref.click_times_s.size >= times.size:
                         times = np.sort(ref.click_times_s)
-            out.append(WindowTdoa(
+            return WindowTdoa(
                 pair=peak.pair, tau_s=float(tau), tau_coarse_s=float(peak.tau_s),
                 sigma_s=float(sigma), crb_s=float(crb), snr_db=float(snr), rate=float(rate),
                 scm_peak=float(peak.value),
                 n_clicks=int(s2.click_times_s.size), features=z[k], llr=float(llr[k]),
-                passes=bool(passes[k]), click_times_s=times, t_s=t0_s + 0.5 * self.window_s))
+                passes=bool(passes[k]), click_times_s=times, t_s=t0_s + 0.5 * self.window_s)
+
+        # refine only what passed validation: the rest is dropped downstream anyway
+        out = [measured(k, bool(passes[k])) for k in range(len(maps))]
+        alias = np.zeros(len(out), dtype=bool)
         if self.validator is not None and self.alias_screen:  # one delay per click train
-            out = [dataclasses.replace(d, passes=False) if alias else d
-                   for d, alias in zip(out, train_aliases(out), strict=True)]
+            alias = np.asarray(train_aliases(out), dtype=bool)
+            out = [dataclasses.replace(d, passes=False) if a else d
+                   for d, a in zip(out, alias, strict=True)]
+        if self.validator is not None and self.closure_support:
+            out = self._supported(out, alias, measured)
         return out
+
+    def _supported(self, out: list[WindowTdoa], alias: NDArray[np.bool_],
+                   measured: Callable[[int, bool], WindowTdoa]) -> list[WindowTdoa]:
+        """A weakly heard sensor's partial trains admitted by closure with the validated TDOAs
+        (:func:`fusion.clicks.support.closure_support`), where those span fewer than four
+        sensors: the candidates that may be admitted are refined first; the others stay as
+        they were."""
+        passes = np.array([d.passes for d in out], dtype=bool)
+        if len({s for d, p in zip(out, passes, strict=True) if p for s in d.pair}) >= 4:
+            return out
+        llr = np.array([d.llr for d in out])
+        pool = ~passes & ~alias & (llr >= SUPPORT_MIN_LLR)
+        if pool.sum() < 2:
+            return out
+        trial = [measured(k, True) if pool[k] else d for k, d in enumerate(out)]
+        admit = closure_support([d.as_clicks() for d in trial], passes, pool, llr,
+                                sigma_t_s=self.sigma_t_s, t_ref_s=out[0].t_s)
+        return [dataclasses.replace(trial[k], passes=True) if admit[k] else d
+                for k, d in enumerate(out)]
 
     def stream_refiner(self, fs: float) -> TdoaRefiner | None:
         """The refiner of one stream of audio at `fs` (None without refinement): it remembers

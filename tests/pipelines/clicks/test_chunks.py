@@ -142,22 +142,16 @@ def test_serial_run_equals_one_pass(recording, serial_bytes, tmp_path):
             start += x.shape[0]
 
     # the command's decisions from the first 60 s (here all) of the recording: replica, echoes,
-    # sea floor; then, once every window is done, the recording's sound speed
+    # sea floor, made by the pipeline itself as it streams; then, once every window is done,
+    # the recording's sound speed
     from fusion.pipelines.clicks import LLR_THRESHOLD, ClickFrontEnd, default_validator
-    from fusion.pipelines.from_recording import decide_from_recording
-    from fusion.pipelines.localization import LocalizerSettings
     from fusion.pipelines.sound_speed import calibrate_speed
 
-    first, _ = sf.read(str(recording / "audio.flac"), frames=int(60 * fs), dtype="float32",
-                       always_2d=True)
-    decided = decide_from_recording(first, fs, sensors, settings=LocalizerSettings())
-    assert decided.replica is not None
-    pipe = ClickLocalization(front_end=ClickFrontEnd(detector=decided.detector,
-                                                     validator=default_validator(LLR_THRESHOLD)),
-                             localizer=decided.settings)
+    pipe = ClickLocalization(front_end=ClickFrontEnd(validator=default_validator(LLR_THRESHOLD)))
     with threadpool_limits(1):  # as the chunk tasks (one BLAS thread, as on a Dask worker)
         windows = list(pipe.iter_windows(blocks(), fs=fs, sensors=sensors,
                                          duration_s=info.frames / fs))
+    assert pipe.decisions is not None and pipe.decisions.replica is not None
     doc = result_document(windows)
     cal = calibrate_speed(doc["windows"], sensors.positions, sensors.sound_speed)
     doc["windows"] = [cal.apply(w) for w in doc["windows"]]
