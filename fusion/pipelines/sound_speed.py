@@ -54,7 +54,8 @@ MAX_SIGMA_MPS = 3.0
 #: (which a kilometre-scale array's delays confuse with the speed) or wrong fixes.
 MAX_CHANGE = 0.015
 #: Standard deviation given to a recruited candidate delay, s (the validator gives none below
-#: its bar; candidates of sparse trains were 0-150 us off on seeds 7703, 7800, 7803).
+#: its bar; candidates of sparse trains were 0-400 us off, often under 100 us, on seeds 7703,
+#: 7800, 7803).
 RECRUIT_SIGMA_S = 50e-6
 
 
