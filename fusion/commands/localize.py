@@ -168,6 +168,11 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="estimate (default): one sound speed for the recording, estimated on a "
                         "factor graph from all its fixes, and every fix re-solved at it (the "
                         "array file's speed only starts it); array: the array file's speed")
+    p.add_argument("--no-far-delays", dest="far_delays", action="store_false",
+                   help="estimate the sound speed from the delays the fixes own only (ablation): "
+                        "by default, when fewer than 3 fixes span 5 sensors, a sensor's candidate "
+                        "delays below the validator's bar are recruited where the windows agree "
+                        "on the speed they imply")
     p.add_argument("--candidates", type=number(int, ge=1, le=MAX_CANDIDATES), default=None,
                    metavar="N", help="candidates per window, at most "
                    f"{MAX_CANDIDATES} (default 16 reading surface paths, 8 direct)")
@@ -427,7 +432,8 @@ def run(args: argparse.Namespace) -> int:
                 from fusion.pipelines.sound_speed import calibrate_speed
 
                 cal = calibrate_speed((w for t in plan for w in json.loads(store.read(name(t)))),
-                                      array.positions, array.sound_speed)
+                                      array.positions, array.sound_speed,
+                                      recruit_far=args.far_delays)
                 transform, speeds[str(out)] = cal.apply, cal.record()
                 notes.append(cal.note if len(recordings) == 1 else f"{out}: {cal.note}")
             document = DocumentText((store.read(name(t)) for t in plan), transform=transform)

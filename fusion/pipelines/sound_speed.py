@@ -33,6 +33,7 @@ from fusion.localization.sound_speed import (
 )
 from fusion.localization.surface_paths import PATHS
 from fusion.pipelines.localization import SEA_SURFACE_Z, SIGMA_FLOOR_S, UNBOUNDED_M2
+from fusion.pipelines.speed_recruit import recruit
 
 __all__ = ["SpeedCalibration", "calibrate_speed", "fix_tdoas"]
 
@@ -52,6 +53,10 @@ MAX_SIGMA_MPS = 3.0
 #: paths differ from one value by about 1 %; a larger change is sensor positions metres off
 #: (which a kilometre-scale array's delays confuse with the speed) or wrong fixes.
 MAX_CHANGE = 0.015
+#: Standard deviation given to a recruited candidate delay, s (the validator gives none below
+#: its bar; candidates of sparse trains were 0-400 us off, often under 100 us, on seeds 7703,
+#: 7800, 7803).
+RECRUIT_SIGMA_S = 50e-6
 
 
 def fix_tdoas(window: dict, source: dict, sensors: ArrayLike, c: float,
@@ -191,8 +196,30 @@ class SpeedCalibration:
         return {**window, "sources": [kept[j] for j in np.argsort(first, kind="stable")]}
 
 
-def calibrate_speed(windows: Iterable[dict], sensors: ArrayLike, nominal_mps: float
-                    ) -> SpeedCalibration:
+def _far_candidates(window: dict, src: dict, fix: FixTdoas, sensors: NDArray[np.float64],
+                     c: float) -> FixTdoas | None:
+    """The candidate delays (valid or not, owned by no source) of `window` between the four
+    sensors of a direct-path, observable, unambiguous fix and a sensor it does not use, moved
+    to its emission like its own (sigma :data:`RECRUIT_SIGMA_S`); None when there are none."""
+    n = len(sensors)
+    if (not src.get("observable", True) or src.get("mirror_ambiguous", False)
+            or np.unique(fix.pairs).size != 4 or np.any(fix.pairs >= n)):
+        return None
+    used = set(np.unique(fix.pairs).tolist())
+    owned = {k for q in window.get("sources", []) for k in q.get("owned_tdoas", [])}
+    idx = [k for k, d in enumerate(window["tdoas"])
+           if k not in owned and (d["pair"][0] in used) != (d["pair"][1] in used)]
+    if not idx:
+        return None
+    cand = fix_tdoas(window, {**src, "owned_tdoas": idx, "paths": ["direct"] * len(idx)},
+                     sensors, c)
+    return None if cand is None else FixTdoas(
+        cand.sensors, cand.pairs, cand.taus, np.full(cand.m, RECRUIT_SIGMA_S), cand.weights,
+        cand.position)
+
+
+def calibrate_speed(windows: Iterable[dict], sensors: ArrayLike, nominal_mps: float,
+                    *, recruit_far: bool = True) -> SpeedCalibration:
     """Estimate the speed shared by the fixes of written windows (see the module docstring).
 
     Parameters
@@ -203,14 +230,29 @@ def calibrate_speed(windows: Iterable[dict], sensors: ArrayLike, nominal_mps: fl
         Sensor positions, m.
     nominal_mps : float
         The array file's speed, m/s.
+    recruit_far : bool
+        When fewer than :data:`MIN_CALIBRATION_FIXES` fixes span five sensors, recruit the
+        candidate delays of a sensor the four-sensor fixes do not use where the windows agree
+        on the speed they imply (:mod:`fusion.pipelines.speed_recruit`); False: only the fixes'
+        own delays (``fusion localize --no-speed-recruit``, the ablation).
     """
     s = np.asarray(sensors, dtype=float)
     fixes = []
-    for w in windows:
+    four: list[tuple[int, FixTdoas, FixTdoas]] = []  # four-sensor fixes, their far candidates
+    for k, w in enumerate(windows):
         for src in _clusters(w.get("sources", [])):
             fix = fix_tdoas(w, src, s, nominal_mps)
             if _teaches(src, fix):
                 fixes.append(fix)
+            elif recruit_far and fix is not None:
+                cand = _far_candidates(w, src, fix, s, nominal_mps)
+                if cand is not None:
+                    four.append((k, fix, cand))
+    recruited = 0
+    if len(fixes) < MIN_CALIBRATION_FIXES and four:
+        more, _ = recruit(four, nominal_mps)
+        if len(fixes) + len(more) >= MIN_CALIBRATION_FIXES:
+            fixes, recruited = fixes + more, len(more)
     if len(fixes) < MIN_CALIBRATION_FIXES:
         return SpeedCalibration(nominal_mps, None, (
             f"sound speed: the array file's {nominal_mps:g} m/s ({len(fixes)} fixes with delays "
@@ -246,5 +288,7 @@ def calibrate_speed(windows: Iterable[dict], sensors: ArrayLike, nominal_mps: fl
             f"{len(fixes)} fixes do not constrain it)"), s)
     return SpeedCalibration(nominal_mps, est, (
         f"sound speed: {est.speed_mps:.1f} +- {est.sigma_mps:.2g} m/s estimated from "
-        f"{est.n_tdoas} TDOAs of {est.n_fixes} fixes (array file {nominal_mps:g} m/s); every "
+        f"{est.n_tdoas} TDOAs of {est.n_fixes} fixes"
+        + (f" ({recruited} with a far sensor's delays recruited)" if recruited else "")
+        + f" (array file {nominal_mps:g} m/s); every "
         "fix re-solved at it (--sound-speed array keeps the file's)"), s)

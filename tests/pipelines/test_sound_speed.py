@@ -154,3 +154,61 @@ def test_fixes_that_disagree_keep_the_file_speed():
         [[800.0, 600, -900], [-1200, 1500, -700], [1300, -400, -1100], [-900, -1500, -800]])]
     jitter = SENSORS + np.random.default_rng(5).normal(0.0, 8.0, SENSORS.shape)
     assert calibrate_speed(spread, jitter, 1500.0).estimate is None
+
+
+def _four_sensor_window(p_true, c_true, c_file, t0, rng):
+    """A written window whose source owns the six delays of sensors 0-3 (solved at the file's
+    speed); sensor 4's pairs are candidates below the validator's bar: the true delay and two
+    chance ones each."""
+    own = [(i, j) for i in range(4) for j in range(i + 1, 4)]
+    q = np.array(own)
+    taus = predicted_tdoas(p_true, SENSORS, q, c=c_true)
+    start = least_squares(lambda x: (predicted_tdoas(x, SENSORS, q, c=c_file) - taus) * 1e6,
+                          p_true).x
+    tdoas = [{"pair": list(pr), "tau": float(t), "t": t0 + 6.0, "rate": 0.0, "valid": True,
+              "llr": 5.0, "sigma": 1e-7} for pr, t in zip(own, taus, strict=True)]
+    for i in range(4):
+        true = float(predicted_tdoas(p_true, SENSORS, np.array([[i, 4]]), c=c_true)[0])
+        for tau in (true + rng.normal(0, 20e-6), true + rng.uniform(-0.2, 0.2),
+                    rng.uniform(-2.0, 2.0)):
+            tdoas.append({"pair": [i, 4], "tau": tau, "t": t0 + 6.0, "rate": 0.0,
+                          "valid": False, "llr": 0.1, "sigma": 0.0027})
+    src = {"x": start[0], "y": start[1], "z": start[2], "cov": np.eye(3).tolist(),
+           "tdoas_used": 6, "observable": True, "mirror_ambiguous": False,
+           "owned_tdoas": list(range(6)), "paths": ["direct"] * 6}
+    return {"t_start": t0, "t_end": t0 + 12.0, "tdoas": tdoas, "sources": [src]}
+
+
+def test_far_sensor_delays_teach_the_speed_of_four_sensor_fixes():
+    """Every fix spans four sensors (exactly determined at any speed); the fifth sensor's
+    sub-threshold candidates agree on one speed across windows: the speed is estimated from
+    them and the fixes re-solved at it. Without them (the ablation) the file's speed is kept
+    and the fixes stay metres off (seeds 7703, 7800, 7803 of ``--vary-only sound-speed``)."""
+    rng = np.random.default_rng(3)
+    windows = [_four_sensor_window(p, 1484.0, 1500.0, 2.0 * k, rng)
+               for k, p in enumerate(TRUE)]
+    before = np.array([[w["sources"][0][a] for a in "xyz"] for w in windows])
+    assert np.min(np.linalg.norm(before - TRUE, axis=1)) > 5.0
+    off = calibrate_speed(windows, SENSORS, 1500.0, recruit_far=False)
+    assert off.estimate is None and "3 are needed" in off.note
+    cal = calibrate_speed(windows, SENSORS, 1500.0)
+    assert cal.estimate is not None
+    assert cal.speed_mps == pytest.approx(1484.0, abs=0.5)
+    assert "far sensor's delays recruited" in cal.note
+    pos = np.array([[cal.apply(w)["sources"][0][a] for a in "xyz"] for w in windows])
+    assert np.max(np.linalg.norm(pos - TRUE, axis=1)) < 1.0
+    # the re-solved fixes stand on their own delays only
+    assert all(cal.apply(w)["sources"][0]["tdoas_used"] == 6 for w in windows)
+
+
+def test_chance_candidates_alone_teach_no_speed():
+    rng = np.random.default_rng(4)
+    windows = [_four_sensor_window(p, 1484.0, 1500.0, 2.0 * k, rng)
+               for k, p in enumerate(TRUE)]
+    for w in windows:  # the true candidates of sensor 4 replaced by chance ones
+        for d in w["tdoas"][6::3]:
+            d["tau"] = float(rng.uniform(-2.0, 2.0))
+        for d in w["tdoas"][7::3]:
+            d["tau"] = float(rng.uniform(-2.0, 2.0))
+    cal = calibrate_speed(windows, SENSORS, 1500.0)
+    assert cal.estimate is None and cal.speed_mps == 1500.0
