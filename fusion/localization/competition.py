@@ -58,7 +58,6 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from factors.tdoa import weighted_tdoa_vector_factor
-from fusion.localization.batch_lm import solve_candidates
 from fusion.localization.competition_settings import CompetitionSettings
 from fusion.localization.ownership import (
     association_weights,
@@ -326,17 +325,16 @@ def compete(
         _, gamma = association_weights(r, cfg.beta_scale * scale, alpha)
         wt[idx] = w[idx] * gamma  # eq. (22)
         moved = 0.0
-        # the candidates with enough weight to fix a position, all solved at once
-        solvable = np.array([independent_pairs(pairs, wt[k] > 1e-6 * max(float(wt[k].max()), 1e-300))
-                             >= 3 for k in idx], dtype=bool)
-        step_s = np.zeros(idx.size)
-        if np.any(solvable):
-            ks = idx[solvable]
-            new = solve_candidates(x[ks], wt[ks], tdoas.sensors, pairs, tdoas.taus, sig,
-                                   c=tdoas.c, max_iterations=cfg.solver_iterations)
-            moved = float(np.max(np.linalg.norm(new - x[ks], axis=1)))
-            x[ks], fresh[ks] = new, False
-            step_s[solvable] = np.max(np.abs(delays_of(ks) - r[solvable] - tdoas.taus), axis=1)
+        step_s, solved = np.zeros(idx.size), np.zeros(idx.size, dtype=bool)
+        for row, k in enumerate(idx):
+            strong = wt[k] > 1e-6 * max(float(wt[k].max()), 1e-300)
+            if independent_pairs(pairs, strong) >= 3:  # else too little to fix a position
+                new = graph.solve(x[k], wt[k])
+                moved = max(moved, float(np.linalg.norm(new - x[k])))
+                x[k], fresh[k], solved[row] = new, False, True
+        if np.any(solved):  # the delay change of each move, from the moved candidates' delays
+            step_s[solved] = np.max(np.abs(delays_of(idx[solved]) - r[solved] - tdoas.taus),
+                                    axis=1)
         spread[idx] = np.maximum(spread[idx] * cfg.anneal_factor, step_s)
         annealed = bool(np.all(spread[idx] <= sig.min()))
         scale = np.maximum(sig[None, :], spread[idx, None])
