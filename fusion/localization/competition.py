@@ -305,37 +305,25 @@ def compete(
     tol_m = cfg.tol * float(sig.min()) * tdoas.c
     z_margin = 0.01 * (z_range[1] - z_range[0]) if z_range is not None else 0.0
     converged, it, grow_passes = False, 0, 2
-    # the predicted delays of each candidate, kept until it moves (row by row the same numbers
-    # tdoas.predicted gives for any stack of positions)
-    dly, fresh = np.zeros((k0, m)), np.zeros(k0, dtype=bool)
-
-    def delays_of(rows: NDArray[np.intp]) -> NDArray[np.float64]:
-        stale = rows[~fresh[rows]]
-        if stale.size:
-            dly[stale], fresh[stale] = tdoas.predicted(x[stale]), True
-        return dly[rows]
-
     for it in range(1, cfg.max_iterations + 1):
         idx = np.flatnonzero(alive)
         if idx.size == 0:
             break
         scale = np.maximum(sig[None, :], spread[idx, None])  # (K', M), s
         # (a) candidate update, eq. (20)-(22)
-        r = delays_of(idx) - tdoas.taus  # d_m(x_k) - tau_m, (K', M)
+        r = tdoas.predicted(x[idx]) - tdoas.taus  # d_m(x_k) - tau_m, (K', M)
         _, gamma = association_weights(r, cfg.beta_scale * scale, alpha)
         wt[idx] = w[idx] * gamma  # eq. (22)
         moved = 0.0
-        step_s, solved = np.zeros(idx.size), np.zeros(idx.size, dtype=bool)
         for row, k in enumerate(idx):
             strong = wt[k] > 1e-6 * max(float(wt[k].max()), 1e-300)
+            step_s = 0.0
             if independent_pairs(pairs, strong) >= 3:  # else too little to fix a position
                 new = graph.solve(x[k], wt[k])
                 moved = max(moved, float(np.linalg.norm(new - x[k])))
-                x[k], fresh[k], solved[row] = new, False, True
-        if np.any(solved):  # the delay change of each move, from the moved candidates' delays
-            step_s[solved] = np.max(np.abs(delays_of(idx[solved]) - r[solved] - tdoas.taus),
-                                    axis=1)
-        spread[idx] = np.maximum(spread[idx] * cfg.anneal_factor, step_s)
+                step_s = float(np.max(np.abs(tdoas.predicted(new) - r[row] - tdoas.taus)))
+                x[k] = new
+            spread[k] = max(spread[k] * cfg.anneal_factor, step_s)
         annealed = bool(np.all(spread[idx] <= sig.min()))
         scale = np.maximum(sig[None, :], spread[idx, None])
         # a candidate that left the water column (e.g. below the sea floor) sits on the wrong
@@ -350,7 +338,7 @@ def compete(
                 if not mirrored[k] and z_range[0] <= image[2] <= z_range[1]:
                     _LOG.debug("iteration %d: candidate %d (z = %.1f m) to its mirror image", it,
                                k, x[k, 2])
-                    x[k], spread[k], mirrored[k], fresh[k] = image, spread0, True, False
+                    x[k], spread[k], mirrored[k] = image, spread0, True
                 else:
                     alive[k] = False
                     _LOG.debug("iteration %d: candidate %d dropped (z = %.1f m)", it, k, x[k, 2])
@@ -359,7 +347,7 @@ def compete(
                 break
             scale = np.maximum(sig[None, :], spread[idx, None])
         # (b) weight update: responsibilities with a uniform clutter component
-        delays = delays_of(idx)  # (K', M), also read by the merge below
+        delays = tdoas.predicted(x[idx])  # (K', M), also read by the merge below
         r = delays - tdoas.taus
         loglik = log_pi[idx, None] - 0.5 * (r / scale) ** 2 - np.log(np.sqrt(2 * np.pi) * scale)
         # normalised over the candidates, the columns of one measurement and clutter
@@ -411,7 +399,7 @@ def compete(
                 for k in np.flatnonzero(alive):
                     out = _grow(tdoas, graph, x[k], w[k], left, cfg, z_range)
                     if out is not None:
-                        (x[k], w[k]), fresh[k] = out, False
+                        x[k], w[k] = out
                         grew = True
                         _LOG.debug("iteration %d: candidate %d grew", it, k)
                 grow_passes -= 1

@@ -267,19 +267,3 @@ def test_localizer_checks_inputs():
         MultiSourceLocalizer(method="eq18").localize(RING, pairs, taus, SIGMA, c=C)
     with pytest.raises(ValueError, match="clutter_fraction"):
         CompetitionSettings(clutter_fraction=1.0)
-
-
-def test_predicted_delays_of_a_stack_equal_those_row_by_row():
-    """The competition keeps each candidate's predicted delays until it moves and reads them for
-    any subset of candidates: that needs tdoas.predicted of a stack of positions to equal, bit
-    for bit, the delays of each position alone."""
-    rng = np.random.default_rng(11)
-    w = simulate_tdoa_window(RING, [[100.0, 200.0, -800.0]], c=C, seed=6,
-                             noise_range_s=(SIGMA, SIGMA))
-    t = WindowTdoas(RING, w.pairs, w.taus, np.full(10, SIGMA), c=C, alpha=w.alpha)
-    p = rng.uniform(-3000.0, 3000.0, (9, 3))
-    stack = t.predicted(p)
-    rows = np.vstack([t.predicted(p[i]) for i in range(9)])
-    subset = t.predicted(p[[7, 2, 5]])
-    assert np.array_equal(stack, rows)
-    assert np.array_equal(stack[[7, 2, 5]], subset)
