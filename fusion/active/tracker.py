@@ -164,6 +164,12 @@ class Tracker:
         (default 0.01); None: `max_misses`.
     intensity_leave_one_out : bool, optional
         Leave-one-out clutter intensity in the track score (default False; `TrackScorer`).
+    intensity_leave_track_out : bool, optional
+        The clutter intensity at a track's hit also leaves out the track's own earlier
+        detections (default False; `TrackScorer` ``leave_track_out``).
+    hits_per_detection : bool, optional
+        Each detection a tentative track takes counts towards `confirm_hits` (default False:
+        each ping with at least one detection counts once).
     shadow : bool, optional
         Fuzzy mode, monostatic sensors (detections with ``own_x, own_y`` and no ``rcv_x,
         rcv_y``): hold tentative tracks behind a near confirmed track (default True;
@@ -210,6 +216,8 @@ class Tracker:
         coast_probability: float | None = 0.01,
         shadow: bool = True,
         shadow_extent_sigmas: float = 8.0, intensity_leave_one_out: bool = False,
+        intensity_leave_track_out: bool = False,
+        hits_per_detection: bool = False,
     ) -> None:
         if mode not in ("fuzzy", "kalman"):
             raise ValueError(f"mode must be 'fuzzy' or 'kalman', got {mode!r}")
@@ -249,6 +257,7 @@ class Tracker:
                                    detection_probability=detection_probability,
                                    clutter_intensity=clutter_intensity, score_evidence=score_evidence,
                                    leave_one_out=intensity_leave_one_out,
+                                   leave_track_out=intensity_leave_track_out,
                                    intensity=ClutterIntensity(bandwidth_m=intensity_bandwidth_m))
                        if mode == "fuzzy" and confirm_llr is not None else None)
         self.motion_test = MotionTest(probability=motion_probability,
@@ -264,6 +273,7 @@ class Tracker:
         self.m, self.n, self.max_misses = int(confirm_hits), int(confirm_window), int(max_misses)
         self.init_exclusion_m = float(init_exclusion_m)
         self.hold_stationary = bool(hold_stationary)
+        self.hits_per_detection = bool(hits_per_detection)
         if mode == "fuzzy":
             self.clutter_map = (clutter_map if clutter_map is not None
                                 else DensityClutterMap(position_sigma_m=position_sigma_m))
@@ -285,6 +295,9 @@ class Tracker:
         self._life: list[Lifecycle] = []
         # Per track: time, x, y, R_xx, R_xy, R_yy, sensor x, y of its tentative detections.
         self._seen: list[list[list[float]]] = []
+        # Per track: receiver key -> rows (estimator update, x, y) of its detections that went
+        # into that receiver's clutter-intensity estimate (TrackScorer leave_track_out).
+        self._own: list[dict[object, list[tuple[float, float, float]]]] = []
         self._next_id = 0
         self._time: float | None = None
         if self.clutter_map is not None:
@@ -396,9 +409,12 @@ class Tracker:
             scan.dets[i].append(int(idx[j]))
             if not confirmed[i]:
                 self._seen[i].append(scan.rows[idx[j]])
+        track_out = self.scorer is not None and self.scorer.leave_track_out
         if self.scorer is not None:
             i = np.flatnonzero(hit)
             j = det_of[i]
+            own = ([np.asarray(self._own[t].get(key, ()), float).reshape(-1, 3) for t in i.tolist()]
+                   if track_out else None)
             self._llr = self._llr + self.scorer.scan_delta(
                 key, xy=xy, cov=R, track_xy=self._x[:, :2], hits=i, dets=j,
                 scores=ping.clues["score"][idx] if "score" in ping.clues else None,
@@ -406,7 +422,13 @@ class Tracker:
                 log_pdf=(-0.5 * stats.d2[i, j] - np.log(2.0 * np.pi)
                          - 0.5 * np.log(stats.det[i, j])),
                 confirmed=confirmed, contested=~hit & gated[:, taken].any(axis=1),
-                teach=confirmed | (self.pd_from_tentative & (self._llr >= self.scorer.confirm_llr)))
+                teach=confirmed | (self.pd_from_tentative & (self._llr >= self.scorer.confirm_llr)),
+                own=own)
+            if track_out:
+                added, u = self.scorer.last_added, float(self.scorer.last_update)
+                for t, d in zip(i.tolist(), j.tolist(), strict=True):
+                    if added[d]:
+                        self._own[t].setdefault(key, []).append((u, *xy[d].tolist()))
 
         # New tentative tracks: free detections (taken by no track, inside no track's gate)
         # away from hotspots.
@@ -424,6 +446,12 @@ class Tracker:
         self._llr = np.concatenate([self._llr, np.zeros(new.size)])
         self._life += [Lifecycle()] * new.size
         self._seen += [[scan.rows[j]] for j in idx[new].tolist()]
+        if track_out:
+            added, u = self.scorer.last_added, float(self.scorer.last_update)
+            self._own += [{key: [(u, *xy[d].tolist())]} if added[d] else {}
+                          for d in new.tolist()]
+        else:
+            self._own += [{} for _ in range(new.size)]
         scan.dets += [[int(j)] for j in idx[new].tolist()]
         scan.rank += [np.nan] * new.size
 
@@ -453,14 +481,18 @@ class Tracker:
             platform_test=self.platform_test, shadowed=None if self.shadow_test is None else
             self.shadow_test.shadowed([h[-1][1:3] if h else (np.nan, np.nan) for h in self._seen],
                                       [h[-1][6:8] if h else (np.nan, np.nan) for h in self._seen],
-                                      self._ids[confirmed], self._x[confirmed, :2]))
+                                      self._ids[confirmed], self._x[confirmed, :2]),
+            counts=[len(d) for d in scan.dets] if self.hits_per_detection else None)
+        counts = ([len(d) for d in scan.dets] if self.hits_per_detection else hit.tolist())
+        if self.hits_per_detection:
+            self._life[n0:] = [Lifecycle(hits=c) for c in counts[n0:]]
         coast = (self.max_misses if self.scorer is None or self.coast_probability is None
                  else coast_misses([self.scorer.pd(k) for k in keys],
                                    probability=self.coast_probability, floor=self.max_misses))
         life = [next_lifecycle(lc, h, dropped=d, held=s, m=self.m, n=self.n,
                                max_misses=coast if lc.status == "confirmed" else self.max_misses,
                                window=self.scorer is None)
-                for lc, h, d, s in zip(self._life[:n0], hit[:n0].tolist(), dropped[:n0].tolist(),
+                for lc, h, d, s in zip(self._life[:n0], counts[:n0], dropped[:n0].tolist(),
                                        held[:n0].tolist(), strict=True)]
         self._life = life + self._life[n0:]
 
@@ -475,6 +507,7 @@ class Tracker:
         self._ids, self._x, self._P = self._ids[alive], self._x[alive], self._P[alive]
         self._llr = self._llr[alive]
         self._life = [lc for lc, a in zip(self._life, alive_l, strict=True) if a]
+        self._own = [o for o, a in zip(self._own, alive_l, strict=True) if a]
         self._seen = [[] if st == "confirmed" else h
                       for h, a, st in zip(self._seen, alive_l, status.tolist(), strict=True) if a]
         logger.debug("event %d: %d detections, %d tracks, %d new", ping.event, ping.n, n0,
