@@ -255,3 +255,16 @@ def test_hits_per_detection_confirms_a_target_two_receivers_see_a_ping_earlier()
          "--intensity-leave-track-out"])
     opts = track_options(args)
     assert opts.hits_per_detection is True and opts.intensity_leave_track_out is True
+
+
+def test_hold_applies_when_a_pings_detections_complete_the_hits():
+    """A tentative track with one hit that takes two detections on a ping reaches M = 3 with
+    ``hits_per_detection``: the score and motion tests must still hold it when its score is
+    short (without the per-track count it would be confirmed past them)."""
+    from fusion.active.lifecycle import Lifecycle, stationary_hold
+
+    held = stationary_hold(np.array([True]), [Lifecycle(hits=1)], [[]], m=3, motion_test=None,
+                           score_short=np.array([True]), counts=[2])
+    assert held.tolist() == [True]
+    assert stationary_hold(np.array([True]), [Lifecycle(hits=1)], [[]], m=3, motion_test=None,
+                           score_short=np.array([True])).tolist() == [False]
