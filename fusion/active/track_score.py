@@ -156,6 +156,33 @@ class TrackScorer:
         self._counts: dict[Hashable, list[float]] = {}
         self._intensity: dict[Hashable, ClutterIntensity] = {}
         self._blind: dict[Hashable, float] = {}
+        # Per track (in the tracker's order): receiver -> rows (update, x, y) of its detections
+        # that went into that receiver's intensity estimate (used with leave_track_out).
+        self._own: list[dict[Hashable, list[tuple[float, float, float]]]] = []
+
+    def own_rows(self, tracks: NDArray[np.int64], key: Hashable) -> list[NDArray[np.float64]] | None:
+        """The ``own`` argument of :meth:`scan_delta` for these tracks (None without
+        ``leave_track_out``)."""
+        if not self.leave_track_out:
+            return None
+        return [np.asarray(self._own[t].get(key, ()), float).reshape(-1, 3) for t in tracks.tolist()]
+
+    def remember(self, tracks: NDArray[np.int64], dets: NDArray[np.int64], key: Hashable,
+                 xy: NDArray[np.float64], *, new: int = 0) -> None:
+        """After :meth:`scan_delta` (or :meth:`observe`) of a receiver: `new` tracks are born
+        (appended), and each of `tracks` took detection `dets` of `xy` (kept if it went into the
+        intensity estimate). Only with ``leave_track_out``, apart from the births."""
+        self._own += [{} for _ in range(new)]
+        if not self.leave_track_out or self.clutter_intensity is not None:
+            return
+        u = float(self.last_update)
+        for t, d in zip(tracks.tolist(), dets.tolist(), strict=True):
+            if self.last_added[d]:
+                self._own[t].setdefault(key, []).append((u, *xy[d].tolist()))
+
+    def keep_tracks(self, alive: NDArray[np.bool_]) -> None:
+        """Forget the deleted tracks' detections (`alive`: one flag per track)."""
+        self._own = [o for o, a in zip(self._own, alive.tolist(), strict=True) if a]
 
     def pd(self, key: Hashable) -> float:
         """Current detection probability of a receiver per ping (given or estimated)."""
