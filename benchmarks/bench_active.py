@@ -198,6 +198,12 @@ def _grid_variants() -> dict:
         # --intensity-leave-one-out --confirm-llr 5 (the pilot run with the same options)
         "leave_one_out": {"intensity_leave_one_out": True, "confirm_llr": 5.0,
                           "pilot_same": True},
+        # --intensity-leave-track-out --confirm-llr 5 (issue 20, 2026-12-03 afternoon)
+        "leave_track_out": {"intensity_leave_track_out": True, "confirm_llr": 5.0,
+                            "pilot_same": True},
+        # the same with --hits-per-detection --confirm-llr 4
+        "leave_track_out_hits": {"intensity_leave_track_out": True, "confirm_llr": 4.0,
+                                 "hits_per_detection": True, "pilot_same": True},
     }
 
 

@@ -245,7 +245,7 @@ def stationary_hold(
     candidates: NDArray[np.bool_], lives: Sequence[Lifecycle],
     seen: Sequence[Sequence[Sequence[float]]], *, m: int, motion_test: MotionTest | None,
     score_short: NDArray[np.bool_] | None, platform_test: PlatformTest | None = None,
-    shadowed: NDArray[np.bool_] | None = None,
+    shadowed: NDArray[np.bool_] | None = None, counts: Sequence[int] | None = None,
 ) -> NDArray[np.bool_]:
     """Tentative tracks with a hit that would confirm them but that stay tentative.
 
@@ -270,6 +270,9 @@ def stationary_hold(
     shadowed : ndarray of bool, shape (n_tracks,), optional
         Tracks whose latest detection lies behind a near confirmed track
         (:class:`fusion.active.shadow.ShadowTest`): held too.
+    counts : sequence of int, optional
+        Hits each track adds on this ping (default 1 each; the tracker's
+        ``hits_per_detection`` counts detections).
 
     Returns
     -------
@@ -285,7 +288,7 @@ def stationary_hold(
     """
     hold = np.zeros(len(candidates), dtype=bool)
     for i in np.flatnonzero(candidates).tolist():
-        if lives[i].hits + 1 < m:
+        if lives[i].hits + (1 if counts is None else counts[i]) < m:
             continue
         if score_short is not None and score_short[i]:
             hold[i] = True

@@ -97,6 +97,10 @@ class TrackScorer:
         The estimated clutter intensity at a detection leaves out that detection's own kernel
         (:meth:`fusion.active.clutter.intensity.ClutterIntensity.self_intensity`; default
         False): the leave-one-out kernel estimate.
+    leave_track_out : bool, optional
+        The estimated clutter intensity at a track's hit leaves out the detection's own kernel
+        and the kernels of the track's own earlier detections that the estimate still holds
+        (default False; see :meth:`scan_delta`, argument ``own``).
 
     Examples
     --------
@@ -117,6 +121,7 @@ class TrackScorer:
         prior_misses: float = 3.0,
         score_evidence: bool = True,
         leave_one_out: bool = False,
+        leave_track_out: bool = False,
     ) -> None:
         if not (np.isfinite(confirm_llr) and np.isfinite(delete_llr)) or delete_llr >= confirm_llr:
             raise ValueError(f"need finite delete_llr < confirm_llr, got {delete_llr!r}, "
@@ -138,6 +143,9 @@ class TrackScorer:
         self.prior_misses = float(prior_misses)
         self.score_evidence = bool(score_evidence)
         self.leave_one_out = bool(leave_one_out)
+        self.leave_track_out = bool(leave_track_out)
+        self.last_added = np.zeros(0, dtype=bool)
+        self.last_update = 0
         self.reset()
 
     def reset(self) -> None:
@@ -148,6 +156,33 @@ class TrackScorer:
         self._counts: dict[Hashable, list[float]] = {}
         self._intensity: dict[Hashable, ClutterIntensity] = {}
         self._blind: dict[Hashable, float] = {}
+        # Per track (in the tracker's order): receiver -> rows (update, x, y) of its detections
+        # that went into that receiver's intensity estimate (used with leave_track_out).
+        self._own: list[dict[Hashable, list[tuple[float, float, float]]]] = []
+
+    def own_rows(self, tracks: NDArray[np.int64], key: Hashable) -> list[NDArray[np.float64]] | None:
+        """The ``own`` argument of :meth:`scan_delta` for these tracks (None without
+        ``leave_track_out``)."""
+        if not self.leave_track_out:
+            return None
+        return [np.asarray(self._own[t].get(key, ()), float).reshape(-1, 3) for t in tracks.tolist()]
+
+    def remember(self, tracks: NDArray[np.int64], dets: NDArray[np.int64], key: Hashable,
+                 xy: NDArray[np.float64], *, new: int = 0) -> None:
+        """After :meth:`scan_delta` (or :meth:`observe`) of a receiver: `new` tracks are born
+        (appended), and each of `tracks` took detection `dets` of `xy` (kept if it went into the
+        intensity estimate). Only with ``leave_track_out``, apart from the births."""
+        self._own += [{} for _ in range(new)]
+        if not self.leave_track_out or self.clutter_intensity is not None:
+            return
+        u = float(self.last_update)
+        for t, d in zip(tracks.tolist(), dets.tolist(), strict=True):
+            if self.last_added[d]:
+                self._own[t].setdefault(key, []).append((u, *xy[d].tolist()))
+
+    def keep_tracks(self, alive: NDArray[np.bool_]) -> None:
+        """Forget the deleted tracks' detections (`alive`: one flag per track)."""
+        self._own = [o for o, a in zip(self._own, alive.tolist(), strict=True) if a]
 
     def pd(self, key: Hashable) -> float:
         """Current detection probability of a receiver per ping (given or estimated)."""
@@ -224,9 +259,10 @@ class TrackScorer:
         keep = np.ones(pts.shape[0], bool) if clutter is None else np.asarray(clutter, bool)
         est.update(pts[keep], None if cov is None else np.asarray(cov, float)[keep])
         lam = est.intensity(pts)
-        if self.leave_one_out and pts.shape[0]:
-            added = keep.copy()
-            added[keep] = est.last_kept
+        added = keep.copy()
+        added[keep] = est.last_kept
+        self.last_added, self.last_update = added, est.updates
+        if (self.leave_one_out or self.leave_track_out) and pts.shape[0]:
             lam[added] = np.maximum(lam[added] - est.self_intensity(), est.min_intensity)
         if hotspots is not None and len(hotspots) and pts.shape[0]:
             c = np.zeros((pts.shape[0], 2, 2)) if cov is None else np.asarray(cov, float)
@@ -289,6 +325,7 @@ class TrackScorer:
         log_pdf: NDArray[np.float64], confirmed: NDArray[np.bool_],
         teach: NDArray[np.bool_] | None = None,
         contested: NDArray[np.bool_] | None = None,
+        own: list[NDArray[np.float64]] | None = None,
     ) -> NDArray[np.float64]:
         """Score change of every track on one receiver's scan; learns from the scan.
 
@@ -317,6 +354,15 @@ class TrackScorer:
             Tracks without a detection of their own though one in their gate went to another
             track: not a miss of their target as far as ``P_D`` is concerned (a duplicate of a
             confirmed track would otherwise teach that targets are missed).
+        own : list of ndarray, optional
+            With ``leave_track_out``: per hit, the track's earlier detections on this receiver
+            that were added to its intensity estimate, rows ``(update, x, y)`` (``update``: the
+            estimator's :attr:`~fusion.active.clutter.intensity.ClutterIntensity.updates` after
+            adding it, :attr:`last_update`). Their kernels are taken out of ``lambda`` at the
+            hit: a target not yet confirmed otherwise raises the clutter intensity along its own
+            path and weighs against its own hits (the intensity at the target's hits of
+            tentative tracks was measured at ~10 times the clutter at 2 echoes per receiver and
+            ping, issue 20).
 
         Returns
         -------
@@ -330,7 +376,16 @@ class TrackScorer:
         delta = self.miss_delta(key, track_xy)
         with_scores = scores is not None and self.score_evidence
         if hits.size:
-            delta[hits] = self.hit_delta(key, log_pdf, clutter[dets])
+            lam = clutter[dets]
+            est = self._intensity.get(key)
+            if self.leave_track_out and own is not None and est is not None:
+                lam = lam.copy()
+                for k in range(hits.size):
+                    if own[k].shape[0]:
+                        lam[k] = max(lam[k] - est.kernel_intensity(xy[dets[k]], own[k][:, 1:],
+                                                                   own[k][:, 0]),
+                                     est.min_intensity)
+            delta[hits] = self.hit_delta(key, log_pdf, lam)
             if with_scores:
                 delta[hits] += self.score_delta(scores[dets])
                 self._score_target += np.bincount(self._bins(scores[dets[confirmed[hits]]]),

@@ -20,9 +20,8 @@ each:
    detections). The clutter map (:mod:`fusion.active.clutter`) learns where returns recur; it
    feeds the rank's hotspot rule and the track score's clutter intensity.
 
-``mode="kalman"`` is the paper's comparison tracker: nearest neighbour on the likelihood alone
-(pairs inside the gate, highest ``L`` wins, same assignment and M-of-N track management), no
-clutter map and no track score.
+``mode="kalman"``, the paper's comparison: nearest neighbour on the likelihood alone (highest
+``L`` in the gate wins; same assignment and M-of-N), no clutter map, no track score.
 
 Choices where the paper is silent: ``docs/tracking.md`` and the stage modules.
 """
@@ -52,6 +51,7 @@ from fusion.active.types import (
     Ping,
     PingResult,
     TrackingResult,
+    check_tracker_options,
     pings_from_columns,
     receiver_groups,
 )
@@ -162,8 +162,11 @@ class Tracker:
     coast_probability : float, optional
         Confirmed tracks coast for :func:`fusion.active.lifecycle.coast_misses` misses
         (default 0.01); None: `max_misses`.
-    intensity_leave_one_out : bool, optional
-        Leave-one-out clutter intensity in the track score (default False; `TrackScorer`).
+    intensity_leave_one_out, intensity_leave_track_out : bool, optional
+        The clutter intensity at a hit leaves out the hit's own kernel, or that and the track's
+        own earlier detections (defaults False; `TrackScorer`).
+    hits_per_detection : bool, optional
+        Each detection counts towards `confirm_hits` (default False: each ping with one).
     shadow : bool, optional
         Fuzzy mode, monostatic sensors (detections with ``own_x, own_y`` and no ``rcv_x,
         rcv_y``): hold tentative tracks behind a near confirmed track (default True;
@@ -210,23 +213,12 @@ class Tracker:
         coast_probability: float | None = 0.01,
         shadow: bool = True,
         shadow_extent_sigmas: float = 8.0, intensity_leave_one_out: bool = False,
+        intensity_leave_track_out: bool = False, hits_per_detection: bool = False,
     ) -> None:
-        if mode not in ("fuzzy", "kalman"):
-            raise ValueError(f"mode must be 'fuzzy' or 'kalman', got {mode!r}")
-        if not np.isfinite(speed_sigma_mps) or speed_sigma_mps <= 0:
-            raise ValueError(f"speed_sigma_mps must be positive, got {speed_sigma_mps!r}")
-        if not np.isfinite(accel_psd) or accel_psd < 0:
-            raise ValueError(f"accel_psd must be >= 0, got {accel_psd!r}")
-        if not 1 <= confirm_hits <= confirm_window:
-            raise ValueError("need 1 <= confirm_hits <= confirm_window, got "
-                             f"{confirm_hits} and {confirm_window}")
-        if max_misses < 1 or not (coast_probability is None or 0.0 < coast_probability < 1.0):
-            raise ValueError(f"need max_misses >= 1 and coast_probability in (0, 1), got "
-                             f"{max_misses!r}, {coast_probability!r}")
-        if noise not in ("estimate", "fixed"):
-            raise ValueError(f"noise must be 'estimate' or 'fixed', got {noise!r}")
-        if score_threshold is not None and not 0.0 <= score_threshold <= 1.0:
-            raise ValueError(f"score_threshold must lie in [0, 1], got {score_threshold!r}")
+        check_tracker_options(mode=mode, speed_sigma_mps=speed_sigma_mps, accel_psd=accel_psd,
+                              confirm=(confirm_hits, confirm_window), max_misses=max_misses,
+                              coast_probability=coast_probability, noise=noise,
+                              score_threshold=score_threshold)
         if mode == "fuzzy" and system is None:
             from fusion.active.rulebase import default_association_system
             system = default_association_system()
@@ -249,6 +241,7 @@ class Tracker:
                                    detection_probability=detection_probability,
                                    clutter_intensity=clutter_intensity, score_evidence=score_evidence,
                                    leave_one_out=intensity_leave_one_out,
+                                   leave_track_out=intensity_leave_track_out,
                                    intensity=ClutterIntensity(bandwidth_m=intensity_bandwidth_m))
                        if mode == "fuzzy" and confirm_llr is not None else None)
         self.motion_test = MotionTest(probability=motion_probability,
@@ -263,7 +256,7 @@ class Tracker:
         self._model: tuple[float, NDArray[np.float64], NDArray[np.float64]] | None = None
         self.m, self.n, self.max_misses = int(confirm_hits), int(confirm_window), int(max_misses)
         self.init_exclusion_m = float(init_exclusion_m)
-        self.hold_stationary = bool(hold_stationary)
+        self.hold_stationary, self.hits_per_detection = bool(hold_stationary), bool(hits_per_detection)
         if mode == "fuzzy":
             self.clutter_map = (clutter_map if clutter_map is not None
                                 else DensityClutterMap(position_sigma_m=position_sigma_m))
@@ -348,11 +341,10 @@ class Tracker:
         # Each receiver's detections are a scan of their own at the ping time: a track takes at
         # most one detection per receiver, and a track born from one receiver's echo may take
         # the echoes of the same place from the receivers after it.
-        keys = []
-        for key, idx in receiver_groups(ping):
-            keys.append(key)
+        groups = receiver_groups(ping)
+        for key, idx in groups:
             self._scan(scan, key, idx)
-        return self._manage(scan, full_index, n0, keys)
+        return self._manage(scan, full_index, n0, [k for k, _ in groups])
 
     def _scan(self, scan: PingScan, key: tuple[float, ...] | None,
               idx: NDArray[np.int64]) -> None:
@@ -406,7 +398,9 @@ class Tracker:
                 log_pdf=(-0.5 * stats.d2[i, j] - np.log(2.0 * np.pi)
                          - 0.5 * np.log(stats.det[i, j])),
                 confirmed=confirmed, contested=~hit & gated[:, taken].any(axis=1),
-                teach=confirmed | (self.pd_from_tentative & (self._llr >= self.scorer.confirm_llr)))
+                teach=confirmed | (self.pd_from_tentative & (self._llr >= self.scorer.confirm_llr)),
+                own=self.scorer.own_rows(i, key))
+            self.scorer.remember(i, j, key, xy)
 
         # New tentative tracks: free detections (taken by no track, inside no track's gate)
         # away from hotspots.
@@ -424,6 +418,8 @@ class Tracker:
         self._llr = np.concatenate([self._llr, np.zeros(new.size)])
         self._life += [Lifecycle()] * new.size
         self._seen += [[scan.rows[j]] for j in idx[new].tolist()]
+        if self.scorer is not None:
+            self.scorer.remember(np.arange(nt, nt + new.size), new, key, xy, new=new.size)
         scan.dets += [[int(j)] for j in idx[new].tolist()]
         scan.rank += [np.nan] * new.size
 
@@ -444,6 +440,7 @@ class Tracker:
             dropped = hotspot_drop(dropped, self._seen, self.motion_test)
         if self.scorer is not None:
             dropped |= old & ~confirmed & (self._llr < self.scorer.delete_llr)
+        counts = [len(d) for d in scan.dets] if self.hits_per_detection else hit.tolist()
         held = stationary_hold(
             old & hit & ~confirmed & ~dropped, self._life, self._seen, m=self.m,
             motion_test=(self.motion_test if self.clutter_map is not None and self.hold_stationary
@@ -453,14 +450,16 @@ class Tracker:
             platform_test=self.platform_test, shadowed=None if self.shadow_test is None else
             self.shadow_test.shadowed([h[-1][1:3] if h else (np.nan, np.nan) for h in self._seen],
                                       [h[-1][6:8] if h else (np.nan, np.nan) for h in self._seen],
-                                      self._ids[confirmed], self._x[confirmed, :2]))
+                                      self._ids[confirmed], self._x[confirmed, :2]),
+            counts=counts)
+        self._life[n0:] = [Lifecycle(hits=int(c)) for c in counts[n0:]]
         coast = (self.max_misses if self.scorer is None or self.coast_probability is None
                  else coast_misses([self.scorer.pd(k) for k in keys],
                                    probability=self.coast_probability, floor=self.max_misses))
         life = [next_lifecycle(lc, h, dropped=d, held=s, m=self.m, n=self.n,
                                max_misses=coast if lc.status == "confirmed" else self.max_misses,
                                window=self.scorer is None)
-                for lc, h, d, s in zip(self._life[:n0], hit[:n0].tolist(), dropped[:n0].tolist(),
+                for lc, h, d, s in zip(self._life[:n0], counts[:n0], dropped[:n0].tolist(),
                                        held[:n0].tolist(), strict=True)]
         self._life = life + self._life[n0:]
 
@@ -475,10 +474,11 @@ class Tracker:
         self._ids, self._x, self._P = self._ids[alive], self._x[alive], self._P[alive]
         self._llr = self._llr[alive]
         self._life = [lc for lc, a in zip(self._life, alive_l, strict=True) if a]
+        if self.scorer is not None:
+            self.scorer.keep_tracks(alive)
         self._seen = [[] if st == "confirmed" else h
                       for h, a, st in zip(self._seen, alive_l, status.tolist(), strict=True) if a]
-        logger.debug("event %d: %d detections, %d tracks, %d new", ping.event, ping.n, n0,
-                     nt - n0)
+        logger.debug("event %d: %d detections, %d tracks, %d new", ping.event, ping.n, n0, nt - n0)
         return result
 
     def run(self, detections: Iterable[Ping] | Columns) -> TrackingResult:

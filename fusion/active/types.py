@@ -25,6 +25,7 @@ __all__ = [
     "Ping",
     "PingResult",
     "TrackingResult",
+    "check_tracker_options",
     "iter_pings",
     "pings_from_columns",
     "receiver_groups",
@@ -335,3 +336,27 @@ class TrackingResult:
         ids = [p.track_id[p.status == "confirmed"] for p in self.pings]
         return np.unique(np.concatenate(ids)) if ids else np.zeros(0, np.int64)
 
+
+
+def check_tracker_options(*, mode: str, speed_sigma_mps: float, accel_psd: float,
+                          confirm: tuple[int, int], max_misses: int,
+                          coast_probability: float | None, noise: str,
+                          score_threshold: float | None) -> None:
+    """Raise ValueError for a bad option of :class:`fusion.active.tracker.Tracker`."""
+    confirm_hits, confirm_window = confirm
+    if mode not in ("fuzzy", "kalman"):
+        raise ValueError(f"mode must be 'fuzzy' or 'kalman', got {mode!r}")
+    if not np.isfinite(speed_sigma_mps) or speed_sigma_mps <= 0:
+        raise ValueError(f"speed_sigma_mps must be positive, got {speed_sigma_mps!r}")
+    if not np.isfinite(accel_psd) or accel_psd < 0:
+        raise ValueError(f"accel_psd must be >= 0, got {accel_psd!r}")
+    if not 1 <= confirm_hits <= confirm_window:
+        raise ValueError("need 1 <= confirm_hits <= confirm_window, got "
+                         f"{confirm_hits} and {confirm_window}")
+    if max_misses < 1 or not (coast_probability is None or 0.0 < coast_probability < 1.0):
+        raise ValueError(f"need max_misses >= 1 and coast_probability in (0, 1), got "
+                         f"{max_misses!r}, {coast_probability!r}")
+    if noise not in ("estimate", "fixed"):
+        raise ValueError(f"noise must be 'estimate' or 'fixed', got {noise!r}")
+    if score_threshold is not None and not 0.0 <= score_threshold <= 1.0:
+        raise ValueError(f"score_threshold must lie in [0, 1], got {score_threshold!r}")

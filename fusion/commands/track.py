@@ -161,6 +161,13 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="the estimated clutter intensity at a detection leaves out the "
                         "detection's own kernel (leave-one-out estimate; measured with "
                         "--confirm-llr 5, see docs/tracking.md; default: off)")
+    p.add_argument("--intensity-leave-track-out", action="store_true",
+                   help="the estimated clutter intensity at a track's detection leaves out the "
+                        "detection's own kernel and those of the track's earlier detections "
+                        "(see docs/tracking.md; default: off)")
+    p.add_argument("--hits-per-detection", action="store_true",
+                   help="each detection a tentative track takes counts towards the M of M-of-N "
+                        "(default: each ping with a detection counts once)")
     p.add_argument("--no-pilot-speed", dest="pilot_speed", action="store_false",
                    help="the speed prior (when --speed-sigma-mps is not given) stays the one of "
                         "straight-line triplets of detections (default: the median speed of the "

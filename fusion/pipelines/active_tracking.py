@@ -77,6 +77,8 @@ class TrackOptions:
     pd_from_confirmed: bool = False
     coast_probability: float = 0.01
     intensity_leave_one_out: bool = False
+    intensity_leave_track_out: bool = False
+    hits_per_detection: bool = False
     shadow_test: bool = True
     shadow_extent_sigmas: float = 8.0
     motion_recent_half: bool = False
@@ -131,6 +133,8 @@ def tracker_from(opts: TrackOptions, st: TrackSettings, system: object | None) -
         pd_from_tentative=not opts.pd_from_confirmed,
         coast_probability=opts.coast_probability or None,
         intensity_leave_one_out=opts.intensity_leave_one_out,
+        intensity_leave_track_out=opts.intensity_leave_track_out,
+        hits_per_detection=opts.hits_per_detection,
         motion_recent=opts.motion_recent_half, shadow=opts.shadow_test,
         shadow_extent_sigmas=opts.shadow_extent_sigmas,
         reject_platform_fixed=not opts.keep_platform_fixed,

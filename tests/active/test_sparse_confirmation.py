@@ -224,3 +224,47 @@ def test_intensity_leave_one_out_reaches_the_score_from_the_command_line():
         best.append(top)
     # the best score any track near the target reached: well above without the own kernel
     assert best[1] > best[0] + 2.0
+
+
+def _first_confirmation(**kw) -> int:
+    """Ping of the first confirmed track on a target two receivers see on every ping."""
+    tr = Tracker(position_errors="isotropic", position_sigma_m=20.0, clutter_intensity=1e-9,
+                 detection_probability=0.9, speed_sigma_mps=10.0, **kw)
+    rng = np.random.default_rng(3)
+    for k in range(6):
+        xy = np.array([1000.0 + 600.0 * k, 2000.0]) + rng.normal(0.0, 20.0, (2, 2))
+        geo = {"src_x": [0.0, 0.0], "src_y": [0.0, 0.0], "rcv_x": [5000.0, -5000.0],
+               "rcv_y": [0.0, 0.0]}
+        res = tr.step(Ping(k, 60.0 * k, xy, geo))
+        if np.any(res.status == "confirmed"):
+            return k
+    return -1
+
+
+def test_hits_per_detection_confirms_a_target_two_receivers_see_a_ping_earlier():
+    """With ``hits_per_detection`` the two receivers' echoes of a ping count as two of the M = 3
+    hits: the target (score far above --confirm-llr, moving) is confirmed on its second ping
+    instead of its third; the command-line option reaches the tracker."""
+    from fusion.cli import build_parser
+    from fusion.commands.track import track_options
+
+    assert _first_confirmation() == 2
+    assert _first_confirmation(hits_per_detection=True) == 1
+    args = build_parser("track").parse_args(
+        ["track", "--detections", "d.csv", "--out", "t.csv", "--hits-per-detection",
+         "--intensity-leave-track-out"])
+    opts = track_options(args)
+    assert opts.hits_per_detection is True and opts.intensity_leave_track_out is True
+
+
+def test_hold_applies_when_a_pings_detections_complete_the_hits():
+    """A tentative track with one hit that takes two detections on a ping reaches M = 3 with
+    ``hits_per_detection``: the score and motion tests must still hold it when its score is
+    short (without the per-track count it would be confirmed past them)."""
+    from fusion.active.lifecycle import Lifecycle, stationary_hold
+
+    held = stationary_hold(np.array([True]), [Lifecycle(hits=1)], [[]], m=3, motion_test=None,
+                           score_short=np.array([True]), counts=[2])
+    assert held.tolist() == [True]
+    assert stationary_hold(np.array([True]), [Lifecycle(hits=1)], [[]], m=3, motion_test=None,
+                           score_short=np.array([True])).tolist() == [False]

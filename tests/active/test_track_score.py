@@ -154,3 +154,45 @@ def test_leave_one_out_intensity_equals_estimate_without_the_detection():
         # a few per cent), dominates sparse clutter
         assert lam_plain[j] - lam_loo[j] == pytest.approx(1 / (5 * 2 * np.pi * 1e6), rel=0.1)
         assert lam_plain[j] > 3 * lam_loo[j]
+
+
+def test_leave_track_out_intensity_equals_estimate_without_the_tracks_detections():
+    """With ``leave_track_out`` the clutter intensity at a track's hit is the kernel estimate of
+    the remembered detections other than the track's own (this one and its earlier ones; cross-
+    check: an estimator fed everything but them); a track's earlier echoes on another receiver
+    or forgotten by the estimator are not taken out."""
+    from fusion.active.clutter.intensity import ClutterIntensity
+
+    rng = np.random.default_rng(11)
+    clutter = [rng.uniform(-10000, 10000, (4, 2)) for _ in range(5)]
+    target = np.array([[100.0 * k, 50.0 * k] for k in range(5)])     # a target's echoes
+    pings = [np.vstack([c, t[None]]) for c, t in zip(clutter, target, strict=True)]
+    key = (0.0, 0.0, 5000.0, 0.0)
+    scorer = TrackScorer(leave_track_out=True, detection_probability=0.5)
+    plain = TrackScorer(detection_probability=0.5)
+    own = []
+    for xy in pings[:-1]:
+        scorer.observe(key, xy, None)
+        plain.observe(key, xy, None)
+        assert scorer.last_added.all()
+        own.append((scorer.last_update, *xy[-1]))
+    last = pings[-1]
+    j = last.shape[0] - 1
+    common = dict(key=key, xy=last, cov=np.zeros((5, 2, 2)) + np.eye(2) * 1e4, scores=None,
+                  hotspots=None, track_xy=last[j:j + 1], hits=np.array([0]), dets=np.array([j]),
+                  log_pdf=np.array([-12.0]), confirmed=np.array([False]))
+    d_out = scorer.scan_delta(**common, own=[np.array(own)])[0]
+    d_plain = plain.scan_delta(**common)[0]
+    ref = ClutterIntensity()
+    for xy in pings[:-1]:
+        ref.update(xy[:-1])
+    ref.update(last[:-1])
+    lam_ref = ref.intensity(last[j:j + 1])[0]
+    # score = ln P_D + log_pdf - ln lambda: recover lambda from each score
+    lam_out = math.exp(math.log(0.5) - 12.0 - d_out)
+    lam_plain = math.exp(math.log(0.5) - 12.0 - d_plain)
+    assert lam_out == pytest.approx(lam_ref, rel=0.05, abs=2e-9)
+    assert lam_plain > 5 * lam_out                  # the track's own path dominates
+    # forgotten detections (older than memory_pings updates) are not subtracted
+    est = scorer._intensity[key]
+    assert est.kernel_intensity(last[j], np.array(own)[:, 1:], np.array(own)[:, 0] - 20) == 0.0

@@ -85,6 +85,7 @@ class ClutterIntensity:
     def reset(self) -> None:
         """Forget all detections."""
         self._pings: list[NDArray[np.float64]] = []
+        self.updates = 0
         self._grid: tuple[NDArray[np.float64], NDArray[np.float64], float] | None = None
 
     def empty_copy(self) -> ClutterIntensity:
@@ -121,6 +122,7 @@ class ClutterIntensity:
         else:
             self.last_kept = np.ones(pts.shape[0], dtype=bool)
         self._pings.append(pts)
+        self.updates += 1
         if len(self._pings) > self.memory_pings:
             self._pings.pop(0)
         self._grid = None
@@ -166,6 +168,35 @@ class ClutterIntensity:
             return 0.0
         cell = grid[2]
         return 1.0 / (self.n_pings * 2.0 * np.pi * (self.bandwidth_m**2 + cell * cell / 3.0))
+
+    def kernel_intensity(self, xy: ArrayLike, sources: ArrayLike,
+                         updates: ArrayLike) -> NDArray[np.float64]:
+        """What remembered detections add to the estimate at a point, per m^2 per ping.
+
+        Parameters
+        ----------
+        xy : array_like, shape (2,)
+            The point, m.
+        sources : array_like, shape (m, 2)
+            Detections that were added, m.
+        updates : array_like of int, shape (m,)
+            :attr:`updates` after the :meth:`update` that added each; those the estimator has
+            forgotten (``memory_pings`` updates ago or more) add nothing.
+
+        Returns
+        -------
+        float
+            ``(1 / n_pings) sum_j N(x; p_j, (bandwidth^2 + cell^2 / 3) I)`` over the sources
+            still remembered: the kernel of :meth:`self_intensity`, centred on each source.
+        """
+        grid = self._smoothed()
+        src = np.asarray(sources, dtype=float).reshape(-1, 2)
+        keep = self.updates - np.asarray(updates, dtype=np.int64).reshape(-1) < self.memory_pings
+        if grid is None or not keep.any():
+            return 0.0
+        var = self.bandwidth_m**2 + grid[2] ** 2 / 3.0
+        d2 = np.sum((src[keep] - np.asarray(xy, dtype=float).reshape(1, 2)) ** 2, axis=1)
+        return float(np.sum(np.exp(-0.5 * d2 / var)) / (self.n_pings * 2.0 * np.pi * var))
 
     def intensity(self, xy: ArrayLike) -> NDArray[np.float64]:
         """Clutter intensity at points, detections per m^2 per ping.
