@@ -24,6 +24,8 @@ One module per role, in the order data flows through them:
 ``competition``   candidates competing for the TDOAs, each re-solved on the factor graph (eq. 19-22)
 ``source_fix``    a localized source with its covariance and the weighted solve behind it
 ``localize``      the window's multi-source localizer (the stages above in order)
+``whale_settings`` the localizer for whale clicks below the sea surface and ``fusion localize``'s
+                  array-independent localization settings
 ``tracks``        sources linked across windows and smoothed on a factor graph
 ``event_tdoa``    waveform TDOAs of a detected event (any detector): band, band-passed correlation,
                   closure

@@ -25,7 +25,7 @@ prints the lines and writes the record beside its output) and the demo all go th
 
 Examples
 --------
->>> from fusion.pipelines.localization import LocalizerSettings
+>>> from fusion.localization.whale_settings import LocalizerSettings
 >>> from fusion.simulate.clicks import simulate_clicks
 >>> sc = simulate_clicks(seed=21, n_sources=1, duration_s=20.0, echo="both")
 >>> d = decide_from_recording(sc.audio, sc.fs, sc.sensors, settings=LocalizerSettings())
@@ -40,7 +40,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -51,9 +51,7 @@ from fusion.clicks.echoes import FLOOR_MARGIN_M, BottomEchoes, bottom_echoes, ec
 from fusion.clicks.replica import ReplicaEstimate
 from fusion.geometry import SensorArray
 from fusion.localization.surface_paths import SEA_SURFACE_Z
-
-if TYPE_CHECKING:  # the settings are built by fusion.pipelines.localization, which calls this
-    from fusion.pipelines.localization import LocalizerSettings
+from fusion.localization.whale_settings import LocalizerSettings
 
 __all__ = ["RECORDING_SPAN_S", "RecordingDecisions", "decide_from_recording", "recording_start"]
 

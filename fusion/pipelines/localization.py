@@ -24,13 +24,16 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from fusion.geometry import SensorArray
-from fusion.localization.candidates import CandidateFinder
-from fusion.localization.competition import CompetitionSettings
-from fusion.localization.localize import METHODS, LocalizationOutput, MultiSourceLocalizer
+from fusion.localization.localize import LocalizationOutput, MultiSourceLocalizer
 from fusion.localization.retime import retime_owned
-from fusion.localization.search_grid import SearchRegion
-from fusion.localization.surface_paths import PATHS, SEA_SURFACE_Z
+from fusion.localization.surface_paths import PATHS
 from fusion.localization.tracks import SourceTracker, Track, WindowSources
+from fusion.localization.whale_settings import (
+    WHALE_MAX_CANDIDATES,
+    WHALE_MIN_TDOAS,
+    LocalizerSettings,
+    whale_localizer,
+)
 from fusion.pipelines.clicks import ClickFrontEnd, ClickWindow
 from fusion.pipelines.from_recording import (
     RECORDING_SPAN_S,
@@ -39,9 +42,11 @@ from fusion.pipelines.from_recording import (
     recording_start,
 )
 
-__all__ = ["AUTO_EXPLAINED", "ClickLocalization", "LocalizedWindow", "LocalizerSettings",
-           "explained_fraction", "result_document", "settings_from_args", "track_windows",
-           "whale_localizer"]
+# LocalizerSettings, whale_localizer and the WHALE_ constants live in
+# fusion.localization.whale_settings; re-exported here, where the chain uses them
+__all__ = ["AUTO_EXPLAINED", "WHALE_MAX_CANDIDATES", "WHALE_MIN_TDOAS", "ClickLocalization",
+           "LocalizedWindow", "LocalizerSettings", "explained_fraction", "result_document",
+           "settings_from_args", "track_windows", "whale_localizer"]
 
 logger = logging.getLogger(__name__)
 
@@ -70,10 +75,6 @@ class LocalizedWindow:
     note: str = ""
 
 
-#: Candidates per window and smallest TDOA weight of a source when surface paths are read.
-WHALE_MAX_CANDIDATES = 16
-WHALE_MIN_TDOAS = 5.5
-
 #: Added in quadrature to every TDOA sigma by default, s (:class:`ClickLocalization`): what the
 #: measured sigma does not hold -- sensor positions, sound speed, the drift model.
 SIGMA_FLOOR_S = 1e-6
@@ -81,161 +82,6 @@ SIGMA_FLOOR_S = 1e-6
 #: With the paths decided from the data, a window whose direct-path sources explain (own with
 #: weight > 1/2) at least this fraction of its valid TDOAs is not read along surface paths.
 AUTO_EXPLAINED = 0.8
-
-
-def whale_localizer(
-    method: str = "competition",
-    *,
-    surface_z: float | None = 0.0,
-    bottom_z: float | None = None,
-    max_candidates: int = WHALE_MAX_CANDIDATES,
-    min_tdoas: float = WHALE_MIN_TDOAS,
-) -> MultiSourceLocalizer:
-    """The localizer for whale clicks on hydrophones below the sea surface.
-
-    Parameters
-    ----------
-    method : str, optional
-        One of :data:`fusion.localization.localize.METHODS`.
-    surface_z : float or None, keyword-only
-        Height of the sea surface, m (default 0, the project's convention, z up): every TDOA is
-        also read along surface-reflected paths and sources are searched below the surface.
-        None: direct paths only (the localizer's own defaults then apply).
-    bottom_z : float, optional, keyword-only
-        Height of the sea floor, m (e.g. the deepest hydrophone of a bottom-mounted array):
-        the water column is then ``(bottom_z, surface_z)`` and a solution below the floor
-        is none (the mirror image of a source through a near-planar bottom array).
-    max_candidates : int, keyword-only
-        Candidates per window (default 16: with three whales and their echoes, 8 left whales
-        without a candidate on the tuning seeds).
-    min_tdoas : float, keyword-only
-        Smallest total TDOA weight of a source (default 5.5). Read along four path pairs, a
-        set of TDOAs fits some position by chance far more often than along direct paths
-        alone, and sources of 4 or 5 TDOAs were mostly such chance fits on the tuning seeds
-        of ``benchmarks/bench_localize_e2e.py``; a whale heard along its echoes holds 6-30.
-
-    Returns
-    -------
-    MultiSourceLocalizer
-    """
-    if surface_z is None:
-        region = SearchRegion() if bottom_z is None else SearchRegion(
-            water_column=(float(bottom_z), 0.0))
-        return MultiSourceLocalizer(method=method, region=region)
-    region = SearchRegion() if bottom_z is None else SearchRegion(
-        water_column=(float(bottom_z), float(surface_z)))
-    return MultiSourceLocalizer(method=method, region=region, surface_z=surface_z,
-                                finder=CandidateFinder(max_candidates=max_candidates),
-                                min_tdoas=min_tdoas,
-                                competition=CompetitionSettings(min_weight=min_tdoas))
-
-
-@dataclass(frozen=True)
-class LocalizerSettings:
-    """The localization settings of ``fusion localize`` (one option each), array-independent.
-
-    Attributes
-    ----------
-    method : str
-        One of :data:`fusion.localization.localize.METHODS` (default ``"competition"``).
-    surface_paths : bool or None
-        Read every TDOA along direct and surface-reflected paths, the surface at z = 0
-        (True), along direct paths only (False), or decide from the data (None, default):
-        when every sensor is below the surface (z < 0, z up as in the file formats), each
-        window is solved along direct paths first and read along surface paths too only when
-        the direct sources leave more than ``1 - AUTO_EXPLAINED`` of its valid TDOAs
-        unexplained and the surface reading explains more of them
-        (:meth:`ClickLocalization.localize`); else direct paths with one logged line.
-    sea_floor_z : float or None
-        Height of the sea floor, m (z up; at or below every sensor); the search then stays in
-        the water column between it and the surface. Default None: unknown.
-    max_candidates : int or None
-        Candidates per window. None: 16 with surface paths (:data:`WHALE_MAX_CANDIDATES`),
-        the candidate finder's 8 with direct paths.
-    min_source_tdoas : float or None
-        Smallest total TDOA weight of a source. None: 5.5 with surface paths
-        (:data:`WHALE_MIN_TDOAS`), the localizer's 3.5 with direct paths.
-    """
-
-    method: str = "competition"
-    surface_paths: bool | None = None
-    sea_floor_z: float | None = None
-    max_candidates: int | None = None
-    min_source_tdoas: float | None = None
-
-    def __post_init__(self) -> None:
-        if self.method not in METHODS:
-            raise ValueError(f"method must be one of {METHODS}, got {self.method!r}")
-        if self.sea_floor_z is not None and not np.isfinite(self.sea_floor_z):
-            raise ValueError(f"sea_floor_z must be finite, got {self.sea_floor_z!r}")
-        if self.max_candidates is not None and self.max_candidates < 1:
-            raise ValueError(f"max_candidates must be >= 1, got {self.max_candidates}")
-        if self.min_source_tdoas is not None and not self.min_source_tdoas > 0:
-            raise ValueError(f"min_source_tdoas must be > 0, got {self.min_source_tdoas}")
-
-    def reads_surface_paths(self, sensors: ArrayLike) -> bool:
-        """Whether TDOAs are read along surface-reflected paths for these sensors (n, 3), m.
-
-        Raises
-        ------
-        ValueError
-            Surface paths asked for (``surface_paths=True``) or a sea floor given while a
-            sensor is not below the surface.
-        """
-        z = np.asarray(sensors, dtype=float)[:, 2]
-        below = bool(np.all(z < SEA_SURFACE_Z))
-        if not below and (self.surface_paths or self.sea_floor_z is not None):
-            what = "surface paths" if self.surface_paths else "a sea floor"
-            raise ValueError(f"{what} need every sensor below the sea surface z = 0 (z up); "
-                             f"the highest sensor is at z = {z.max():g} m")
-        if self.sea_floor_z is not None and self.sea_floor_z > z.min():
-            raise ValueError(f"the sea floor z = {self.sea_floor_z:g} m is above the deepest "
-                             f"sensor (z = {z.min():g} m)")
-        if self.surface_paths is None and not below:
-            logger.warning("sensors not all below the sea surface z = 0 (highest z = %g m): "
-                           "TDOAs read along direct paths only", z.max())
-        return below if self.surface_paths is None else bool(self.surface_paths)
-
-    def localizers(self, sensors: ArrayLike
-                   ) -> tuple[MultiSourceLocalizer, MultiSourceLocalizer | None]:
-        """The localizer for an array of sensors (n, 3), m, and the surface-path fallback.
-
-        The fallback is None unless the paths are decided from the data (``surface_paths``
-        None) for sensors all below the surface: then the first is the direct-path localizer
-        and the second the surface-path one (:meth:`ClickLocalization.localize`).
-        """
-        below = bool(np.all(np.asarray(sensors, dtype=float)[:, 2] < SEA_SURFACE_Z))
-        if self.surface_paths is None and below:
-            return (dataclasses.replace(self, surface_paths=False).localizer(sensors),
-                    dataclasses.replace(self, surface_paths=True).localizer(sensors))
-        return self.localizer(sensors), None
-
-    def localizer(self, sensors: ArrayLike) -> MultiSourceLocalizer:
-        """The localizer of these settings for an array of sensors (n, 3), m.
-
-        With the paths decided from the data (``surface_paths`` None), the surface-path
-        localizer of sensors below the surface (see :meth:`localizers` for the pair used).
-        """
-        if self.reads_surface_paths(sensors):
-            return whale_localizer(
-                self.method, surface_z=SEA_SURFACE_Z, bottom_z=self.sea_floor_z,
-                max_candidates=(WHALE_MAX_CANDIDATES if self.max_candidates is None
-                                else self.max_candidates),
-                min_tdoas=(WHALE_MIN_TDOAS if self.min_source_tdoas is None
-                           else self.min_source_tdoas))
-        opts: dict = {}
-        if self.max_candidates is not None:
-            opts["finder"] = CandidateFinder(max_candidates=self.max_candidates)
-        if self.min_source_tdoas is not None:
-            opts["min_tdoas"] = self.min_source_tdoas
-            opts["competition"] = CompetitionSettings(min_weight=self.min_source_tdoas)
-        region = SearchRegion() if self.sea_floor_z is None else SearchRegion(
-            water_column=(float(self.sea_floor_z), SEA_SURFACE_Z))
-        return MultiSourceLocalizer(method=self.method, region=region, **opts)
-
-    def to_dict(self) -> dict:
-        """The settings as JSON-ready values."""
-        return dataclasses.asdict(self)
 
 
 def settings_from_args(args: object) -> LocalizerSettings:

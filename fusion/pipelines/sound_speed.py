@@ -31,8 +31,8 @@ from fusion.localization.sound_speed import (
     path_sensors,
     refit_fix,
 )
-from fusion.localization.surface_paths import PATHS
-from fusion.pipelines.localization import SEA_SURFACE_Z, SIGMA_FLOOR_S, UNBOUNDED_M2
+from fusion.localization.surface_paths import PATHS, SEA_SURFACE_Z
+from fusion.pipelines.localization import SIGMA_FLOOR_S, UNBOUNDED_M2
 from fusion.pipelines.speed_recruit import recruit
 
 __all__ = ["SpeedCalibration", "calibrate_speed", "fix_tdoas"]
