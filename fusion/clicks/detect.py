@@ -105,7 +105,13 @@ class ClickDetector:
     band_hz : (float, float), optional
         Band whose normalised power is summed, Hz; its upper edge must lie below ``fs / 2``.
     threshold : float, optional
-        Detection threshold on the band power over the background (noise mean 1).
+        Detection threshold on the band power over the background (noise mean 1); used when
+        `false_alarms_per_s` is None.
+    false_alarms_per_s : float, optional
+        Set the threshold instead from a false-alarm rate: the level at which this detector
+        passes this many clicks per second in white Gaussian noise, measured once per sample
+        rate on its own statistic (:func:`fusion.clicks._noise_threshold.noise_threshold`).
+        Default None: the fixed `threshold`.
     background_s : float, optional
         Length of the background segments, s. Block-wise detection needs blocks overlapping by
         about three times this (:meth:`guard_s`).
@@ -160,6 +166,7 @@ class ClickDetector:
         min_separation_s: float = 0.25e-3,
         interpolation: Literal["log", "linear"] = "log",
         echo_window_s: tuple[float, float] | None = None,
+        false_alarms_per_s: float | None = None,
     ) -> None:
         if replica is not None and not isinstance(replica, Replica):
             raise ValueError(f"replica must be a Replica, got {type(replica).__name__}")
@@ -183,6 +190,9 @@ class ClickDetector:
         self.nfft, self.hop = int(nfft), int(round(hop))
         self.band_hz = (lo, hi)
         self.threshold = check_positive("threshold", threshold)
+        self.false_alarms_per_s = (None if false_alarms_per_s is None else
+                                   check_positive("false_alarms_per_s", false_alarms_per_s))
+        self._noise_thresholds: dict[float, float] = {}
         self.background_s = check_positive("background_s", background_s)
         self.background_decimation = int(background_decimation)
         self.min_centre_freq_hz = check_positive("min_centre_freq_hz", min_centre_freq_hz,
@@ -215,6 +225,17 @@ class ClickDetector:
             self._kernels[fs] = DetectorKernels(self.replica.at(fs), fs, nfft=self.nfft, hop=self.hop,
                                                 band_hz=self.band_hz)
         return self._kernels[fs]
+
+    def threshold_at(self, fs: float) -> float:
+        """The detection threshold at sample rate `fs`: `threshold`, or the level of
+        `false_alarms_per_s` in white Gaussian noise (measured once per rate)."""
+        if self.false_alarms_per_s is None:
+            return self.threshold
+        if fs not in self._noise_thresholds:
+            from fusion.clicks._noise_threshold import noise_threshold
+
+            self._noise_thresholds[fs] = noise_threshold(self, fs, self.false_alarms_per_s)
+        return self._noise_thresholds[fs]
 
     def _seg_len(self, fs: float) -> int:
         return max(1, int(round(self.background_s * fs / self.hop)))
@@ -289,17 +310,23 @@ class ClickDetector:
                                initial=self.replica, n_iter=6, tol=0.03)
         if not est.converged:
             return self, est
-        return self._copy(replica=est.replica, _kernels={}), est
+        return self._copy(replica=est.replica, _kernels={}, _noise_thresholds={}), est
 
     def with_echo_window(self, echo_window_s: tuple[float, float] | None) -> ClickDetector:
         """This detector with another echo suppression window (see the class parameters)."""
         probe = ClickDetector(echo_window_s=echo_window_s)  # checks the window
         return self._copy(echo_window_s=probe.echo_window_s)
 
+    def with_false_alarms(self, false_alarms_per_s: float | None) -> ClickDetector:
+        """This detector with its threshold set from a noise false-alarm rate, clicks per
+        second (None: the fixed `threshold`; see the class parameters)."""
+        probe = ClickDetector(false_alarms_per_s=false_alarms_per_s)  # checks the rate
+        return self._copy(false_alarms_per_s=probe.false_alarms_per_s, _noise_thresholds={})
+
     def with_band(self, band_hz: tuple[float, float]) -> ClickDetector:
         """This detector summing the power over another band, Hz (see the class parameters)."""
         probe = ClickDetector(band_hz=band_hz)  # checks the band
-        return self._copy(band_hz=probe.band_hz, _kernels={})
+        return self._copy(band_hz=probe.band_hz, _kernels={}, _noise_thresholds={})
 
     def _copy(self, **changes) -> ClickDetector:
         new = ClickDetector.__new__(ClickDetector)
@@ -467,9 +494,10 @@ class ClickDetector:
         lap("statistic")
 
         out = []
+        threshold = self.threshold_at(fs)
         for c in range(n_ch):
             s = stat[c]
-            peaks = local_maxima(s, self.threshold, sep)
+            peaks = local_maxima(s, threshold, sep)
             if peaks.size == 0:
                 out.append(ChannelClicks(c))
                 continue

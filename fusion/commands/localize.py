@@ -65,6 +65,11 @@ from fusion.cli import emit, number, summary
 #: Default of --max-tdoa-rate (fusion.clicks.scm.MAX_TDOA_RATE, not imported here: --help stays
 #: light).
 MAX_TDOA_RATE = 1.6e-3
+#: Default of --detect-false-alarms-per-s: the click detector's threshold is the level at which
+#: it finds this many clicks per channel-second in white Gaussian noise (about 4.9 on the
+#: estimated 26-kHz band at 96 kHz, against the library detector's fixed 6.0, ~0.04 a second);
+#: tuned on seeds 0-9 at 15-30 dB (docs/localization.md section 14).
+DETECT_FALSE_ALARMS_PER_S = 0.5
 #: Most candidates per window (--candidates): each is a graph re-solved in every iteration of the
 #: competition and compared with every other one (K^2 pairs an iteration); 16 times the default.
 MAX_CANDIDATES = 256
@@ -115,9 +120,17 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "Nyquist frequency; 14000 40000, the method's, without an estimate)")
     p.add_argument("--min-centre-freq-hz", dest="min_centre_freq", type=number(float, ge=0), default=20000.0,
                    help="smallest click centre frequency (eq. 2), Hz (default 20000)")
-    p.add_argument("--detect-threshold", type=number(float, gt=0), default=None,
-                   help="click detection threshold on the normalised band power (default: the "
-                        "detector's)")
+    detect = p.add_mutually_exclusive_group()
+    detect.add_argument("--detect-threshold", type=number(float, gt=0), default=None,
+                        help="fixed click detection threshold on the normalised band power "
+                             "(default: set from --detect-false-alarms-per-s; 6 is the "
+                             "detector's fixed one)")
+    detect.add_argument("--detect-false-alarms-per-s", dest="detect_false_alarms",
+                        type=number(float, gt=0, le=50), default=DETECT_FALSE_ALARMS_PER_S,
+                        metavar="RATE",
+                        help="click detection threshold at this many detections per channel-"
+                             "second in white Gaussian noise, measured on the detector's own "
+                             f"statistic (default {DETECT_FALSE_ALARMS_PER_S:g})")
     p.add_argument("--validator", type=Path, default=None,
                    help="validator model .npz (default: the one shipped; see train-validator)")
     p.add_argument("--replica", default=None, metavar="NPZ|generic",
@@ -316,7 +329,8 @@ def _run_key(args: argparse.Namespace, audio: list) -> str:
         else file_identity(args.replica, content=True),
         "generic_replica": file_identity(GENERIC_PATH, content=True),
         "options": {k: getattr(args, k) for k in (
-            "window", "hop", "band", "min_centre_freq", "detect_threshold", "llr_threshold",
+            "window", "hop", "band", "min_centre_freq", "detect_threshold", "detect_false_alarms",
+            "llr_threshold",
             "no_refine", "keep_aliases", "strong_echoes_only", "max_tdoa_rate", "method", "chunk",
             "surface_paths", "sea_floor_z",
             "candidates", "min_source_tdoas")},
@@ -372,6 +386,8 @@ def run(args: argparse.Namespace) -> int:
         localizer.localizers(array.positions)
     decided = _decisions(args, det_opts, localizer, recordings[0][0], array)
     detector, localizer = decided.detector, decided.settings
+    if args.detect_threshold is None:  # the decisions above read strong clicks at the fixed one
+        detector = detector.with_false_alarms(args.detect_false_alarms)
     front = ClickFrontEnd(
         detector=detector,
         correlator=ClickMapCorrelator(config=ScmConfig(window_s=args.window),
