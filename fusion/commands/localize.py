@@ -388,6 +388,12 @@ def run(args: argparse.Namespace) -> int:
     detector, localizer = decided.detector, decided.settings
     if args.detect_threshold is None:  # the decisions above read strong clicks at the fixed one
         detector = detector.with_false_alarms(args.detect_false_alarms)
+    level = detector.threshold_at(recordings[0][0].fs)  # measured here, before any fork
+    detection = {"threshold": level, "false_alarms_per_s": detector.false_alarms_per_s}
+    detection_note = (f"detection threshold: {level:.3g}" + (
+        f", where the detector passes {detector.false_alarms_per_s:g} noise detections a "
+        "channel-second (--detect-threshold for a fixed one)"
+        if detector.false_alarms_per_s is not None else " (fixed)"))
     front = ClickFrontEnd(
         detector=detector,
         correlator=ClickMapCorrelator(config=ScmConfig(window_s=args.window),
@@ -446,11 +452,11 @@ def run(args: argparse.Namespace) -> int:
         store.remove()
         side = (Path(args.out) / "localize" if getattr(args, "out_is_dir", False)
                 else args.out)
-        write_settings(side, {"command": "localize", **decided.record,
+        write_settings(side, {"command": "localize", **decided.record, "detection": detection,
                               "localization": None if localizer is None else localizer.to_dict(),
                               **({"sound_speed": speeds} if speeds else {})},
                        inputs=[*audio, args.array, args.events, args.validator])
-    for note in [*decided.notes, *notes]:
+    for note in [*decided.notes, detection_note, *notes]:
         emit(note, err=True)
     for line in summaries:  # the command ends with its summary (one line per recording)
         summary("localize", line, err=True)

