@@ -11,12 +11,9 @@ a wide one for the same rate, which a fixed threshold does not (``docs/localizat
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import Any
 
 import numpy as np
-
-if TYPE_CHECKING:
-    from fusion.clicks.detect import ClickDetector
 
 __all__ = ["NOISE_DURATION_S", "NOISE_SEED", "noise_threshold"]
 
@@ -26,10 +23,11 @@ NOISE_DURATION_S = 30.0
 NOISE_SEED = 20261203
 
 
-def noise_threshold(detector: ClickDetector, fs: float, false_alarms_per_s: float, *,
+def noise_threshold(detector: Any, fs: float, false_alarms_per_s: float, *,
                     duration_s: float = NOISE_DURATION_S, seed: int = NOISE_SEED) -> float:
-    """Threshold at which `detector` finds `false_alarms_per_s` clicks per second in white
-    Gaussian noise sampled at `fs` (its centre-frequency and ringing screens applied)."""
+    """Threshold at which `detector` (a :class:`~fusion.clicks.detect.ClickDetector`)
+    finds `false_alarms_per_s` clicks per second in white Gaussian noise sampled at `fs`
+    (its centre-frequency and ringing screens applied)."""
     n_false = int(np.ceil(false_alarms_per_s * duration_s))
     if n_false < 1:
         raise ValueError(f"false_alarms_per_s * duration_s must reach 1, got "
