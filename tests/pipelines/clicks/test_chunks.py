@@ -152,7 +152,11 @@ def test_serial_run_equals_one_pass(recording, serial_bytes, tmp_path):
                        always_2d=True)
     decided = decide_from_recording(first, fs, sensors, settings=LocalizerSettings())
     assert decided.replica is not None
-    pipe = ClickLocalization(front_end=ClickFrontEnd(detector=decided.detector,
+    from fusion.commands.localize import DETECT_FALSE_ALARMS_PER_S
+
+    # the windows' threshold from the noise false-alarm rate (docs/localization.md section 14)
+    detector = decided.detector.with_false_alarms(DETECT_FALSE_ALARMS_PER_S)
+    pipe = ClickLocalization(front_end=ClickFrontEnd(detector=detector,
                                                      validator=default_validator(LLR_THRESHOLD)),
                              localizer=decided.settings)
     with threadpool_limits(1):  # as the chunk tasks (one BLAS thread, as on a Dask worker)
