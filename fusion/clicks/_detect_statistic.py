@@ -14,7 +14,8 @@ from numpy.typing import NDArray
 from fusion.clicks._frames import CHUNK, framed_filter, gather_frames
 from fusion.clicks._kernels import DetectorKernels
 
-__all__ = ["all_finite", "centre_frequency", "chunked_statistic", "smoothed_envelope"]
+__all__ = ["all_finite", "centre_frequency", "checked_input", "chunked_statistic",
+           "smoothed_envelope"]
 
 
 def chunked_statistic(
@@ -99,3 +100,24 @@ def all_finite(x: NDArray[np.number]) -> bool:
         if np.isfinite(np.sum(x)):
             return True
     return bool(np.isfinite(x).all())
+
+
+def checked_input(samples, t0: float, span_s: tuple[float, float] | None
+                  ) -> tuple[NDArray, tuple[float, float] | None]:
+    """The detector's input as (n, channels) and its span, checked (ValueError naming the
+    fault: shape, NaN/inf samples, `t0`, `span_s`)."""
+    x = np.asarray(samples)
+    if x.ndim == 1:
+        x = x[:, None]
+    if x.ndim != 2 or x.shape[0] == 0 or x.shape[1] == 0:
+        raise ValueError(f"samples must have shape (n,) or (n, channels) with n > 0, got "
+                         f"{np.shape(samples)}")
+    if not np.issubdtype(x.dtype, np.number) or not all_finite(x):
+        raise ValueError("samples contain NaN or infinite values")
+    if not np.isfinite(t0):
+        raise ValueError(f"t0 must be finite, got {t0!r}")
+    if span_s is not None:
+        span_s = (float(span_s[0]), float(span_s[1]))
+        if not (np.isfinite(span_s[0]) and np.isfinite(span_s[1]) and span_s[0] <= span_s[1]):
+            raise ValueError(f"span_s must be (start, end) with start <= end, got {span_s!r}")
+    return x, span_s

@@ -38,18 +38,14 @@ Choices the text leaves open (each an option of :class:`ClickDetector`):
   over the bins strictly between 0 and fs/2. The raw spectrogram of the correlated signal would
   put a loud 5 kHz transient near 26 kHz, since correlation with the replica strips its low
   band; the normalised one keeps it near 7 kHz.
-* **Ringing suppression** removes a click when another candidate within `suppress_s` (either
-  side) is at least `suppress_ratio` times more powerful.
+* **Ringing suppression** drops a click with a `suppress_ratio` times stronger one within `suppress_s`.
 
-Frames and background segments sit on an absolute grid, so detecting overlapping blocks
-(:meth:`ClickDetector.detect_blocks`) gives the clicks of whole-signal detection.
-
-Click times refer to the replica's centre: a replica that differs from the clicks (the generic
-one) shifts every time by a constant (about 14 us against the simulated clicks), which cancels
-in time differences; an estimated replica (:func:`fusion.clicks.replica.estimate_replica`)
-removes it. The statistic is an energy detector over a quarter millisecond, not a coherent
-matched filter: it finds half the clicks at a per-click SNR (peak over in-band noise standard
-deviation) of about 12 dB and nearly all above 15 dB at the default threshold.
+Click times refer to the replica's centre: a replica unlike the clicks (the generic one) shifts
+every time by a constant (about 14 us on the simulated clicks), which cancels in time
+differences; an estimated replica (:func:`fusion.clicks.replica.estimate_replica`) removes it.
+The statistic is an energy detector over a quarter millisecond: at the default threshold it
+finds half the clicks at a per-click SNR (peak over in-band noise standard deviation) of about
+12 dB and nearly all above 15 dB.
 """
 
 from __future__ import annotations
@@ -64,9 +60,10 @@ from numpy.typing import ArrayLike
 
 from fusion._validation import check_positive
 from fusion.clicks._click_peaks import local_maxima, not_echo, not_ringing
-from fusion.clicks._detect_statistic import all_finite, centre_frequency, chunked_statistic
+from fusion.clicks._detect_statistic import centre_frequency, checked_input, chunked_statistic
 from fusion.clicks._frames import gather_frames, interp_nodes, segment_medians
 from fusion.clicks._kernels import DetectorKernels
+from fusion.clicks._noise_threshold import noise_threshold
 from fusion.clicks.band import DEFAULT_BAND_HZ
 from fusion.clicks.replica import Replica, ReplicaEstimate, estimate_replica, load_replica
 from fusion.clicks.types import ChannelClicks
@@ -75,11 +72,10 @@ __all__ = ["ClickDetector", "DEFAULT_THRESHOLD"]
 
 logger = logging.getLogger(__name__)
 
-#: Default detection threshold (band power in units of the mean background power): the lowest
-#: threshold of the sweep on the tuning seeds 0-9 of ``benchmarks/bench_click_detection.py``
-#: whose noise false alarms stay at or below 100 per channel-hour. Measured there: thresholds
-#: 5.5 / 6.0 / 6.5 give 338 / 96 / 22 false alarms per channel-hour and recalls of 0.863 /
-#: 0.843 / 0.817 for direct-path clicks of per-click SNR >= 10 dB.
+#: Default detection threshold (band power over the mean background): the lowest of the sweep
+#: on tuning seeds 0-9 of ``benchmarks/bench_click_detection.py`` with at most 100 noise false
+#: alarms per channel-hour (5.5 / 6.0 / 6.5: 338 / 96 / 22, recalls 0.863 / 0.843 / 0.817 for
+#: direct-path clicks of per-click SNR >= 10 dB).
 DEFAULT_THRESHOLD = 6.0
 
 _TINY = float(np.finfo(np.float32).tiny)
@@ -106,6 +102,9 @@ class ClickDetector:
         Band whose normalised power is summed, Hz; its upper edge must lie below ``fs / 2``.
     threshold : float, optional
         Detection threshold on the band power over the background (noise mean 1).
+    false_alarms_per_s : float, optional
+        If given, the threshold instead: the level of this many clicks a second in white noise
+        (:func:`fusion.clicks._noise_threshold.noise_threshold`, once per sample rate).
     background_s : float, optional
         Length of the background segments, s. Block-wise detection needs blocks overlapping by
         about three times this (:meth:`guard_s`).
@@ -160,6 +159,7 @@ class ClickDetector:
         min_separation_s: float = 0.25e-3,
         interpolation: Literal["log", "linear"] = "log",
         echo_window_s: tuple[float, float] | None = None,
+        false_alarms_per_s: float | None = None,
     ) -> None:
         if replica is not None and not isinstance(replica, Replica):
             raise ValueError(f"replica must be a Replica, got {type(replica).__name__}")
@@ -183,6 +183,9 @@ class ClickDetector:
         self.nfft, self.hop = int(nfft), int(round(hop))
         self.band_hz = (lo, hi)
         self.threshold = check_positive("threshold", threshold)
+        self.false_alarms_per_s = (None if false_alarms_per_s is None else
+                                   check_positive("false_alarms_per_s", false_alarms_per_s))
+        self._noise_thresholds: dict[float, float] = {}
         self.background_s = check_positive("background_s", background_s)
         self.background_decimation = int(background_decimation)
         self.min_centre_freq_hz = check_positive("min_centre_freq_hz", min_centre_freq_hz,
@@ -215,6 +218,14 @@ class ClickDetector:
             self._kernels[fs] = DetectorKernels(self.replica.at(fs), fs, nfft=self.nfft, hop=self.hop,
                                                 band_hz=self.band_hz)
         return self._kernels[fs]
+
+    def threshold_at(self, fs: float) -> float:
+        """The threshold at `fs`: `threshold`, or the noise level of `false_alarms_per_s`."""
+        if self.false_alarms_per_s is None:
+            return self.threshold
+        if fs not in self._noise_thresholds:
+            self._noise_thresholds[fs] = noise_threshold(self, fs, self.false_alarms_per_s)
+        return self._noise_thresholds[fs]
 
     def _seg_len(self, fs: float) -> int:
         return max(1, int(round(self.background_s * fs / self.hop)))
@@ -289,17 +300,22 @@ class ClickDetector:
                                initial=self.replica, n_iter=6, tol=0.03)
         if not est.converged:
             return self, est
-        return self._copy(replica=est.replica, _kernels={}), est
+        return self._copy(replica=est.replica, _kernels={}, _noise_thresholds={}), est
 
     def with_echo_window(self, echo_window_s: tuple[float, float] | None) -> ClickDetector:
         """This detector with another echo suppression window (see the class parameters)."""
         probe = ClickDetector(echo_window_s=echo_window_s)  # checks the window
         return self._copy(echo_window_s=probe.echo_window_s)
 
+    def with_false_alarms(self, false_alarms_per_s: float | None) -> ClickDetector:
+        """This detector with another `false_alarms_per_s` (see the class parameters)."""
+        probe = ClickDetector(false_alarms_per_s=false_alarms_per_s)  # checks the rate
+        return self._copy(false_alarms_per_s=probe.false_alarms_per_s, _noise_thresholds={})
+
     def with_band(self, band_hz: tuple[float, float]) -> ClickDetector:
         """This detector summing the power over another band, Hz (see the class parameters)."""
         probe = ClickDetector(band_hz=band_hz)  # checks the band
-        return self._copy(band_hz=probe.band_hz, _kernels={})
+        return self._copy(band_hz=probe.band_hz, _kernels={}, _noise_thresholds={})
 
     def _copy(self, **changes) -> ClickDetector:
         new = ClickDetector.__new__(ClickDetector)
@@ -396,20 +412,7 @@ class ClickDetector:
                 timings[name] = timings.get(name, 0.0) + now - clock
                 clock = now
 
-        x = np.asarray(samples)
-        if x.ndim == 1:
-            x = x[:, None]
-        if x.ndim != 2 or x.shape[0] == 0 or x.shape[1] == 0:
-            raise ValueError(f"samples must have shape (n,) or (n, channels) with n > 0, got "
-                             f"{np.shape(samples)}")
-        if not np.issubdtype(x.dtype, np.number) or not all_finite(x):
-            raise ValueError("samples contain NaN or infinite values")
-        if not np.isfinite(t0):
-            raise ValueError(f"t0 must be finite, got {t0!r}")
-        if span_s is not None:
-            span_s = (float(span_s[0]), float(span_s[1]))
-            if not (np.isfinite(span_s[0]) and np.isfinite(span_s[1]) and span_s[0] <= span_s[1]):
-                raise ValueError(f"span_s must be (start, end) with start <= end, got {span_s!r}")
+        x, span_s = checked_input(samples, t0, span_s)
         k = self._bank(float(fs))
         fs = float(fs)
         hop, n_ch, n = self.hop, x.shape[1], x.shape[0]
@@ -467,9 +470,10 @@ class ClickDetector:
         lap("statistic")
 
         out = []
+        threshold = self.threshold_at(fs)
         for c in range(n_ch):
             s = stat[c]
-            peaks = local_maxima(s, self.threshold, sep)
+            peaks = local_maxima(s, threshold, sep)
             if peaks.size == 0:
                 out.append(ChannelClicks(c))
                 continue

@@ -65,6 +65,11 @@ from fusion.cli import emit, number, summary
 #: Default of --max-tdoa-rate (fusion.clicks.scm.MAX_TDOA_RATE, not imported here: --help stays
 #: light).
 MAX_TDOA_RATE = 1.6e-3
+#: Default of --detect-false-alarms-per-s: the click detector's threshold is the level at which
+#: it finds this many clicks per channel-second in white Gaussian noise (about 4.9 on the
+#: estimated 26-kHz band at 96 kHz, against the library detector's fixed 6.0, ~0.04 a second);
+#: tuned on seeds 0-9 at 15-30 dB (docs/localization.md section 18).
+DETECT_FALSE_ALARMS_PER_S = 0.5
 #: Most candidates per window (--candidates): each is a graph re-solved in every iteration of the
 #: competition and compared with every other one (K^2 pairs an iteration); 16 times the default.
 MAX_CANDIDATES = 256
@@ -115,9 +120,17 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "Nyquist frequency; 14000 40000, the method's, without an estimate)")
     p.add_argument("--min-centre-freq-hz", dest="min_centre_freq", type=number(float, ge=0), default=20000.0,
                    help="smallest click centre frequency (eq. 2), Hz (default 20000)")
-    p.add_argument("--detect-threshold", type=number(float, gt=0), default=None,
-                   help="click detection threshold on the normalised band power (default: the "
-                        "detector's)")
+    detect = p.add_mutually_exclusive_group()
+    detect.add_argument("--detect-threshold", type=number(float, gt=0), default=None,
+                        help="fixed click detection threshold on the normalised band power "
+                             "(default: set from --detect-false-alarms-per-s; 6 is the "
+                             "detector's fixed one)")
+    detect.add_argument("--detect-false-alarms-per-s", dest="detect_false_alarms",
+                        type=number(float, gt=0, le=50), default=DETECT_FALSE_ALARMS_PER_S,
+                        metavar="RATE",
+                        help="click detection threshold at this many detections per channel-"
+                             "second in white Gaussian noise, measured on the detector's own "
+                             f"statistic (default {DETECT_FALSE_ALARMS_PER_S:g})")
     p.add_argument("--validator", type=Path, default=None,
                    help="validator model .npz (default: the one shipped; see train-validator)")
     p.add_argument("--replica", default=None, metavar="NPZ|generic",
@@ -323,9 +336,9 @@ def _run_key(args: argparse.Namespace, audio: list) -> str:
         else file_identity(args.replica, content=True),
         "generic_replica": file_identity(GENERIC_PATH, content=True),
         "options": {k: getattr(args, k) for k in (
-            "window", "hop", "band", "min_centre_freq", "detect_threshold", "llr_threshold",
-            "no_refine", "keep_aliases", "no_closure_support", "strong_echoes_only",
-            "max_tdoa_rate", "method", "chunk",
+            "window", "hop", "band", "min_centre_freq", "detect_threshold", "detect_false_alarms",
+            "llr_threshold", "no_refine", "keep_aliases", "no_closure_support",
+            "strong_echoes_only", "max_tdoa_rate", "method", "chunk",
             "surface_paths", "sea_floor_z",
             "candidates", "min_source_tdoas")},
     })
@@ -371,6 +384,8 @@ def run(args: argparse.Namespace) -> int:
     det_opts = {"band_hz": (lo, hi), "min_centre_freq_hz": args.min_centre_freq}
     if args.detect_threshold is not None:
         det_opts["threshold"] = args.detect_threshold
+    else:  # the windows' threshold from a noise false-alarm rate (docs/localization.md)
+        det_opts["false_alarms_per_s"] = args.detect_false_alarms
     validator = (TdoaValidator.load(args.validator) if args.validator is not None
                  else default_validator(LLR_THRESHOLD))
     if args.llr_threshold is not None:
@@ -391,6 +406,13 @@ def run(args: argparse.Namespace) -> int:
     pipe, decided = _decided(args, ClickLocalization(front_end=front, localizer=localizer),
                              recordings[0][0], array)
     localizer = pipe.settings
+    detector = pipe.front_end.detector  # the decisions read strong clicks at the fixed threshold
+    level = detector.threshold_at(recordings[0][0].fs)  # measured here, before any fork
+    detection = {"threshold": level, "false_alarms_per_s": detector.false_alarms_per_s}
+    detection_note = (f"detection threshold: {level:.3g}" + (
+        f", where the detector passes {detector.false_alarms_per_s:g} noise detections a "
+        "channel-second (--detect-threshold for a fixed one)"
+        if detector.false_alarms_per_s is not None else " (fixed)"))
     if args.chunk is None:
         args.chunk = _default_chunk_s(recordings, pipe, args.workers)
     plans = [plan_chunks(source, pipe, chunk_s=args.chunk) for source, _ in recordings]
@@ -443,11 +465,11 @@ def run(args: argparse.Namespace) -> int:
         store.remove()
         side = (Path(args.out) / "localize" if getattr(args, "out_is_dir", False)
                 else args.out)
-        write_settings(side, {"command": "localize", **decided.record,
+        write_settings(side, {"command": "localize", **decided.record, "detection": detection,
                               "localization": None if localizer is None else localizer.to_dict(),
                               **({"sound_speed": speeds} if speeds else {})},
                        inputs=[*audio, args.array, args.events, args.validator])
-    for note in [*decided.notes, *notes]:
+    for note in [*decided.notes, detection_note, *notes]:
         emit(note, err=True)
     for line in summaries:  # the command ends with its summary (one line per recording)
         summary("localize", line, err=True)

@@ -135,6 +135,10 @@ def decide_from_recording(
     """
     x = np.asarray(samples, dtype=float)
     det = detector if detector is not None else ClickDetector()
+    # the decisions read strong clicks at the fixed threshold; a threshold set from a noise
+    # false-alarm rate (ClickDetector(false_alarms_per_s=...)) is the windows' and is kept
+    rate = det.false_alarms_per_s
+    det = det.with_false_alarms(None) if rate is not None else det
     est = None
     if estimate_replica:
         new, est = det.with_recording_replica(x, fs)
@@ -191,6 +195,8 @@ def decide_from_recording(
         notes.append(f"no bottom echo heard in {span}: the hydrophones are taken as bottom-mounted "
                      f"(the method's range): sources searched above z = {floor:g} m "
                      "(--sea-floor-z-m for hydrophones moored above the floor)")
+    if rate is not None:
+        det = det.with_false_alarms(rate)
     return RecordingDecisions(det, settings, est, echoes, tuple(notes),
                               {"replica": replica_record, "band": band_record,
                                "sea_floor": floor_record})

@@ -281,3 +281,36 @@ def test_recording_replica_matches_the_clicks_better_than_the_generic_one():
         return hits
 
     assert found(new) > found(det)  # 68 against 63 of 168 arrivals
+
+
+# --------------------------------------------------------------------------------------------
+# threshold from a false-alarm rate
+# --------------------------------------------------------------------------------------------
+def test_false_alarm_rate_sets_the_threshold_from_the_detectors_own_noise():
+    """``false_alarms_per_s``: the threshold is the level at which the detector passes that
+    many clicks a second in white Gaussian noise. On other noise (another seed, coloured as the
+    simulator's 1-46 kHz) it passes about that rate on both a 26-kHz and a 16-kHz band; the
+    narrow band (fewer, correlated bins: a heavier tail) gets the higher threshold, where the
+    fixed threshold of 6 lets through over ten times more noise on it than on the wide band."""
+    import scipy.signal
+
+    rng = np.random.default_rng(7)
+    b, a = scipy.signal.butter(6, [1_000.0 / 48_000.0, 46_000.0 / 48_000.0], "band")
+    x = scipy.signal.lfilter(b, a, rng.standard_normal((int(40 * FS), 2)), axis=0)
+    rate = 1.0
+    levels, fixed = {}, {}
+    for name, band in (("wide", (19_600.0, 45_600.0)), ("narrow", (29_600.0, 45_600.0))):
+        det = ClickDetector(band_hz=band, false_alarms_per_s=rate)
+        levels[name] = det.threshold_at(FS)
+        per_s = sum(c.times_s.size for c in det.detect(x, FS)) / 80.0
+        assert 0.6 * rate <= per_s <= 1.6 * rate, (name, per_s)
+        fixed[name] = sum(c.times_s.size for c in ClickDetector(band_hz=band).detect(x, FS))
+    assert levels["wide"] < 6.0 < levels["narrow"]
+    assert fixed["narrow"] > 10 * max(fixed["wide"], 1)
+    # the default (None) is the fixed threshold; the level is measured once per sample rate
+    assert ClickDetector().threshold_at(FS) == 6.0
+    det = ClickDetector().with_false_alarms(rate)
+    assert det.threshold_at(FS) == det.threshold_at(FS) == det._noise_thresholds[FS]
+    assert ClickDetector().with_false_alarms(0.1).threshold_at(FS) > det.threshold_at(FS)
+    with pytest.raises(ValueError, match="false_alarms_per_s"):
+        ClickDetector(false_alarms_per_s=0.0)

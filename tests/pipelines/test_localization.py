@@ -301,7 +301,9 @@ def test_even_odds_validation_keeps_the_pairs_a_fix_needs(tmp_path):
     odds every window is localized within 10 m and no fix is false. The model's own threshold
     is that of ``validator_v1.npz`` (3.24), the model section 8 of docs/localization.md was
     decided with; the shipped ``validator_v2.npz`` at its own threshold (4.21) keeps the pairs
-    on this seed too (10 of 10)."""
+    on this seed too (10 of 10). Measured at the fixed detection threshold the section was
+    decided with (``--detect-threshold 6``): at the default of section 18 the far sensors'
+    trains are longer and v1 at its own threshold localizes all 10 windows too."""
     from fusion.cli import main
     from fusion.clicks.validate import V1_MODEL_PATH, TdoaValidator
     from fusion.pipelines.clicks import LLR_THRESHOLD
@@ -316,6 +318,7 @@ def test_even_odds_validation_keeps_the_pairs_a_fix_needs(tmp_path):
     # trains that this threshold drops where the others span three sensors
     for name, extra in (("even", []), ("model", ["--validator", str(V1_MODEL_PATH),
                                                  "--no-closure-support"])):
+        extra = ["--detect-threshold", "6", *extra]
         found[name] = _localized_within_10_m(tmp_path, name, extra, truth)
     assert found["even"] == (10, 0, 10)
     assert found["model"][0] <= 8
@@ -325,7 +328,8 @@ def test_llr_bar_above_even_odds_drops_surface_echo_trains(tmp_path):
     """With ``validator_v2.npz`` the surface-echo trains of tuning seed 4 (one whale, floor and
     surface echoes, no variation) score LLR 0.03-0.4: at even odds (``--llr-threshold 0``) they
     pass and make false fixes; at the default bar (0.5, docs/localization.md section 13) every
-    window is localized within 10 m and no fix is false."""
+    window is localized within 10 m and no fix is false. Measured, as the bar was chosen, at the
+    fixed detection threshold (``--detect-threshold 6``)."""
     from fusion.cli import main
     from fusion.pipelines.clicks import LLR_THRESHOLD
 
@@ -336,6 +340,34 @@ def test_llr_bar_above_even_odds_drops_surface_echo_trains(tmp_path):
     truth = json.loads((tmp_path / "s" / "truth.json").read_text())
     found = {}
     for name, extra in (("default", []), ("even", ["--llr-threshold", "0"])):
+        extra = ["--detect-threshold", "6", *extra]
         found[name] = _localized_within_10_m(tmp_path, name, extra, truth)[:2]
     assert found["default"] == (10, 0)
     assert found["even"][1] >= 1
+
+
+def test_localize_sets_the_detection_threshold_from_a_noise_false_alarm_rate(tmp_path):
+    """`fusion localize` sets the detection threshold where the detector passes 0.5 noise
+    detections a channel-second (docs/localization.md section 18), about 4.9 on the estimated
+    26-kHz band, below the fixed 6.0, and writes it to the settings file;
+    ``--detect-threshold 6`` (the ablation) keeps the fixed one. On tuning seed 1 at 24 dB (one
+    whale, floor and surface echoes) the lower threshold makes no false fix. The gain in
+    windows localized is measured on seeds 0-9 in benchmarks/RESULTS.md ("Issue 17: low
+    SNR"), not here: on seed 1 neither threshold localizes a window."""
+    from fusion.cli import main
+    from fusion.commands.localize import DETECT_FALSE_ALARMS_PER_S
+
+    assert DETECT_FALSE_ALARMS_PER_S == 0.5
+    assert main(["simulate", "clicks", "--seed", "1", "--whales", "1", "--sensors", "5",
+                 "--duration-s", "30", "--snr-db", "24", "--echo", "both",
+                 "--out", str(tmp_path / "s")]) == 0
+    truth = json.loads((tmp_path / "s" / "truth.json").read_text())
+    found = {}
+    for name, extra in (("default", []), ("fixed", ["--detect-threshold", "6"])):
+        found[name] = _localized_within_10_m(tmp_path, name, extra, truth)
+    side = json.loads((tmp_path / "default.settings.json").read_text())
+    assert side["detection"]["false_alarms_per_s"] == 0.5
+    assert 4.5 < side["detection"]["threshold"] < 5.3
+    fixed = json.loads((tmp_path / "fixed.settings.json").read_text())["detection"]
+    assert fixed == {"threshold": 6.0, "false_alarms_per_s": None}
+    assert found["default"][1] == 0

@@ -144,10 +144,16 @@ def test_serial_run_equals_one_pass(recording, serial_bytes, tmp_path):
     # the command's decisions from the first 60 s (here all) of the recording: replica, echoes,
     # sea floor, made by the pipeline itself as it streams; then, once every window is done,
     # the recording's sound speed
+    from fusion.clicks.detect import ClickDetector
+    from fusion.commands.localize import DETECT_FALSE_ALARMS_PER_S
     from fusion.pipelines.clicks import LLR_THRESHOLD, ClickFrontEnd, default_validator
     from fusion.pipelines.sound_speed import calibrate_speed
 
-    pipe = ClickLocalization(front_end=ClickFrontEnd(validator=default_validator(LLR_THRESHOLD)))
+    # the windows' threshold from the noise false-alarm rate, as the command's (docs/localization.md
+    # section 18); the decisions read the first minute at the fixed one
+    detector = ClickDetector(false_alarms_per_s=DETECT_FALSE_ALARMS_PER_S)
+    pipe = ClickLocalization(front_end=ClickFrontEnd(detector=detector,
+                                                     validator=default_validator(LLR_THRESHOLD)))
     with threadpool_limits(1):  # as the chunk tasks (one BLAS thread, as on a Dask worker)
         windows = list(pipe.iter_windows(blocks(), fs=fs, sensors=sensors,
                                          duration_s=info.frames / fs))
