@@ -60,7 +60,8 @@ class CrossingSettings:
     n_windows : int
         Windows in the ladder (``J, 2 J, ...``).
     horizon_s : float
-        Prediction horizon and widest interval an alert may carry, s.
+        Prediction horizon and widest interval (the fits' own; the allowances may widen an
+        alert's interval beyond it on windows they do not gate) that resolves a pair, s.
     lead_windows : float
         Predictions reach this many spans of the window used ahead (never beyond the horizon).
     confirm : int
