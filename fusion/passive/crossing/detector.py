@@ -20,12 +20,12 @@ from fusion.passive.crossing.curve import (
     CurveStats,
     curve_fits,
     curved_candidates,
-    curved_pair_intervals,
 )
 from fusion.passive.crossing.events import _Events, _Hits, raise_alerts
-from fusion.passive.crossing.interval import f_ratio_quantile, t_quantile
+from fusion.passive.crossing.interval import f_ratio_quantile
+from fusion.passive.crossing.judge import judge_pairs
 from fusion.passive.crossing.manoeuvre import ManoeuvreIntensity, half_window_slopes
-from fusion.passive.crossing.pairs import pair_intervals, pairs_in_reach
+from fusion.passive.crossing.pairs import pairs_in_reach
 from fusion.passive.crossing.types import CrossingAlert
 from fusion.passive.line_fit import LineStats, SlidingLineFit
 
@@ -107,22 +107,18 @@ class CrossingDetector:
         Predictions from lines also carry the variance of the curvature each window's line
         leaves out, at the predicted crossing (default False;
         :mod:`fusion.passive.crossing.curvature`).
-    manoeuvre_scale : float, optional
-        Predictions also carry the variance of a wandering bearing rate, its intensity
-        estimated from the tracks' own rate changes and multiplied by this (default 0: off;
+    manoeuvre_scale, manoeuvre_memory_s : float, optional
+        Predictions also carry the variance of a wandering bearing rate, each track's
+        intensity estimated from its own rate changes (forgotten over `manoeuvre_memory_s`,
+        default 10 shortest windows) times `manoeuvre_scale` (default 0: off;
         :mod:`fusion.passive.crossing.manoeuvre`).
-    manoeuvre_memory_s : float, optional
-        Time constant, s, over which a track's rate changes are forgotten in its intensity
-        (default 10 shortest windows).
     allowance_gate_level : int or None, optional
-        On the windows of the ladder from this level on (0: the shortest), the manoeuvre
-        allowance and `far_side` also decide which pairs are resolved (an interval they widen
-        beyond `max_interval_s` raises no alert; default 0); on shorter windows (all: None)
-        they only widen the intervals of the alerts the fits' own intervals resolve.
+        From this ladder level on (0: the shortest; default), intervals widened by the
+        manoeuvre term and `far_side` also decide which pairs are resolved; below it (None:
+        everywhere) they only widen the alerts' intervals.
     far_side : bool, optional
-        The variances that grow with the lead (curvature, manoeuvre) are evaluated again at
-        the upper end of a prediction's interval, which is recomputed (default False: at the
-        predicted crossing only; :func:`~fusion.passive.crossing.pairs.pair_intervals`).
+        Lead-dependent variances (curvature, manoeuvre) taken again at a prediction's upper
+        bound, which is recomputed (default False; :func:`~.pairs.pair_intervals`).
     split_repeats : bool, optional
         A crossing whose bearing difference changes sign the other way from the pair's
         current event is the pair's next crossing, however close in time (default True;
@@ -253,15 +249,13 @@ class CrossingDetector:
             raise ValueError(f"manoeuvre_scale must be >= 0, got {manoeuvre_scale!r}")
         self.manoeuvre_scale = float(manoeuvre_scale) if self.level is not None else 0.0
         self.far_side = bool(far_side)
-        if allowance_gate_level is not None and (int(allowance_gate_level) != allowance_gate_level
-                                                 or allowance_gate_level < 0):
-            raise ValueError("allowance_gate_level must be a non-negative integer or None, got "
-                             f"{allowance_gate_level!r}")
-        self.allowance_gate_level = None if allowance_gate_level is None \
-            else int(allowance_gate_level)
-        self.manoeuvre_memory_s = 10.0 * self.J * self.K if manoeuvre_memory_s is None \
+        g = allowance_gate_level
+        if g is not None and (int(g) != g or g < 0):
+            raise ValueError(f"allowance_gate_level must be an integer >= 0 or None, got {g!r}")
+        self.allowance_gate_level = None if g is None else int(g)
+        m = self.manoeuvre_memory_s = 10.0 * self.J * self.K if manoeuvre_memory_s is None \
             else float(manoeuvre_memory_s)
-        if not (np.isfinite(self.manoeuvre_memory_s) and self.manoeuvre_memory_s > 0):
+        if not (np.isfinite(m) and m > 0):
             raise ValueError(f"manoeuvre_memory_s must be > 0, got {manoeuvre_memory_s!r}")
         self.reset()
 
@@ -282,9 +276,8 @@ class CrossingDetector:
         self._streak_high = np.zeros(0)
         self._scale = ExtrapolationScale(self.level) if self._holdout() is not None else None
         self.extrapolation_scale = 1.0  # the factor on predictions' variances (calibrate)
-        self._manoeuvre = ManoeuvreIntensity(
-            self.manoeuvre_scale, self.manoeuvre_memory_s, self.K) \
-            if self.manoeuvre_scale > 0 else None
+        self._manoeuvre = ManoeuvreIntensity(self.manoeuvre_scale, self.manoeuvre_memory_s,
+                                             self.K) if self.manoeuvre_scale > 0 else None
         self.manoeuvre_q = None  # the tracks' rate-wander intensities of this step, rad^2/s^3
 
     @property
@@ -387,46 +380,9 @@ class CrossingDetector:
         cs = curve_fits(tau, val, ok, st, alpha=self.curve_alpha) if curves else None
         return st, cs, curvature_stats(tau, val, ok, st) if quad else None
 
-    def _judge(
-        self, model: tuple[LineStats, CurveStats | None, CurvatureStats | None],
-        ia: NDArray[np.int64],
-        ib: NDArray[np.int64], *, back_s: float, reach_s: float, span_s: float,
-    ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_],
-               NDArray[np.float64]]:
-        """Crossing time, interval, resolved flag and direction of pairs on one window."""
-        st, cs, qs = model
-        man = None if self.manoeuvre_q is None else (self.manoeuvre_q, span_s)
-        tau, low, high, ok = pair_intervals(ia, ib, st.value, st, level=self.level, curvature=qs,
-                                            manoeuvre=man, far_side=self.far_side)
-        gate_width = None
-        gates = self.allowance_gate_level is not None and \
-            span_s >= (1 << self.allowance_gate_level) * self.J * self.K * (1 - 1e-9)
-        if not gates and (man is not None or self.far_side):
-            _, bl, bh, _ = pair_intervals(ia, ib, st.value, st, level=self.level, curvature=qs)
-            gate_width = bh - bl  # resolved as without the allowances, which only widen
-        k = self.extrapolation_scale
-        if k > 1.0:  # predictions: the lines' extrapolation variance grown by k
-            _, lk, hk, okk = pair_intervals(ia, ib, st.value, st, level=self.level, var_scale=k,
-                                            curvature=qs, manoeuvre=man,
-                                            far_side=self.far_side)
-            ahead = tau > 0
-            low, high, ok = (np.where(ahead, x, y) for x, y in ((lk, low), (hk, high), (okk, ok)))
-        direction = np.sign(st.slope[ib] - st.slope[ia])
-        if cs is not None:
-            c = np.flatnonzero(cs.curved[ia] | cs.curved[ib])
-            if c.size:
-                q = t_quantile(self.level, np.minimum(cs.dof[ia[c]], cs.dof[ib[c]]))
-                tc, lc, hc, okc, dc = curved_pair_intervals(
-                    ia[c], ib[c], cs, q=q, back_s=back_s, reach_s=reach_s,
-                    ahead_var_scale=k)
-                tau, low, high, ok, direction = (x.copy() for x in (tau, low, high, ok, direction))
-                tau[c], low[c], high[c], ok[c], direction[c] = tc, lc, hc, okc, dc
-                if gate_width is not None:
-                    gate_width = gate_width.copy()
-                    gate_width[c] = hc - lc
-        with np.errstate(invalid="ignore"):
-            ok &= ((high - low) if gate_width is None else gate_width) <= self.max_interval_s
-        return tau, low, high, ok, direction
+    def _judge(self, model: tuple, ia: NDArray[np.int64], ib: NDArray[np.int64], **kw) -> tuple:
+        """Pairs judged on one window (:func:`~fusion.passive.crossing.judge.judge_pairs`)."""
+        return judge_pairs(self, model, ia, ib, **kw)
 
     def _holdout(self) -> tuple[int, int] | None:
         """(ladder level, samples ahead) of the held-out check of `calibrate`, or None."""
@@ -454,9 +410,8 @@ class CrossingDetector:
         level = 1 if len(self._fits) > 1 else 0
         half = self.windows[level] // 2
         tau, val, ok = self._fits[level].windows(ids, t)
-        self.manoeuvre_q = self._manoeuvre.add(ids,
-            *half_window_slopes(tau, val, ok, half * self.K - 0.5 * self.K, half),
-            half * self.K)
+        self.manoeuvre_q = self._manoeuvre.add(ids, *half_window_slopes(
+            tau, val, ok, (half - 0.5) * self.K, half), half * self.K)
 
     def _hits(self, t: float, ids: NDArray[np.int64]) -> _Hits:
         """Pairs satisfying an inequality on the shortest window that resolves them."""
