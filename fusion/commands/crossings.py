@@ -25,14 +25,18 @@ from fusion.cli import MAX_SCANS_OPTION, emit, number, summary
 from fusion.io import RowOrderError, iter_bearings, read_bearings, write_table
 from fusion.passive.crossing import CrossingAlert
 from fusion.passive.crossing.settings import (
+    DEFAULT_ALLOWANCE_GATE_LEVEL,
     DEFAULT_CONFIRM,
     DEFAULT_CONFIRM_LEAD,
     DEFAULT_CURVE_ALPHA,
     DEFAULT_EXTRAPOLATION,
+    DEFAULT_FAR_SIDE,
     DEFAULT_HORIZON_S,
     DEFAULT_LADDER_ALPHA,
     DEFAULT_LEAD_WINDOWS,
     DEFAULT_LEVEL,
+    DEFAULT_MANOEUVRE_MEMORY_WINDOWS,
+    DEFAULT_MANOEUVRE_SCALE,
     DEFAULT_N_WINDOWS,
     DEFAULT_WINDOW_S,
     MAX_SAMPLES_PER_WINDOW,
@@ -143,6 +147,30 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "fits' covariance plus the window's quadratic term the line leaves out, "
                         "at the predicted crossing) or model (the fits' own covariance); default "
                         f"{DEFAULT_EXTRAPOLATION}")
+    p.add_argument("--manoeuvre-scale", type=number(float, ge=0),
+                   default=DEFAULT_MANOEUVRE_SCALE, metavar="F",
+                   help="predictions also carry the miss of the windows' lines under a bearing "
+                        "rate that wanders as much as the tracks' own rate changes show "
+                        "(intensity estimated from the data as it arrives), times F (default "
+                        f"{DEFAULT_MANOEUVRE_SCALE:g}; 0: off, the intervals before)")
+    p.add_argument("--ahead-variance-at", choices=("far-end", "crossing"),
+                   default="far-end" if DEFAULT_FAR_SIDE else "crossing",
+                   help="where the variances that grow with the lead (curvature, "
+                        "--manoeuvre-scale) are evaluated: far-end (default: again at the upper "
+                        "end of the interval, which is recomputed) or crossing (at the predicted "
+                        "crossing only, before)")
+    p.add_argument("--allowance-gates-from", type=number(int, ge=0), default=None,
+                   metavar="N",
+                   help="on windows of the ladder from the N-th on (1: the shortest), the "
+                        "intervals widened by --manoeuvre-scale and --ahead-variance-at far-end "
+                        "also decide which pairs alert (default "
+                        f"{DEFAULT_ALLOWANCE_GATE_LEVEL + 1}; 0: on none, they only widen the "
+                        "alerts' intervals)")
+    p.add_argument("--manoeuvre-memory-windows", type=number(float, gt=0),
+                   default=DEFAULT_MANOEUVRE_MEMORY_WINDOWS, metavar="F",
+                   help="a track's rate changes are forgotten over F spans of the shortest "
+                        f"window in its rate-wander intensity (default "
+                        f"{DEFAULT_MANOEUVRE_MEMORY_WINDOWS:g})")
     p.add_argument("--confirm-rule", choices=("overlap", "count"), default="overlap",
                    help="overlap (default): each of the --confirm samples in a row must hit with "
                         "a t_cross interval that overlaps the one before (a prediction that "
@@ -196,7 +224,13 @@ def _options(args: argparse.Namespace) -> dict:
             "confirm_overlap": args.confirm_rule == "overlap",
             "calibrate": args.extrapolation == "calibrated",
             "curvature": args.extrapolation == "curvature",
-            "confirm_lead_windows": args.confirm_lead}
+            "confirm_lead_windows": args.confirm_lead,
+            "manoeuvre_scale": args.manoeuvre_scale,
+            "far_side": args.ahead_variance_at == "far-end",
+            "allowance_gate_level": DEFAULT_ALLOWANCE_GATE_LEVEL
+            if args.allowance_gates_from is None else (
+                None if args.allowance_gates_from == 0 else args.allowance_gates_from - 1),
+            "manoeuvre_memory_windows": args.manoeuvre_memory_windows}
 
 
 def _check_spans(args: argparse.Namespace, st: CrossingSettings, spans_s: np.ndarray) -> None:

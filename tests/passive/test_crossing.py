@@ -469,7 +469,9 @@ def test_cli_round_trip(tmp_path, capsys):
     assert_allclose(got["t_cross_low"], [a.t_cross_low for a in ref], atol=1e-6)
     assert np.all(got["t_cross_low"] <= got["t_cross"])
     assert np.all(got["t_cross"] <= got["t_cross_high"])
-    assert np.all(got["t_cross_high"] - got["t_cross_low"] <= st.horizon_s)
+    # the fits' own intervals are at most the horizon wide; the allowances (manoeuvre, far end)
+    # may widen an alert's interval beyond it (issue 19, 2026-12-03 afternoon)
+    assert np.all(np.isfinite(got["t_cross_high"] - got["t_cross_low"]))
 
 
 def test_cli_no_alerts_writes_header_only(tmp_path):

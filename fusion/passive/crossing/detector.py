@@ -20,11 +20,12 @@ from fusion.passive.crossing.curve import (
     CurveStats,
     curve_fits,
     curved_candidates,
-    curved_pair_intervals,
 )
 from fusion.passive.crossing.events import _Events, _Hits, raise_alerts
-from fusion.passive.crossing.interval import f_ratio_quantile, t_quantile
-from fusion.passive.crossing.pairs import pair_intervals, pairs_in_reach
+from fusion.passive.crossing.interval import f_ratio_quantile
+from fusion.passive.crossing.judge import judge_pairs
+from fusion.passive.crossing.manoeuvre import ManoeuvreIntensity, half_window_slopes
+from fusion.passive.crossing.pairs import pairs_in_reach
 from fusion.passive.crossing.types import CrossingAlert
 from fusion.passive.line_fit import LineStats, SlidingLineFit
 
@@ -106,6 +107,18 @@ class CrossingDetector:
         Predictions from lines also carry the variance of the curvature each window's line
         leaves out, at the predicted crossing (default False;
         :mod:`fusion.passive.crossing.curvature`).
+    manoeuvre_scale, manoeuvre_memory_s : float, optional
+        Predictions also carry the variance of a wandering bearing rate, each track's
+        intensity estimated from its own rate changes (forgotten over `manoeuvre_memory_s`,
+        default 10 shortest windows) times `manoeuvre_scale` (default 0: off;
+        :mod:`fusion.passive.crossing.manoeuvre`).
+    allowance_gate_level : int or None, optional
+        From this ladder level on (0: the shortest; default), intervals widened by the
+        manoeuvre term and `far_side` also decide which pairs are resolved; below it (None:
+        everywhere) they only widen the alerts' intervals.
+    far_side : bool, optional
+        Lead-dependent variances (curvature, manoeuvre) taken again at a prediction's upper
+        bound, which is recomputed (default False; :func:`~.pairs.pair_intervals`).
     split_repeats : bool, optional
         A crossing whose bearing difference changes sign the other way from the pair's
         current event is the pair's next crossing, however close in time (default True;
@@ -174,6 +187,10 @@ class CrossingDetector:
         confirm_overlap: bool = False,
         calibrate: bool = False,
         curvature: bool = False,
+        manoeuvre_scale: float = 0.0,
+        far_side: bool = False,
+        manoeuvre_memory_s: float | None = None,
+        allowance_gate_level: int | None = 0,
         confirm_lead_windows: float | None = None,
     ) -> None:
         if int(J) != J or J < 3:
@@ -228,6 +245,18 @@ class CrossingDetector:
         self.confirm_overlap = bool(confirm_overlap)
         self.calibrate = bool(calibrate)
         self.curvature = bool(curvature) and self.level is not None
+        if not (np.isfinite(manoeuvre_scale) and manoeuvre_scale >= 0):
+            raise ValueError(f"manoeuvre_scale must be >= 0, got {manoeuvre_scale!r}")
+        self.manoeuvre_scale = float(manoeuvre_scale) if self.level is not None else 0.0
+        self.far_side = bool(far_side)
+        g = allowance_gate_level
+        if g is not None and (int(g) != g or g < 0):
+            raise ValueError(f"allowance_gate_level must be an integer >= 0 or None, got {g!r}")
+        self.allowance_gate_level = None if g is None else int(g)
+        m = self.manoeuvre_memory_s = 10.0 * self.J * self.K if manoeuvre_memory_s is None \
+            else float(manoeuvre_memory_s)
+        if not (np.isfinite(m) and m > 0):
+            raise ValueError(f"manoeuvre_memory_s must be > 0, got {manoeuvre_memory_s!r}")
         self.reset()
 
     @property
@@ -247,6 +276,9 @@ class CrossingDetector:
         self._streak_high = np.zeros(0)
         self._scale = ExtrapolationScale(self.level) if self._holdout() is not None else None
         self.extrapolation_scale = 1.0  # the factor on predictions' variances (calibrate)
+        self._manoeuvre = ManoeuvreIntensity(self.manoeuvre_scale, self.manoeuvre_memory_s,
+                                             self.K) if self.manoeuvre_scale > 0 else None
+        self.manoeuvre_q = None  # the tracks' rate-wander intensities of this step, rad^2/s^3
 
     @property
     def fit(self) -> SlidingLineFit:
@@ -304,6 +336,7 @@ class CrossingDetector:
             fit.update(ids, t, np.radians(bdeg))
         self._prune(t)
         self._calibrate(ids, t)
+        self._estimate_manoeuvre(ids, t)
         hits = self._confirmed(self._hits(t, ids))
         if self.confirm_lead > self.lead_windows:  # watched further out, raised within reach
             with np.errstate(invalid="ignore"):
@@ -347,34 +380,9 @@ class CrossingDetector:
         cs = curve_fits(tau, val, ok, st, alpha=self.curve_alpha) if curves else None
         return st, cs, curvature_stats(tau, val, ok, st) if quad else None
 
-    def _judge(
-        self, model: tuple[LineStats, CurveStats | None, CurvatureStats | None],
-        ia: NDArray[np.int64],
-        ib: NDArray[np.int64], *, back_s: float, reach_s: float,
-    ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_],
-               NDArray[np.float64]]:
-        """Crossing time, interval, resolved flag and direction of pairs on one window."""
-        st, cs, qs = model
-        tau, low, high, ok = pair_intervals(ia, ib, st.value, st, level=self.level, curvature=qs)
-        k = self.extrapolation_scale
-        if k > 1.0:  # predictions: the lines' extrapolation variance grown by k
-            _, lk, hk, okk = pair_intervals(ia, ib, st.value, st, level=self.level, var_scale=k,
-                                            curvature=qs)
-            ahead = tau > 0
-            low, high, ok = (np.where(ahead, x, y) for x, y in ((lk, low), (hk, high), (okk, ok)))
-        direction = np.sign(st.slope[ib] - st.slope[ia])
-        if cs is not None:
-            c = np.flatnonzero(cs.curved[ia] | cs.curved[ib])
-            if c.size:
-                q = t_quantile(self.level, np.minimum(cs.dof[ia[c]], cs.dof[ib[c]]))
-                tc, lc, hc, okc, dc = curved_pair_intervals(
-                    ia[c], ib[c], cs, q=q, back_s=back_s, reach_s=reach_s,
-                    ahead_var_scale=k)
-                tau, low, high, ok, direction = (x.copy() for x in (tau, low, high, ok, direction))
-                tau[c], low[c], high[c], ok[c], direction[c] = tc, lc, hc, okc, dc
-        with np.errstate(invalid="ignore"):
-            ok &= (high - low) <= self.max_interval_s
-        return tau, low, high, ok, direction
+    def _judge(self, model: tuple, ia: NDArray[np.int64], ib: NDArray[np.int64], **kw) -> tuple:
+        """Pairs judged on one window (:func:`~fusion.passive.crossing.judge.judge_pairs`)."""
+        return judge_pairs(self, model, ia, ib, **kw)
 
     def _holdout(self) -> tuple[int, int] | None:
         """(ladder level, samples ahead) of the held-out check of `calibrate`, or None."""
@@ -394,6 +402,16 @@ class CrossingDetector:
         tau, val, ok = self._fits[hold[0]].windows(ids, t)
         self.extrapolation_scale = self._scale.add(
             *holdout_errors(tau, val, ok, J=self.J, K=self.K, ahead=hold[1]))
+
+    def _estimate_manoeuvre(self, ids: NDArray[np.int64], t: float) -> None:
+        """Add this sample's half-window rate changes to the rate-wander intensity."""
+        if self._manoeuvre is None or ids.size == 0:
+            return
+        level = 1 if len(self._fits) > 1 else 0
+        half = self.windows[level] // 2
+        tau, val, ok = self._fits[level].windows(ids, t)
+        self.manoeuvre_q = self._manoeuvre.add(ids, *half_window_slopes(
+            tau, val, ok, (half - 0.5) * self.K, half), half * self.K)
 
     def _hits(self, t: float, ids: NDArray[np.int64]) -> _Hits:
         """Pairs satisfying an inequality on the shortest window that resolves them."""
@@ -438,10 +456,11 @@ class CrossingDetector:
                 k = np.arange(ia.size)  # shorter window resolves (longest first: fewest left)
                 for lower in range(level - 1, -1, -1):
                     k = k[~self._judge(models[lower], ia[k], ib[k], back_s=reach[lower][0],
-                                       reach_s=reach[lower][1])[3]]
+                                       reach_s=reach[lower][1],
+                                       span_s=self.windows[lower] * self.K)[3]]
                 ia, ib = ia[k], ib[k]
                 tau, low, high, ok, direction = self._judge(model, ia, ib, back_s=back,
-                                                            reach_s=lead)
+                                                            reach_s=lead, span_s=span)
             with np.errstate(invalid="ignore"):
                 pred = ok & (tau > 0.0) & (tau <= lead)  # inequality (3)
                 det = ok & (tau >= -back) & (tau <= 0.0)  # inequality (4)

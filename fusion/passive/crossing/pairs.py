@@ -15,6 +15,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from fusion.passive.crossing.curvature import CurvatureStats, curvature_variance
 from fusion.passive.crossing.interval import crossing_time_interval, t_quantile, welch_dof
+from fusion.passive.crossing.manoeuvre import manoeuvre_variance
 from fusion.passive.crossing.timing import crossing_time_terms
 from fusion.passive.crossing.types import PairCheck
 from fusion.passive.line_fit import LineStats
@@ -188,6 +189,8 @@ def pair_intervals(
     level: float,
     var_scale: float = 1.0,
     curvature: CurvatureStats | None = None,
+    manoeuvre: tuple[NDArray[np.float64], float] | None = None,
+    far_side: bool = False,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
     """Crossing time and its Fieller interval for given pairs, relative to the current sample.
 
@@ -234,13 +237,27 @@ def pair_intervals(
         tau = np.where(den != 0, num / np.where(den != 0, den, 1.0), np.inf)  # equation (2)
     q = t_quantile(level, dof) * np.sqrt(var_scale)
     v00 = stats.var_value[index_a] + stats.var_value[index_b]
-    if curvature is not None:  # the curvature the lines leave out, at the predicted crossing
-        ahead = np.isfinite(tau) & (tau > 0)
-        v00 = v00 + np.where(ahead, curvature_variance(curvature, index_a, index_b,
-                                                       np.where(ahead, tau, 0.0)), 0.0)
-    low, high, bounded = crossing_time_interval(
-        d0, d1, v00,
-        stats.cov[index_a] + stats.cov[index_b], v11, q)
+    v01 = stats.cov[index_a] + stats.cov[index_b]
+
+    def ahead_var(at: NDArray[np.float64]) -> NDArray[np.float64]:
+        """The variance the lines' own covariance leaves out, at `at` ahead (0 behind)."""
+        extra = np.zeros(at.shape)
+        ahead = np.isfinite(at) & (at > 0)
+        if curvature is not None:  # the curvature the lines leave out
+            extra = extra + np.where(ahead, curvature_variance(curvature, index_a, index_b,
+                                                               np.where(ahead, at, 0.0)), 0.0)
+        if manoeuvre is not None:  # the rate wander the lines cannot show
+            qm = manoeuvre[0]
+            extra = extra + manoeuvre_variance(qm[index_a] + qm[index_b], manoeuvre[1], at)
+        return extra
+
+    if curvature is None and manoeuvre is None:
+        low, high, bounded = crossing_time_interval(d0, d1, v00, v01, v11, q)
+    else:  # at the predicted crossing, then (`far_side`) again at the interval's far end
+        low, high, bounded = crossing_time_interval(d0, d1, v00 + ahead_var(tau), v01, v11, q)
+        if far_side:
+            far = np.where(bounded & np.isfinite(high) & (high > tau), high, tau)
+            _, high, _ = crossing_time_interval(d0, d1, v00 + ahead_var(far), v01, v11, q)
     bounded &= np.isfinite(low) & np.isfinite(high)
     return tau, low, high, bounded
 

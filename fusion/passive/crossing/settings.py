@@ -28,6 +28,10 @@ __all__ = [
     "DEFAULT_LADDER_ALPHA",
     "DEFAULT_LEAD_WINDOWS",
     "DEFAULT_LEVEL",
+    "DEFAULT_MANOEUVRE_SCALE",
+    "DEFAULT_FAR_SIDE",
+    "DEFAULT_ALLOWANCE_GATE_LEVEL",
+    "DEFAULT_MANOEUVRE_MEMORY_WINDOWS",
     "DEFAULT_N_WINDOWS",
     "DEFAULT_REVISE",
     "DEFAULT_WINDOW_S",
@@ -56,7 +60,8 @@ class CrossingSettings:
     n_windows : int
         Windows in the ladder (``J, 2 J, ...``).
     horizon_s : float
-        Prediction horizon and widest interval an alert may carry, s.
+        Prediction horizon and widest interval (the fits' own; the allowances may widen an
+        alert's interval beyond it on windows they do not gate) that resolves a pair, s.
     lead_windows : float
         Predictions reach this many spans of the window used ahead (never beyond the horizon).
     confirm : int
@@ -79,6 +84,17 @@ class CrossingSettings:
     curvature : bool
         Predictions from lines carry the variance of the curvature the window's line leaves
         out (False: the lines' covariance only).
+    manoeuvre_scale : float
+        Predictions carry the variance of a bearing rate that wanders with the intensity the
+        tracks' own rate changes show, times this (0: off).
+    far_side : bool
+        The lead-dependent variances are evaluated again at an interval's upper end.
+    allowance_gate_level : int or None
+        Ladder level from which the widened intervals also decide which pairs alert (None:
+        never; they only widen the alerts' intervals).
+    manoeuvre_memory_s : float or None
+        Time constant over which a track's rate changes are forgotten, s (None: the
+        detector's default).
     calibrate : bool
         Predictions' variances grown by the factor the held-out check of each track's earlier
         window asks for (False: the fits' own covariance).
@@ -102,6 +118,10 @@ class CrossingSettings:
     calibrate: bool = False
     curvature: bool = False
     confirm_lead_windows: float | None = None
+    manoeuvre_scale: float = 0.0
+    far_side: bool = False
+    allowance_gate_level: int | None = 0
+    manoeuvre_memory_s: float | None = None
     adjusted: tuple[str, ...] = ()
 
     def detector_options(self) -> dict[str, Any]:
@@ -111,7 +131,10 @@ class CrossingSettings:
                 "confirm": self.confirm, "level": self.level, "curve_alpha": self.curve_alpha,
                 "ladder_alpha": self.ladder_alpha, "revise": self.revise,
                 "confirm_overlap": self.confirm_overlap, "calibrate": self.calibrate,
-                "curvature": self.curvature, "confirm_lead_windows": self.confirm_lead_windows}
+                "curvature": self.curvature, "confirm_lead_windows": self.confirm_lead_windows,
+                "manoeuvre_scale": self.manoeuvre_scale, "far_side": self.far_side,
+                "allowance_gate_level": self.allowance_gate_level,
+                "manoeuvre_memory_s": self.manoeuvre_memory_s}
 
     def describe(self) -> str:
         """One line saying what was chosen."""
@@ -126,6 +149,12 @@ class CrossingSettings:
                 + f", level {self.level:g}"
                 + (" (predictions calibrated on held-out samples)" if self.calibrate else "")
                 + (" (predictions with the curvature lines leave out)" if self.curvature else "")
+                + (f" (predictions with the rate wander the tracks show, x{self.manoeuvre_scale:g})"
+                   if self.manoeuvre_scale > 0 else "")
+                + (" (evaluated at the interval's far end)" if self.far_side else "")
+                + ("" if self.allowance_gate_level is None or not (
+                    self.far_side or self.manoeuvre_scale > 0) else
+                   f" (gating from window {self.allowance_gate_level + 1} of the ladder)")
                 + ", "
                 + ("straight lines only" if self.curve_alpha is None else
                    f"curves kept at F-test level {self.curve_alpha:g}")
@@ -160,12 +189,23 @@ DEFAULT_CALIBRATE = False
 DEFAULT_CURVATURE = True
 #: The ``--extrapolation`` default of the command line.
 DEFAULT_EXTRAPOLATION = "curvature" if DEFAULT_CURVATURE else "model"
+#: Default factor on the estimated rate-wander intensity of predictions (0: off; issue 19,
+#: 2026-12-03 afternoon).
+DEFAULT_MANOEUVRE_SCALE = 2.0
+#: Default: lead-dependent variances evaluated again at the interval's upper end (issue 19,
+#: 2026-12-03 afternoon).
+DEFAULT_FAR_SIDE = True
+#: Default ladder level from which the widened intervals also gate the alerts (2: the windows
+#: from the third on; issue 19, 2026-12-03 afternoon).
+DEFAULT_ALLOWANCE_GATE_LEVEL = 2
+#: Default memory of a track's rate-wander intensity, in shortest windows.
+DEFAULT_MANOEUVRE_MEMORY_WINDOWS = 10.0
 #: Default: confirming samples counted within the prediction reach only (None).
 DEFAULT_CONFIRM_LEAD = None
 #: Default number of samples in a row that confirm an alert.
 DEFAULT_CONFIRM = 2
 #: Default nominal level of the Fieller intervals (see :func:`crossing_settings`).
-DEFAULT_LEVEL = 0.999
+DEFAULT_LEVEL = 0.99
 #: Fewest samples in the shortest window when the window is given in seconds.
 MIN_SAMPLES_PER_WINDOW = 10
 #: Largest number of samples in the shortest window; denser data is averaged onto a coarser grid.
@@ -231,6 +271,10 @@ def crossing_settings_from_steps(
     calibrate: bool = DEFAULT_CALIBRATE,
     curvature: bool = DEFAULT_CURVATURE,
     confirm_lead_windows: float | None = DEFAULT_CONFIRM_LEAD,
+    manoeuvre_scale: float = DEFAULT_MANOEUVRE_SCALE,
+    far_side: bool = DEFAULT_FAR_SIDE,
+    allowance_gate_level: int | None = DEFAULT_ALLOWANCE_GATE_LEVEL,
+    manoeuvre_memory_windows: float = DEFAULT_MANOEUVRE_MEMORY_WINDOWS,
 ) -> CrossingSettings:
     """:func:`crossing_settings` from the two numbers it takes of the data.
 
@@ -253,8 +297,11 @@ def crossing_settings_from_steps(
         Samples in the shortest window (default ``round(window_s / K)``, at least
         :data:`MIN_SAMPLES_PER_WINDOW`).
     n_windows, lead_windows, confirm, level, curve_alpha, \
-ladder_alpha, revise, confirm_overlap, calibrate, curvature, confirm_lead_windows
+ladder_alpha, revise, confirm_overlap, calibrate, curvature, confirm_lead_windows, \
+manoeuvre_scale, far_side, allowance_gate_level
         As in :class:`fusion.passive.crossing.CrossingDetector`.
+    manoeuvre_memory_windows : float, optional
+        Memory of a track's rate-wander intensity, in spans of the shortest window.
 
     Returns
     -------
@@ -267,6 +314,8 @@ ladder_alpha, revise, confirm_overlap, calibrate, curvature, confirm_lead_window
     """
     step = float(step_s)
     track_span = float(track_span_s)
+    if not (np.isfinite(manoeuvre_memory_windows) and manoeuvre_memory_windows > 0):
+        raise ValueError(f"manoeuvre_memory_windows must be > 0, got {manoeuvre_memory_windows!r}")
     for name, v in (("window_s", window_s), ("horizon_s", horizon_s), ("period_s", period_s)):
         if v is not None and not (np.isfinite(v) and v > 0):
             raise ValueError(f"{name} must be > 0, got {v!r}")
@@ -301,4 +350,8 @@ ladder_alpha, revise, confirm_overlap, calibrate, curvature, confirm_lead_window
                             calibrate=bool(calibrate), curvature=bool(curvature),
                             confirm_lead_windows=None if confirm_lead_windows is None
                             else float(confirm_lead_windows),
+                            manoeuvre_scale=float(manoeuvre_scale), far_side=bool(far_side),
+                            allowance_gate_level=None if allowance_gate_level is None
+                            else int(allowance_gate_level),
+                            manoeuvre_memory_s=float(manoeuvre_memory_windows) * window,
                             adjusted=tuple(adjusted))
