@@ -234,7 +234,7 @@ def calibrate_speed(windows: Iterable[dict], sensors: ArrayLike, nominal_mps: fl
         When fewer than :data:`MIN_CALIBRATION_FIXES` fixes span five sensors, recruit the
         candidate delays of a sensor the four-sensor fixes do not use where the windows agree
         on the speed they imply (:mod:`fusion.pipelines.speed_recruit`); False: only the fixes'
-        own delays (``fusion localize --no-speed-recruit``, the ablation).
+        own delays (``fusion localize --no-far-delays``, the ablation).
     """
     s = np.asarray(sensors, dtype=float)
     fixes = []
