@@ -163,14 +163,17 @@ class ClutterIntensity:
         other detections, not raised by the detection itself (on the first pings, where
         ``n_pings`` is small, a detection's own kernel can be ten times the clutter around it).
         """
+        var = self._kernel_variance()
+        return 0.0 if var is None else 1.0 / (self.n_pings * 2.0 * np.pi * var)
+
+    def _kernel_variance(self) -> float | None:
+        """Per-axis variance of one detection's kernel as read back, m^2: ``bandwidth^2 +
+        cell^2 / 3`` (None before any detection)."""
         grid = self._smoothed()
-        if grid is None:
-            return 0.0
-        cell = grid[2]
-        return 1.0 / (self.n_pings * 2.0 * np.pi * (self.bandwidth_m**2 + cell * cell / 3.0))
+        return None if grid is None else self.bandwidth_m**2 + grid[2] * grid[2] / 3.0
 
     def kernel_intensity(self, xy: ArrayLike, sources: ArrayLike,
-                         updates: ArrayLike) -> NDArray[np.float64]:
+                         updates: ArrayLike) -> float:
         """What remembered detections add to the estimate at a point, per m^2 per ping.
 
         Parameters
@@ -189,12 +192,11 @@ class ClutterIntensity:
             ``(1 / n_pings) sum_j N(x; p_j, (bandwidth^2 + cell^2 / 3) I)`` over the sources
             still remembered: the kernel of :meth:`self_intensity`, centred on each source.
         """
-        grid = self._smoothed()
+        var = self._kernel_variance()
         src = np.asarray(sources, dtype=float).reshape(-1, 2)
         keep = self.updates - np.asarray(updates, dtype=np.int64).reshape(-1) < self.memory_pings
-        if grid is None or not keep.any():
+        if var is None or not keep.any():
             return 0.0
-        var = self.bandwidth_m**2 + grid[2] ** 2 / 3.0
         d2 = np.sum((src[keep] - np.asarray(xy, dtype=float).reshape(1, 2)) ** 2, axis=1)
         return float(np.sum(np.exp(-0.5 * d2 / var)) / (self.n_pings * 2.0 * np.pi * var))
 
