@@ -14,17 +14,18 @@ SENSORS = np.array([[0.0, 0, -1500], [3200, 150, -1610], [1500, 2900, -1550],
 PAIRS = [(i, j) for i in range(5) for j in range(i + 1, 5)]
 
 
-def _window(p_true, c_true, c_file, t0):
-    """A written window whose one source was solved at the file's speed."""
-    q = np.array(PAIRS)
+def _window(p_true, c_true, c_file, t0, pairs=PAIRS):
+    """A written window whose one source owns the delays of `pairs`, solved at the file's
+    speed."""
+    q = np.array(pairs)
     taus = predicted_tdoas(p_true, SENSORS, q, c=c_true)
     start = least_squares(lambda x: (predicted_tdoas(x, SENSORS, q, c=c_file) - taus) * 1e6,
                           p_true).x
     tdoas = [{"pair": list(pr), "tau": float(t), "t": t0 + 6.0, "rate": 0.0, "valid": True,
-              "llr": 5.0, "sigma": 1e-7} for pr, t in zip(PAIRS, taus, strict=True)]
+              "llr": 5.0, "sigma": 1e-7} for pr, t in zip(pairs, taus, strict=True)]
     src = {"x": start[0], "y": start[1], "z": start[2], "cov": np.eye(3).tolist(),
-           "tdoas_used": len(PAIRS), "observable": True, "mirror_ambiguous": False,
-           "owned_tdoas": list(range(len(PAIRS))), "paths": ["direct"] * len(PAIRS)}
+           "tdoas_used": len(pairs), "observable": True, "mirror_ambiguous": False,
+           "owned_tdoas": list(range(len(pairs))), "paths": ["direct"] * len(pairs)}
     return {"t_start": t0, "t_end": t0 + 12.0, "tdoas": tdoas, "sources": [src]}
 
 
@@ -160,23 +161,15 @@ def _four_sensor_window(p_true, c_true, c_file, t0, rng):
     """A written window whose source owns the six delays of sensors 0-3 (solved at the file's
     speed); sensor 4's pairs are candidates below the validator's bar: the true delay and two
     chance ones each."""
-    own = [(i, j) for i in range(4) for j in range(i + 1, 4)]
-    q = np.array(own)
-    taus = predicted_tdoas(p_true, SENSORS, q, c=c_true)
-    start = least_squares(lambda x: (predicted_tdoas(x, SENSORS, q, c=c_file) - taus) * 1e6,
-                          p_true).x
-    tdoas = [{"pair": list(pr), "tau": float(t), "t": t0 + 6.0, "rate": 0.0, "valid": True,
-              "llr": 5.0, "sigma": 1e-7} for pr, t in zip(own, taus, strict=True)]
+    window = _window(p_true, c_true, c_file, t0,
+                     pairs=[(i, j) for i in range(4) for j in range(i + 1, 4)])
     for i in range(4):
         true = float(predicted_tdoas(p_true, SENSORS, np.array([[i, 4]]), c=c_true)[0])
         for tau in (true + rng.normal(0, 20e-6), true + rng.uniform(-0.2, 0.2),
                     rng.uniform(-2.0, 2.0)):
-            tdoas.append({"pair": [i, 4], "tau": tau, "t": t0 + 6.0, "rate": 0.0,
-                          "valid": False, "llr": 0.1, "sigma": 0.0027})
-    src = {"x": start[0], "y": start[1], "z": start[2], "cov": np.eye(3).tolist(),
-           "tdoas_used": 6, "observable": True, "mirror_ambiguous": False,
-           "owned_tdoas": list(range(6)), "paths": ["direct"] * 6}
-    return {"t_start": t0, "t_end": t0 + 12.0, "tdoas": tdoas, "sources": [src]}
+            window["tdoas"].append({"pair": [i, 4], "tau": tau, "t": t0 + 6.0, "rate": 0.0,
+                                    "valid": False, "llr": 0.1, "sigma": 0.0027})
+    return window
 
 
 def test_far_sensor_delays_teach_the_speed_of_four_sensor_fixes():
