@@ -275,6 +275,17 @@ def test_a_window_the_localizer_cannot_solve_says_why():
     assert good.note == "" and "not_localized" not in result_document([good])["windows"][0]
 
 
+def _simulated(tmp_path, seed, *extra):
+    """`fusion simulate clicks` of one whale, 5 sensors, 30 s, floor and surface echoes (and
+    options `extra`) into ``tmp_path/s``; its truth."""
+    from fusion.cli import main
+
+    assert main(["simulate", "clicks", "--seed", str(seed), "--whales", "1", "--sensors", "5",
+                 "--duration-s", "30", "--echo", "both", *extra,
+                 "--out", str(tmp_path / "s")]) == 0
+    return json.loads((tmp_path / "s" / "truth.json").read_text())
+
+
 def _localized_within_10_m(tmp_path, name, extra, truth):
     """`fusion localize` on the recording in ``tmp_path/s`` with options `extra`: fixes within
     10 m of a whale, false fixes (observable, not mirror-ambiguous) and windows."""
@@ -304,15 +315,12 @@ def test_even_odds_validation_keeps_the_pairs_a_fix_needs(tmp_path):
     on this seed too (10 of 10). Measured at the fixed detection threshold the section was
     decided with (``--detect-threshold 6``): at the default of section 18 the far sensors'
     trains are longer and v1 at its own threshold localizes all 10 windows too."""
-    from fusion.cli import main
     from fusion.clicks.validate import V1_MODEL_PATH, TdoaValidator
     from fusion.pipelines.clicks import LLR_THRESHOLD
 
     v1 = TdoaValidator.load(V1_MODEL_PATH)
     assert LLR_THRESHOLD == 0.5 and v1.threshold > 3.0
-    assert main(["simulate", "clicks", "--seed", "2", "--whales", "1", "--sensors", "5",
-                 "--duration-s", "30", "--echo", "both", "--out", str(tmp_path / "s")]) == 0
-    truth = json.loads((tmp_path / "s" / "truth.json").read_text())
+    truth = _simulated(tmp_path, 2)
     found = {}
     # the model's threshold alone: closure support (section 15) admits the far pairs' partial
     # trains that this threshold drops where the others span three sensors
@@ -330,14 +338,10 @@ def test_llr_bar_above_even_odds_drops_surface_echo_trains(tmp_path):
     pass and make false fixes; at the default bar (0.5, docs/localization.md section 13) every
     window is localized within 10 m and no fix is false. Measured, as the bar was chosen, at the
     fixed detection threshold (``--detect-threshold 6``)."""
-    from fusion.cli import main
     from fusion.pipelines.clicks import LLR_THRESHOLD
 
     assert LLR_THRESHOLD == 0.5
-    assert main(["simulate", "clicks", "--seed", "4", "--whales", "1", "--sensors", "5",
-                 "--duration-s", "30", "--snr-db", "30", "--echo", "both",
-                 "--out", str(tmp_path / "s")]) == 0
-    truth = json.loads((tmp_path / "s" / "truth.json").read_text())
+    truth = _simulated(tmp_path, 4, "--snr-db", "30")
     found = {}
     for name, extra in (("default", []), ("even", ["--llr-threshold", "0"])):
         extra = ["--detect-threshold", "6", *extra]
@@ -354,14 +358,10 @@ def test_localize_sets_the_detection_threshold_from_a_noise_false_alarm_rate(tmp
     whale, floor and surface echoes) the lower threshold makes no false fix. The gain in
     windows localized is measured on seeds 0-9 in benchmarks/RESULTS.md ("Issue 17: low
     SNR"), not here: on seed 1 neither threshold localizes a window."""
-    from fusion.cli import main
     from fusion.commands.localize import DETECT_FALSE_ALARMS_PER_S
 
     assert DETECT_FALSE_ALARMS_PER_S == 0.5
-    assert main(["simulate", "clicks", "--seed", "1", "--whales", "1", "--sensors", "5",
-                 "--duration-s", "30", "--snr-db", "24", "--echo", "both",
-                 "--out", str(tmp_path / "s")]) == 0
-    truth = json.loads((tmp_path / "s" / "truth.json").read_text())
+    truth = _simulated(tmp_path, 1, "--snr-db", "24")
     found = {}
     for name, extra in (("default", []), ("fixed", ["--detect-threshold", "6"])):
         found[name] = _localized_within_10_m(tmp_path, name, extra, truth)
