@@ -23,3 +23,21 @@ def traffic_interval_scores():
         return score_intervals(alerts, crossings, tol_s=K, lead_min_s=K)
 
     return scores
+
+
+@pytest.fixture(scope="session")
+def window_lines():
+    """``fit(t, b)``: the sliding-window line statistics and windows of tracks 0..m-1 whose
+    bearings (rad, shape (m, len(t))) are sampled at times `t`, one window over all of them."""
+    import numpy as np
+
+    from fusion.passive.line_fit import SlidingLineFit
+
+    def fit(t, b):
+        lines = SlidingLineFit(window=t.size)
+        ids = np.arange(b.shape[0])
+        for k, tk in enumerate(t):
+            lines.update(ids, float(tk), b[:, k])
+        return lines.stats(ids, float(t[-1])), lines.windows(ids, float(t[-1]))
+
+    return fit

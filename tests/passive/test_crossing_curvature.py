@@ -8,20 +8,9 @@ from numpy.testing import assert_allclose
 
 from fusion.passive.crossing.curvature import curvature_stats, curvature_variance
 from fusion.passive.crossing.pairs import pair_intervals
-from fusion.passive.line_fit import SlidingLineFit
 
 
-def _fit(t, b):
-    """Window lines and windows of tracks 0..m-1 (bearings rad, shape (m, len(t)))."""
-    fit = SlidingLineFit(window=t.size)
-    ids = np.arange(b.shape[0])
-    for k, tk in enumerate(t):
-        fit.update(ids, float(tk), b[:, k])
-    st = fit.stats(ids, float(t[-1]))
-    return st, fit.windows(ids, float(t[-1]))
-
-
-def test_quadratic_term_known_answer():
+def test_quadratic_term_known_answer(window_lines):
     """A bearing ``b0 + r t + c t^2`` (no noise): the coefficient is c, the line's miss at tau is
     ``c g(tau)`` (checked against np.polyfit's line extrapolated), its variance 0; a straight
     track has c = 0."""
@@ -29,7 +18,7 @@ def test_quadratic_term_known_answer():
     tr = t - t[-1]
     c = 2e-5
     b = np.stack([0.3 + 0.004 * tr + c * tr * tr, 0.5 - 0.002 * tr])
-    st, (tau, val, ok) = _fit(t, b)
+    st, (tau, val, ok) = window_lines(t, b)
     cs = curvature_stats(tau, val, ok, st)
     assert_allclose(cs.c, [c, 0.0], atol=1e-12)
     line = np.polyfit(tr, b[0], 1)
@@ -47,7 +36,7 @@ def test_quadratic_term_known_answer():
     assert_allclose(e, (c * ga) ** 2 + cs.var_c[0] * ga**2 + cs.var_c[1] * gb**2, rtol=1e-9)
 
 
-def test_curving_track_interval_holds_with_the_allowance():
+def test_curving_track_interval_holds_with_the_allowance(window_lines):
     """Track a curves gently (too little in 12 noisy samples for its quadratic term to be
     resolved: |c| about its standard error); its line predicts the crossing with a straight
     track too early and the lines' own interval misses it, the interval with the curvature
@@ -60,7 +49,7 @@ def test_curving_track_interval_holds_with_the_allowance():
     sigma = np.radians(0.05)
     a = 0.010 * tr + c * tr * tr + rng.normal(0, sigma, n)
     b = np.full(n, np.radians(20.0)) + rng.normal(0, sigma, n)
-    st, (tau, val, ok) = _fit(t, np.stack([a, b]))
+    st, (tau, val, ok) = window_lines(t, np.stack([a, b]))
     cs = curvature_stats(tau, val, ok, st)
     # the true crossing: 0.01 tau + c tau^2 = 0.349 (20 deg)
     true = (-0.010 + np.sqrt(0.010**2 + 4 * c * np.radians(20.0))) / (2 * c)

@@ -9,7 +9,6 @@ import numpy as np
 from numpy.testing import assert_allclose
 
 from fusion.passive.crossing import CrossingDetector, crossing_settings, detect_crossings
-from fusion.passive.crossing.curvature import curvature_stats
 from fusion.passive.crossing.interval import crossing_time_interval, t_quantile, welch_dof
 from fusion.passive.crossing.manoeuvre import (
     ManoeuvreIntensity,
@@ -18,7 +17,6 @@ from fusion.passive.crossing.manoeuvre import (
     miss_constants,
 )
 from fusion.passive.crossing.pairs import pair_intervals
-from fusion.passive.line_fit import SlidingLineFit
 
 
 def test_miss_constants_closed_form():
@@ -87,16 +85,7 @@ def test_each_track_gets_its_own_intensity():
     assert_allclose(again, 2.0 * 4.0 / (miss_constants()[3] * 10.0))  # ratio kept as both decay
 
 
-def _pair(t, b):
-    fit = SlidingLineFit(window=t.size)
-    ids = np.arange(b.shape[0])
-    for k, tk in enumerate(t):
-        fit.update(ids, float(tk), b[:, k])
-    st = fit.stats(ids, float(t[-1]))
-    return st, curvature_stats(*fit.windows(ids, float(t[-1])), st)
-
-
-def test_manoeuvre_widens_predictions_and_far_end_recomputes_the_upper_bound():
+def test_manoeuvre_widens_predictions_and_far_end_recomputes_the_upper_bound(window_lines):
     """A pair converging 40 s ahead: the manoeuvre term widens the interval of the prediction
     (and of nothing behind the sample); with `far_side` the upper bound is the Fieller bound
     with the variance taken at the first pass's upper bound (cross-checked by hand)."""
@@ -105,7 +94,7 @@ def test_manoeuvre_widens_predictions_and_far_end_recomputes_the_upper_bound():
     tr = t - t[-1]
     b = np.stack([0.0 + 0.002 * tr, 0.08 - 0.0 * tr]) + np.radians(0.1) * rng.standard_normal(
         (2, t.size))
-    st, qs = _pair(t, b)
+    st, _ = window_lines(t, b)
     ia, ib = np.array([0]), np.array([1])
     qm = np.array([2e-8, 0.0])
     tau0, lo0, hi0, ok0 = pair_intervals(ia, ib, st.value, st, level=0.99)
