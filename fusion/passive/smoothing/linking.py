@@ -37,6 +37,8 @@ def link_segments(ends: list[tuple], scan_times: FloatArray, *, q: float, link_g
     period = float(np.median(np.diff(scan_times))) if scan_times.size > 1 else 1.0
     d2 = np.full((n, n), np.inf)
     lndet = np.zeros((n, n))
+    # the cost's log-determinant only where a link can be made (the widest gate)
+    widest = link_gate if relink_gate is None else max(link_gate, relink_gate)
     for e in range(n):
         _, _, _, s1, x_e, p_e = ends[e]
         for s in range(n):
@@ -49,7 +51,8 @@ def link_segments(ends: list[tuple], scan_times: FloatArray, *, q: float, link_g
             nu = x_s - f @ x_e
             nu[0] = wrap_angle(nu[0])
             d2[e, s] = float(nu @ np.linalg.solve(cov, nu))
-            lndet[e, s] = float(np.log(np.linalg.det(cov)))
+            if d2[e, s] <= widest:
+                lndet[e, s] = float(np.log(np.linalg.det(cov)))
     nxt = _assign(np.where(d2 <= link_gate, d2 + lndet, np.inf))
     if relink_gate is not None and relink_gate > link_gate:
         free_e = np.array([e not in nxt for e in range(n)])
