@@ -159,7 +159,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "--manoeuvre-scale) are evaluated: far-end (default: again at the upper "
                         "end of the interval, which is recomputed) or crossing (at the predicted "
                         "crossing only, before)")
-    p.add_argument("--allowance-gates-from", type=number(int, ge=0), default=None,
+    p.add_argument("--allowance-gates-from", type=number(int, ge=0),
+                   default=DEFAULT_ALLOWANCE_GATE_LEVEL + 1,
                    metavar="N",
                    help="on windows of the ladder from the N-th on (1: the shortest), the "
                         "intervals widened by --manoeuvre-scale and --ahead-variance-at far-end "
@@ -227,9 +228,9 @@ def _options(args: argparse.Namespace) -> dict:
             "confirm_lead_windows": args.confirm_lead,
             "manoeuvre_scale": args.manoeuvre_scale,
             "far_side": args.ahead_variance_at == "far-end",
-            "allowance_gate_level": DEFAULT_ALLOWANCE_GATE_LEVEL
-            if args.allowance_gates_from is None else (
-                None if args.allowance_gates_from == 0 else args.allowance_gates_from - 1),
+            # the ladder's level of the N-th window (1-based); 0: the gate on no window
+            "allowance_gate_level": (None if args.allowance_gates_from == 0
+                                     else args.allowance_gates_from - 1),
             "manoeuvre_memory_windows": args.manoeuvre_memory_windows}
 
 
