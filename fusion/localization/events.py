@@ -137,7 +137,8 @@ class EventFix:
     used : ndarray of bool, shape (m,)
         TDOAs that entered the solve (usable and closure-consistent).
     position : ndarray, shape (3,)
-        Source position, m.
+        Source position, m; NaN when not observable (the solver's iterate then runs off along
+        the weakest direction, to 1e7-1e11 m on the XAV recording, and is no position).
     covariance : ndarray, shape (3, 3)
         Its covariance, m^2 (NaN when not observable); see the module Notes.
     interval_95 : ndarray, shape (3, 2)
@@ -463,7 +464,8 @@ class EventLocalizer:
         if self.surface:
             peak, agrees = self._surface(scaled, grid, dist, box, pos, cov, observable)
         return EventFix(
-            event=e, band_hz=band, band_source=source, tdoas=meas, used=keep, position=pos,
+            event=e, band_hz=band, band_source=source, tdoas=meas, used=keep,
+            position=pos if observable else nan3,
             covariance=cov if observable else np.full((3, 3), np.nan), interval_95=interval,
             residual_rms_s=float(np.sqrt(np.mean(resid_s**2))), closure_rms_s=closure_rms,
             variance_factor=factor, observable=observable, in_region=in_region,

@@ -250,6 +250,17 @@ def test_event_document_nan_is_null(tmp_path, xav):
     assert ev["x"] == pytest.approx(fix.position[0])
 
 
+def test_unobservable_event_has_no_position(tmp_path, xav):
+    """A source 3 km from the 1.7 m frame: range is not observable; no runaway position written."""
+    x, _ = burst_audio(xav.positions, np.array([3000.0, 0.0, 0.0]), xav.sound_speed, FS)
+    fix = EventLocalizer(surface=False).localize(x, FS, xav, [Event(0.4, 0.6, 200, 2000)])[0]
+    assert not fix.observable and fix.n_used >= 10
+    assert np.all(np.isnan(fix.position)) and np.all(np.isnan(fix.interval_95))
+    write_json(tmp_path / "r.json", event_document([fix], sound_speed=xav.sound_speed, fs=FS))
+    ev = json.loads((tmp_path / "r.json").read_text())["events"][0]
+    assert ev["x"] is None and ev["y"] is None and ev["z"] is None and not ev["in_region"]
+
+
 # ------------------------------------------------------------------ recorded data
 @pytest.mark.parametrize("cut", ["cut1", "cut2"])
 def test_xav_kept_events_inside_published_intervals(tmp_path, cut):
