@@ -61,15 +61,11 @@ import os
 from pathlib import Path
 
 from fusion.cli import emit, number, summary
+from fusion.click_defaults import DETECT_FALSE_ALARMS_PER_S
 
 #: Default of --max-tdoa-rate (fusion.clicks.scm.MAX_TDOA_RATE, not imported here: --help stays
 #: light).
 MAX_TDOA_RATE = 1.6e-3
-#: Default of --detect-false-alarms-per-s: the click detector's threshold is the level at which
-#: it finds this many clicks per channel-second in white Gaussian noise (about 4.9 on the
-#: estimated 26-kHz band at 96 kHz, against the library detector's fixed 6.0, ~0.04 a second);
-#: tuned on seeds 0-9 at 15-30 dB (docs/localization.md section 18).
-DETECT_FALSE_ALARMS_PER_S = 0.5
 #: Most candidates per window (--candidates): each is a graph re-solved in every iteration of the
 #: competition and compared with every other one (K^2 pairs an iteration); 16 times the default.
 MAX_CANDIDATES = 256

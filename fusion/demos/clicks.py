@@ -185,9 +185,7 @@ def run_demo(out_dir: Path, *, seed: int) -> dict[str, Any]:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from fusion.clicks.detect import ClickDetector
-    from fusion.commands.localize import DETECT_FALSE_ALARMS_PER_S
-    from fusion.pipelines.clicks import LLR_THRESHOLD, ClickFrontEnd, default_validator
+    from fusion.pipelines.clicks import ClickFrontEnd
     from fusion.pipelines.clicks.training import label_windows, scenario_labels
     from fusion.pipelines.localization import (
         ClickLocalization,
@@ -209,8 +207,7 @@ def run_demo(out_dir: Path, *, seed: int) -> dict[str, Any]:
     # fusion localize's defaults: replica, echo suppression and sea floor decided from the
     # recording (the library chain's own step), surface paths per window
     pipe, decided = ClickLocalization(
-        front_end=ClickFrontEnd(detector=ClickDetector(false_alarms_per_s=DETECT_FALSE_ALARMS_PER_S),
-                                validator=default_validator(LLR_THRESHOLD)),
+        front_end=ClickFrontEnd(),
         localizer=LocalizerSettings()).with_recording_decisions(
             audio, fs, array, span="the demo recording")
     step = int(round(pipe.front_end.hop_s * fs))

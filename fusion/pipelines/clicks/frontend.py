@@ -56,6 +56,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from fusion._validation import check_positive
+from fusion.click_defaults import DETECT_FALSE_ALARMS_PER_S, LLR_THRESHOLD
 from fusion.clicks.aliases import train_aliases
 from fusion.clicks.associate import (
     TimeAssociator,
@@ -73,21 +74,13 @@ from fusion.clicks.window import ClickWindow, WindowTdoa
 from fusion.geometry import SensorArray
 from fusion.pipelines.clicks.stream import MeasuredWindow, measure_stream, window_starts_count
 
-__all__ = ["LLR_THRESHOLD", "ClickFrontEnd", "ClickWindow", "WindowTdoa", "default_validator",
+__all__ = ["DETECT_FALSE_ALARMS_PER_S", "LLR_THRESHOLD", "ClickFrontEnd", "ClickWindow",
+           "WindowTdoa", "default_validator",
            "window_starts"]
 
 logger = logging.getLogger(__name__)
 
 
-#: Threshold on the log-likelihood ratio at which ``fusion localize`` and the demo use the
-#: shipped validator: just above even odds. The model's own threshold (3.24 for v1, 4.21 for
-#: v2, chosen for a low false-alarm rate of the validator alone) drops the short click trains
-#: of far sensors whose pairs a fix needs; the candidates' competition, reading echo delays
-#: along their paths (``LocalizerSettings``), rejects most false TDOAs that pass. With
-#: ``validator_v2.npz`` surface-echo trains of 8-11 clicks score LLR 0.03-0.4, so the bar is
-#: 0.5, not 0 (docs/localization.md sections 8 and 13). A :class:`ClickFrontEnd` built without
-#: a validator keeps the model's own threshold.
-LLR_THRESHOLD = 0.5
 
 
 def default_validator(threshold: float | None = None) -> TdoaValidator:
@@ -116,13 +109,16 @@ class ClickFrontEnd:
     Parameters
     ----------
     detector : ClickDetector, optional
-        Click detection (default: the method's parameters).
+        Click detection (default: the method's parameters, the threshold from
+        :data:`~fusion.click_defaults.DETECT_FALSE_ALARMS_PER_S` noise clicks a channel-second,
+        as ``fusion localize``).
     correlator : ClickMapCorrelator, optional
         Smoothed click maps and their correlation; its ``config.window_s`` is the processing
         window (default 12 s, 3 kHz synthetic rate, delay drifts up to
         :data:`fusion.clicks.scm.MAX_TDOA_RATE` compensated: :func:`fusion.clicks.scm.drift_grid`).
     validator : TdoaValidator or False, optional
-        The GMM validator (default: the model shipped with the package). ``False`` computes
+        The GMM validator (default: the model shipped with the package at
+        :data:`~fusion.click_defaults.LLR_THRESHOLD`, as ``fusion localize``). ``False`` computes
         the features only (``llr`` NaN, every TDOA passes): the mode of training.
     refiner : callable, optional
         ``fs -> TdoaRefiner``; default ``TdoaRefiner(fs_hz=fs)``. ``False`` skips refinement
@@ -166,14 +162,15 @@ class ClickFrontEnd:
     ) -> None:
         check_positive("hop_s", hop_s)
         check_positive("sigma_t_s", sigma_t_s)
-        self.detector = detector if detector is not None else ClickDetector()
+        self.detector = (detector if detector is not None
+                         else ClickDetector(false_alarms_per_s=DETECT_FALSE_ALARMS_PER_S))
         self.correlator = (correlator if correlator is not None
                            else ClickMapCorrelator(rates=drift_grid()))
         self.config: ScmConfig = self.correlator.config
         if hop_s > self.config.window_s:
             raise ValueError(f"hop_s {hop_s} is longer than the window {self.config.window_s} s")
         if validator is None or validator is True:
-            validator = default_validator()
+            validator = default_validator(LLR_THRESHOLD)
         self.validator: TdoaValidator | None = validator if validator is not False else None
         if refiner is None or refiner is True:
             self._make_refiner: Callable[[float], TdoaRefiner] | None = (
