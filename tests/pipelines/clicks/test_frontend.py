@@ -98,3 +98,18 @@ def test_bad_blocks_are_refused(scenario, validator):
         fe.run_array(x, scenario.fs, scenario.sensors)
     with pytest.raises(ValueError, match="expected"):
         fe.run_array(scenario.audio[:, :3], scenario.fs, scenario.sensors)
+
+
+def test_library_front_end_detects_and_validates_as_fusion_localize():
+    """`ClickFrontEnd()` (so `ClickLocalization()`) takes the command's defaults: the detection
+    threshold from a noise false-alarm rate and the validator at `LLR_THRESHOLD`, not the
+    detector's fixed 6.0 and the model's own 4.21 (docs/localization.md, "Library defaults")."""
+    from fusion.cli import build_parser
+
+    args = build_parser("localize").parse_args(["localize", "--audio", "a.wav", "--array",
+                                                "a.json", "--out", "r.json"])
+    fe = ClickFrontEnd()
+    assert fe.detector.false_alarms_per_s == args.detect_false_alarms == 0.5
+    assert fe.validator.threshold == 0.5 and args.llr_threshold is None
+    model = ClickFrontEnd(validator=True).validator  # True: the shipped model at LLR 0.5 too
+    assert model.threshold == 0.5
