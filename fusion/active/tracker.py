@@ -442,17 +442,17 @@ class Tracker:
             dropped |= old & ~confirmed & (self._llr < self.scorer.delete_llr)
         counts = [len(d) for d in scan.dets] if self.hits_per_detection else hit.tolist()
         held = stationary_hold(
-            old & hit & ~confirmed & ~dropped, self._life, self._seen, m=self.m,
+            cand := old & hit & ~confirmed & ~dropped, self._life, self._seen, m=self.m,
             motion_test=(self.motion_test if self.clutter_map is not None and self.hold_stationary
                          else None),
             score_short=(self._llr < self.scorer.confirm_llr if self.scorer is not None
                          else None),
             platform_test=self.platform_test, shadowed=None if self.shadow_test is None else
-            self.shadow_test.shadowed([h[-1][1:3] if h else (np.nan, np.nan) for h in self._seen],
-                                      [h[-1][6:8] if h else (np.nan, np.nan) for h in self._seen],
-                                      self._ids[confirmed], self._x[confirmed, :2]),
+            self.shadow_test.shadowed_tracks(cand, self._seen, self._ids[confirmed],
+                                             self._x[confirmed, :2]),
             counts=counts)
-        self._life[n0:] = [Lifecycle(hits=int(c)) for c in counts[n0:]]
+        born = {c: Lifecycle(hits=int(c)) for c in set(counts[n0:])}  # immutable: shared
+        self._life[n0:] = [born[c] for c in counts[n0:]]
         coast = (self.max_misses if self.scorer is None or self.coast_probability is None
                  else coast_misses([self.scorer.pd(k) for k in keys],
                                    probability=self.coast_probability, floor=self.max_misses))

@@ -51,8 +51,6 @@ import logging
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 from scipy.stats import chi2
 
@@ -85,6 +83,29 @@ def _add_rows(acc: NDArray[np.float64], owner: NDArray[np.int64],
     if owner.size:
         for col in range(acc.shape[1]):
             acc[:, col] += np.bincount(owner, weights=rows[:, col], minlength=acc.shape[0])
+
+
+def _components(n: int, edges: NDArray[np.integer]) -> tuple[int, NDArray[np.int64]]:
+    """Connected components of an undirected graph on ``n`` nodes with links ``edges`` (k, 2).
+
+    Labels are numbered in the order of each component's smallest node, as
+    :func:`scipy.sparse.csgraph.connected_components` numbers them; computed by propagating
+    the smallest node index along the links with pointer jumping (a few vectorised passes),
+    without building a sparse matrix (whose set-up dominated a ping of a few hundred links).
+    """
+    root = np.arange(n, dtype=np.int64)
+    if edges.shape[0]:
+        a, b = edges[:, 0].astype(np.int64), edges[:, 1].astype(np.int64)
+        while True:
+            new = root.copy()
+            np.minimum.at(new, a, root[b])
+            np.minimum.at(new, b, root[a])
+            new = new[new]
+            if np.array_equal(new, root):
+                break
+            root = new
+    first, label = np.unique(root, return_inverse=True)
+    return int(first.size), label.reshape(-1).astype(np.int64)
 
 
 def _mahalanobis2(d: NDArray[np.float64], S: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -308,15 +329,14 @@ class DensityClutterMap(ClutterMapBase):
         pos[hot] = np.arange(hot.size)
         pe = pos[self._edges]
         pe = pe[(pe >= 0).all(axis=1)]
-        graph = coo_matrix((np.ones(pe.shape[0]), (pe[:, 0], pe[:, 1])),
-                           shape=(hot.size, hot.size))
-        graph.has_canonical_format = True  # links are distinct pairs: nothing to sum or sort
-        n_spots, label = connected_components(graph, directed=False)
+        n_spots, label = _components(hot.size, pe)
         # A hotspot's own echoes must recur: its cluster spans at least min_pings pings (the
         # newest echo of a slow target, whose neighbourhood is too short to show its drift,
         # is no hotspot on its own).
-        pings = np.zeros(n_spots, np.int64)
-        np.add.at(pings, np.unique(np.column_stack([label, self._ping[hot]]), axis=0)[:, 0], 1)
+        ping_hot = self._ping[hot]
+        span = int(ping_hot.max()) + 1 if ping_hot.size else 1
+        pings = np.bincount(np.unique(label.astype(np.int64) * span + ping_hot) // span,
+                            minlength=n_spots)
         keep = pings[label] >= self.min_pings
         if not keep.all():
             hot, label = hot[keep], np.unique(label[keep], return_inverse=True)[1].reshape(-1)

@@ -144,10 +144,15 @@ class ClutterIntensity:
         u = (pts - lo) / cell - 0.5
         i0 = np.floor(u).astype(int)
         f = u - i0
-        hist = np.zeros(shape)
+        # One bincount over the four corners in turn: each cell sums its shares in the order
+        # four successive np.add.at passes would (the same floating-point result, faster).
+        flat, share = [], []
         for di, wi in ((0, 1.0 - f[:, 0]), (1, f[:, 0])):
             for dj, wj in ((0, 1.0 - f[:, 1]), (1, f[:, 1])):
-                np.add.at(hist, (i0[:, 0] + di, i0[:, 1] + dj), wi * wj)
+                flat.append((i0[:, 0] + di) * shape[1] + i0[:, 1] + dj)
+                share.append(wi * wj)
+        hist = np.bincount(np.concatenate(flat), weights=np.concatenate(share),
+                           minlength=int(shape[0] * shape[1])).reshape(shape)
         dens = gaussian_filter(hist, self.bandwidth_m / cell, mode="constant", truncate=4.0)
         self._grid = (dens / (cell * cell * self.n_pings), lo, cell)
         return self._grid
