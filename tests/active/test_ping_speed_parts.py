@@ -5,7 +5,7 @@ per-track measurements of a ping's result and the shadow test on candidate track
 from __future__ import annotations
 
 import numpy as np
-from scipy.ndimage import gaussian_filter
+from scipy.ndimage import gaussian_filter, map_coordinates
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
@@ -34,23 +34,30 @@ def test_components_label_as_scipy_connected_components():
         np.testing.assert_array_equal(got, ref)
 
 
-def test_intensity_histogram_is_the_cloud_in_cell_sum_bit_for_bit():
+def test_intensity_equals_the_whole_grid_filter_read_bilinearly():
     rng = np.random.default_rng(1)
     ci = ClutterIntensity(bandwidth_m=500.0)
     for _ in range(4):
-        ci.update(rng.uniform(-4000, 4000, (150, 2)))
-    dens, lo, cell = ci._smoothed()
-    # The form replaced: four np.add.at passes, then the same filter.
+        ci.update(np.vstack([rng.uniform(-4000, 4000, (150, 2)), rng.normal(800, 300, (40, 2))]))
+    hist, lo, cell = ci._smoothed()
+    # The form replaced: four np.add.at passes, the whole grid filtered, read by
+    # map_coordinates.
     pts = np.concatenate(ci._pings)
     u = (pts - lo) / cell - 0.5
     i0 = np.floor(u).astype(int)
     f = u - i0
-    hist = np.zeros(dens.shape)
+    ref_hist = np.zeros(hist.shape)
     for di, wi in ((0, 1.0 - f[:, 0]), (1, f[:, 0])):
         for dj, wj in ((0, 1.0 - f[:, 1]), (1, f[:, 1])):
-            np.add.at(hist, (i0[:, 0] + di, i0[:, 1] + dj), wi * wj)
-    ref = gaussian_filter(hist, 500.0 / cell, mode="constant", truncate=4.0) / (cell * cell * 4)
-    np.testing.assert_array_equal(dens, ref)
+            np.add.at(ref_hist, (i0[:, 0] + di, i0[:, 1] + dj), wi * wj)
+    np.testing.assert_array_equal(hist, ref_hist)
+    dens = gaussian_filter(ref_hist, 500.0 / cell, mode="constant", truncate=4.0) / (cell * cell * 4)
+    q = np.vstack([rng.uniform(-6000, 6000, (300, 2)), pts[:50], [[800.0, 800.0]]])
+    ref = np.maximum(map_coordinates(dens, ((q - lo) / cell - 0.5).T, order=1, mode="constant"),
+                     ci.min_intensity)
+    got = ci.intensity(q)
+    np.testing.assert_allclose(got, ref, rtol=1e-12, atol=1e-12 * ref.max())
+    assert got.max() > 5 * np.median(got)       # the cluster at (800, 800) stands out
 
 
 def test_ping_result_measurements_single_and_fused():
