@@ -11,6 +11,7 @@ detections gets one information-weighted equivalent measurement.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from itertools import chain
 
 import numpy as np
 from numpy.typing import NDArray
@@ -153,6 +154,8 @@ def ping_result(
     for i in np.flatnonzero(count > 1).tolist():
         d = scan.dets[i]
         z[i], Rz_all[i] = fuse_positions(ping.xy[d], Rz[d])
+    flat = full_index[np.fromiter(chain.from_iterable(scan.dets), np.int64, int(count.sum()))]
+    ends = np.cumsum(count).tolist()
     first = np.where(head >= 0, full_index[np.maximum(head, 0)] if full_index.size else -1,
                      -1).astype(np.int64)
     return PingResult(
@@ -167,7 +170,5 @@ def ping_result(
         covariance=covariance.copy(),
         measurement=z,
         measurement_cov=Rz_all,
-        detections=tuple(np.split(full_index[np.fromiter(
-            (j for d in scan.dets for j in d), np.int64, int(count.sum()))],
-            np.cumsum(count)[:-1])) if nt else (),
+        detections=tuple(flat[a:b] for a, b in zip([0, *ends][:-1], ends, strict=True)),
     )
