@@ -288,7 +288,7 @@ def stationary_hold(
     """
     hold = np.zeros(len(candidates), dtype=bool)
     for i in np.flatnonzero(candidates).tolist():
-        if lives[i].hits + (1 if counts is None else counts[i]) < m:
+        if lives[i].hits + (1 if counts is None else counts[i]) < (m if np.ndim(m) == 0 else m[i]):
             continue
         if score_short is not None and score_short[i]:
             hold[i] = True
