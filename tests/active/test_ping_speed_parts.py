@@ -96,3 +96,20 @@ def test_shadowed_tracks_equals_shadowed_at_each_latest_detection():
                       [[0.0, 0.0]] * 4, [7], [[0.0, 200.0]])
     assert got.tolist() == [True, False, False, False]
     assert ref.tolist() == [True, False, False, True]     # the last is no candidate
+
+
+def test_receiver_groups_as_the_dict_of_rounded_rows():
+    from fusion.active.types import receiver_groups
+
+    rng = np.random.default_rng(2)
+    geos = np.array([[0.0, 0.0, 5000.0, 0.0], [0.0, -0.3, 5000.2, 0.0], [0.0, 0.0, 0.0, 4000.0],
+                     [100.0, 0.0, 5000.0, 0.0]])
+    pick = rng.integers(0, 4, 60)
+    cols = {k: geos[pick, c] for c, k in enumerate(("src_x", "src_y", "rcv_x", "rcv_y"))}
+    ping = Ping(0, 0.0, rng.uniform(0, 1000, (60, 2)), cols)
+    ref: dict = {}
+    for i, row in enumerate(map(tuple, np.round(geos[pick]).tolist())):
+        ref.setdefault(row, []).append(i)          # -0.0 and 0.0: one key
+    got = receiver_groups(ping)
+    assert [k for k, _ in got] == list(ref)
+    assert [idx.tolist() for _, idx in got] == list(ref.values())
