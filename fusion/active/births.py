@@ -23,16 +23,13 @@ Two options, both off by default:
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from fusion.active.lifecycle import Lifecycle
 from fusion.active.ping_scan import PingScan, birth_states
-
-if TYPE_CHECKING:
-    from fusion.active.tracker import Tracker
 
 __all__ = ["birth_blockers", "start_tracks", "successor_flags"]
 
@@ -80,12 +77,13 @@ def successor_flags(gated: NDArray[np.bool_], hit: NDArray[np.bool_],
     return gated[coasting][:, new].any(axis=0)
 
 
-def start_tracks(tr: Tracker, scan: PingScan, key: object, idx: NDArray[np.int64],
+def start_tracks(tr: Any, scan: PingScan, key: object, idx: NDArray[np.int64],
                  new: NDArray[np.int64], xy: NDArray[np.float64], R: NDArray[np.float64],
                  successor: NDArray[np.bool_]) -> None:
     """Append a tentative track for each detection ``new`` of a receiver's scan (``idx``: the
-    scan's detections in the ping; ``xy``, ``R``: their positions and covariances) to the
-    tracker's arrays; `successor` marks successors (``tr.successor_llr``)."""
+    scan's detections in the ping; ``xy``, ``R``: their positions and covariances) to the arrays
+    of the tracker `tr` (a :class:`fusion.active.tracker.Tracker`, not imported here: the tracker
+    imports this module); `successor` marks successors (``tr.successor_llr``)."""
     nt = tr._ids.size
     x_new, P_new = birth_states(xy[new], R[new], speed_sigma_mps=tr.speed_sigma_mps)
     tr._ids = np.concatenate([tr._ids, np.arange(tr._next_id, tr._next_id + new.size)])
