@@ -204,6 +204,9 @@ def _grid_variants() -> dict:
         # the same with --hits-per-detection --confirm-llr 4
         "leave_track_out_hits": {"intensity_leave_track_out": True, "confirm_llr": 4.0,
                                  "hits_per_detection": True, "pilot_same": True},
+        # --coast-gate-births, and with --successor-llr 3 (issue 20, 2026-12-03 evening)
+        "coast_gate_births": {"coast_gate_births": True, "pilot_same": True},
+        "successor": {"coast_gate_births": True, "successor_llr": 3.0, "pilot_same": True},
     }
 
 

@@ -243,7 +243,8 @@ def hotspot_drop(near: NDArray[np.bool_], seen: Sequence[Sequence[Sequence[float
 
 def stationary_hold(
     candidates: NDArray[np.bool_], lives: Sequence[Lifecycle],
-    seen: Sequence[Sequence[Sequence[float]]], *, m: int, motion_test: MotionTest | None,
+    seen: Sequence[Sequence[Sequence[float]]], *, m: int | NDArray[np.int64],
+    motion_test: MotionTest | None,
     score_short: NDArray[np.bool_] | None, platform_test: PlatformTest | None = None,
     shadowed: NDArray[np.bool_] | None = None, counts: Sequence[int] | None = None,
 ) -> NDArray[np.bool_]:
@@ -257,8 +258,8 @@ def stationary_hold(
         Their counters before the ping.
     seen : sequence of rows
         Their detections (:meth:`MotionTest.moves`).
-    m : int
-        Hits that confirm.
+    m : int or ndarray of int, shape (n_tracks,)
+        Hits that confirm (per track: a successor needs one fewer, :mod:`fusion.active.births`).
     motion_test : MotionTest or None
         Hold tracks whose detections stand still (None: no such hold).
     score_short : ndarray of bool, shape (n_tracks,), or None
@@ -288,7 +289,7 @@ def stationary_hold(
     """
     hold = np.zeros(len(candidates), dtype=bool)
     for i in np.flatnonzero(candidates).tolist():
-        if lives[i].hits + (1 if counts is None else counts[i]) < m:
+        if lives[i].hits + (1 if counts is None else counts[i]) < (m if np.ndim(m) == 0 else m[i]):
             continue
         if score_short is not None and score_short[i]:
             hold[i] = True

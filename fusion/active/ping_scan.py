@@ -11,6 +11,7 @@ detections gets one information-weighted equivalent measurement.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from itertools import chain
 
 import numpy as np
 from numpy.typing import NDArray
@@ -146,12 +147,17 @@ def ping_result(
     nt = track_id.size
     z = np.full((nt, 2), np.nan)
     Rz_all = np.full((nt, 2, 2), np.nan)
-    for i, d in enumerate(scan.dets):
-        if len(d) == 1:
-            z[i], Rz_all[i] = ping.xy[d[0]], Rz[d[0]]
-        elif d:
-            z[i], Rz_all[i] = fuse_positions(ping.xy[d], Rz[d])
-    first = np.array([full_index[d[0]] if d else -1 for d in scan.dets], dtype=np.int64)
+    count = np.fromiter(map(len, scan.dets), np.int64, nt)
+    head = np.fromiter((d[0] if d else -1 for d in scan.dets), np.int64, nt)
+    one = count == 1
+    z[one], Rz_all[one] = ping.xy[head[one]], Rz[head[one]]
+    for i in np.flatnonzero(count > 1).tolist():
+        d = scan.dets[i]
+        z[i], Rz_all[i] = fuse_positions(ping.xy[d], Rz[d])
+    flat = full_index[np.fromiter(chain.from_iterable(scan.dets), np.int64, int(count.sum()))]
+    ends = np.cumsum(count).tolist()
+    first = np.where(head >= 0, full_index[np.maximum(head, 0)] if full_index.size else -1,
+                     -1).astype(np.int64)
     return PingResult(
         event=ping.event,
         time=ping.time,
@@ -164,5 +170,5 @@ def ping_result(
         covariance=covariance.copy(),
         measurement=z,
         measurement_cov=Rz_all,
-        detections=tuple(full_index[np.asarray(d, dtype=np.int64)] for d in scan.dets),
+        detections=tuple(flat[a:b] for a, b in zip([0, *ends][:-1], ends, strict=True)),
     )

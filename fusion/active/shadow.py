@@ -31,7 +31,7 @@ Choices (the method text has no moving sensor and no extended targets)
 
 from __future__ import annotations
 
-from collections.abc import Hashable
+from collections.abc import Hashable, Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -141,3 +141,16 @@ class ShadowTest:
         hit = (r_t[:, None] > r_c + e[None]) & (dang <= half) & (r_c > 0)
         out[:] = np.any(hit & np.isfinite(r_c) & np.isfinite(r_t)[:, None], axis=1)
         return out
+
+    def shadowed_tracks(self, candidates: NDArray[np.bool_], seen: Sequence[Sequence[Sequence[float]]],
+                        conf_ids: ArrayLike, conf_xy: ArrayLike) -> NDArray[np.bool_]:
+        """:meth:`shadowed` at the latest detection of each candidate track (rows of ``seen``:
+        position in columns 1-2, sensor position in columns 6-7); False for the others and for
+        tracks without a detection. Only the candidates' rows are read."""
+        out = np.zeros(len(candidates), dtype=bool)
+        idx = [i for i in np.flatnonzero(candidates).tolist() if seen[i]]
+        if idx:
+            out[idx] = self.shadowed([seen[i][-1][1:3] for i in idx],
+                                     [seen[i][-1][6:8] for i in idx], conf_ids, conf_xy)
+        return out
+

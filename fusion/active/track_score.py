@@ -222,7 +222,8 @@ class TrackScorer:
 
     def observe(self, key: Hashable, xy: ArrayLike, cov: ArrayLike | None,
                 hotspots: Hotspots | None = None, *,
-                clutter: NDArray[np.bool_] | None = None) -> NDArray[np.float64]:
+                clutter: NDArray[np.bool_] | None = None,
+                at: NDArray[np.int64] | None = None) -> NDArray[np.float64]:
         """Add a receiver's detections of a ping to its intensity estimate; their intensities.
 
         Parameters
@@ -241,31 +242,38 @@ class TrackScorer:
             Which detections may be clutter (default all): those a confirmed track took are
             its target's echoes and are left out of the estimate, which would otherwise rise
             along every target's path and weigh against its own hits.
+        at : ndarray of int, optional
+            Detections whose ``lambda`` is wanted (default all; every detection is added to
+            the estimate either way).
 
         Returns
         -------
-        ndarray, shape (n,)
+        ndarray, shape (n,) (``(len(at),)`` with `at`)
             ``lambda`` at each detection, per m^2 per ping (the given value when set).
         """
         pts = np.asarray(xy, dtype=float).reshape(-1, 2) if np.size(xy) else np.zeros((0, 2))
         if key is not None and pts.shape[0]:
             low = float(np.min(_excess(pts, key)))
             self._blind[key] = min(self._blind.get(key, low), low)
+        sel = np.arange(pts.shape[0]) if at is None else np.asarray(at, np.int64)
         if self.clutter_intensity is not None:
-            return np.full(pts.shape[0], float(self.clutter_intensity))
+            return np.full(sel.size, float(self.clutter_intensity))
         est = self._intensity.get(key)
         if est is None:
             est = self._intensity[key] = self.intensity.empty_copy()
         keep = np.ones(pts.shape[0], bool) if clutter is None else np.asarray(clutter, bool)
         est.update(pts[keep], None if cov is None else np.asarray(cov, float)[keep])
-        lam = est.intensity(pts)
+        lam = est.intensity(pts[sel])
         added = keep.copy()
         added[keep] = est.last_kept
         self.last_added, self.last_update = added, est.updates
+        pts = pts[sel]
         if (self.leave_one_out or self.leave_track_out) and pts.shape[0]:
-            lam[added] = np.maximum(lam[added] - est.self_intensity(), est.min_intensity)
+            lam[added[sel]] = np.maximum(lam[added[sel]] - est.self_intensity(),
+                                         est.min_intensity)
         if hotspots is not None and len(hotspots) and pts.shape[0]:
-            c = np.zeros((pts.shape[0], 2, 2)) if cov is None else np.asarray(cov, float)
+            c = (np.zeros((pts.shape[0], 2, 2)) if cov is None
+                 else np.asarray(cov, float).reshape(-1, 2, 2)[sel])
             S = hotspots.covariances[None] + c[:, None]                  # (n, h, 2, 2)
             d = pts[:, None, :] - hotspots.positions[None]
             det = S[..., 0, 0] * S[..., 1, 1] - S[..., 0, 1] ** 2
@@ -372,11 +380,10 @@ class TrackScorer:
         """
         maybe_clutter = np.ones(xy.shape[0], dtype=bool)
         maybe_clutter[dets[confirmed[hits]]] = False
-        clutter = self.observe(key, xy, cov, hotspots, clutter=maybe_clutter)
+        lam = self.observe(key, xy, cov, hotspots, clutter=maybe_clutter, at=dets)
         delta = self.miss_delta(key, track_xy)
         with_scores = scores is not None and self.score_evidence
         if hits.size:
-            lam = clutter[dets]
             est = self._intensity.get(key)
             if self.leave_track_out and own is not None and est is not None:
                 lam = lam.copy()

@@ -36,13 +36,14 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fusion.active.association import EDGE_LIKELIHOOD, PairRanker, assign_by_priority
+from fusion.active.births import birth_blockers, start_tracks, successor_flags
 from fusion.active.bistatic import MeasurementModel
 from fusion.active.clutter import ClutterIntensity, ClutterMapBase, DensityClutterMap
 from fusion.active.kalman import cv_model, gate_threshold, kf_predict, kf_update, pair_statistics
 from fusion.active.lifecycle import Lifecycle, coast_misses, hotspot_drop, next_lifecycle, stationary_hold
 from fusion.active.motion import MotionTest
 from fusion.active.noise import NoiseEstimator
-from fusion.active.ping_scan import PingScan, birth_states, ping_result, score_gate
+from fusion.active.ping_scan import PingScan, ping_result, score_gate
 from fusion.active.platform import PlatformTest, sensor_positions
 from fusion.active.shadow import ShadowTest
 from fusion.active.track_score import TrackScorer
@@ -167,6 +168,9 @@ class Tracker:
         own earlier detections (defaults False; `TrackScorer`).
     hits_per_detection : bool, optional
         Each detection counts towards `confirm_hits` (default False: each ping with one).
+    coast_gate_births, successor_llr : bool and float, optional
+        Births in coasting confirmed tracks' gates, and the starting score of a track born
+        there, which then needs one hit fewer (defaults False, None; :mod:`fusion.active.births`).
     shadow : bool, optional
         Fuzzy mode, monostatic sensors (detections with ``own_x, own_y`` and no ``rcv_x,
         rcv_y``): hold tentative tracks behind a near confirmed track (default True;
@@ -214,6 +218,7 @@ class Tracker:
         shadow: bool = True,
         shadow_extent_sigmas: float = 8.0, intensity_leave_one_out: bool = False,
         intensity_leave_track_out: bool = False, hits_per_detection: bool = False,
+        coast_gate_births: bool = False, successor_llr: float | None = None,
     ) -> None:
         check_tracker_options(mode=mode, speed_sigma_mps=speed_sigma_mps, accel_psd=accel_psd,
                               confirm=(confirm_hits, confirm_window), max_misses=max_misses,
@@ -257,6 +262,8 @@ class Tracker:
         self.m, self.n, self.max_misses = int(confirm_hits), int(confirm_window), int(max_misses)
         self.init_exclusion_m = float(init_exclusion_m)
         self.hold_stationary, self.hits_per_detection = bool(hold_stationary), bool(hits_per_detection)
+        self.coast_gate_births = bool(coast_gate_births)
+        self.successor_llr = None if successor_llr is None else float(successor_llr)
         if mode == "fuzzy":
             self.clutter_map = (clutter_map if clutter_map is not None
                                 else DensityClutterMap(position_sigma_m=position_sigma_m))
@@ -273,6 +280,7 @@ class Tracker:
         """Forget all tracks (and the clutter map's content)."""
         self._ids = np.zeros(0, np.int64)
         self._llr = np.zeros(0)
+        self._succ = np.zeros(0, dtype=bool)
         self._x = np.zeros((0, 4))
         self._P = np.zeros((0, 4, 4))
         self._life: list[Lifecycle] = []
@@ -402,26 +410,15 @@ class Tracker:
                 own=self.scorer.own_rows(i, key))
             self.scorer.remember(i, j, key, xy)
 
-        # New tentative tracks: free detections (taken by no track, inside no track's gate)
-        # away from hotspots.
-        free = ~taken & ~gated.any(axis=0)
+        # New tentative tracks: free detections (taken by no track, inside no blocking track's
+        # gate, fusion.active.births) away from hotspots.
+        free = ~taken & ~gated[birth_blockers(hit, confirmed,
+                                              coast_gate_births=self.coast_gate_births)].any(axis=0)
         if self.mode == "fuzzy":
             free &= hot > self.init_exclusion_m
         new = np.flatnonzero(free)
-        if new.size == 0:
-            return
-        x_new, P_new = birth_states(xy[new], R[new], speed_sigma_mps=self.speed_sigma_mps)
-        self._ids = np.concatenate([self._ids, np.arange(self._next_id, self._next_id + new.size)])
-        self._next_id += new.size
-        self._x = np.concatenate([self._x, x_new])
-        self._P = np.concatenate([self._P, P_new])
-        self._llr = np.concatenate([self._llr, np.zeros(new.size)])
-        self._life += [Lifecycle()] * new.size
-        self._seen += [[scan.rows[j]] for j in idx[new].tolist()]
-        if self.scorer is not None:
-            self.scorer.remember(np.arange(nt, nt + new.size), new, key, xy, new=new.size)
-        scan.dets += [[int(j)] for j in idx[new].tolist()]
-        scan.rank += [np.nan] * new.size
+        if new.size:
+            start_tracks(self, scan, key, idx, new, xy, R, successor_flags(gated, hit, confirmed, new))
 
     def _manage(self, scan: PingScan, full_index: NDArray[np.int64], n0: int,
                 keys: Sequence[object] = ()) -> PingResult:
@@ -441,26 +438,27 @@ class Tracker:
         if self.scorer is not None:
             dropped |= old & ~confirmed & (self._llr < self.scorer.delete_llr)
         counts = [len(d) for d in scan.dets] if self.hits_per_detection else hit.tolist()
+        m_each = self.m - self._succ.astype(int)
         held = stationary_hold(
-            old & hit & ~confirmed & ~dropped, self._life, self._seen, m=self.m,
+            cand := old & hit & ~confirmed & ~dropped, self._life, self._seen, m=m_each,
             motion_test=(self.motion_test if self.clutter_map is not None and self.hold_stationary
                          else None),
             score_short=(self._llr < self.scorer.confirm_llr if self.scorer is not None
                          else None),
             platform_test=self.platform_test, shadowed=None if self.shadow_test is None else
-            self.shadow_test.shadowed([h[-1][1:3] if h else (np.nan, np.nan) for h in self._seen],
-                                      [h[-1][6:8] if h else (np.nan, np.nan) for h in self._seen],
-                                      self._ids[confirmed], self._x[confirmed, :2]),
+            self.shadow_test.shadowed_tracks(cand, self._seen, self._ids[confirmed],
+                                             self._x[confirmed, :2]),
             counts=counts)
-        self._life[n0:] = [Lifecycle(hits=int(c)) for c in counts[n0:]]
+        born = {c: Lifecycle(hits=int(c)) for c in set(counts[n0:])}  # immutable: shared
+        self._life[n0:] = [born[c] for c in counts[n0:]]
         coast = (self.max_misses if self.scorer is None or self.coast_probability is None
                  else coast_misses([self.scorer.pd(k) for k in keys],
                                    probability=self.coast_probability, floor=self.max_misses))
-        life = [next_lifecycle(lc, h, dropped=d, held=s, m=self.m, n=self.n,
+        life = [next_lifecycle(lc, h, dropped=d, held=s, m=m_i, n=self.n,
                                max_misses=coast if lc.status == "confirmed" else self.max_misses,
                                window=self.scorer is None)
-                for lc, h, d, s in zip(self._life[:n0], counts[:n0], dropped[:n0].tolist(),
-                                       held[:n0].tolist(), strict=True)]
+                for lc, h, d, s, m_i in zip(self._life[:n0], counts[:n0], dropped[:n0].tolist(),
+                                            held[:n0].tolist(), m_each[:n0].tolist(), strict=True)]
         self._life = life + self._life[n0:]
 
         status = np.array([lc.status for lc in self._life], dtype=str)
@@ -473,6 +471,7 @@ class Tracker:
         alive_l = alive.tolist()
         self._ids, self._x, self._P = self._ids[alive], self._x[alive], self._P[alive]
         self._llr = self._llr[alive]
+        self._succ = self._succ[alive]
         self._life = [lc for lc, a in zip(self._life, alive_l, strict=True) if a]
         if self.scorer is not None:
             self.scorer.keep_tracks(alive)

@@ -245,10 +245,13 @@ def receiver_groups(ping: Ping) -> list[tuple[tuple[float, ...] | None, NDArray[
         if not np.all(np.isfinite(geo)):
             out = [(None, np.arange(ping.n))]
         else:
-            groups: dict[tuple[float, ...], list[int]] = {}
-            for i, row in enumerate(map(tuple, np.round(geo).tolist())):
-                groups.setdefault(row, []).append(i)
-            out = [(key, np.asarray(rows, dtype=np.int64)) for key, rows in groups.items()]
+            # Rounded rows (+ 0.0: -0.0 and 0.0 are one key, as in a dict), grouped in the
+            # order of each geometry's first detection.
+            r = np.round(geo) + 0.0
+            _, first, inv = np.unique(r, axis=0, return_index=True, return_inverse=True)
+            inv = inv.reshape(-1)
+            out = [(tuple(r[first[g]].tolist()), np.flatnonzero(inv == g).astype(np.int64))
+                   for g in np.argsort(first).tolist()]
     object.__setattr__(ping, "_receiver_groups", out)   # a ping's grouping never changes
     return out
 

@@ -168,6 +168,14 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--hits-per-detection", action="store_true",
                    help="each detection a tentative track takes counts towards the M of M-of-N "
                         "(default: each ping with a detection counts once)")
+    p.add_argument("--coast-gate-births", action="store_true",
+                   help="a detection that only coasting confirmed tracks gate (they took no "
+                        "detection of its receiver on the ping) may start a track (default: any "
+                        "track's gate keeps it from starting one; docs/tracking.md)")
+    p.add_argument("--successor-llr", type=number(float), default=None, metavar="LLR",
+                   help="with --coast-gate-births: a track born in a coasting confirmed track's "
+                        "gate starts with this track score and is confirmed with one hit fewer "
+                        "(default: off)")
     p.add_argument("--no-pilot-speed", dest="pilot_speed", action="store_false",
                    help="the speed prior (when --speed-sigma-mps is not given) stays the one of "
                         "straight-line triplets of detections (default: the median speed of the "

@@ -79,6 +79,8 @@ class TrackOptions:
     intensity_leave_one_out: bool = False
     intensity_leave_track_out: bool = False
     hits_per_detection: bool = False
+    coast_gate_births: bool = False
+    successor_llr: float | None = None
     shadow_test: bool = True
     shadow_extent_sigmas: float = 8.0
     motion_recent_half: bool = False
@@ -135,6 +137,7 @@ def tracker_from(opts: TrackOptions, st: TrackSettings, system: object | None) -
         intensity_leave_one_out=opts.intensity_leave_one_out,
         intensity_leave_track_out=opts.intensity_leave_track_out,
         hits_per_detection=opts.hits_per_detection,
+        coast_gate_births=opts.coast_gate_births, successor_llr=opts.successor_llr,
         motion_recent=opts.motion_recent_half, shadow=opts.shadow_test,
         shadow_extent_sigmas=opts.shadow_extent_sigmas,
         reject_platform_fixed=not opts.keep_platform_fixed,

@@ -51,8 +51,6 @@ import logging
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 from scipy.stats import chi2
 
@@ -83,8 +81,40 @@ def _add_rows(acc: NDArray[np.float64], owner: NDArray[np.int64],
               rows: NDArray[np.float64]) -> None:
     """``acc[owner[k]] += rows[k]`` for every k (repeated owners summed)."""
     if owner.size:
-        for col in range(acc.shape[1]):
-            acc[:, col] += np.bincount(owner, weights=rows[:, col], minlength=acc.shape[0])
+        # One bincount over (owner, column) cells: each cell sums its rows in order k, as a
+        # bincount per column would (the same floating-point result).
+        m = acc.shape[1]
+        cells = (owner[:, None] * m + np.arange(m)).ravel()
+        acc += np.bincount(cells, weights=rows.ravel(), minlength=acc.size).reshape(acc.shape)
+
+
+def _components(n: int, edges: NDArray[np.integer]) -> tuple[int, NDArray[np.int64]]:
+    """Connected components of an undirected graph on ``n`` nodes with links ``edges`` (k, 2).
+
+    Labels are numbered in the order of each component's smallest node, as
+    :func:`scipy.sparse.csgraph.connected_components` numbers them; computed by propagating
+    the smallest node index along the links with pointer jumping (a few vectorised passes),
+    without building a sparse matrix (whose set-up dominated a ping of a few hundred links).
+    """
+    root = np.arange(n, dtype=np.int64)
+    if edges.shape[0]:
+        a, b = edges[:, 0].astype(np.int64), edges[:, 1].astype(np.int64)
+        while True:
+            new = root.copy()
+            np.minimum.at(new, a, root[b])
+            np.minimum.at(new, b, root[a])
+            new = new[new]
+            if np.array_equal(new, root):
+                break
+            root = new
+    first, label = np.unique(root, return_inverse=True)
+    return int(first.size), label.reshape(-1).astype(np.int64)
+
+
+def _largest_eigenvalue(c: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Largest eigenvalue of each symmetric 2 x 2 matrix of a stack (closed form)."""
+    half_tr = 0.5 * (c[:, 0, 0] + c[:, 1, 1])
+    return half_tr + np.hypot(0.5 * (c[:, 0, 0] - c[:, 1, 1]), c[:, 0, 1])
 
 
 def _mahalanobis2(d: NDArray[np.float64], S: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -208,8 +238,9 @@ class DensityClutterMap(ClutterMapBase):
     def _add_ping(self, pts: NDArray[np.float64], c: NDArray[np.float64], t_rel: float) -> None:
         """Store one ping's detections (:meth:`ClutterMapBase.update`): those whose error
         ellipse is no longer than `max_sigma_m`, linked to the stored ones they match."""
-        small = np.linalg.eigvalsh(c)[:, -1] <= self.max_sigma_m**2
-        pts, c = pts[small], c[small]
+        lam = _largest_eigenvalue(c)
+        small = lam <= self.max_sigma_m**2
+        pts, c, lam = pts[small], c[small], lam[small]
         k = self.n_pings - 1
         self._seen = np.concatenate([self._seen, np.zeros((self._seen.shape[0], 1), bool)], axis=1)
         n_old, n_new = self._xy.shape[0], pts.shape[0]
@@ -220,7 +251,7 @@ class DensityClutterMap(ClutterMapBase):
         mom = np.concatenate([self._mom, _moments(W, pts, np.zeros(n_new))])
         deg = np.concatenate([self._deg, np.zeros(n_new, np.int64)])
         if n_old and n_new:
-            i, j = self._candidates(pts, c)
+            i, j = self._candidates(pts, lam)
             if i.size:
                 S = c[i] + self._cov[j] + 2.0 * self._F
                 ok = _mahalanobis2(pts[i] - self._xy[j], S) <= self._g2
@@ -237,7 +268,7 @@ class DensityClutterMap(ClutterMapBase):
         self._xy = np.concatenate([self._xy, pts])
         self._cov = np.concatenate([self._cov, c])
         if n_new:
-            self._lam_stored = max(self._lam_stored, float(np.max(np.linalg.eigvalsh(c)[:, -1])))
+            self._lam_stored = max(self._lam_stored, float(np.max(lam)))
         self._ping = np.concatenate([self._ping, np.full(n_new, k, np.int64)])
         self._t = np.concatenate([self._t, np.full(n_new, t_rel)])
         self._seen = np.concatenate([self._seen, seen_new])
@@ -245,10 +276,11 @@ class DensityClutterMap(ClutterMapBase):
         if self.memory_pings is not None and self.n_pings - self._first > self.memory_pings:
             self._forget(self.n_pings - self.memory_pings)
 
-    def _candidates(self, pts: NDArray, c: NDArray) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
-        """Pairs (new, stored) within the Euclidean reach of the Mahalanobis test."""
-        lam = float(np.max(np.linalg.eigvalsh(c)[:, -1]))
-        reach = np.sqrt(self._g2 * (lam + self._lam_stored + 2.0 * self.feature_sigma_m**2))
+    def _candidates(self, pts: NDArray, lam: NDArray) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+        """Pairs (new, stored) within the Euclidean reach of the Mahalanobis test (`lam`: the
+        largest eigenvalue of each new detection's covariance)."""
+        reach = np.sqrt(self._g2 * (float(np.max(lam)) + self._lam_stored
+                                    + 2.0 * self.feature_sigma_m**2))
         pairs = cKDTree(pts).sparse_distance_matrix(cKDTree(self._xy), reach,
                                                     output_type="ndarray")
         return pairs["i"].astype(np.int64), pairs["j"].astype(np.int64)
@@ -308,15 +340,14 @@ class DensityClutterMap(ClutterMapBase):
         pos[hot] = np.arange(hot.size)
         pe = pos[self._edges]
         pe = pe[(pe >= 0).all(axis=1)]
-        graph = coo_matrix((np.ones(pe.shape[0]), (pe[:, 0], pe[:, 1])),
-                           shape=(hot.size, hot.size))
-        graph.has_canonical_format = True  # links are distinct pairs: nothing to sum or sort
-        n_spots, label = connected_components(graph, directed=False)
+        n_spots, label = _components(hot.size, pe)
         # A hotspot's own echoes must recur: its cluster spans at least min_pings pings (the
         # newest echo of a slow target, whose neighbourhood is too short to show its drift,
         # is no hotspot on its own).
-        pings = np.zeros(n_spots, np.int64)
-        np.add.at(pings, np.unique(np.column_stack([label, self._ping[hot]]), axis=0)[:, 0], 1)
+        ping_hot = self._ping[hot]
+        span = int(ping_hot.max()) + 1 if ping_hot.size else 1
+        pings = np.bincount(np.unique(label.astype(np.int64) * span + ping_hot) // span,
+                            minlength=n_spots)
         keep = pings[label] >= self.min_pings
         if not keep.all():
             hot, label = hot[keep], np.unique(label[keep], return_inverse=True)[1].reshape(-1)
