@@ -159,13 +159,17 @@ class SearchRegion:
 
 def sensor_distances(grid: SearchGrid, sensors: ArrayLike, *, chunk_points: int = 8192
                      ) -> NDArray[np.float64]:
-    """Ranges ``|p - s_i|`` from every grid point to every sensor, shape (grid.size, n), m."""
+    """Ranges ``|p - s_i|`` from every grid point to every sensor, shape (grid.size, n), m.
+
+    Stored sensor by sensor (a transposed view of an (n, grid.size) array): the intensities
+    read each sensor's ranges as contiguous rows.
+    """
     s = np.asarray(sensors, dtype=float)
     centre = s.mean(axis=0)
     sc = s - centre  # centred: |p - s|^2 = |p|^2 + |s|^2 - 2 p.s loses little precision
-    out = np.empty((grid.size, s.shape[0]))
+    out = np.empty((s.shape[0], grid.size))  # stored by sensor (rows of ranges), returned (P, n)
     for start in range(0, grid.size, int(chunk_points)):
         p = grid.points(start, start + int(chunk_points)) - centre
         d2 = (p * p).sum(1)[:, None] + (sc * sc).sum(1)[None, :] - 2.0 * (p @ sc.T)
-        out[start:start + p.shape[0]] = np.sqrt(np.maximum(d2, 0.0))
-    return out
+        out[:, start:start + p.shape[0]] = np.sqrt(np.maximum(d2, 0.0)).T
+    return out.T
