@@ -203,3 +203,18 @@ def test_cached_ranges_give_the_column_arithmetic_bit_for_bit(grouped, equation)
         want.append(combine_intensities(np.exp(-0.5 * r * r), w, equation, groups))
     assert np.array_equal(vol.values.reshape(-1), np.concatenate(want))
     assert_allclose(d, np.linalg.norm(grid.points()[:, None] - RING[None], axis=-1), atol=1e-6)
+
+
+def test_centred_grid_in_a_box_is_the_checked_grid():
+    """A refinement grid built inside the search box (checks skipped: its axes are finite and
+    increasing by construction) equals the grid built through the checks, clipped at the box
+    (a plane keeps its one depth), with its spacing; a bad centre still raises."""
+    lo, hi = np.array([-100.0, -100.0, -50.0]), np.array([100.0, 100.0, -50.0])
+    g = SearchGrid.centred([95.0, 0.0, -50.0], 3.0, 4, lo=lo, hi=hi)
+    axes = [np.clip(c + 3.0 * np.arange(-4, 5), lo[a], hi[a]) for a, c in enumerate([95.0, 0.0, -50.0])]
+    want = SearchGrid(*[np.unique(a) for a in axes])
+    assert all(np.array_equal(getattr(g, a), getattr(want, a)) for a in "xyz")
+    assert g.shape == (8, 9, 1) and g.step == 3.0 == want.step
+    assert not g.x.flags.writeable and np.array_equal(g.points(), want.points())
+    with pytest.raises(ValueError, match="finite"):
+        SearchGrid.centred([np.nan, 0.0, -50.0], 3.0, 4, lo=lo, hi=hi)
