@@ -214,7 +214,7 @@ def test_centred_grid_in_a_box_is_the_checked_grid():
     axes = [np.clip(c + 3.0 * np.arange(-4, 5), lo[a], hi[a]) for a, c in enumerate([95.0, 0.0, -50.0])]
     want = SearchGrid(*[np.unique(a) for a in axes])
     assert all(np.array_equal(getattr(g, a), getattr(want, a)) for a in "xyz")
-    assert g.shape == (8, 9, 1) and g.step == 3.0 == want.step
+    assert g.shape == (7, 9, 1) and g.step == 3.0 == want.step
     assert not g.x.flags.writeable and np.array_equal(g.points(), want.points())
     with pytest.raises(ValueError, match="finite"):
         SearchGrid.centred([np.nan, 0.0, -50.0], 3.0, 4, lo=lo, hi=hi)
