@@ -13,7 +13,11 @@ Notes
 -----
 *Localization of Short Duration Periodic Signals*, eq. (14)-(18) (steps 56-60) and step 62 (a
 volume over depths). Evaluation is chunked over grid points (``chunk_points``), so memory stays
-at ``chunk_points x M`` floats whatever the grid size.
+at ``chunk_points x M`` floats whatever the grid size. Eq. (16) is evaluated from the ranges
+to the sensors held sensor by sensor (contiguous rows, cached for the coarse grid), TDOA row by
+TDOA row in passes of ``_SUB_POINTS`` points, and handed to eq. (17)/(18) in the memory order
+of the column form (``d[:, first] - d[:, second]``), so that their sums add in the same order:
+the same bits as the column form, in about half its time.
 """
 
 from __future__ import annotations
@@ -210,11 +214,12 @@ def intensity_volume(
     by_sensor = None if distances is None else _by_sensor(distances)
     for start in range(0, grid.size, int(chunk_points)):
         stop = min(start + int(chunk_points), grid.size)
-        if by_sensor is None:
-            i = tdoa_intensities(grid.points(start, stop), tdoas, sig)
-            out[start:start + i.shape[0]] = combine_intensities(i, tdoas, equation, groups)
-            continue
-        i, alpha = _ranged_intensities(by_sensor, start, stop, tdoas, sig, groups)
+        if by_sensor is None:  # the ranges |p - s_i| of WindowTdoas.predicted, by sensor
+            diff = grid.points(start, stop)[None, :, :] - tdoas.sensors[:, None, :]
+            i, alpha = _ranged_intensities(np.sqrt((diff**2).sum(-1)), 0, stop - start, tdoas,
+                                           sig, groups)
+        else:
+            i, alpha = _ranged_intensities(by_sensor, start, stop, tdoas, sig, groups)
         out[start:stop] = i.sum(axis=1) if equation == 17 else associated_intensity(i, alpha)
     return IntensityVolume(grid, out.reshape(grid.shape), equation, sig,
                            None if groups is None else np.asarray(groups, dtype=np.intp))

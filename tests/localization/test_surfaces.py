@@ -218,3 +218,20 @@ def test_centred_grid_in_a_box_is_the_checked_grid():
     assert not g.x.flags.writeable and np.array_equal(g.points(), want.points())
     with pytest.raises(ValueError, match="finite"):
         SearchGrid.centred([np.nan, 0.0, -50.0], 3.0, 4, lo=lo, hi=hi)
+
+
+@pytest.mark.parametrize("grouped", [False, True])
+def test_refinement_grids_give_the_column_arithmetic_bit_for_bit(grouped):
+    """Without cached ranges (refinement grids) the intensities equal eq. (16) of
+    :func:`tdoa_intensities` combined column-wise, bit for bit (ranges computed per sensor)."""
+    w = window(RING, np.array([[300.0, -200.0, -900.0], [-500.0, 400.0, -1200.0]]),
+               noise_range_s=(0.0, 5e-5))
+    groups = np.repeat(np.arange((w.m + 1) // 2), 2)[:w.m] if grouped else None
+    lo, hi = RING.min(axis=0) - 2000.0, RING.max(axis=0) + 2000.0
+    for half in (4, 7):  # 729 points (one pass) and 3,375 (several)
+        grid = SearchGrid.centred([250.0, -150.0, -950.0], 20.0, half, lo=lo, hi=hi)
+        vol = intensity_volume(w, grid, equation=18, groups=groups, chunk_points=2000)
+        sig = smoothing_sigma(w.sigmas, grid.step, c=C)
+        want = [combine_intensities(tdoa_intensities(grid.points(a, a + 2000), w, sig), w, 18,
+                                    groups) for a in range(0, grid.size, 2000)]
+        assert np.array_equal(vol.values.reshape(-1), np.concatenate(want))
