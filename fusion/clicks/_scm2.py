@@ -174,7 +174,7 @@ def scm2_many(
     n, fs, nb = cfg.n_samples, cfg.fs_hz, cfg.n_bins
     p0 = cfg.pulse_peak
     maps = window_maps(tl, t0_s=t0_s, config=cfg)
-    base = maps.series / p0**2  # SCM1_i / p0^2
+    base = {i: maps.series_row(i) / p0**2 for i in np.unique(pr[:, 0]).tolist()}  # SCM1_i / p0^2
     shift = taus * fs  # delay in synthetic samples
     edge_rows, edges = _edge_terms(tl, pr[:, 1], t0_s, shift, cfg)
     series = np.empty((m, n))
@@ -186,7 +186,7 @@ def scm2_many(
         spec *= _phase(shift[a:b], nb, n)
         series[a:b] = scipy.fft.irfft(spec, n, axis=-1)
         for r in range(a, b):
-            series[r] *= base[pr[r, 0]]
+            series[r] *= base[int(pr[r, 0])]
     series.setflags(write=False)
     rows, idx = _maxima(series, level)
     cut = np.searchsorted(rows, np.arange(m + 1))

@@ -2,12 +2,14 @@
 
 Shared by the correlation of click maps (:mod:`fusion.clicks.scm`) and the second-order maps
 (:mod:`fusion.clicks._scm2`); the public names are re-exported by :mod:`fusion.clicks.scm`.
-The SCM1 spectra of a window's channels are kept for the next request of the same clicks (the
-correlation and the SCM2s of one window use the same maps), checked by content.
+The SCM1 spectra and series of a window's channels are kept, row by row, for the next request of
+the same clicks in the same window (the correlation and the SCM2s of one window use the same
+maps), keyed by content.
 """
 
 from __future__ import annotations
 
+from collections import OrderedDict
 from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import lru_cache
@@ -237,16 +239,14 @@ def scm1(
 
 class _WindowMaps:
     """The SCM1 spectra (plain, and windowed once asked for) and the plain series of one
-    window's channels."""
+    window's channels, each row taken from the row cache when it holds it."""
 
     def __init__(self, tl: list[NDArray], t0_s: float, config: ScmConfig, windowed: bool) -> None:
         self.times = [t.copy() for t in tl]
         self.t0_s, self.config = float(t0_s), config
-        k = len(tl)
-        spec = _spectra(tl * (1 + windowed), [False] * k + [True] * (k * windowed), t0_s=t0_s,
-                        config=config)
-        self.plain = spec[:k]
-        self._windowed: NDArray[np.complex128] | None = spec[k:] if windowed else None
+        self.plain = _cached_rows(self.times, False, self.t0_s, config)
+        self._windowed: NDArray[np.complex128] | None = (
+            _cached_rows(self.times, True, self.t0_s, config) if windowed else None)
         self._series: NDArray[np.float64] | None = None
 
     def matches(self, tl: list[NDArray], t0_s: float, config: ScmConfig) -> bool:
@@ -259,34 +259,76 @@ class _WindowMaps:
     def windowed(self) -> NDArray[np.complex128]:
         """Windowed SCM1 spectra (eq. 5), (k, n_bins)."""
         if self._windowed is None:
-            self._windowed = _spectra(self.times, [True] * len(self.times), t0_s=self.t0_s,
-                                      config=self.config)
+            self._windowed = _cached_rows(self.times, True, self.t0_s, self.config)
         return self._windowed
 
     @property
     def series(self) -> NDArray[np.float64]:
         """Plain SCM1 series of every channel, (k, N)."""
         if self._series is None:
-            self._series = scipy.fft.irfft(self.plain, self.config.n_samples, axis=-1)
+            self._series = np.stack([self.series_row(r) for r in range(len(self.times))])
         return self._series
 
+    def series_row(self, r: int) -> NDArray[np.float64]:
+        """Plain SCM1 series of channel `r`, (N,), read-only (cached by the channel's clicks)."""
+        key = (self.t0_s, self.config, "series", self.times[r].tobytes())
+        with _ROWS_LOCK:
+            row = _ROWS.get(key)
+        if row is None:
+            row = scipy.fft.irfft(self.plain[r], self.config.n_samples)
+            row.setflags(write=False)
+            _remember(key, row)
+        return row
 
-_LAST: list[_WindowMaps] = []
-_LAST_LOCK = Lock()
+
+#: SCM1 spectrum and series rows by (window start, grid, kind, the channel's click times): the
+#: correlation under the drift grid and the SCM2s of a window ask for the same channels' maps
+#: many times (the SCM2s of a drift read the plain and the moved clicks the correlation
+#: gridded). Each row is computed as in one batch (the real FFTs and the gridding's bin sums
+#: treat the rows of a batch independently), so a cached row is the row recomputed, bit for bit.
+_ROWS: OrderedDict[tuple, NDArray] = OrderedDict()
+_ROWS_MAX = 192
+_ROWS_LOCK = Lock()
+
+
+def _remember(key: tuple, row: NDArray) -> None:
+    with _ROWS_LOCK:
+        _ROWS[key] = row
+        while len(_ROWS) > _ROWS_MAX:
+            _ROWS.popitem(last=False)
+
+
+def _cached_rows(tl: list[NDArray], windowed: bool, t0_s: float, config: ScmConfig
+                 ) -> NDArray[np.complex128]:
+    """:func:`_spectra` of the channels `tl` (all plain or all windowed), rows from the cache
+    where it holds them, the others computed in one batch."""
+    keys = [(t0_s, config, bool(windowed), t.tobytes()) for t in tl]
+    out = np.empty((len(tl), config.n_bins), dtype=complex)
+    missing = []
+    with _ROWS_LOCK:
+        for r, key in enumerate(keys):
+            row = _ROWS.get(key)
+            if row is None:
+                missing.append(r)
+            else:
+                out[r] = row
+                _ROWS.move_to_end(key)
+    if missing:
+        spec = _spectra([tl[r] for r in missing], [windowed] * len(missing), t0_s=t0_s,
+                        config=config)
+        for r, row in zip(missing, spec, strict=True):
+            out[r] = row
+            kept = row.copy()
+            kept.setflags(write=False)
+            _remember(keys[r], kept)
+    return out
 
 
 def window_maps(tl: list[NDArray], *, t0_s: float, config: ScmConfig,
                 windowed: bool = False) -> _WindowMaps:
-    """The SCM1 maps of the channels `tl` in the window at `t0_s`: those of the last request
-    when it had the same clicks, else computed (and kept for the next request)."""
-    with _LAST_LOCK:
-        last = _LAST[0] if _LAST else None
-    if last is not None and last.matches(tl, t0_s, config):
-        return last
-    maps = _WindowMaps(tl, t0_s, config, windowed)
-    with _LAST_LOCK:
-        _LAST[:] = [maps]
-    return maps
+    """The SCM1 maps of the channels `tl` in the window at `t0_s`, each channel's rows from
+    the row cache when it saw the same clicks in the same window (else computed and kept)."""
+    return _WindowMaps(tl, t0_s, config, windowed)
 
 
 def parabolic(ym: NDArray, y0: NDArray, yp: NDArray) -> tuple[NDArray, NDArray]:

@@ -413,6 +413,7 @@ class ClickDetector:
                 clock = now
 
         x, span_s = checked_input(samples, t0, span_s)
+        x32 = np.asarray(x, dtype=np.float32)  # once: the frame gathers read float32
         k = self._bank(float(fs))
         fs = float(fs)
         hop, n_ch, n = self.hop, x.shape[1], x.shape[0]
@@ -443,7 +444,7 @@ class ClickDetector:
         sub = np.flatnonzero(frames % self.background_decimation == 0)
         if sub.size == 0:
             sub = np.arange(n_frames)
-        spec = gather_frames(x, s0, frames[sub], k.full)
+        spec = gather_frames(x32, s0, frames[sub], k.full)
         p_sub = spec[..., 0::2] ** 2 + spec[..., 1::2] ** 2  # (ch, k, n_bins)
         seg_len = self._seg_len(fs)
         # a segment cut to under a quarter by an end of the audio gets no node of its own
@@ -488,7 +489,7 @@ class ClickDetector:
             times = t0 + (pos - s0) / fs
             power = s[peaks].astype(float)
             near = np.clip(np.round(peaks + delta), 0, n_frames - 1).astype(np.int64)
-            fc = centre_frequency(x[:, c:c + 1], s0, frames, near, k, bin_bg[c], left, wgt)
+            fc = centre_frequency(x32[:, c:c + 1], s0, frames, near, k, bin_bg[c], left, wgt)
             ok = fc >= self.min_centre_freq_hz
             times, power, fc = times[ok], power[ok], fc[ok]
             keep = not_ringing(times, power, self.suppress_s, self.suppress_ratio)

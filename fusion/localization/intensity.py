@@ -13,7 +13,11 @@ Notes
 -----
 *Localization of Short Duration Periodic Signals*, eq. (14)-(18) (steps 56-60) and step 62 (a
 volume over depths). Evaluation is chunked over grid points (``chunk_points``), so memory stays
-at ``chunk_points x M`` floats whatever the grid size.
+at ``chunk_points x M`` floats whatever the grid size. Eq. (16) is evaluated from the ranges
+to the sensors held sensor by sensor (contiguous rows, cached for the coarse grid), TDOA row by
+TDOA row in passes of ``_SUB_POINTS`` points, and handed to eq. (17)/(18) in the memory order
+of the column form (``d[:, first] - d[:, second]``), so that their sums add in the same order:
+the same bits as the column form, in about half its time.
 """
 
 from __future__ import annotations
@@ -204,21 +208,68 @@ def intensity_volume(
         raise ValueError(f"chunk_points must be a positive integer, got {chunk_points!r}")
     sig = smoothing_sigma(tdoas.sigmas, grid.step, c=tdoas.c, cells=cells)
     out = np.empty(grid.size)
-    first, second = tdoas.pairs[:, 0], tdoas.pairs[:, 1]
     if distances is not None and np.shape(distances) != (grid.size, tdoas.sensors.shape[0]):
         raise ValueError(f"distances must have shape ({grid.size}, {tdoas.sensors.shape[0]}), "
                          f"got {np.shape(distances)}")
+    by_sensor = None if distances is None else _by_sensor(distances)
     for start in range(0, grid.size, int(chunk_points)):
         stop = min(start + int(chunk_points), grid.size)
-        if distances is None:
-            i = tdoa_intensities(grid.points(start, stop), tdoas, sig)
-        else:  # eq. (16) from the cached ranges |p - s_i|
-            d = distances[start:stop]
-            r = ((d[:, first] - d[:, second]) / tdoas.c - tdoas.taus) / sig
-            i = np.exp(-0.5 * r * r)
-        out[start:start + i.shape[0]] = combine_intensities(i, tdoas, equation, groups)
+        if by_sensor is None:  # the ranges |p - s_i| of WindowTdoas.predicted, by sensor
+            diff = grid.points(start, stop)[None, :, :] - tdoas.sensors[:, None, :]
+            i, alpha = _ranged_intensities(np.sqrt((diff**2).sum(-1)), 0, stop - start, tdoas,
+                                           sig, groups)
+        else:
+            i, alpha = _ranged_intensities(by_sensor, start, stop, tdoas, sig, groups)
+        out[start:stop] = i.sum(axis=1) if equation == 17 else associated_intensity(i, alpha)
     return IntensityVolume(grid, out.reshape(grid.shape), equation, sig,
                            None if groups is None else np.asarray(groups, dtype=np.intp))
+
+
+#: Grid points per pass of the per-TDOA arithmetic on cached ranges (its arrays stay in cache).
+_SUB_POINTS = 1024
+
+
+def _by_sensor(distances: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The ranges (P, n) as contiguous rows per sensor (n, P): a view when they are stored so
+    (:func:`fusion.localization.search_grid.sensor_distances`)."""
+    return np.ascontiguousarray(np.asarray(distances, dtype=float).T)
+
+
+def _ranged_intensities(by_sensor: NDArray[np.float64], start: int, stop: int,
+                        tdoas: WindowTdoas, sig: NDArray[np.float64], groups: ArrayLike | None
+                        ) -> tuple[NDArray[np.float64], NDArray[np.float64] | None]:
+    """Eq. (16) of grid points ``start:stop`` from the cached ranges, each measurement's best
+    column taken when `groups` are given (:func:`combine_intensities`), and the ``alpha`` of
+    the columns returned.
+
+    The arithmetic of :func:`tdoa_intensities` and :func:`_best_column`, value for value,
+    done per TDOA row over passes of :data:`_SUB_POINTS` points (rows of contiguous ranges,
+    not gathered columns), and returned in the memory order the column form has (columns
+    outermost without `groups`, rows outermost with them), so the sums and products that
+    follow add in the same order: the same bits.
+    """
+    first, second = tdoas.pairs[:, 0], tdoas.pairs[:, 1]
+    taus, sg = tdoas.taus[:, None], sig[:, None]
+    n = stop - start
+    alpha = tdoas.alpha
+    if groups is None:
+        cols = np.empty((tdoas.m, n))
+    else:
+        best, ranks = _column_ranks(np.asarray(groups, dtype=np.intp).tobytes())
+        rows = np.empty((n, best.size))
+        alpha = None if alpha is None else np.asarray(alpha)[np.ix_(best, best)]
+    for a in range(start, stop, _SUB_POINTS):
+        b = min(a + _SUB_POINTS, stop)
+        r = ((by_sensor[first, a:b] - by_sensor[second, a:b]) / tdoas.c - taus) / sg
+        i = np.exp(-0.5 * r * r)  # eq. (16), (M, b - a)
+        if groups is None:
+            cols[:, a - start:b - start] = i
+            continue
+        top = i[best]
+        for slots, columns in ranks:
+            top[slots] = np.maximum(top[slots], i[columns])
+        rows[a - start:b - start] = top.T
+    return (cols.T if groups is None else rows), alpha
 
 
 def combine_intensities(intensities: ArrayLike, tdoas: WindowTdoas, equation: int,

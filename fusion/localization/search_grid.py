@@ -65,8 +65,12 @@ class SearchGrid:
     @property
     def step(self) -> float:
         """Largest spacing along the axes that have more than one point, m (0 for one point)."""
-        steps = [float(np.max(np.diff(a))) for a in (self.x, self.y, self.z) if a.size > 1]
-        return max(steps) if steps else 0.0
+        cached = self.__dict__.get("_step")
+        if cached is None:  # computed once per grid (the refinement asks for it on every level)
+            steps = [float(np.max(np.diff(a))) for a in (self.x, self.y, self.z) if a.size > 1]
+            cached = max(steps) if steps else 0.0
+            object.__setattr__(self, "_step", cached)
+        return cached
 
     def points(self, start: int = 0, stop: int | None = None) -> NDArray[np.float64]:
         """Grid points ``start:stop`` in flat (C, ``ij``) order, shape (k, 3), m."""
@@ -94,9 +98,17 @@ class SearchGrid:
             ax = ctr[a] + offs
             if lo is not None and hi is not None:  # increasing: clipping leaves runs at the ends
                 ax = np.clip(ax, lo[a], hi[a])
-                ax = ax[np.r_[True, ax[1:] != ax[:-1]]]
+                ax = ax[np.concatenate(([True], ax[1:] != ax[:-1]))]
             axes.append(ax)
-        return cls(*axes)
+        if lo is None or hi is None or not np.isfinite(np.concatenate((ctr, lo, hi))).all():
+            return cls(*axes)
+        # finite, and strictly increasing by construction (a clipped non-decreasing sequence
+        # without its repeats): the checks and copies of __post_init__ are skipped
+        grid = object.__new__(cls)
+        for name, ax in zip("xyz", axes, strict=True):
+            ax.setflags(write=False)
+            object.__setattr__(grid, name, ax)
+        return grid
 
 
 @dataclass(frozen=True)
@@ -159,13 +171,17 @@ class SearchRegion:
 
 def sensor_distances(grid: SearchGrid, sensors: ArrayLike, *, chunk_points: int = 8192
                      ) -> NDArray[np.float64]:
-    """Ranges ``|p - s_i|`` from every grid point to every sensor, shape (grid.size, n), m."""
+    """Ranges ``|p - s_i|`` from every grid point to every sensor, shape (grid.size, n), m.
+
+    Stored sensor by sensor (a transposed view of an (n, grid.size) array): the intensities
+    read each sensor's ranges as contiguous rows.
+    """
     s = np.asarray(sensors, dtype=float)
     centre = s.mean(axis=0)
     sc = s - centre  # centred: |p - s|^2 = |p|^2 + |s|^2 - 2 p.s loses little precision
-    out = np.empty((grid.size, s.shape[0]))
+    out = np.empty((s.shape[0], grid.size))  # stored by sensor (rows of ranges), returned (P, n)
     for start in range(0, grid.size, int(chunk_points)):
         p = grid.points(start, start + int(chunk_points)) - centre
         d2 = (p * p).sum(1)[:, None] + (sc * sc).sum(1)[None, :] - 2.0 * (p @ sc.T)
-        out[start:start + p.shape[0]] = np.sqrt(np.maximum(d2, 0.0))
-    return out
+        out[:, start:start + p.shape[0]] = np.sqrt(np.maximum(d2, 0.0)).T
+    return out.T

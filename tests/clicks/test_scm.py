@@ -4,10 +4,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import scipy.fft
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
+from fusion.clicks import _scm_grid
 from fusion.clicks.scm import (
     ClickMapCorrelator,
     ScmConfig,
@@ -261,3 +263,23 @@ def test_drift_compensation_gathers_a_drifting_delay():
         == [p.tau_s for p in plain.peaks]
     with pytest.raises(ValueError, match="rates"):
         ClickMapCorrelator(rates=())
+
+
+def test_cached_map_rows_are_the_rows_of_a_fresh_batch():
+    """The row cache of the SCM1 maps (one window's correlation and SCM2s read the same
+    channels many times) gives each channel's spectrum and series bit for bit as a batch of
+    other channels computed afresh would."""
+    rng = np.random.default_rng(5)
+    t0 = 100.0
+    tl = [np.sort(t0 + rng.uniform(-0.5, T + 0.5, 40)) for _ in range(4)]
+    _scm_grid._ROWS.clear()
+    first = _scm_grid.window_maps(tl[:2], t0_s=t0, config=CFG, windowed=True)
+    again = _scm_grid.window_maps(tl[1:], t0_s=t0, config=CFG)  # row tl[1] from the cache
+    assert any(k[3] == tl[1].tobytes() for k in _scm_grid._ROWS)
+    fresh = _scm_grid._spectra([tl[3], tl[1], tl[2]] + tl[:2], [False] * 3 + [True] * 2,
+                               t0_s=t0, config=CFG)
+    assert np.array_equal(again.plain, fresh[[1, 2, 0]])
+    assert np.array_equal(first.windowed, fresh[3:])
+    assert np.array_equal(again.series, scipy.fft.irfft(fresh[[1, 2, 0]], N, axis=-1))
+    assert_allclose(again.plain[0], literal_spectrum(tl[1][(tl[1] >= t0) & (tl[1] < t0 + T)], t0,
+                                                     windowed=False)[: CFG.n_bins], atol=1e-9)

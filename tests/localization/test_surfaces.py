@@ -7,6 +7,8 @@ import pytest
 from numpy.testing import assert_allclose
 
 from factors.tdoa import predicted_tdoas
+from fusion.localization.intensity import combine_intensities
+from fusion.localization.search_grid import sensor_distances
 from fusion.localization.surfaces import (
     SearchGrid,
     SearchRegion,
@@ -178,3 +180,58 @@ def test_window_checks_inputs():
         SearchRegion(water_column=(0.0, -100.0))
     with pytest.raises(ValueError, match="increasing"):
         SearchGrid([1.0, 0.0], [0.0], [0.0])
+
+
+@pytest.mark.parametrize("grouped", [False, True])
+@pytest.mark.parametrize("equation", [17, 18])
+def test_cached_ranges_give_the_column_arithmetic_bit_for_bit(grouped, equation):
+    """Intensities from a grid's cached ranges (read per sensor in passes of points) equal
+    the column form of eq. (16)-(18) (ranges gathered per TDOA column, then summed or
+    ``I^T alpha I``) bit for bit, with and without measurement groups."""
+    w = window(RING, np.array([[300.0, -200.0, -900.0], [-500.0, 400.0, -1200.0]]),
+               noise_range_s=(0.0, 5e-5))
+    groups = np.repeat(np.arange((w.m + 1) // 2), 2)[:w.m] if grouped else None
+    grid = SearchRegion(max_points=5000).volume(RING)
+    d = sensor_distances(grid, RING)
+    vol = intensity_volume(w, grid, equation=equation, distances=d, groups=groups,
+                           chunk_points=3000)
+    sig = smoothing_sigma(w.sigmas, grid.step, c=C)
+    want = []
+    for a in range(0, grid.size, 3000):
+        c = np.ascontiguousarray(d[a:a + 3000])
+        r = ((c[:, w.pairs[:, 0]] - c[:, w.pairs[:, 1]]) / C - w.taus) / sig
+        want.append(combine_intensities(np.exp(-0.5 * r * r), w, equation, groups))
+    assert np.array_equal(vol.values.reshape(-1), np.concatenate(want))
+    assert_allclose(d, np.linalg.norm(grid.points()[:, None] - RING[None], axis=-1), atol=1e-6)
+
+
+def test_centred_grid_in_a_box_is_the_checked_grid():
+    """A refinement grid built inside the search box (checks skipped: its axes are finite and
+    increasing by construction) equals the grid built through the checks, clipped at the box
+    (a plane keeps its one depth), with its spacing; a bad centre still raises."""
+    lo, hi = np.array([-100.0, -100.0, -50.0]), np.array([100.0, 100.0, -50.0])
+    g = SearchGrid.centred([95.0, 0.0, -50.0], 3.0, 4, lo=lo, hi=hi)
+    axes = [np.clip(c + 3.0 * np.arange(-4, 5), lo[a], hi[a]) for a, c in enumerate([95.0, 0.0, -50.0])]
+    want = SearchGrid(*[np.unique(a) for a in axes])
+    assert all(np.array_equal(getattr(g, a), getattr(want, a)) for a in "xyz")
+    assert g.shape == (7, 9, 1) and g.step == 3.0 == want.step
+    assert not g.x.flags.writeable and np.array_equal(g.points(), want.points())
+    with pytest.raises(ValueError, match="finite"):
+        SearchGrid.centred([np.nan, 0.0, -50.0], 3.0, 4, lo=lo, hi=hi)
+
+
+@pytest.mark.parametrize("grouped", [False, True])
+def test_refinement_grids_give_the_column_arithmetic_bit_for_bit(grouped):
+    """Without cached ranges (refinement grids) the intensities equal eq. (16) of
+    :func:`tdoa_intensities` combined column-wise, bit for bit (ranges computed per sensor)."""
+    w = window(RING, np.array([[300.0, -200.0, -900.0], [-500.0, 400.0, -1200.0]]),
+               noise_range_s=(0.0, 5e-5))
+    groups = np.repeat(np.arange((w.m + 1) // 2), 2)[:w.m] if grouped else None
+    lo, hi = RING.min(axis=0) - 2000.0, RING.max(axis=0) + 2000.0
+    for half in (4, 7):  # 729 points (one pass) and 3,375 (several)
+        grid = SearchGrid.centred([250.0, -150.0, -950.0], 20.0, half, lo=lo, hi=hi)
+        vol = intensity_volume(w, grid, equation=18, groups=groups, chunk_points=2000)
+        sig = smoothing_sigma(w.sigmas, grid.step, c=C)
+        want = [combine_intensities(tdoa_intensities(grid.points(a, a + 2000), w, sig), w, 18,
+                                    groups) for a in range(0, grid.size, 2000)]
+        assert np.array_equal(vol.values.reshape(-1), np.concatenate(want))
