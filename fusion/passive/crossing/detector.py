@@ -119,6 +119,8 @@ class CrossingDetector:
     far_side : bool, optional
         Lead-dependent variances (curvature, manoeuvre) taken again at a prediction's upper
         bound, which is recomputed (default False; :func:`~.pairs.pair_intervals`).
+    curve_manoeuvre : bool, optional
+        Pairs on curves carry the manoeuvre allowance too, widening only (default False).
     split_repeats : bool, optional
         A crossing whose bearing difference changes sign the other way from the pair's
         current event is the pair's next crossing, however close in time (default True;
@@ -192,6 +194,7 @@ class CrossingDetector:
         manoeuvre_memory_s: float | None = None,
         allowance_gate_level: int | None = 0,
         confirm_lead_windows: float | None = None,
+        curve_manoeuvre: bool = False,
     ) -> None:
         if int(J) != J or J < 3:
             raise ValueError(f"J (samples per window) must be an integer > 2, got {J!r}")
@@ -249,6 +252,7 @@ class CrossingDetector:
             raise ValueError(f"manoeuvre_scale must be >= 0, got {manoeuvre_scale!r}")
         self.manoeuvre_scale = float(manoeuvre_scale) if self.level is not None else 0.0
         self.far_side = bool(far_side)
+        self.curve_manoeuvre = bool(curve_manoeuvre)
         g = allowance_gate_level
         if g is not None and (int(g) != g or g < 0):
             raise ValueError(f"allowance_gate_level must be an integer >= 0 or None, got {g!r}")
@@ -355,12 +359,12 @@ class CrossingDetector:
             if self._streak_key.size else np.zeros(key.size, bool)
         if self.confirm_overlap and self._streak_key.size:  # the same crossing, consistently
             with np.errstate(invalid="ignore"):
-                seen &= ((h.low <= self._streak_high[pos_ok]) & (h.high >= self._streak_low[pos_ok])
-                         | np.isnan(h.low))
+                seen &= ((h.conf_low <= self._streak_high[pos_ok])
+                         & (h.conf_high >= self._streak_low[pos_ok]) | np.isnan(h.conf_low))
         count = np.where(seen, self._streak_count[pos_ok] + 1 if self._streak_key.size else 1, 1)
         order = np.argsort(key, kind="stable")
         self._streak_key, self._streak_count = key[order], count[order]
-        self._streak_low, self._streak_high = h.low[order], h.high[order]
+        self._streak_low, self._streak_high = h.conf_low[order], h.conf_high[order]
         if self.confirm <= 1:
             return h
         keep = count >= self.confirm
@@ -379,10 +383,6 @@ class CrossingDetector:
         tau, val, ok = fit.windows(ids, t)
         cs = curve_fits(tau, val, ok, st, alpha=self.curve_alpha) if curves else None
         return st, cs, curvature_stats(tau, val, ok, st) if quad else None
-
-    def _judge(self, model: tuple, ia: NDArray[np.int64], ib: NDArray[np.int64], **kw) -> tuple:
-        """Pairs judged on one window (:func:`~fusion.passive.crossing.judge.judge_pairs`)."""
-        return judge_pairs(self, model, ia, ib, **kw)
 
     def _holdout(self) -> tuple[int, int] | None:
         """(ladder level, samples ahead) of the held-out check of `calibrate`, or None."""
@@ -452,25 +452,26 @@ class CrossingDetector:
                 low = high = np.full(tau.size, np.nan)
                 ok = np.ones(tau.size, bool)
                 direction = np.sign(st.slope[ib] - st.slope[ia])
+                conf = (low, high)
             else:  # judged on the shortest window that resolves it, so first the pairs that no
                 k = np.arange(ia.size)  # shorter window resolves (longest first: fewest left)
                 for lower in range(level - 1, -1, -1):
-                    k = k[~self._judge(models[lower], ia[k], ib[k], back_s=reach[lower][0],
+                    k = k[~judge_pairs(self, models[lower], ia[k], ib[k], back_s=reach[lower][0],
                                        reach_s=reach[lower][1],
                                        span_s=self.windows[lower] * self.K)[3]]
                 ia, ib = ia[k], ib[k]
-                tau, low, high, ok, direction = self._judge(model, ia, ib, back_s=back,
-                                                            reach_s=lead, span_s=span)
+                tau, low, high, ok, direction, *conf = judge_pairs(
+                    self, model, ia, ib, back_s=back, reach_s=lead, span_s=span)
             with np.errstate(invalid="ignore"):
                 pred = ok & (tau > 0.0) & (tau <= lead)  # inequality (3)
                 det = ok & (tau >= -back) & (tau <= 0.0)  # inequality (4)
             k = np.flatnonzero(pred | det)
             parts.append((ids[ia[k]], ids[ib[k]], t + tau[k], t + low[k], t + high[k], pred[k],
-                          np.full(k.size, span), direction[k]))
+                          np.full(k.size, span), direction[k], t + conf[0][k], t + conf[1][k]))
         if not parts:
             z = np.zeros(0)
             return _Hits(np.zeros(0, np.int64), np.zeros(0, np.int64), z, z, z,
-                         np.zeros(0, bool), z, z)
+                         np.zeros(0, bool), z, z, z, z)
         cols = [np.concatenate(c) for c in zip(*parts, strict=True)]
         srt = np.lexsort((cols[1], cols[0]))
         return _Hits(*(c[srt] for c in cols))
