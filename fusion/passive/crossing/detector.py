@@ -19,13 +19,10 @@ from fusion.passive.crossing.curvature import CurvatureStats, curvature_stats
 from fusion.passive.crossing.curve import (
     CurveStats,
     curve_fits,
-    curved_candidates,
 )
 from fusion.passive.crossing.events import _Events, _Hits, raise_alerts
-from fusion.passive.crossing.interval import f_ratio_quantile
-from fusion.passive.crossing.judge import judge_pairs
+from fusion.passive.crossing.judge import ladder_hits
 from fusion.passive.crossing.manoeuvre import ManoeuvreIntensity, half_window_slopes
-from fusion.passive.crossing.pairs import pairs_in_reach
 from fusion.passive.crossing.types import CrossingAlert
 from fusion.passive.line_fit import LineStats, SlidingLineFit
 
@@ -414,67 +411,9 @@ class CrossingDetector:
             tau, val, ok, (half - 0.5) * self.K, half), half * self.K)
 
     def _hits(self, t: float, ids: NDArray[np.int64]) -> _Hits:
-        """Pairs satisfying an inequality on the shortest window that resolves them."""
-        parts: list[tuple] = []
-        models: list[tuple[LineStats, CurveStats | None, CurvatureStats | None]] = []
-        reach: list[tuple[float, float]] = []
-        admitted = np.ones(ids.size, bool)  # tracks whose longer windows fit as well
-        var_prev = dof_prev = np.zeros(ids.size)
-        for level, (fit, J) in enumerate(zip(self._fits, self.windows, strict=True)):
-            model = self._models(fit, ids, t, curves=level < self.curve_windows)
-            st, cs, _ = model
-            models.append(model)
-            var = st.residual_var if cs is None else cs.residual_var
-            dof = st.n - 2.0 if cs is None else cs.dof
-            use = st.n >= J
-            if level > 0 and self.ladder_alpha is not None:  # it must fit as well as the last
-                with np.errstate(invalid="ignore"):
-                    admitted &= ~(var > f_ratio_quantile(self.ladder_alpha, dof, dof_prev)
-                                  * var_prev)
-                use &= admitted
-            var_prev, dof_prev = var, dof
-            sel = np.flatnonzero(use)
-            if sel.size < 2:
-                break
-            span = J * self.K
-            lead = min(self.horizon_s, self.confirm_lead * span)  # alerts: lead_windows
-            back = min(span, self.horizon_s, self.lead_windows * span)
-            reach.append((back, lead))
-            ia, ib, tau = pairs_in_reach(
-                st.value[sel], st.slope[sel], reach_s=lead,
-                min_rate_diff_rad_per_s=self.min_rate_diff_rad_per_s)
-            if cs is not None and np.any(cs.curved[sel]):
-                ca, cb = curved_candidates(cs.subset(sel), reach_s=max(lead, back))
-                key = np.unique(np.concatenate([ia * sel.size + ib, ca * sel.size + cb]))
-                ia, ib = key // sel.size, key % sel.size
-            ia, ib = sel[ia], sel[ib]  # positions among `ids`
-            if self.level is None:
-                low = high = np.full(tau.size, np.nan)
-                ok = np.ones(tau.size, bool)
-                direction = np.sign(st.slope[ib] - st.slope[ia])
-                conf = (low, high)
-            else:  # judged on the shortest window that resolves it, so first the pairs that no
-                k = np.arange(ia.size)  # shorter window resolves (longest first: fewest left)
-                for lower in range(level - 1, -1, -1):
-                    k = k[~judge_pairs(self, models[lower], ia[k], ib[k], back_s=reach[lower][0],
-                                       reach_s=reach[lower][1],
-                                       span_s=self.windows[lower] * self.K)[3]]
-                ia, ib = ia[k], ib[k]
-                tau, low, high, ok, direction, *conf = judge_pairs(
-                    self, model, ia, ib, back_s=back, reach_s=lead, span_s=span)
-            with np.errstate(invalid="ignore"):
-                pred = ok & (tau > 0.0) & (tau <= lead)  # inequality (3)
-                det = ok & (tau >= -back) & (tau <= 0.0)  # inequality (4)
-            k = np.flatnonzero(pred | det)
-            parts.append((ids[ia[k]], ids[ib[k]], t + tau[k], t + low[k], t + high[k], pred[k],
-                          np.full(k.size, span), direction[k], t + conf[0][k], t + conf[1][k]))
-        if not parts:
-            z = np.zeros(0)
-            return _Hits(np.zeros(0, np.int64), np.zeros(0, np.int64), z, z, z,
-                         np.zeros(0, bool), z, z, z, z)
-        cols = [np.concatenate(c) for c in zip(*parts, strict=True)]
-        srt = np.lexsort((cols[1], cols[0]))
-        return _Hits(*(c[srt] for c in cols))
+        """Pairs satisfying an inequality on the shortest window that resolves them
+        (:func:`~fusion.passive.crossing.judge.ladder_hits`)."""
+        return ladder_hits(self, t, ids)
 
     # -- events ------------------------------------------------------------------------------
     def _prune(self, t: float) -> None:
