@@ -122,3 +122,39 @@ def test_curve_allowance_holds_more_intervals_on_traffic(traffic_interval_scores
         print(seed, on.coverage, off.coverage, on.n_predicted, off.n_predicted)
         assert on.coverage >= off.coverage + 0.03
         assert on.n_predicted >= off.n_predicted - max(2, 0.01 * off.n_crossings)
+
+
+def test_ladder_judges_a_pair_once_per_window_and_sample(monkeypatch):
+    """Decision 10: with three windows whose reaches overlap, no pair is judged twice on one
+    window at one sample; the sorted-key store gives the dense table's verdicts."""
+    import fusion.passive.crossing.judge as judge
+
+    rng = np.random.default_rng(3)
+    n, K = 60, 5.0
+    b0 = rng.uniform(0.0, 360.0, n)
+    rate = rng.normal(0.0, 0.05, n)
+    seen: list[tuple[float, float, int]] = []
+    orig = judge.judge_pairs
+
+    def counting(det, model, ia, ib, **kw):
+        seen.extend((det._last_time, kw["span_s"], int(k)) for k in ia * 1000 + ib)
+        return orig(det, model, ia, ib, **kw)
+
+    monkeypatch.setattr(judge, "judge_pairs", counting)
+    det = CrossingDetector(J=10, K=K, n_windows=3, level=0.99, lead_windows=0.5,
+                           horizon_s=600.0)
+    for i in range(60):
+        det.step(K * i, np.arange(n), b0 + rate * K * i + rng.normal(0.0, 0.3, n))
+    assert len(seen) > 1000
+    assert len(set(seen)) == len(seen)
+    # the two stores agree
+    key = rng.choice(n * n, 500, replace=False).astype(np.int64)
+    ok = rng.random(500) < 0.5
+    dense, sparse = judge._Judged(n), judge._Judged(n)
+    sparse.dense = None
+    for store in (dense, sparse):
+        store.add(key[:300], ok[:300])
+    probe = key[250:]
+    for a, b in zip(dense.find(probe), sparse.find(probe), strict=True):
+        np.testing.assert_array_equal(a, b)
+    np.testing.assert_array_equal(dense.find(probe)[0], np.arange(250, 500) < 300)
