@@ -158,3 +158,23 @@ def test_ladder_judges_a_pair_once_per_window_and_sample(monkeypatch):
     for a, b in zip(dense.find(probe), sparse.find(probe), strict=True):
         np.testing.assert_array_equal(a, b)
     np.testing.assert_array_equal(dense.find(probe)[0], np.arange(250, 500) < 300)
+
+
+def test_command_switches_the_curve_allowance_off(tmp_path, capsys):
+    """``fusion crossings --no-curve-manoeuvre`` runs without it (the summary says so) and its
+    predictions' intervals are never wider than with the default."""
+    from fusion.cli import main
+    from fusion.io import read_table
+
+    assert main(["simulate", "bearings", "--seed", "1", "--out", str(tmp_path / "s")]) == 0
+    widths = {}
+    for flag in ([], ["--no-curve-manoeuvre"]):
+        out = tmp_path / f"a{len(flag)}.csv"
+        capsys.readouterr()
+        assert main(["crossings", "--bearings", str(tmp_path / "s" / "bearings.csv"),
+                     "--out", str(out), *flag]) == 0
+        said = capsys.readouterr().out
+        assert ("(curves too)" in said) == (not flag)
+        t = read_table(out, required=("t_cross_low", "t_cross_high"))
+        widths[len(flag)] = np.sum(t["t_cross_high"] - t["t_cross_low"])
+    assert widths[0] >= widths[1]
