@@ -29,6 +29,7 @@ from fusion.passive.crossing.settings import (
     DEFAULT_CONFIRM,
     DEFAULT_CONFIRM_LEAD,
     DEFAULT_CURVE_ALPHA,
+    DEFAULT_CURVE_MANOEUVRE,
     DEFAULT_EXTRAPOLATION,
     DEFAULT_FAR_SIDE,
     DEFAULT_HORIZON_S,
@@ -172,6 +173,11 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="a track's rate changes are forgotten over F spans of the shortest "
                         f"window in its rate-wander intensity (default "
                         f"{DEFAULT_MANOEUVRE_MEMORY_WINDOWS:g})")
+    p.add_argument("--no-curve-manoeuvre", dest="curve_manoeuvre", action="store_false",
+                   default=DEFAULT_CURVE_MANOEUVRE,
+                   help="pairs judged on curves get no --manoeuvre-scale allowance (before; by "
+                        "default it widens their predictions' intervals, the curves' own "
+                        "interval still deciding and confirming)")
     p.add_argument("--confirm-rule", choices=("overlap", "count"), default="overlap",
                    help="overlap (default): each of the --confirm samples in a row must hit with "
                         "a t_cross interval that overlaps the one before (a prediction that "
@@ -231,7 +237,8 @@ def _options(args: argparse.Namespace) -> dict:
             # the ladder's level of the N-th window (1-based); 0: the gate on no window
             "allowance_gate_level": (None if args.allowance_gates_from == 0
                                      else args.allowance_gates_from - 1),
-            "manoeuvre_memory_windows": args.manoeuvre_memory_windows}
+            "manoeuvre_memory_windows": args.manoeuvre_memory_windows,
+            "curve_manoeuvre": args.curve_manoeuvre}
 
 
 def _check_spans(args: argparse.Namespace, st: CrossingSettings, spans_s: np.ndarray) -> None:

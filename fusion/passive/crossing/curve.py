@@ -15,6 +15,7 @@ lines, on a grid for curves), from the fits' own covariance.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from functools import lru_cache
 
@@ -233,6 +234,7 @@ def curved_pair_intervals(
     back_s: float,
     n_grid: int = 129,
     ahead_var_scale: float = 1.0,
+    ahead_var: Callable[[NDArray[np.float64]], NDArray[np.float64]] | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_],
            NDArray[np.float64]]:
     """Crossing time, interval and direction of pairs of window curves.
@@ -252,6 +254,11 @@ def curved_pair_intervals(
     ahead_var_scale : float, optional
         Factor on the difference's variance ahead of the sample (default 1; the extrapolation
         factor of :class:`~fusion.passive.crossing.calibration.ExtrapolationScale`).
+    ahead_var : callable, optional
+        ``ahead_var(tau)`` (`tau` shape (p, n_grid), s) is a variance (rad^2) added to the
+        difference's ahead of the sample (the manoeuvre allowance of
+        :mod:`fusion.passive.crossing.manoeuvre`; default None: the fits' covariance only).
+        On the grid it is taken at every point, so both ends of the interval use their own.
 
     Returns
     -------
@@ -283,6 +290,8 @@ def curved_pair_intervals(
     var = va + vb
     if ahead_var_scale != 1.0:
         var = np.where(tt > 0, ahead_var_scale * var, var)
+    if ahead_var is not None:
+        var = var + np.where(tt > 0, ahead_var(tt), 0.0)
     q2 = (np.asarray(q, dtype=float) * np.ones(p))[:, None] ** 2
     gfun = d * d - q2 * var
     sc = (np.sign(d[:, :-1]) != np.sign(d[:, 1:])) & (np.abs(d[:, :-1]) < np.pi / 2) \

@@ -19,13 +19,10 @@ from fusion.passive.crossing.curvature import CurvatureStats, curvature_stats
 from fusion.passive.crossing.curve import (
     CurveStats,
     curve_fits,
-    curved_candidates,
 )
 from fusion.passive.crossing.events import _Events, _Hits, raise_alerts
-from fusion.passive.crossing.interval import f_ratio_quantile
-from fusion.passive.crossing.judge import judge_pairs
+from fusion.passive.crossing.judge import ladder_hits
 from fusion.passive.crossing.manoeuvre import ManoeuvreIntensity, half_window_slopes
-from fusion.passive.crossing.pairs import pairs_in_reach
 from fusion.passive.crossing.types import CrossingAlert
 from fusion.passive.line_fit import LineStats, SlidingLineFit
 
@@ -119,6 +116,8 @@ class CrossingDetector:
     far_side : bool, optional
         Lead-dependent variances (curvature, manoeuvre) taken again at a prediction's upper
         bound, which is recomputed (default False; :func:`~.pairs.pair_intervals`).
+    curve_manoeuvre : bool, optional
+        Pairs on curves carry the manoeuvre allowance too, widening only (default False).
     split_repeats : bool, optional
         A crossing whose bearing difference changes sign the other way from the pair's
         current event is the pair's next crossing, however close in time (default True;
@@ -192,6 +191,7 @@ class CrossingDetector:
         manoeuvre_memory_s: float | None = None,
         allowance_gate_level: int | None = 0,
         confirm_lead_windows: float | None = None,
+        curve_manoeuvre: bool = False,
     ) -> None:
         if int(J) != J or J < 3:
             raise ValueError(f"J (samples per window) must be an integer > 2, got {J!r}")
@@ -249,6 +249,7 @@ class CrossingDetector:
             raise ValueError(f"manoeuvre_scale must be >= 0, got {manoeuvre_scale!r}")
         self.manoeuvre_scale = float(manoeuvre_scale) if self.level is not None else 0.0
         self.far_side = bool(far_side)
+        self.curve_manoeuvre = bool(curve_manoeuvre)
         g = allowance_gate_level
         if g is not None and (int(g) != g or g < 0):
             raise ValueError(f"allowance_gate_level must be an integer >= 0 or None, got {g!r}")
@@ -355,12 +356,12 @@ class CrossingDetector:
             if self._streak_key.size else np.zeros(key.size, bool)
         if self.confirm_overlap and self._streak_key.size:  # the same crossing, consistently
             with np.errstate(invalid="ignore"):
-                seen &= ((h.low <= self._streak_high[pos_ok]) & (h.high >= self._streak_low[pos_ok])
-                         | np.isnan(h.low))
+                seen &= ((h.conf_low <= self._streak_high[pos_ok])
+                         & (h.conf_high >= self._streak_low[pos_ok]) | np.isnan(h.conf_low))
         count = np.where(seen, self._streak_count[pos_ok] + 1 if self._streak_key.size else 1, 1)
         order = np.argsort(key, kind="stable")
         self._streak_key, self._streak_count = key[order], count[order]
-        self._streak_low, self._streak_high = h.low[order], h.high[order]
+        self._streak_low, self._streak_high = h.conf_low[order], h.conf_high[order]
         if self.confirm <= 1:
             return h
         keep = count >= self.confirm
@@ -379,10 +380,6 @@ class CrossingDetector:
         tau, val, ok = fit.windows(ids, t)
         cs = curve_fits(tau, val, ok, st, alpha=self.curve_alpha) if curves else None
         return st, cs, curvature_stats(tau, val, ok, st) if quad else None
-
-    def _judge(self, model: tuple, ia: NDArray[np.int64], ib: NDArray[np.int64], **kw) -> tuple:
-        """Pairs judged on one window (:func:`~fusion.passive.crossing.judge.judge_pairs`)."""
-        return judge_pairs(self, model, ia, ib, **kw)
 
     def _holdout(self) -> tuple[int, int] | None:
         """(ladder level, samples ahead) of the held-out check of `calibrate`, or None."""
@@ -414,66 +411,9 @@ class CrossingDetector:
             tau, val, ok, (half - 0.5) * self.K, half), half * self.K)
 
     def _hits(self, t: float, ids: NDArray[np.int64]) -> _Hits:
-        """Pairs satisfying an inequality on the shortest window that resolves them."""
-        parts: list[tuple] = []
-        models: list[tuple[LineStats, CurveStats | None, CurvatureStats | None]] = []
-        reach: list[tuple[float, float]] = []
-        admitted = np.ones(ids.size, bool)  # tracks whose longer windows fit as well
-        var_prev = dof_prev = np.zeros(ids.size)
-        for level, (fit, J) in enumerate(zip(self._fits, self.windows, strict=True)):
-            model = self._models(fit, ids, t, curves=level < self.curve_windows)
-            st, cs, _ = model
-            models.append(model)
-            var = st.residual_var if cs is None else cs.residual_var
-            dof = st.n - 2.0 if cs is None else cs.dof
-            use = st.n >= J
-            if level > 0 and self.ladder_alpha is not None:  # it must fit as well as the last
-                with np.errstate(invalid="ignore"):
-                    admitted &= ~(var > f_ratio_quantile(self.ladder_alpha, dof, dof_prev)
-                                  * var_prev)
-                use &= admitted
-            var_prev, dof_prev = var, dof
-            sel = np.flatnonzero(use)
-            if sel.size < 2:
-                break
-            span = J * self.K
-            lead = min(self.horizon_s, self.confirm_lead * span)  # alerts: lead_windows
-            back = min(span, self.horizon_s, self.lead_windows * span)
-            reach.append((back, lead))
-            ia, ib, tau = pairs_in_reach(
-                st.value[sel], st.slope[sel], reach_s=lead,
-                min_rate_diff_rad_per_s=self.min_rate_diff_rad_per_s)
-            if cs is not None and np.any(cs.curved[sel]):
-                ca, cb = curved_candidates(cs.subset(sel), reach_s=max(lead, back))
-                key = np.unique(np.concatenate([ia * sel.size + ib, ca * sel.size + cb]))
-                ia, ib = key // sel.size, key % sel.size
-            ia, ib = sel[ia], sel[ib]  # positions among `ids`
-            if self.level is None:
-                low = high = np.full(tau.size, np.nan)
-                ok = np.ones(tau.size, bool)
-                direction = np.sign(st.slope[ib] - st.slope[ia])
-            else:  # judged on the shortest window that resolves it, so first the pairs that no
-                k = np.arange(ia.size)  # shorter window resolves (longest first: fewest left)
-                for lower in range(level - 1, -1, -1):
-                    k = k[~self._judge(models[lower], ia[k], ib[k], back_s=reach[lower][0],
-                                       reach_s=reach[lower][1],
-                                       span_s=self.windows[lower] * self.K)[3]]
-                ia, ib = ia[k], ib[k]
-                tau, low, high, ok, direction = self._judge(model, ia, ib, back_s=back,
-                                                            reach_s=lead, span_s=span)
-            with np.errstate(invalid="ignore"):
-                pred = ok & (tau > 0.0) & (tau <= lead)  # inequality (3)
-                det = ok & (tau >= -back) & (tau <= 0.0)  # inequality (4)
-            k = np.flatnonzero(pred | det)
-            parts.append((ids[ia[k]], ids[ib[k]], t + tau[k], t + low[k], t + high[k], pred[k],
-                          np.full(k.size, span), direction[k]))
-        if not parts:
-            z = np.zeros(0)
-            return _Hits(np.zeros(0, np.int64), np.zeros(0, np.int64), z, z, z,
-                         np.zeros(0, bool), z, z)
-        cols = [np.concatenate(c) for c in zip(*parts, strict=True)]
-        srt = np.lexsort((cols[1], cols[0]))
-        return _Hits(*(c[srt] for c in cols))
+        """Pairs satisfying an inequality on the shortest window that resolves them
+        (:func:`~fusion.passive.crossing.judge.ladder_hits`)."""
+        return ladder_hits(self, t, ids)
 
     # -- events ------------------------------------------------------------------------------
     def _prune(self, t: float) -> None:

@@ -64,8 +64,12 @@ class _Hits:
     predicted: NDArray[np.bool_]
     window_s: NDArray[np.float64]
     direction: NDArray[np.float64]
+    #: the interval that confirms (the fits' own where an allowance only widens `low`, `high`)
+    conf_low: NDArray[np.float64]
+    conf_high: NDArray[np.float64]
 
-    _FIELDS = ("a", "b", "t_cross", "low", "high", "predicted", "window_s", "direction")
+    _FIELDS = ("a", "b", "t_cross", "low", "high", "predicted", "window_s", "direction",
+               "conf_low", "conf_high")
 
 
 def raise_alerts(ev: _Events, key: NDArray[np.int64], h: _Hits, t: float, *,

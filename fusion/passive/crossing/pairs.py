@@ -191,7 +191,8 @@ def pair_intervals(
     curvature: CurvatureStats | None = None,
     manoeuvre: tuple[NDArray[np.float64], float] | None = None,
     far_side: bool = False,
-) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
+    own_width: bool = False,
+) -> tuple[NDArray[np.float64], ...]:
     """Crossing time and its Fieller interval for given pairs, relative to the current sample.
 
     Parameters
@@ -212,6 +213,15 @@ def pair_intervals(
         variance the lines miss at ``tau`` from the curvature they leave out
         (:func:`~fusion.passive.crossing.curvature.curvature_variance`) added to the
         difference's variance (default None: the lines' covariance only).
+    manoeuvre : (ndarray, float), optional
+        Each track's rate-wander intensity and the window span: the miss
+        :func:`~fusion.passive.crossing.manoeuvre.manoeuvre_variance` of the two lines is added
+        ahead of the sample (default None).
+    far_side : bool, optional
+        The upper bound recomputed with the lead-dependent variances taken at it.
+    own_width : bool, optional
+        Also return the width of the interval with `curvature` only (no `manoeuvre`, no
+        `far_side`), from the same terms (default False).
 
     Returns
     -------
@@ -219,6 +229,8 @@ def pair_intervals(
         ``t_c - t_i`` and the interval bounds, s.
     bounded : ndarray of bool, shape (p,)
         Whether the interval is bounded (rate difference resolved).
+    width : ndarray, shape (p,)
+        Only with `own_width`: the width of the interval without the manoeuvre and far-end terms.
 
     Notes
     -----
@@ -251,6 +263,13 @@ def pair_intervals(
             extra = extra + manoeuvre_variance(qm[index_a] + qm[index_b], manoeuvre[1], at)
         return extra
 
+    width = None
+    if own_width:
+        ahead = np.isfinite(tau) & (tau > 0)
+        v_own = v00 if curvature is None else v00 + np.where(ahead, curvature_variance(
+            curvature, index_a, index_b, np.where(ahead, tau, 0.0)), 0.0)
+        lo_own, hi_own, _ = crossing_time_interval(d0, d1, v_own, v01, v11, q)
+        width = hi_own - lo_own
     if curvature is None and manoeuvre is None:
         low, high, bounded = crossing_time_interval(d0, d1, v00, v01, v11, q)
     else:  # at the predicted crossing, then (`far_side`) again at the interval's far end
@@ -259,7 +278,7 @@ def pair_intervals(
             far = np.where(bounded & np.isfinite(high) & (high > tau), high, tau)
             _, high, _ = crossing_time_interval(d0, d1, v00 + ahead_var(far), v01, v11, q)
     bounded &= np.isfinite(low) & np.isfinite(high)
-    return tau, low, high, bounded
+    return (tau, low, high, bounded) if width is None else (tau, low, high, bounded, width)
 
 
 

@@ -92,6 +92,9 @@ class CrossingSettings:
     allowance_gate_level : int or None
         Ladder level from which the widened intervals also decide which pairs alert (None:
         never; they only widen the alerts' intervals).
+    curve_manoeuvre : bool
+        Pairs judged on curves carry the manoeuvre allowance too (it only widens their
+        intervals).
     manoeuvre_memory_s : float or None
         Time constant over which a track's rate changes are forgotten, s (None: the
         detector's default).
@@ -122,6 +125,7 @@ class CrossingSettings:
     far_side: bool = False
     allowance_gate_level: int | None = 0
     manoeuvre_memory_s: float | None = None
+    curve_manoeuvre: bool = False
     adjusted: tuple[str, ...] = ()
 
     def detector_options(self) -> dict[str, Any]:
@@ -134,7 +138,8 @@ class CrossingSettings:
                 "curvature": self.curvature, "confirm_lead_windows": self.confirm_lead_windows,
                 "manoeuvre_scale": self.manoeuvre_scale, "far_side": self.far_side,
                 "allowance_gate_level": self.allowance_gate_level,
-                "manoeuvre_memory_s": self.manoeuvre_memory_s}
+                "manoeuvre_memory_s": self.manoeuvre_memory_s,
+                "curve_manoeuvre": self.curve_manoeuvre}
 
     def describe(self) -> str:
         """One line saying what was chosen."""
@@ -151,6 +156,8 @@ class CrossingSettings:
                 + (" (predictions with the curvature lines leave out)" if self.curvature else "")
                 + (f" (predictions with the rate wander the tracks show, x{self.manoeuvre_scale:g})"
                    if self.manoeuvre_scale > 0 else "")
+                + (" (curves too)" if self.curve_manoeuvre and self.manoeuvre_scale > 0
+                   and self.curve_alpha is not None else "")
                 + (" (evaluated at the interval's far end)" if self.far_side else "")
                 + ("" if self.allowance_gate_level is None or not (
                     self.far_side or self.manoeuvre_scale > 0) else
@@ -200,6 +207,9 @@ DEFAULT_FAR_SIDE = True
 DEFAULT_ALLOWANCE_GATE_LEVEL = 2
 #: Default memory of a track's rate-wander intensity, in shortest windows.
 DEFAULT_MANOEUVRE_MEMORY_WINDOWS = 10.0
+#: Default: curved pairs' predictions carry the manoeuvre allowance too (issue 19, 2026-12-03
+#: late afternoon).
+DEFAULT_CURVE_MANOEUVRE = True
 #: Default: confirming samples counted within the prediction reach only (None).
 DEFAULT_CONFIRM_LEAD = None
 #: Default number of samples in a row that confirm an alert.
@@ -275,6 +285,7 @@ def crossing_settings_from_steps(
     far_side: bool = DEFAULT_FAR_SIDE,
     allowance_gate_level: int | None = DEFAULT_ALLOWANCE_GATE_LEVEL,
     manoeuvre_memory_windows: float = DEFAULT_MANOEUVRE_MEMORY_WINDOWS,
+    curve_manoeuvre: bool = DEFAULT_CURVE_MANOEUVRE,
 ) -> CrossingSettings:
     """:func:`crossing_settings` from the two numbers it takes of the data.
 
@@ -298,7 +309,7 @@ def crossing_settings_from_steps(
         :data:`MIN_SAMPLES_PER_WINDOW`).
     n_windows, lead_windows, confirm, level, curve_alpha, \
 ladder_alpha, revise, confirm_overlap, calibrate, curvature, confirm_lead_windows, \
-manoeuvre_scale, far_side, allowance_gate_level
+manoeuvre_scale, far_side, allowance_gate_level, curve_manoeuvre
         As in :class:`fusion.passive.crossing.CrossingDetector`.
     manoeuvre_memory_windows : float, optional
         Memory of a track's rate-wander intensity, in spans of the shortest window.
@@ -354,4 +365,5 @@ manoeuvre_scale, far_side, allowance_gate_level
                             allowance_gate_level=None if allowance_gate_level is None
                             else int(allowance_gate_level),
                             manoeuvre_memory_s=float(manoeuvre_memory_windows) * window,
+                            curve_manoeuvre=bool(curve_manoeuvre),
                             adjusted=tuple(adjusted))
