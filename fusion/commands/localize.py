@@ -188,8 +188,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "on the speed they imply")
     p.add_argument("--no-speed-gradient", dest="speed_gradient", action="store_false",
                    help="estimate one sound speed (ablation): by default a speed linear in "
-                        "depth (the speed at the sensors' depth and its gradient), every fix "
-                        "re-solved along straight rays through it")
+                        "depth (a speed and its depth gradient, where the fixes tell it), "
+                        "every fix re-solved along straight rays through it")
     p.add_argument("--candidates", type=number(int, ge=1, le=MAX_CANDIDATES), default=None,
                    metavar="N", help="candidates per window, at most "
                    f"{MAX_CANDIDATES} (default 16 reading surface paths, 8 direct)")

@@ -70,7 +70,7 @@ HUBER_K = 3.0
 #: below the sound channel axis (about 0.016-0.017 1/s).
 GRADIENT_PRIOR_PER_S = 0.016
 #: Its prior standard deviation, 1/s (broad: a Munk profile's gradient between whales and
-#: sensors fits 0.016-0.024 1/s on the tuning seeds; zero lies within two sigmas).
+#: sensors fits 0.014-0.025 1/s on the tuning seeds; zero lies within two sigmas).
 GRADIENT_SIGMA_PER_S = 0.01
 
 
@@ -202,7 +202,8 @@ class SoundSpeedEstimate:
         The depth gradient of the speed and its standard deviation, 1/s (0 and NaN when one
         speed was estimated); `speed_mps` is then the speed at `reference_depth_m`.
     reference_depth_m : float
-        Depth of `speed_mps`, m (the real sensors' mean depth; 0 for one speed).
+        Depth of `speed_mps`, m (halfway between the real sensors' mean depth and the fixes'
+        mean start depth; 0 for one speed).
     """
 
     nominal_mps: float
@@ -366,9 +367,9 @@ def estimate_sound_speed(fixes: Sequence[FixTdoas], *, nominal_mps: float,
         A sensor's survey error is shared by every fix, so the residuals of one graph do not
         show it; the jackknife does.
     gradient : bool
-        Estimate a linear profile (speed at the real sensors' mean depth and its depth
-        gradient, prior :data:`GRADIENT_PRIOR_PER_S` +- :data:`GRADIENT_SIGMA_PER_S`) instead
-        of one speed.
+        Estimate a linear profile instead of one speed: the speed halfway in depth between
+        the real sensors and the fixes (the least correlated with the gradient) and its depth
+        gradient, prior :data:`GRADIENT_PRIOR_PER_S` +- :data:`GRADIENT_SIGMA_PER_S`.
     max_iterations : int
         Levenberg-Marquardt iterations.
 
@@ -387,9 +388,10 @@ def estimate_sound_speed(fixes: Sequence[FixTdoas], *, nominal_mps: float,
     if not (np.isfinite(nominal_mps) and nominal_mps > 0 and prior_sigma_mps > 0):
         raise ValueError("the nominal sound speed and its prior sigma must be positive")
     d_ref = None
-    if gradient:
+    if gradient:  # halfway between the fixes and the sensors: c_ref is the paths' mean speed
         real = fixes[0].sensors[fixes[0].sensors[:, 2] <= 0.0]
-        d_ref = float(np.mean(-real[:, 2])) if real.size else 0.0
+        d_sensors = float(np.mean(-real[:, 2])) if real.size else 0.0
+        d_ref = 0.5 * (d_sensors + float(np.mean([-f.position[2] for f in fixes])))
     graph, result = _solve(fixes, nominal_mps, prior_sigma_mps, max_iterations, d_ref)
     ckey = gtsam.symbol("c", 0)
     v = np.asarray(result.atVector(ckey), dtype=float)

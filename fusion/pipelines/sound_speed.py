@@ -12,10 +12,10 @@ Which fixes teach the speed: those observable and not mirror-ambiguous whose TDO
 least five (real or image) sensors -- four independent delays for three coordinates (more delays
 between four sensors only repeat three of them and say nothing about the speed).
 
-By default the speed is a linear profile of depth (the speed at the sensors' mean depth and its
-gradient, :class:`fusion.localization.sound_speed.LinearProfile`), every fix re-solved along
-straight rays through it; ``fusion localize --no-speed-gradient`` estimates one speed (the
-ablation).
+By default the speed is a linear profile of depth (the speed halfway between the fixes' and the
+sensors' depths and its gradient, :class:`fusion.localization.sound_speed.LinearProfile`) where
+the fixes tell the gradient, every fix re-solved along straight rays through it; ``fusion
+localize --no-speed-gradient`` estimates one speed (the ablation).
 """
 
 from __future__ import annotations
@@ -28,6 +28,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from fusion.localization.retime import emission_shift
 from fusion.localization.sound_speed import (
+    GRADIENT_SIGMA_PER_S,
     MIN_CALIBRATION_FIXES,
     FixTdoas,
     SoundSpeedEstimate,
@@ -58,11 +59,11 @@ MAX_SIGMA_MPS = 3.0
 #: paths differ from one value by about 1 %; a larger change is sensor positions metres off
 #: (which a kilometre-scale array's delays confuse with the speed) or wrong fixes.
 MAX_CHANGE = 0.015
-#: Largest standard deviation of an estimated depth gradient that is used, 1/s (half the
-#: prior's, :data:`fusion.localization.sound_speed.GRADIENT_SIGMA_PER_S`): a wider one is the
-#: prior speaking, not the fixes (a recording's fixes from one place, four-sensor fixes), and
-#: one speed is used instead.
-MAX_GRADIENT_SIGMA_PER_S = 0.005
+#: Largest standard deviation of an estimated depth gradient that is used, 1/s: the prior's
+#: (:data:`fusion.localization.sound_speed.GRADIENT_SIGMA_PER_S`) over sqrt(2), i.e. the fixes
+#: must hold at least as much information on the gradient as the prior; a wider one is the
+#: prior speaking (four-sensor fixes taught by far delays: 0.0079 1/s), and one speed is used.
+MAX_GRADIENT_SIGMA_PER_S = GRADIENT_SIGMA_PER_S / np.sqrt(2.0)
 #: Standard deviation given to a recruited candidate delay, s (the validator gives none below
 #: its bar; candidates of sparse trains were 0-400 us off, often under 100 us, on seeds 7703,
 #: 7800, 7803).
@@ -284,6 +285,9 @@ def calibrate_speed(windows: Iterable[dict], sensors: ArrayLike, nominal_mps: fl
                 est, why = prof, None
             else:
                 gradient_note = f"; its depth gradient not used: {why_g}"
+                if why is None:  # what one speed leaves out: the two models' difference
+                    gradient_note += (f" (the profile's speed there differs from the one speed "
+                                      f"by {abs(prof.speed_mps - est.speed_mps):.2g} m/s)")
         if why is not None:
             return SpeedCalibration(nominal_mps, None, (
                 f"sound speed: the array file's {nominal_mps:g} m/s ({why})"), s)
@@ -320,9 +324,8 @@ def _fit(fixes: list[FixTdoas], nominal_mps: float, n_sensors: int, *, gradient:
 
 def _refusal(est: SoundSpeedEstimate, nominal_mps: float) -> str | None:
     """Why the estimate is not used (None: it is)."""
-    c_path = _path_speed(est)
-    if abs(c_path - nominal_mps) > MAX_CHANGE * nominal_mps:
-        return (f"the fixes point to {c_path:.1f} m/s, more than {100 * MAX_CHANGE:g} % from "
+    if abs(est.speed_mps - nominal_mps) > MAX_CHANGE * nominal_mps:
+        return (f"the fixes point to {est.speed_mps:.1f} m/s, more than {100 * MAX_CHANGE:g} % from "
                 "it: a sea's paths differ from one speed by about 1 %; sensor positions off, "
                 "or fixes of wrong TDOAs")
     if not est.sigma_mps <= MAX_SIGMA_MPS:
@@ -341,19 +344,10 @@ def _gradient_refusal(est: SoundSpeedEstimate) -> str | None:
     return None
 
 
-def _path_speed(est: SoundSpeedEstimate) -> float:
-    """The estimate's speed halfway (in depth) between its fixes and the sensors, m/s: the
-    mean speed along the paths, comparable with the array file's single value."""
-    if not np.isfinite(est.gradient_sigma_per_s):
-        return est.speed_mps
-    mid = 0.5 * (float(np.mean(-est.positions[:, 2])) + est.reference_depth_m)
-    return float(est.profile.speed_at(mid))
-
-
 def _described(est: SoundSpeedEstimate) -> str:
     """The estimate in words, with its standard deviation."""
     if not np.isfinite(est.gradient_sigma_per_s):
         return f"{est.speed_mps:.1f} +- {est.sigma_mps:.2g} m/s"
     return (f"{est.speed_mps:.1f} +- {est.sigma_mps:.2g} m/s at {est.reference_depth_m:.0f} m "
-            f"depth, gradient {est.gradient_per_s:.4f} +- {est.gradient_sigma_per_s:.2g} 1/s "
-            f"(along the paths {_path_speed(est):.1f} m/s)")
+            f"depth (halfway between the fixes and the sensors), gradient "
+            f"{est.gradient_per_s:.4f} +- {est.gradient_sigma_per_s:.2g} 1/s")

@@ -234,8 +234,9 @@ def test_a_depth_gradient_is_estimated_where_one_speed_leaves_fixes_off():
     cal = calibrate_speed(windows, SENSORS, 1494.0)
     est = cal.estimate
     assert est.gradient_per_s == pytest.approx(0.0165, abs=2e-4)
-    d_ref = float(np.mean(-SENSORS[:, 2]))
-    assert est.reference_depth_m == pytest.approx(d_ref)
+    d_ref = est.reference_depth_m  # halfway between the sensors and the whales
+    assert d_ref == pytest.approx(0.5 * np.mean(-SENSORS[:, 2]) + 0.5 * np.mean(-whales[:, 2]),
+                                  abs=5.0)
     assert est.speed_mps == pytest.approx(1475.0 + 0.0165 * d_ref, abs=0.1)
     assert "gradient 0.0165" in cal.note and cal.record()["gradient_per_s"] == est.gradient_per_s
     pos = np.array([[cal.apply(w)["sources"][0][a] for a in "xyz"] for w in windows])
