@@ -204,6 +204,8 @@ class SoundSpeedEstimate:
     reference_depth_m : float
         Depth of `speed_mps`, m (halfway between the real sensors' mean depth and the fixes'
         mean start depth; 0 for one speed).
+    chi2 : float
+        Sum of the squared whitened (weighted) residuals at the solution.
     """
 
     nominal_mps: float
@@ -217,6 +219,7 @@ class SoundSpeedEstimate:
     gradient_per_s: float = 0.0
     gradient_sigma_per_s: float = float("nan")
     reference_depth_m: float = 0.0
+    chi2: float = float("nan")
 
     @property
     def profile(self) -> LinearProfile:
@@ -415,7 +418,7 @@ def estimate_sound_speed(fixes: Sequence[FixTdoas], *, nominal_mps: float,
     return SoundSpeedEstimate(float(nominal_mps), c, float(sigmas[0]), len(fixes), int(r.size),
                               factor, positions, cov, prof.gradient_per_s,
                               float(sigmas[1]) if d_ref is not None else float("nan"),
-                              prof.reference_depth_m)
+                              prof.reference_depth_m, float(np.sum(r * r)))
 
 
 def refit_fix(fix: FixTdoas, speed_mps: float | LinearProfile, *, variance_factor: float = 1.0,

@@ -64,6 +64,10 @@ MAX_CHANGE = 0.015
 #: must hold at least as much information on the gradient as the prior; a wider one is the
 #: prior speaking (four-sensor fixes taught by far delays: 0.0079 1/s), and one speed is used.
 MAX_GRADIENT_SIGMA_PER_S = GRADIENT_SIGMA_PER_S / np.sqrt(2.0)
+#: Smallest F statistic (chi-square drop over the residual variance, one degree of freedom)
+#: at which the profile replaces one speed: 9, three sigmas (p ~ 0.003) -- a constant sea
+#: keeps one speed.
+MIN_GRADIENT_F = 9.0
 #: Standard deviation given to a recruited candidate delay, s (the validator gives none below
 #: its bar; candidates of sparse trains were 0-400 us off, often under 100 us, on seeds 7703,
 #: 7800, 7803).
@@ -275,10 +279,13 @@ def calibrate_speed(windows: Iterable[dict], sensors: ArrayLike, nominal_mps: fl
     try:
         est = _fit(fixes, nominal_mps, len(s), gradient=False)
         why = _refusal(est, nominal_mps)
-        if gradient:  # the profile where the fixes tell its gradient, else the one speed
+        if gradient and recruited:
+            gradient_note = ("; its depth gradient not estimated: the far delays were "
+                             "recruited by one speed's consensus")
+        elif gradient:  # the profile where the fixes tell its gradient, else the one speed
             try:
                 prof = _fit(fixes, nominal_mps, len(s), gradient=True)
-                why_g = _refusal(prof, nominal_mps) or _gradient_refusal(prof)
+                why_g = _refusal(prof, nominal_mps) or _gradient_refusal(prof, est)
             except (ValueError, RuntimeError) as e:
                 why_g = f"not estimated: {e}"
             if why_g is None:
@@ -335,12 +342,21 @@ def _refusal(est: SoundSpeedEstimate, nominal_mps: float) -> str | None:
     return None
 
 
-def _gradient_refusal(est: SoundSpeedEstimate) -> str | None:
+def _gradient_refusal(est: SoundSpeedEstimate, one: SoundSpeedEstimate) -> str | None:
     """Why an estimated depth gradient is not used: the fixes do not tell it (its standard
-    deviation above :data:`MAX_GRADIENT_SIGMA_PER_S`)."""
+    deviation above :data:`MAX_GRADIENT_SIGMA_PER_S`), or it does not fit them better than
+    the one speed `one` (an F test of the nested models: the drop of the chi-square over the
+    profile's residual variance below :data:`MIN_GRADIENT_F`)."""
     if not est.gradient_sigma_per_s <= MAX_GRADIENT_SIGMA_PER_S:
         return (f"{est.gradient_per_s:.4f} +- {est.gradient_sigma_per_s:.2g} 1/s, the fixes "
                 "do not tell it")
+    dof = max(1, est.n_tdoas - 3 * est.n_fixes - 2)
+    dof_one = max(1, one.n_tdoas - 3 * one.n_fixes - 1)
+    drop = (one.chi2 / dof_one) * dof - est.chi2  # one speed's chi2 on the profile's dof
+    f = drop / max(est.chi2 / dof, 1.0)
+    if not f >= MIN_GRADIENT_F:
+        return (f"{est.gradient_per_s:.4f} +- {est.gradient_sigma_per_s:.2g} 1/s fits no "
+                f"better than one speed (F = {f:.3g} < {MIN_GRADIENT_F:g})")
     return None
 
 

@@ -248,11 +248,23 @@ def test_a_depth_gradient_is_estimated_where_one_speed_leaves_fixes_off():
 
 
 def test_a_gradient_the_fixes_do_not_tell_is_not_used():
-    """Four-sensor fixes taught by recruited far delays hold no information on the gradient:
-    its sigma stays near the prior's, one speed is used and the line says so."""
+    """Four-sensor fixes taught by far delays recruited by one speed's consensus: no gradient
+    is estimated from them; and delays of one speed (a constant sea) keep one speed: the
+    profile fits them no better (F test)."""
     rng = np.random.default_rng(3)
     windows = [_four_sensor_window(p, 1484.0, 1500.0, 2.0 * k, rng)
                for k, p in enumerate(TRUE)]
     cal = calibrate_speed(windows, SENSORS, 1500.0)
     assert cal.estimate is not None and np.isnan(cal.estimate.gradient_sigma_per_s)
-    assert "depth gradient not used" in cal.note and "do not tell it" in cal.note
+    assert "depth gradient not estimated" in cal.note
+    whales = np.array([[800.0, 600, -900], [1200, 1500, -700], [-300, 400, -1100],
+                       [2000, -500, -800], [500, 2000, -600]])
+    flat = [_profile_window(p, 2.0 * k, c0=1490.0, g=0.0, c_file=1500.0)
+            for k, p in enumerate(whales)]
+    for w in flat:  # TDOA noise at the sigma (1e-7 s)
+        for d in w["tdoas"]:
+            d["tau"] += float(rng.normal(0.0, 1e-7))
+    one = calibrate_speed(flat, SENSORS, 1500.0)
+    assert np.isnan(one.estimate.gradient_sigma_per_s)
+    assert "fits no better than one speed" in one.note
+    assert one.speed_mps == pytest.approx(1490.0, abs=0.1)
