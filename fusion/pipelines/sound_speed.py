@@ -28,6 +28,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from fusion.localization.retime import emission_shift
 from fusion.localization.sound_speed import (
+    GRADIENT_PRIOR_PER_S,
     GRADIENT_SIGMA_PER_S,
     MIN_CALIBRATION_FIXES,
     FixTdoas,
@@ -277,15 +278,17 @@ def calibrate_speed(windows: Iterable[dict], sensors: ArrayLike, nominal_mps: fl
             f"between 5 or more sensors; {MIN_CALIBRATION_FIXES} are needed to estimate it)"), s)
     gradient_note = ""
     try:
-        est = _fit(fixes, nominal_mps, len(s), gradient=False)
+        est, kept = _fit(fixes, nominal_mps, len(s), gradient=False)
         why = _refusal(est, nominal_mps)
         if gradient and recruited:
             gradient_note = ("; its depth gradient not estimated: the far delays were "
                              "recruited by one speed's consensus")
         elif gradient:  # the profile where the fixes tell its gradient, else the one speed
             try:
-                prof = _fit(fixes, nominal_mps, len(s), gradient=True)
-                why_g = _refusal(prof, nominal_mps) or _gradient_refusal(prof, est)
+                prof, kept_g = _fit(fixes, nominal_mps, len(s), gradient=True)
+                same = est if len(kept_g) == len(kept) else estimate_sound_speed(
+                    kept_g, nominal_mps=nominal_mps)  # one speed on the same fixes
+                why_g = _refusal(prof, nominal_mps) or _gradient_refusal(prof, same)
             except (ValueError, RuntimeError) as e:
                 why_g = f"not estimated: {e}"
             if why_g is None:
@@ -314,9 +317,10 @@ def calibrate_speed(windows: Iterable[dict], sensors: ArrayLike, nominal_mps: fl
 
 
 def _fit(fixes: list[FixTdoas], nominal_mps: float, n_sensors: int, *, gradient: bool
-         ) -> SoundSpeedEstimate:
-    """The estimate from `fixes`; a fix that fits far worse than the others (a cluster of
-    two whales, a wrong association) is left out and the speed estimated again."""
+         ) -> tuple[SoundSpeedEstimate, list[FixTdoas]]:
+    """The estimate from `fixes`, and the fixes it rests on: a fix that fits far worse than
+    the others (a cluster of two whales, a wrong association) is left out and the speed
+    estimated again."""
     est = estimate_sound_speed(fixes, nominal_mps=nominal_mps, n_real_sensors=n_sensors,
                                gradient=gradient)
     rms = np.array([np.sqrt(np.mean((fix_residuals(f, p, est.profile) / f.sigmas) ** 2))
@@ -324,9 +328,9 @@ def _fit(fixes: list[FixTdoas], nominal_mps: float, n_sensors: int, *, gradient:
     good = rms <= OUTLIER_RATIO * max(np.median(rms), 1.0)
     if not good.all() and good.sum() >= MIN_CALIBRATION_FIXES:
         kept = [f for f, g in zip(fixes, good, strict=True) if g]
-        est = estimate_sound_speed(kept, nominal_mps=nominal_mps, n_real_sensors=n_sensors,
-                                   gradient=gradient)
-    return est
+        return estimate_sound_speed(kept, nominal_mps=nominal_mps, n_real_sensors=n_sensors,
+                                    gradient=gradient), kept
+    return est, list(fixes)
 
 
 def _refusal(est: SoundSpeedEstimate, nominal_mps: float) -> str | None:
@@ -345,11 +349,16 @@ def _refusal(est: SoundSpeedEstimate, nominal_mps: float) -> str | None:
 def _gradient_refusal(est: SoundSpeedEstimate, one: SoundSpeedEstimate) -> str | None:
     """Why an estimated depth gradient is not used: the fixes do not tell it (its standard
     deviation above :data:`MAX_GRADIENT_SIGMA_PER_S`), or it does not fit them better than
-    the one speed `one` (an F test of the nested models: the drop of the chi-square over the
-    profile's residual variance below :data:`MIN_GRADIENT_F`)."""
+    the one speed `one` on the same fixes (an F test of the nested models: the drop of the
+    chi-square over the profile's residual variance below :data:`MIN_GRADIENT_F`), or it lies
+    more than three prior sigmas from the prior (a gradient no sea has between whales and
+    sensors: 0.125 1/s from 3 whales' fixes on tuning seed 7900)."""
     if not est.gradient_sigma_per_s <= MAX_GRADIENT_SIGMA_PER_S:
         return (f"{est.gradient_per_s:.4f} +- {est.gradient_sigma_per_s:.2g} 1/s, the fixes "
                 "do not tell it")
+    if abs(est.gradient_per_s - GRADIENT_PRIOR_PER_S) > 3.0 * GRADIENT_SIGMA_PER_S:
+        return (f"{est.gradient_per_s:.4f} 1/s, more than three prior sigmas from the sea's "
+                f"{GRADIENT_PRIOR_PER_S:g} 1/s (fixes of wrong TDOAs)")
     dof = max(1, est.n_tdoas - 3 * est.n_fixes - 2)
     dof_one = max(1, one.n_tdoas - 3 * one.n_fixes - 1)
     drop = (one.chi2 / dof_one) * dof - est.chi2  # one speed's chi2 on the profile's dof
