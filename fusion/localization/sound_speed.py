@@ -70,7 +70,7 @@ HUBER_K = 3.0
 #: below the sound channel axis (about 0.016-0.017 1/s).
 GRADIENT_PRIOR_PER_S = 0.016
 #: Its prior standard deviation, 1/s (broad: a Munk profile's gradient between whales and
-#: sensors fits 0.014-0.025 1/s on the tuning seeds; zero lies within two sigmas).
+#: sensors fitted -0.004 to 0.025 1/s on the tuning seeds; zero lies within two sigmas).
 GRADIENT_SIGMA_PER_S = 0.01
 
 
