@@ -182,6 +182,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "by default, when fewer than 3 fixes span 5 sensors, a sensor's candidate "
                         "delays below the validator's bar are recruited where the windows agree "
                         "on the speed they imply")
+    p.add_argument("--no-speed-gradient", dest="speed_gradient", action="store_false",
+                   help="estimate one sound speed (ablation): by default a speed linear in "
+                        "depth (a speed and its depth gradient, where the fixes tell it), "
+                        "every fix re-solved along straight rays through it")
     p.add_argument("--candidates", type=number(int, ge=1, le=MAX_CANDIDATES), default=None,
                    metavar="N", help="candidates per window, at most "
                    f"{MAX_CANDIDATES} (default 16 reading surface paths, 8 direct)")
@@ -451,7 +455,8 @@ def run(args: argparse.Namespace) -> int:
 
                 cal = calibrate_speed((w for t in plan for w in json.loads(store.read(name(t)))),
                                       array.positions, array.sound_speed,
-                                      recruit_far=args.far_delays)
+                                      recruit_far=args.far_delays,
+                                      gradient=args.speed_gradient)
                 transform, speeds[str(out)] = cal.apply, cal.record()
                 notes.append(cal.note if len(recordings) == 1 else f"{out}: {cal.note}")
             document = DocumentText((store.read(name(t)) for t in plan), transform=transform)

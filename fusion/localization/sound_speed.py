@@ -17,6 +17,13 @@ marginal covariance, scaled by the a-posteriori variance factor of the residuals
 sigmas of the front end hold the measurement noise, not the sensor-position or ray-bending
 errors the residuals show). :func:`refit_fix` then re-solves any fix at the estimated speed.
 
+With ``gradient=True`` the speed is a linear profile ``c(d) = c_ref + g (d - d_ref)`` of depth
+``d`` (:class:`LinearProfile`; :mod:`factors.tdoa_gradient`: travel times along straight rays,
+their log-mean speed), ``[c_ref, g]`` one ``Vector(2)`` of the graph with a weak prior on ``g``
+around the deep-water (pressure) gradient: one speed cannot fit paths that cross different
+depths (a fix 11 m off on seed 7904 of ``--vary-only sound-speed``; docs/localization.md, "A
+depth-dependent sound speed").
+
 Notes
 -----
 *Localization of Short Duration Periodic Signals*, eq. (14)-(15): the model delay of a TDOA
@@ -35,11 +42,13 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from factors.tdoa_factors import weighted_tdoa_vector_factor
+from factors.tdoa_gradient import gradient_tdoa_factor, travel_times
 from fusion.types import frozen_array
 
 __all__ = [
     "MIN_CALIBRATION_FIXES",
     "FixTdoas",
+    "LinearProfile",
     "SoundSpeedEstimate",
     "estimate_sound_speed",
     "fix_residuals",
@@ -57,6 +66,36 @@ PRIOR_SIGMA_MPS = 30.0
 POSITION_PRIOR_M = 1000.0
 #: Huber threshold of the per-TDOA kernel, in (unit-variance) sigmas.
 HUBER_K = 3.0
+#: Prior mean of the depth gradient of the speed, 1/s: the pressure gradient of deep water
+#: below the sound channel axis (about 0.016-0.017 1/s).
+GRADIENT_PRIOR_PER_S = 0.016
+#: Its prior standard deviation, 1/s (broad: a Munk profile's gradient between whales and
+#: sensors fitted -0.004 to 0.025 1/s on the tuning seeds; zero lies within two sigmas).
+GRADIENT_SIGMA_PER_S = 0.01
+
+
+@dataclass(frozen=True)
+class LinearProfile:
+    """A sound speed linear in depth: ``c(d) = speed_mps + gradient_per_s (d -
+    reference_depth_m)``, ``d = -z`` (m); ``gradient_per_s = 0`` is one speed."""
+
+    speed_mps: float
+    gradient_per_s: float = 0.0
+    reference_depth_m: float = 0.0
+
+    def speed_at(self, depth_m: ArrayLike) -> NDArray[np.float64]:
+        """The speed at depths (m, positive down), m/s."""
+        return self.speed_mps + self.gradient_per_s * (np.asarray(depth_m, float)
+                                                       - self.reference_depth_m)
+
+    @property
+    def vector(self) -> NDArray[np.float64]:
+        """``[c_ref, g]``, the graph's variable."""
+        return np.array([self.speed_mps, self.gradient_per_s])
+
+
+def _profile(c: float | LinearProfile) -> LinearProfile:
+    return c if isinstance(c, LinearProfile) else LinearProfile(float(c))
 
 
 def path_sensors(sensors: ArrayLike, pairs: ArrayLike, paths: ArrayLike, surface_z: float = 0.0
@@ -159,6 +198,14 @@ class SoundSpeedEstimate:
     covariances : ndarray, shape (n_fixes, 3, 3)
         Their marginal covariances (with the speed's uncertainty, scaled by the variance
         factor), m^2.
+    gradient_per_s, gradient_sigma_per_s : float
+        The depth gradient of the speed and its standard deviation, 1/s (0 and NaN when one
+        speed was estimated); `speed_mps` is then the speed at `reference_depth_m`.
+    reference_depth_m : float
+        Depth of `speed_mps`, m (halfway between the real sensors' mean depth and the fixes'
+        mean start depth; 0 for one speed).
+    chi2 : float
+        Sum of the squared whitened (weighted) residuals at the solution.
     """
 
     nominal_mps: float
@@ -169,46 +216,84 @@ class SoundSpeedEstimate:
     variance_factor: float
     positions: NDArray[np.float64]
     covariances: NDArray[np.float64]
+    gradient_per_s: float = 0.0
+    gradient_sigma_per_s: float = float("nan")
+    reference_depth_m: float = 0.0
+    chi2: float = float("nan")
+
+    @property
+    def profile(self) -> LinearProfile:
+        """The estimated speed (a profile; gradient 0 for one speed)."""
+        return LinearProfile(self.speed_mps, self.gradient_per_s, self.reference_depth_m)
 
     def to_dict(self) -> dict:
         """The estimate's scalars, JSON-ready."""
-        return {"nominal_mps": self.nominal_mps, "speed_mps": self.speed_mps,
-                "sigma_mps": self.sigma_mps if np.isfinite(self.sigma_mps) else None,
-                "fixes": self.n_fixes, "tdoas": self.n_tdoas,
-                "variance_factor": self.variance_factor}
+        out = {"nominal_mps": self.nominal_mps, "speed_mps": self.speed_mps,
+               "sigma_mps": self.sigma_mps if np.isfinite(self.sigma_mps) else None,
+               "fixes": self.n_fixes, "tdoas": self.n_tdoas,
+               "variance_factor": self.variance_factor}
+        if np.isfinite(self.gradient_sigma_per_s):
+            out |= {"gradient_per_s": self.gradient_per_s,
+                    "gradient_sigma_per_s": self.gradient_sigma_per_s,
+                    "reference_depth_m": self.reference_depth_m}
+        return out
 
 
-def _factor(fix: FixTdoas, key: int, *, c: float | None = None, speed_key: int | None = None,
+def _factor(fix: FixTdoas, key: int, *, c: float | LinearProfile | None = None,
+            speed_key: int | None = None, d_ref: float | None = None,
             robust: bool = True) -> gtsam.CustomFactor:
+    """A fix's factor: one speed (`c` fixed or a ``Vector(1)`` at `speed_key`), or with
+    `d_ref` (or a `c` with a gradient) the linear profile (a ``Vector(2)`` ``[c_ref, g]``)."""
     kernel = gtsam.noiseModel.mEstimator.Huber.Create(HUBER_K) if robust else None
-    return weighted_tdoa_vector_factor(gtsam.noiseModel.Diagonal.Sigmas(fix.sigmas), key,
-                                       fix.sensors, fix.pairs, fix.taus,
-                                       np.array(fix.weights), c=c, speed_key=speed_key,
-                                       robust=kernel)
+    noise = gtsam.noiseModel.Diagonal.Sigmas(fix.sigmas)
+    prof = None if c is None else _profile(c)
+    if prof is not None and prof.gradient_per_s != 0.0:
+        d_ref = prof.reference_depth_m
+    if d_ref is None:
+        return weighted_tdoa_vector_factor(noise, key, fix.sensors, fix.pairs, fix.taus,
+                                           np.array(fix.weights),
+                                           c=None if prof is None else prof.speed_mps,
+                                           speed_key=speed_key, robust=kernel)
+    return gradient_tdoa_factor(noise, key, fix.sensors, fix.pairs, fix.taus, d_ref=d_ref,
+                                weights=np.array(fix.weights),
+                                speed=None if prof is None else prof.vector,
+                                speed_key=speed_key, robust=kernel)
 
 
-def fix_residuals(fix: FixTdoas, position: ArrayLike, c: float) -> NDArray[np.float64]:
-    """Model minus measured delay of each of a fix's TDOAs at `position` and speed `c`, s."""
+def fix_residuals(fix: FixTdoas, position: ArrayLike, c: float | LinearProfile
+                  ) -> NDArray[np.float64]:
+    """Model minus measured delay of each of a fix's TDOAs at `position` and speed `c` (one
+    speed, m/s, or a :class:`LinearProfile`), s."""
     p = np.asarray(position, dtype=float)
     s = fix.sensors
-    d = (np.linalg.norm(p - s[fix.pairs[:, 0]], axis=1)
-         - np.linalg.norm(p - s[fix.pairs[:, 1]], axis=1)) / c
-    return d - fix.taus
+    prof = _profile(c)
+    if prof.gradient_per_s == 0.0:
+        t = np.linalg.norm(p - s, axis=1) / prof.speed_mps
+    else:
+        t, _, _ = travel_times(p, s, prof.speed_mps, prof.gradient_per_s,
+                               prof.reference_depth_m)
+    return t[fix.pairs[:, 0]] - t[fix.pairs[:, 1]] - fix.taus
 
 
-def _whitened(fix: FixTdoas, p: NDArray, c: float) -> NDArray[np.float64]:
+def _whitened(fix: FixTdoas, p: NDArray, c: float | LinearProfile) -> NDArray[np.float64]:
     return np.sqrt(np.maximum(fix.weights, 0.0)) * fix_residuals(fix, p, c) / fix.sigmas
 
 
 def _solve(fixes: Sequence[FixTdoas], nominal_mps: float, prior_sigma_mps: float,
-           max_iterations: int) -> tuple[gtsam.NonlinearFactorGraph, gtsam.Values]:
-    """The speed-and-positions graph of `fixes`, solved (Levenberg-Marquardt)."""
+           max_iterations: int, d_ref: float | None = None
+           ) -> tuple[gtsam.NonlinearFactorGraph, gtsam.Values]:
+    """The speed-and-positions graph of `fixes`, solved (Levenberg-Marquardt); with `d_ref`
+    the speed is the linear profile ``[c_ref, g]``."""
     ckey = gtsam.symbol("c", 0)
     graph = gtsam.NonlinearFactorGraph()
     values = gtsam.Values()
-    graph.add(gtsam.PriorFactorVector(ckey, np.array([nominal_mps]),
-                                      gtsam.noiseModel.Isotropic.Sigma(1, prior_sigma_mps)))
-    values.insert(ckey, np.array([nominal_mps]))
+    if d_ref is None:
+        mean, sig = np.array([nominal_mps]), np.array([prior_sigma_mps])
+    else:
+        mean = np.array([nominal_mps, GRADIENT_PRIOR_PER_S])
+        sig = np.array([prior_sigma_mps, GRADIENT_SIGMA_PER_S])
+    graph.add(gtsam.PriorFactorVector(ckey, mean, gtsam.noiseModel.Diagonal.Sigmas(sig)))
+    values.insert(ckey, mean)
     pos_prior = gtsam.noiseModel.Isotropic.Sigma(3, POSITION_PRIOR_M)
     priors = gtsam.NonlinearFactorGraph()
     for k, fix in enumerate(fixes):
@@ -220,8 +305,8 @@ def _solve(fixes: Sequence[FixTdoas], nominal_mps: float, prior_sigma_mps: float
     # crawl), then the robust graph from there
     plain = gtsam.NonlinearFactorGraph(graph)
     for k, fix in enumerate(fixes):
-        plain.add(_factor(fix, gtsam.symbol("x", k), speed_key=ckey, robust=False))
-        graph.add(_factor(fix, gtsam.symbol("x", k), speed_key=ckey))
+        plain.add(_factor(fix, gtsam.symbol("x", k), speed_key=ckey, d_ref=d_ref, robust=False))
+        graph.add(_factor(fix, gtsam.symbol("x", k), speed_key=ckey, d_ref=d_ref))
     return graph, _optimize(graph, _optimize(plain, values, max_iterations), max_iterations)
 
 
@@ -243,25 +328,29 @@ def _without_sensor(fix: FixTdoas, sensor: int, n_real: int) -> FixTdoas | None:
 
 
 def _sensor_jackknife(fixes: Sequence[FixTdoas], n_real: int, nominal_mps: float,
-                      prior_sigma_mps: float, max_iterations: int) -> float:
-    """Delete-one-sensor jackknife standard deviation of the speed, m/s (NaN when fewer
-    than three sensors can be left out and still teach the speed)."""
+                      prior_sigma_mps: float, max_iterations: int,
+                      d_ref: float | None = None) -> NDArray[np.float64]:
+    """Delete-one-sensor jackknife standard deviation of the speed (m/s) and, with `d_ref`,
+    of the gradient (1/s) (NaN when fewer than three sensors can be left out and still teach
+    the speed)."""
     speeds = []
     for k in range(n_real):
         sub = [f for f in (_without_sensor(f, k, n_real) for f in fixes) if f is not None]
         if len(sub) < MIN_CALIBRATION_FIXES:
             continue
-        _, result = _solve(sub, nominal_mps, prior_sigma_mps, max_iterations)
-        speeds.append(float(result.atVector(gtsam.symbol("c", 0))[0]))
+        _, result = _solve(sub, nominal_mps, prior_sigma_mps, max_iterations, d_ref)
+        speeds.append(np.asarray(result.atVector(gtsam.symbol("c", 0)), dtype=float))
     g = len(speeds)
     if g < 3:
-        return float("nan")
-    return float(np.sqrt((g - 1) / g * np.sum((np.array(speeds) - np.mean(speeds)) ** 2)))
+        return np.full(1 if d_ref is None else 2, np.nan)
+    v = np.array(speeds)
+    return np.sqrt((g - 1) / g * np.sum((v - v.mean(0)) ** 2, axis=0))
 
 
 def estimate_sound_speed(fixes: Sequence[FixTdoas], *, nominal_mps: float,
                          prior_sigma_mps: float = PRIOR_SIGMA_MPS,
                          n_real_sensors: int | None = None,
+                         gradient: bool = False,
                          max_iterations: int = 100) -> SoundSpeedEstimate:
     """One sound speed shared by `fixes`, and the fixes at that speed (one graph).
 
@@ -280,6 +369,10 @@ def estimate_sound_speed(fixes: Sequence[FixTdoas], *, nominal_mps: float,
         out each sensor in turn (a delete-one jackknife) and the larger of the two is given.
         A sensor's survey error is shared by every fix, so the residuals of one graph do not
         show it; the jackknife does.
+    gradient : bool
+        Estimate a linear profile instead of one speed: the speed halfway in depth between
+        the real sensors and the fixes (the least correlated with the gradient) and its depth
+        gradient, prior :data:`GRADIENT_PRIOR_PER_S` +- :data:`GRADIENT_SIGMA_PER_S`.
     max_iterations : int
         Levenberg-Marquardt iterations.
 
@@ -297,31 +390,41 @@ def estimate_sound_speed(fixes: Sequence[FixTdoas], *, nominal_mps: float,
                          f"at least {MIN_CALIBRATION_FIXES}")
     if not (np.isfinite(nominal_mps) and nominal_mps > 0 and prior_sigma_mps > 0):
         raise ValueError("the nominal sound speed and its prior sigma must be positive")
-    graph, result = _solve(fixes, nominal_mps, prior_sigma_mps, max_iterations)
+    d_ref = None
+    if gradient:  # halfway between the fixes and the sensors: c_ref is the paths' mean speed
+        real = fixes[0].sensors[fixes[0].sensors[:, 2] <= 0.0]
+        d_sensors = float(np.mean(-real[:, 2])) if real.size else 0.0
+        d_ref = 0.5 * (d_sensors + float(np.mean([-f.position[2] for f in fixes])))
+    graph, result = _solve(fixes, nominal_mps, prior_sigma_mps, max_iterations, d_ref)
     ckey = gtsam.symbol("c", 0)
-    c = float(result.atVector(ckey)[0])
+    v = np.asarray(result.atVector(ckey), dtype=float)
+    c = float(v[0])
+    prof = LinearProfile(c) if d_ref is None else LinearProfile(c, float(v[1]), d_ref)
     if not 1300.0 <= c <= 1800.0:
         raise ValueError(f"the fixes point to a sound speed of {c:.1f} m/s, outside "
                          "1,300-1,800 m/s (wrong fixes or array file)")
     positions = np.array([result.atPoint3(gtsam.symbol("x", k)) for k in range(len(fixes))])
-    r = np.concatenate([_whitened(f, p, c) for f, p in zip(fixes, positions, strict=True)])
-    dof = max(1, r.size - 3 * len(fixes) - 1)
+    r = np.concatenate([_whitened(f, p, prof) for f, p in zip(fixes, positions, strict=True)])
+    dof = max(1, r.size - 3 * len(fixes) - v.size)
     factor = max(1.0, float(np.sum(r * r)) / dof)
     marginals = gtsam.Marginals(graph, result)
-    sigma = float(np.sqrt(marginals.marginalCovariance(ckey)[0, 0] * factor))
+    sigmas = np.sqrt(np.diag(marginals.marginalCovariance(ckey)) * factor)
     if n_real_sensors is not None:
         jk = _sensor_jackknife(fixes, int(n_real_sensors), nominal_mps, prior_sigma_mps,
-                               max_iterations)
-        sigma = max(sigma, jk) if np.isfinite(jk) else sigma
+                               max_iterations, d_ref)
+        sigmas = np.where(np.isfinite(jk), np.maximum(sigmas, jk), sigmas)
     cov = np.array([marginals.marginalCovariance(gtsam.symbol("x", k)) * factor
                     for k in range(len(fixes))])
-    return SoundSpeedEstimate(float(nominal_mps), c, sigma, len(fixes), int(r.size), factor,
-                              positions, cov)
+    return SoundSpeedEstimate(float(nominal_mps), c, float(sigmas[0]), len(fixes), int(r.size),
+                              factor, positions, cov, prof.gradient_per_s,
+                              float(sigmas[1]) if d_ref is not None else float("nan"),
+                              prof.reference_depth_m, float(np.sum(r * r)))
 
 
-def refit_fix(fix: FixTdoas, speed_mps: float, *, variance_factor: float = 1.0,
+def refit_fix(fix: FixTdoas, speed_mps: float | LinearProfile, *, variance_factor: float = 1.0,
               max_iterations: int = 50) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """A fix re-solved at a given speed from its start: (position (3,), covariance (3, 3)).
+    """A fix re-solved at a given speed (or :class:`LinearProfile`) from its start: (position
+    (3,), covariance (3, 3)).
 
     The covariance is NaN where the fix's TDOAs leave its position unfixed; it is scaled by
     `variance_factor` (the recording's, :class:`SoundSpeedEstimate`).

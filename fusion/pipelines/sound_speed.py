@@ -11,6 +11,11 @@ collect the fixes and one to rewrite them.
 Which fixes teach the speed: those observable and not mirror-ambiguous whose TDOAs join at
 least five (real or image) sensors -- four independent delays for three coordinates (more delays
 between four sensors only repeat three of them and say nothing about the speed).
+
+By default the speed is a linear profile of depth (the speed halfway between the fixes' and the
+sensors' depths and its gradient, :class:`fusion.localization.sound_speed.LinearProfile`) where
+the fixes tell the gradient, every fix re-solved along straight rays through it; ``fusion
+localize --no-speed-gradient`` estimates one speed (the ablation).
 """
 
 from __future__ import annotations
@@ -23,6 +28,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from fusion.localization.retime import emission_shift
 from fusion.localization.sound_speed import (
+    GRADIENT_PRIOR_PER_S,
+    GRADIENT_SIGMA_PER_S,
     MIN_CALIBRATION_FIXES,
     FixTdoas,
     SoundSpeedEstimate,
@@ -53,6 +60,15 @@ MAX_SIGMA_MPS = 3.0
 #: paths differ from one value by about 1 %; a larger change is sensor positions metres off
 #: (which a kilometre-scale array's delays confuse with the speed) or wrong fixes.
 MAX_CHANGE = 0.015
+#: Largest standard deviation of an estimated depth gradient that is used, 1/s: the prior's
+#: (:data:`fusion.localization.sound_speed.GRADIENT_SIGMA_PER_S`) over sqrt(2), i.e. the fixes
+#: must hold at least as much information on the gradient as the prior; a wider one is the
+#: prior speaking (four-sensor fixes taught by far delays: 0.0079 1/s), and one speed is used.
+MAX_GRADIENT_SIGMA_PER_S = GRADIENT_SIGMA_PER_S / np.sqrt(2.0)
+#: Smallest F statistic (chi-square drop over the residual variance, one degree of freedom)
+#: at which the profile replaces one speed: 9, three sigmas (p ~ 0.003) -- a constant sea
+#: keeps one speed.
+MIN_GRADIENT_F = 9.0
 #: Standard deviation given to a recruited candidate delay, s (the validator gives none below
 #: its bar; candidates of sparse trains were 0-400 us off, often under 100 us, on seeds 7703,
 #: 7800, 7803).
@@ -159,7 +175,7 @@ class SpeedCalibration:
         fix = fix_tdoas(window, src, self.sensors, self.nominal_mps)
         if fix is None:
             return src
-        c = self.estimate.speed_mps
+        c = self.estimate.profile
         p, cov = refit_fix(fix, c, variance_factor=self.estimate.variance_factor)
         finite = bool(np.all(np.isfinite(cov)))
         return {**src, "x": float(p[0]), "y": float(p[1]), "z": float(p[2]),
@@ -219,7 +235,7 @@ def _far_candidates(window: dict, src: dict, fix: FixTdoas, sensors: NDArray[np.
 
 
 def calibrate_speed(windows: Iterable[dict], sensors: ArrayLike, nominal_mps: float,
-                    *, recruit_far: bool = True) -> SpeedCalibration:
+                    *, recruit_far: bool = True, gradient: bool = True) -> SpeedCalibration:
     """Estimate the speed shared by the fixes of written windows (see the module docstring).
 
     Parameters
@@ -235,6 +251,9 @@ def calibrate_speed(windows: Iterable[dict], sensors: ArrayLike, nominal_mps: fl
         candidate delays of a sensor the four-sensor fixes do not use where the windows agree
         on the speed they imply (:mod:`fusion.pipelines.speed_recruit`); False: only the fixes'
         own delays (``fusion localize --no-far-delays``, the ablation).
+    gradient : bool
+        Estimate the speed's depth gradient beside it (a linear profile); False: one speed
+        (``fusion localize --no-speed-gradient``, the ablation).
     """
     s = np.asarray(sensors, dtype=float)
     fixes = []
@@ -257,28 +276,31 @@ def calibrate_speed(windows: Iterable[dict], sensors: ArrayLike, nominal_mps: fl
         return SpeedCalibration(nominal_mps, None, (
             f"sound speed: the array file's {nominal_mps:g} m/s ({len(fixes)} fixes with delays "
             f"between 5 or more sensors; {MIN_CALIBRATION_FIXES} are needed to estimate it)"), s)
+    gradient_note = ""
     try:
-        est = estimate_sound_speed(fixes, nominal_mps=nominal_mps, n_real_sensors=len(s))
-        # a fix that fits far worse than the others (a cluster of two whales, a wrong
-        # association) is left out and the speed estimated again
-        rms = np.array([np.sqrt(np.mean((fix_residuals(f, p, est.speed_mps) / f.sigmas) ** 2))
-                        for f, p in zip(fixes, est.positions, strict=True)])
-        good = rms <= OUTLIER_RATIO * max(np.median(rms), 1.0)
-        if not good.all() and good.sum() >= MIN_CALIBRATION_FIXES:
-            fixes = [f for f, g in zip(fixes, good, strict=True) if g]
-            est = estimate_sound_speed(fixes, nominal_mps=nominal_mps, n_real_sensors=len(s))
-        if abs(est.speed_mps - nominal_mps) > MAX_CHANGE * nominal_mps:
+        est, kept = _fit(fixes, nominal_mps, len(s), gradient=False)
+        why = _refusal(est, nominal_mps)
+        if gradient and recruited:
+            gradient_note = ("; its depth gradient not estimated: the far delays were "
+                             "recruited by one speed's consensus")
+        elif gradient:  # the profile where the fixes tell its gradient, else the one speed
+            try:
+                prof, kept_g = _fit(fixes, nominal_mps, len(s), gradient=True)
+                same = est if len(kept_g) == len(kept) else estimate_sound_speed(
+                    kept_g, nominal_mps=nominal_mps)  # one speed on the same fixes
+                why_g = _refusal(prof, nominal_mps) or _gradient_refusal(prof, same)
+            except (ValueError, RuntimeError) as e:
+                why_g = f"not estimated: {e}"
+            if why_g is None:
+                est, why = prof, None
+            else:
+                gradient_note = f"; its depth gradient not used: {why_g}"
+                if why is None:  # what one speed leaves out: the two models' difference
+                    gradient_note += (f" (the profile's speed there differs from the one speed "
+                                      f"by {abs(prof.speed_mps - est.speed_mps):.2g} m/s)")
+        if why is not None:
             return SpeedCalibration(nominal_mps, None, (
-                f"sound speed: the array file's {nominal_mps:g} m/s (the fixes point to "
-                f"{est.speed_mps:.1f} m/s, more than {100 * MAX_CHANGE:g} % from it: a sea's "
-                "paths differ from one speed by about 1 %; sensor positions off, or fixes of "
-                "wrong TDOAs)"), s)
-        if not est.sigma_mps <= MAX_SIGMA_MPS:
-            return SpeedCalibration(nominal_mps, None, (
-                f"sound speed: the array file's {nominal_mps:g} m/s (the fixes disagree: "
-                f"{est.speed_mps:.1f} +- {est.sigma_mps:.2g} m/s from {est.n_fixes} fixes, "
-                f"residuals {np.sqrt(est.variance_factor):.3g} x the TDOA sigmas; sensor "
-                "positions off, or fixes of wrong TDOAs)"), s)
+                f"sound speed: the array file's {nominal_mps:g} m/s ({why})"), s)
     except ValueError as e:
         return SpeedCalibration(nominal_mps, None, (
             f"sound speed: the array file's {nominal_mps:g} m/s (not estimated: {e})"), s)
@@ -287,8 +309,70 @@ def calibrate_speed(windows: Iterable[dict], sensors: ArrayLike, nominal_mps: fl
             f"sound speed: the array file's {nominal_mps:g} m/s (not estimated: the "
             f"{len(fixes)} fixes do not constrain it)"), s)
     return SpeedCalibration(nominal_mps, est, (
-        f"sound speed: {est.speed_mps:.1f} +- {est.sigma_mps:.2g} m/s estimated from "
+        f"sound speed: {_described(est)} estimated from "
         f"{est.n_tdoas} TDOAs of {est.n_fixes} fixes"
         + (f" ({recruited} with a far sensor's delays recruited)" if recruited else "")
         + f" (array file {nominal_mps:g} m/s); every "
-        "fix re-solved at it (--sound-speed array keeps the file's)"), s)
+        "fix re-solved at it (--sound-speed array keeps the file's)" + gradient_note), s)
+
+
+def _fit(fixes: list[FixTdoas], nominal_mps: float, n_sensors: int, *, gradient: bool
+         ) -> tuple[SoundSpeedEstimate, list[FixTdoas]]:
+    """The estimate from `fixes`, and the fixes it rests on: a fix that fits far worse than
+    the others (a cluster of two whales, a wrong association) is left out and the speed
+    estimated again."""
+    est = estimate_sound_speed(fixes, nominal_mps=nominal_mps, n_real_sensors=n_sensors,
+                               gradient=gradient)
+    rms = np.array([np.sqrt(np.mean((fix_residuals(f, p, est.profile) / f.sigmas) ** 2))
+                    for f, p in zip(fixes, est.positions, strict=True)])
+    good = rms <= OUTLIER_RATIO * max(np.median(rms), 1.0)
+    if not good.all() and good.sum() >= MIN_CALIBRATION_FIXES:
+        kept = [f for f, g in zip(fixes, good, strict=True) if g]
+        return estimate_sound_speed(kept, nominal_mps=nominal_mps, n_real_sensors=n_sensors,
+                                    gradient=gradient), kept
+    return est, list(fixes)
+
+
+def _refusal(est: SoundSpeedEstimate, nominal_mps: float) -> str | None:
+    """Why the estimate is not used (None: it is)."""
+    if abs(est.speed_mps - nominal_mps) > MAX_CHANGE * nominal_mps:
+        return (f"the fixes point to {est.speed_mps:.1f} m/s, more than {100 * MAX_CHANGE:g} % from "
+                "it: a sea's paths differ from one speed by about 1 %; sensor positions off, "
+                "or fixes of wrong TDOAs")
+    if not est.sigma_mps <= MAX_SIGMA_MPS:
+        return (f"the fixes disagree: {est.speed_mps:.1f} +- {est.sigma_mps:.2g} m/s from "
+                f"{est.n_fixes} fixes, residuals {np.sqrt(est.variance_factor):.3g} x the "
+                "TDOA sigmas; sensor positions off, or fixes of wrong TDOAs")
+    return None
+
+
+def _gradient_refusal(est: SoundSpeedEstimate, one: SoundSpeedEstimate) -> str | None:
+    """Why an estimated depth gradient is not used: the fixes do not tell it (its standard
+    deviation above :data:`MAX_GRADIENT_SIGMA_PER_S`), or it does not fit them better than
+    the one speed `one` on the same fixes (an F test of the nested models: the drop of the
+    chi-square over the profile's residual variance below :data:`MIN_GRADIENT_F`), or it lies
+    more than three prior sigmas from the prior (a gradient no sea has between whales and
+    sensors: 0.125 1/s from 3 whales' fixes on tuning seed 7900)."""
+    if not est.gradient_sigma_per_s <= MAX_GRADIENT_SIGMA_PER_S:
+        return (f"{est.gradient_per_s:.4f} +- {est.gradient_sigma_per_s:.2g} 1/s, the fixes "
+                "do not tell it")
+    if abs(est.gradient_per_s - GRADIENT_PRIOR_PER_S) > 3.0 * GRADIENT_SIGMA_PER_S:
+        return (f"{est.gradient_per_s:.4f} 1/s, more than three prior sigmas from the sea's "
+                f"{GRADIENT_PRIOR_PER_S:g} 1/s (fixes of wrong TDOAs)")
+    dof = max(1, est.n_tdoas - 3 * est.n_fixes - 2)
+    dof_one = max(1, one.n_tdoas - 3 * one.n_fixes - 1)
+    drop = (one.chi2 / dof_one) * dof - est.chi2  # one speed's chi2 on the profile's dof
+    f = drop / max(est.chi2 / dof, 1.0)
+    if not f >= MIN_GRADIENT_F:
+        return (f"{est.gradient_per_s:.4f} +- {est.gradient_sigma_per_s:.2g} 1/s fits no "
+                f"better than one speed (F = {f:.3g} < {MIN_GRADIENT_F:g})")
+    return None
+
+
+def _described(est: SoundSpeedEstimate) -> str:
+    """The estimate in words, with its standard deviation."""
+    if not np.isfinite(est.gradient_sigma_per_s):
+        return f"{est.speed_mps:.1f} +- {est.sigma_mps:.2g} m/s"
+    return (f"{est.speed_mps:.1f} +- {est.sigma_mps:.2g} m/s at {est.reference_depth_m:.0f} m "
+            f"depth (halfway between the fixes and the sensors), gradient "
+            f"{est.gradient_per_s:.4f} +- {est.gradient_sigma_per_s:.2g} 1/s")

@@ -140,3 +140,32 @@ def test_emission_shift_is_the_drift_over_the_arrival_offset():
     assert refl[1] == pytest.approx(rates[1] * (image - r.mean()), rel=1e-9)
     with pytest.raises(ValueError, match="surface"):
         emission_shift(rates, first, [True] * 3, p, SENSORS, 1500.0)
+
+
+def test_a_linear_profile_and_its_fixes_recovered_on_one_graph():
+    """Delays of c(d) = 1475 + 0.0165 d along straight rays: the profile's graph recovers the
+    gradient, the speed at its reference depth (halfway between sensors and fixes) and every
+    fix; one speed's graph leaves the fixes off and its residuals show the misfit."""
+    from factors.tdoa_gradient import travel_times
+    from fusion.localization.sound_speed import LinearProfile, fix_residuals
+
+    out = []
+    for p in SOURCES:
+        t, _, _ = travel_times(p, SENSORS, 1475.0, 0.0165, 0.0)
+        taus = t[ALL_PAIRS[:, 0]] - t[ALL_PAIRS[:, 1]]
+        start = least_squares(lambda q, t=taus: (predicted_tdoas(q, SENSORS, ALL_PAIRS, c=1500.0)
+                                                 - t) * 1e6, p).x
+        out.append(FixTdoas(SENSORS, ALL_PAIRS, taus, np.full(15, 1e-7), np.ones(15), start))
+    est = estimate_sound_speed(out, nominal_mps=1500.0, gradient=True, n_real_sensors=6)
+    assert est.gradient_per_s == pytest.approx(0.0165, abs=1e-5)
+    assert est.speed_mps == pytest.approx(1475.0 + 0.0165 * est.reference_depth_m, abs=0.01)
+    d_half = 0.5 * np.mean(-SENSORS[:, 2]) + 0.5 * np.mean([-f.position[2] for f in out])
+    assert est.reference_depth_m == pytest.approx(d_half)
+    np.testing.assert_allclose(est.positions, SOURCES, atol=0.01)
+    assert est.chi2 < 1e-3 and np.isfinite(est.gradient_sigma_per_s)
+    prof = est.profile
+    assert isinstance(prof, LinearProfile) and prof.speed_at(prof.reference_depth_m) == est.speed_mps
+    assert np.max(np.abs(fix_residuals(out[0], SOURCES[0], prof))) < 1e-9
+    one = estimate_sound_speed(out, nominal_mps=1500.0)
+    assert np.isnan(one.gradient_sigma_per_s) and one.chi2 > 1e3 * max(est.chi2, 1.0)
+    assert np.max(np.linalg.norm(one.positions - SOURCES, axis=1)) > 0.3

@@ -36,7 +36,7 @@ def test_windows_re_solved_at_the_speed_their_fixes_share():
     windows = [_window(p, 1484.0, 1500.0, 2.0 * k) for k, p in enumerate(TRUE)]
     before = np.array([[w["sources"][0][a] for a in "xyz"] for w in windows])
     assert np.min(np.linalg.norm(before - TRUE, axis=1)) > 5.0
-    cal = calibrate_speed(windows, SENSORS, 1500.0)
+    cal = calibrate_speed(windows, SENSORS, 1500.0, gradient=False)  # one speed: exact
     assert cal.estimate is not None
     assert cal.speed_mps == pytest.approx(1484.0, abs=0.01)
     after = [cal.apply(w) for w in windows]
@@ -52,7 +52,7 @@ def test_windows_re_solved_at_the_speed_their_fixes_share():
 
 def test_the_right_speed_leaves_the_fixes_where_they_are():
     windows = [_window(p, 1500.0, 1500.0, 2.0 * k) for k, p in enumerate(TRUE)]
-    cal = calibrate_speed(windows, SENSORS, 1500.0)
+    cal = calibrate_speed(windows, SENSORS, 1500.0, gradient=False)
     assert cal.speed_mps == pytest.approx(1500.0, abs=0.01)
     for w in windows:
         s = cal.apply(w)["sources"][0]
@@ -127,7 +127,7 @@ def test_a_source_split_by_the_wrong_speed_is_merged_after_the_re_solve():
     a = {**src, "owned_tdoas": list(range(6)), "paths": ["direct"] * 6, "x": src["x"] + 9.0}
     b = {**src, "owned_tdoas": list(range(4, 10)), "paths": ["direct"] * 6, "y": src["y"] - 8.0}
     split = {**w, "sources": [a, b]}
-    cal = calibrate_speed(windows, SENSORS, 1500.0)
+    cal = calibrate_speed(windows, SENSORS, 1500.0, gradient=False)
     out = cal.apply(split)["sources"]
     assert len(out) == 1
     assert sorted(out[0]["owned_tdoas"]) == list(range(10)) and out[0]["tdoas_used"] == 10
@@ -205,3 +205,66 @@ def test_chance_candidates_alone_teach_no_speed():
             d["tau"] = float(rng.uniform(-2.0, 2.0))
     cal = calibrate_speed(windows, SENSORS, 1500.0)
     assert cal.estimate is None and cal.speed_mps == 1500.0
+
+
+def _profile_window(p_true, t0, c0=1475.0, g=0.0165, c_file=1494.0):
+    """A written window whose delays follow the linear profile ``c(d) = c0 + g d`` along
+    straight rays (the simulator's model), solved at the file's one speed."""
+    from factors.tdoa_gradient import travel_times
+
+    q = np.array(PAIRS)
+    t, _, _ = travel_times(p_true, SENSORS, c0, g, 0.0)
+    taus = t[q[:, 0]] - t[q[:, 1]]
+    start = least_squares(lambda x: (predicted_tdoas(x, SENSORS, q, c=c_file) - taus) * 1e6,
+                          p_true).x
+    window = _window(p_true, c_file, c_file, t0)
+    for d, tau in zip(window["tdoas"], taus, strict=True):
+        d["tau"] = float(tau)
+    window["sources"][0] |= {"x": start[0], "y": start[1], "z": start[2]}
+    return window
+
+
+def test_a_depth_gradient_is_estimated_where_one_speed_leaves_fixes_off():
+    """Delays of a speed linear in depth (0.0165 1/s, whales 600-1,100 m deep over sensors at
+    1,480-1,610 m): the profile estimated on the graph puts every fix within centimetres;
+    one speed (``--no-speed-gradient``) leaves them about a metre off."""
+    whales = np.array([[800.0, 600, -900], [1200, 1500, -700], [-300, 400, -1100],
+                       [2000, -500, -800], [500, 2000, -600]])
+    windows = [_profile_window(p, 2.0 * k) for k, p in enumerate(whales)]
+    cal = calibrate_speed(windows, SENSORS, 1494.0)
+    est = cal.estimate
+    assert est.gradient_per_s == pytest.approx(0.0165, abs=2e-4)
+    d_ref = est.reference_depth_m  # halfway between the sensors and the whales
+    assert d_ref == pytest.approx(0.5 * np.mean(-SENSORS[:, 2]) + 0.5 * np.mean(-whales[:, 2]),
+                                  abs=5.0)
+    assert est.speed_mps == pytest.approx(1475.0 + 0.0165 * d_ref, abs=0.1)
+    assert "gradient 0.0165" in cal.note and cal.record()["gradient_per_s"] == est.gradient_per_s
+    pos = np.array([[cal.apply(w)["sources"][0][a] for a in "xyz"] for w in windows])
+    assert np.max(np.linalg.norm(pos - whales, axis=1)) < 0.05
+    one = calibrate_speed(windows, SENSORS, 1494.0, gradient=False)
+    assert np.isnan(one.estimate.gradient_sigma_per_s) and "gradient" not in one.note
+    pos1 = np.array([[one.apply(w)["sources"][0][a] for a in "xyz"] for w in windows])
+    assert np.median(np.linalg.norm(pos1 - whales, axis=1)) > 0.5
+
+
+def test_a_gradient_the_fixes_do_not_tell_is_not_used():
+    """Four-sensor fixes taught by far delays recruited by one speed's consensus: no gradient
+    is estimated from them; and delays of one speed (a constant sea) keep one speed: the
+    profile fits them no better (F test)."""
+    rng = np.random.default_rng(3)
+    windows = [_four_sensor_window(p, 1484.0, 1500.0, 2.0 * k, rng)
+               for k, p in enumerate(TRUE)]
+    cal = calibrate_speed(windows, SENSORS, 1500.0)
+    assert cal.estimate is not None and np.isnan(cal.estimate.gradient_sigma_per_s)
+    assert "depth gradient not estimated" in cal.note
+    whales = np.array([[800.0, 600, -900], [1200, 1500, -700], [-300, 400, -1100],
+                       [2000, -500, -800], [500, 2000, -600]])
+    flat = [_profile_window(p, 2.0 * k, c0=1490.0, g=0.0, c_file=1500.0)
+            for k, p in enumerate(whales)]
+    for w in flat:  # TDOA noise at the sigma (1e-7 s)
+        for d in w["tdoas"]:
+            d["tau"] += float(rng.normal(0.0, 1e-7))
+    one = calibrate_speed(flat, SENSORS, 1500.0)
+    assert np.isnan(one.estimate.gradient_sigma_per_s)
+    assert "fits no better than one speed" in one.note
+    assert one.speed_mps == pytest.approx(1490.0, abs=0.1)
