@@ -22,7 +22,8 @@ FloatArray = NDArray[np.float64]
 
 def link_segments(ends: list[tuple], scan_times: FloatArray, *, q: float, link_gate: float,
                   max_gap_scans: int, relink_gate: float | None = None,
-                  relink_allowed: NDArray[np.bool_] | None = None) -> list[list[int]]:
+                  relink_allowed: NDArray[np.bool_] | None = None,
+                  crossing_gap_scans: int | None = None) -> list[list[int]]:
     """Chain segments by one assignment of segment ends to later segment starts.
 
     With `relink_gate` (> `link_gate`), the ends and starts the first assignment left unlinked
@@ -30,7 +31,10 @@ def link_segments(ends: list[tuple], scan_times: FloatArray, *, q: float, link_g
     rate changed too much for the first gate (bearing curvature through a dense crossing zone)
     is linked to the one end left free for it instead of starting a new track; links made
     by the first assignment are not changed; `relink_allowed` (n x n, end x start; default
-    all) limits the second assignment's pairs."""
+    all) limits the second assignment's pairs. With `crossing_gap_scans` (> `max_gap_scans`)
+    the pairs of `relink_allowed` -- gaps across a crossing -- may bridge up to that many scans
+    in both assignments: a slow crossing keeps two tracks ambiguous for longer than misses
+    would."""
     n = len(ends)
     if n == 0:
         return []
@@ -39,12 +43,17 @@ def link_segments(ends: list[tuple], scan_times: FloatArray, *, q: float, link_g
     lndet = np.zeros((n, n))
     # the cost's log-determinant only where a link can be made (the widest gate)
     widest = link_gate if relink_gate is None else max(link_gate, relink_gate)
+    longest = max_gap_scans if crossing_gap_scans is None else max(max_gap_scans,
+                                                                     crossing_gap_scans)
     for e in range(n):
         _, _, _, s1, x_e, p_e = ends[e]
         for s in range(n):
             s0, x_s, p_s = ends[s][0], ends[s][1], ends[s][2]
             dt = float(scan_times[s0] - scan_times[s1]) if s0 > s1 else -1.0
-            if s == e or dt <= 0 or dt > max_gap_scans * period:
+            if s == e or dt <= 0 or dt > longest * period:
+                continue
+            if dt > max_gap_scans * period and (relink_allowed is None
+                                                or not relink_allowed[e, s]):
                 continue
             f = transition_matrix(dt, 1)
             cov = f @ p_e @ f.T + wna_covariance(dt, q, 1) + p_s

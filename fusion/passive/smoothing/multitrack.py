@@ -101,6 +101,10 @@ class MultiTrackSmoother:
         one track end left free for it instead of starting a new track (Notes, 3).
     max_gap_scans : int, keyword-only
         Longest gap, in scan periods, that a segment link may bridge (default 40).
+    crossing_gap_scans : int or None, keyword-only
+        Longest gap of a link across a crossing (an ambiguous scan of either tracker track in
+        the gap), in both assignments (default None: `max_gap_scans`; ``fusion smooth`` uses
+        60). A slow crossing keeps two tracks ambiguous longer than misses would.
     fit_scans : int, keyword-only
         Scans at each end of a segment used for its end states (default 30).
     margin_scans : int, keyword-only
@@ -174,6 +178,7 @@ class MultiTrackSmoother:
         link_gate: float = 30.0,
         relink_gate: float = 100.0,
         max_gap_scans: int = 40,
+        crossing_gap_scans: int | None = None,
         fit_scans: int = 30,
         margin_scans: int = 10,
         em_tol: float = 1e-3,
@@ -210,6 +215,7 @@ class MultiTrackSmoother:
         if max_gap_scans < 1 or fit_scans < 2 or margin_scans < 0:
             raise ValueError("max_gap_scans must be >= 1, fit_scans >= 2, margin_scans >= 0")
         self.max_gap_scans = int(max_gap_scans)
+        self.crossing_gap_scans = None if crossing_gap_scans is None else int(crossing_gap_scans)
         self.fit_scans = int(fit_scans)
         self.margin_scans = int(margin_scans)
         self.em_tol = check_positive("em_tol", em_tol)
@@ -266,7 +272,8 @@ class MultiTrackSmoother:
         chains = link_segments(ends, scan_times, q=self.model.q, link_gate=self.link_gate,
                                max_gap_scans=self.max_gap_scans, relink_gate=self.relink_gate,
                                relink_allowed=across_crossings(self._ambiguous, tr, segments,
-                                                               ends))
+                                                               ends),
+                               crossing_gap_scans=self.crossing_gap_scans)
         # hard labels per track, drop short tracks
         labels = np.full(t.size, -1, np.int64)
         kept: list[list[int]] = []
