@@ -80,6 +80,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "a crossing (an ambiguous scan in the gap; slow crossings keep two "
                         "tracks ambiguous for long); default 60, not above --max-gap-scans: "
                         "off")
+    p.add_argument("--link-curvature", action=argparse.BooleanOptionalAction, default=True,
+                   help="unknown-origin rows: a link between two segments propagates the "
+                        "bearing with their mean bearing acceleration (default: on; "
+                        "--no-link-curvature: constant rate)")
     p.add_argument("--output-times", choices=("grid", "states"), default="states",
                    help="states (default): the smoother's own state times; grid: every track "
                         "on the regular grid of --period-s through gaps up to --max-gap-scans "
@@ -156,6 +160,7 @@ def run(args: argparse.Namespace) -> int:
                                  end_detections=args.end_detections,
                                  link_gate=args.link_gate, relink_gate=args.relink_gate,
                                  crossing_gap_scans=args.crossing_gap_scans,
+                                 link_curvature=args.link_curvature,
                                  on_rows=bar.update)
     except RuntimeError as e:  # gtsam: an ill-posed graph
         bar.close()
@@ -169,7 +174,8 @@ def run(args: argparse.Namespace) -> int:
     assoc = {"association": args.association, "output_times": args.output_times,
              "end_extension": args.extend_ends, "end_detections": args.end_detections,
              "link_gate": args.link_gate, "relink_gate": args.relink_gate,
-             "crossing_gap_scans": args.crossing_gap_scans}
+             "crossing_gap_scans": args.crossing_gap_scans,
+             "link_curvature": args.link_curvature}
     if counted is not None:
         assoc["association_clutter_density"] = float(counted)
     write_settings(args.out, {"command": "smooth", "tracks": len(tracks), "settings": st.as_dict(),

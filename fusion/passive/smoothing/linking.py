@@ -15,7 +15,7 @@ from scipy.optimize import linear_sum_assignment
 from factors.motion import transition_matrix, wna_covariance
 from fusion.geometry import wrap_angle
 
-__all__ = ["crossing_clusters", "link_segments"]
+__all__ = ["crossing_clusters", "link_segments", "segment_accelerations"]
 
 FloatArray = NDArray[np.float64]
 
@@ -23,7 +23,8 @@ FloatArray = NDArray[np.float64]
 def link_segments(ends: list[tuple], scan_times: FloatArray, *, q: float, link_gate: float,
                   max_gap_scans: int, relink_gate: float | None = None,
                   relink_allowed: NDArray[np.bool_] | None = None,
-                  crossing_gap_scans: int | None = None) -> list[list[int]]:
+                  crossing_gap_scans: int | None = None,
+                  curvature: bool = False) -> list[list[int]]:
     """Chain segments by one assignment of segment ends to later segment starts.
 
     With `relink_gate` (> `link_gate`), the ends and starts the first assignment left unlinked
@@ -34,7 +35,9 @@ def link_segments(ends: list[tuple], scan_times: FloatArray, *, q: float, link_g
     all) limits the second assignment's pairs. With `crossing_gap_scans` (> `max_gap_scans`)
     the pairs of `relink_allowed` -- gaps across a crossing -- may bridge up to that many scans
     in both assignments: a slow crossing keeps two tracks ambiguous for longer than misses
-    would."""
+    would. With `curvature`, the end state is propagated across the gap with the mean of the
+    two segments' bearing accelerations (:func:`segment_accelerations`) and that mean's
+    variance is added to the link covariance."""
     n = len(ends)
     if n == 0:
         return []
@@ -45,6 +48,8 @@ def link_segments(ends: list[tuple], scan_times: FloatArray, *, q: float, link_g
     widest = link_gate if relink_gate is None else max(link_gate, relink_gate)
     longest = max_gap_scans if crossing_gap_scans is None else max(max_gap_scans,
                                                                      crossing_gap_scans)
+    acc, acc_var = (segment_accelerations(ends, scan_times) if curvature
+                    else (np.zeros(n), np.zeros(n)))
     for e in range(n):
         _, _, _, s1, x_e, p_e = ends[e]
         for s in range(n):
@@ -58,6 +63,10 @@ def link_segments(ends: list[tuple], scan_times: FloatArray, *, q: float, link_g
             f = transition_matrix(dt, 1)
             cov = f @ p_e @ f.T + wna_covariance(dt, q, 1) + p_s
             nu = x_s - f @ x_e
+            if curvature:
+                jac = np.array([0.5 * dt * dt, dt])
+                nu -= 0.5 * (acc[e] + acc[s]) * jac
+                cov = cov + 0.25 * (acc_var[e] + acc_var[s]) * np.outer(jac, jac)
             nu[0] = wrap_angle(nu[0])
             d2[e, s] = float(nu @ np.linalg.solve(cov, nu))
             if d2[e, s] <= widest:
@@ -81,6 +90,27 @@ def link_segments(ends: list[tuple], scan_times: FloatArray, *, q: float, link_g
             ch.append(nxt[ch[-1]])
         chains.append(ch)
     return chains
+
+
+#: Fewest scans a segment spans for its bearing acceleration to enter a link (`curvature`);
+#: a shorter segment's is taken as 0 (tuning seeds, RESULTS.md "Issue 18: links across slow
+#: crossings": 0, 5, 10, 15, 20, 30 tried).
+CURVATURE_MIN_SCANS = 10
+
+
+def segment_accelerations(ends: list[tuple], scan_times: FloatArray
+                          ) -> tuple[FloatArray, FloatArray]:
+    """Each segment's mean bearing acceleration, rad/s^2: the change of its rate from its first
+    to its last state over its span, with that estimate's variance (the two rates' variances
+    over the span squared); a segment spanning fewer than :data:`CURVATURE_MIN_SCANS` scans:
+    0 with variance 0."""
+    acc, var = np.zeros(len(ends)), np.zeros(len(ends))
+    for i, (s0, x0, p0, s1, x1, p1) in enumerate(ends):
+        span = float(scan_times[s1] - scan_times[s0])
+        if span > 0 and s1 - s0 >= CURVATURE_MIN_SCANS:
+            acc[i] = (x1[1] - x0[1]) / span
+            var[i] = (p0[1, 1] + p1[1, 1]) / span**2
+    return acc, var
 
 
 def _assign(cost: FloatArray) -> dict[int, int]:
