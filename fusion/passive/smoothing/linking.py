@@ -48,7 +48,7 @@ def link_segments(ends: list[tuple], scan_times: FloatArray, *, q: float, link_g
     widest = link_gate if relink_gate is None else max(link_gate, relink_gate)
     longest = max_gap_scans if crossing_gap_scans is None else max(max_gap_scans,
                                                                      crossing_gap_scans)
-    acc, acc_var = (segment_accelerations(ends, scan_times) if curvature
+    acc, acc_var = (segment_accelerations(ends, scan_times, q=q) if curvature
                     else (np.zeros(n), np.zeros(n)))
     for e in range(n):
         _, _, _, s1, x_e, p_e = ends[e]
@@ -96,19 +96,26 @@ def link_segments(ends: list[tuple], scan_times: FloatArray, *, q: float, link_g
 #: a shorter segment's is taken as 0 (tuning seeds, RESULTS.md "Issue 18: links across slow
 #: crossings": 0, 5, 10, 15, 20, 30 tried).
 CURVATURE_MIN_SCANS = 10
+#: ... and only where its rate changed over its span by more than the white-noise acceleration
+#: `q` and the two rates' variances explain: ``dr^2 > CURVATURE_SIGNIFICANCE (q span + P0_rr +
+#: P1_rr)`` (tried 1 and 4 on the tuning seeds; 4 removed the gain).
+CURVATURE_SIGNIFICANCE = 1.0
 
 
-def segment_accelerations(ends: list[tuple], scan_times: FloatArray
+def segment_accelerations(ends: list[tuple], scan_times: FloatArray, *, q: float = 0.0
                           ) -> tuple[FloatArray, FloatArray]:
     """Each segment's mean bearing acceleration, rad/s^2: the change of its rate from its first
     to its last state over its span, with that estimate's variance (the two rates' variances
-    over the span squared); a segment spanning fewer than :data:`CURVATURE_MIN_SCANS` scans:
-    0 with variance 0."""
+    over the span squared); 0 with variance 0 for a segment spanning fewer than
+    :data:`CURVATURE_MIN_SCANS` scans or whose rate change the white-noise acceleration `q`
+    (rad^2/s^3) and the rates' variances explain (:data:`CURVATURE_SIGNIFICANCE`)."""
     acc, var = np.zeros(len(ends)), np.zeros(len(ends))
     for i, (s0, x0, p0, s1, x1, p1) in enumerate(ends):
         span = float(scan_times[s1] - scan_times[s0])
-        if span > 0 and s1 - s0 >= CURVATURE_MIN_SCANS:
-            acc[i] = (x1[1] - x0[1]) / span
+        dr = x1[1] - x0[1]
+        if span > 0 and s1 - s0 >= CURVATURE_MIN_SCANS and (
+                dr * dr > CURVATURE_SIGNIFICANCE * (q * span + p0[1, 1] + p1[1, 1])):
+            acc[i] = dr / span
             var[i] = (p0[1, 1] + p1[1, 1]) / span**2
     return acc, var
 

@@ -84,3 +84,12 @@ def test_curvature_is_off_in_the_library_and_on_in_fusion_smooth(tmp_path, monke
         meta = json.loads((tmp_path / f"s{len(flag)}.settings.json").read_text())
         assert meta["link_curvature"] is (not flag)
     assert seen == [True, False]
+
+
+def test_an_acceleration_the_white_noise_explains_is_not_used():
+    """A rate change of 3e-4 rad/s over 300 s counts with q = 0; with q = 1e-9 rad^2/s^3
+    (rate variance 3e-7 over the span, above 9e-8) it is taken as 0."""
+    ends = [_seg(0, 30, 0.0, 3e-4, 1e-6)]
+    assert segment_accelerations(ends, SCAN_TIMES, q=0.0)[0][0] == pytest.approx(1e-6)
+    acc, var = segment_accelerations(ends, SCAN_TIMES, q=1e-9)
+    assert acc[0] == 0.0 and var[0] == 0.0
