@@ -5,7 +5,8 @@ Prints one JSON line of measured metrics (human lines on stderr)::
     python benchmarks/bench_smoothing.py [--seeds N] [--min-crossings M] [--tracks T]
     python benchmarks/bench_smoothing.py --association [--report]   # the ablation alone
     python benchmarks/bench_smoothing.py --association --seeds-from 9700 --seed-count 30 \
-        [--variants weighted no-relink ends nearest nn jpda] [--slow-deg-per-min 6]
+        [--variants weighted no-relink short-gaps no-curvature ends nearest nn jpda] \
+        [--slow-deg-per-min 6]
 
 The association ablation (``--association``, issue 18) runs on :data:`TUNING_SEEDS` (the seeds
 the association was developed on), with ``--report`` once on :data:`REPORT_SEEDS`, or on a
