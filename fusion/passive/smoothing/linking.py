@@ -12,7 +12,6 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import linear_sum_assignment
 
-from factors.motion import transition_matrix, wna_covariance
 from fusion.geometry import wrap_angle
 
 __all__ = ["crossing_clusters", "link_segments", "segment_accelerations"]
@@ -42,35 +41,28 @@ def link_segments(ends: list[tuple], scan_times: FloatArray, *, q: float, link_g
     if n == 0:
         return []
     period = float(np.median(np.diff(scan_times))) if scan_times.size > 1 else 1.0
-    d2 = np.full((n, n), np.inf)
-    lndet = np.zeros((n, n))
     # the cost's log-determinant only where a link can be made (the widest gate)
     widest = link_gate if relink_gate is None else max(link_gate, relink_gate)
     longest = max_gap_scans if crossing_gap_scans is None else max(max_gap_scans,
                                                                      crossing_gap_scans)
     acc, acc_var = (segment_accelerations(ends, scan_times, q=q) if curvature
                     else (np.zeros(n), np.zeros(n)))
-    for e in range(n):
-        _, _, _, s1, x_e, p_e = ends[e]
-        for s in range(n):
-            s0, x_s, p_s = ends[s][0], ends[s][1], ends[s][2]
-            dt = float(scan_times[s0] - scan_times[s1]) if s0 > s1 else -1.0
-            if s == e or dt <= 0 or dt > longest * period:
-                continue
-            if dt > max_gap_scans * period and (relink_allowed is None
-                                                or not relink_allowed[e, s]):
-                continue
-            f = transition_matrix(dt, 1)
-            cov = f @ p_e @ f.T + wna_covariance(dt, q, 1) + p_s
-            nu = x_s - f @ x_e
-            if curvature:
-                jac = np.array([0.5 * dt * dt, dt])
-                nu -= 0.5 * (acc[e] + acc[s]) * jac
-                cov = cov + 0.25 * (acc_var[e] + acc_var[s]) * np.outer(jac, jac)
-            nu[0] = wrap_angle(nu[0])
-            d2[e, s] = float(nu @ np.linalg.solve(cov, nu))
-            if d2[e, s] <= widest:
-                lndet[e, s] = float(np.log(np.linalg.det(cov)))
+    s0 = np.array([int(x[0]) for x in ends])
+    s1 = np.array([int(x[3]) for x in ends])
+    ok = s0[None, :] > s1[:, None]  # end e (row) before start s (column)
+    dtm = np.where(ok, scan_times[s0][None, :] - scan_times[s1][:, None], -1.0)
+    ok &= (dtm > 0) & (dtm <= longest * period)
+    np.fill_diagonal(ok, False)
+    far = dtm > max_gap_scans * period
+    ok &= ~far if relink_allowed is None else (~far | relink_allowed)
+    ei, si = np.nonzero(ok)
+    d2 = np.full((n, n), np.inf)
+    lndet = np.zeros((n, n))
+    if ei.size:
+        d2_k, lndet_k = _link_distances(ends, ei, si, dtm[ei, si], q, acc, acc_var)
+        d2[ei, si] = d2_k
+        inside = d2_k <= widest
+        lndet[ei[inside], si[inside]] = lndet_k[inside]
     nxt = _assign(np.where(d2 <= link_gate, d2 + lndet, np.inf))
     if relink_gate is not None and relink_gate > link_gate:
         free_e = np.array([e not in nxt for e in range(n)])
@@ -100,6 +92,34 @@ CURVATURE_MIN_SCANS = 10
 #: `q` and the two rates' variances explain: ``dr^2 > CURVATURE_SIGNIFICANCE (q span + P0_rr +
 #: P1_rr)`` (tried 1 and 4 on the tuning seeds; 4 removed the gain).
 CURVATURE_SIGNIFICANCE = 1.0
+
+
+def _link_distances(ends: list[tuple], ei: NDArray[np.int64], si: NDArray[np.int64],
+                    dt: FloatArray, q: float, acc: FloatArray, acc_var: FloatArray
+                    ) -> tuple[FloatArray, FloatArray]:
+    """Squared Mahalanobis distance and ``ln det S`` of the links (end ``ei``, start ``si``)
+    over gaps `dt`, all at once: ``nu = x_s - F x_e`` (less the mean acceleration's part),
+    ``S = F P_e F' + Q(dt) + P_s`` (plus its variance's), in closed form for 2 x 2."""
+    xe = np.array([x[4] for x in ends], float)[ei]
+    pe = np.array([x[5] for x in ends], float)[ei]
+    xs = np.array([x[1] for x in ends], float)[si]
+    ps = np.array([x[2] for x in ends], float)[si]
+    fp01 = pe[:, 0, 1] + dt * pe[:, 1, 1]
+    c00 = pe[:, 0, 0] + dt * pe[:, 1, 0] + fp01 * dt + q * dt**3 / 3.0 + ps[:, 0, 0]
+    c01 = fp01 + q * dt**2 / 2.0 + ps[:, 0, 1]
+    c10 = pe[:, 1, 0] + pe[:, 1, 1] * dt + q * dt**2 / 2.0 + ps[:, 1, 0]
+    c11 = pe[:, 1, 1] + q * dt + ps[:, 1, 1]
+    nu0 = xs[:, 0] - (xe[:, 0] + dt * xe[:, 1])
+    nu1 = xs[:, 1] - xe[:, 1]
+    a_bar = 0.5 * (acc[ei] + acc[si])
+    v_bar = 0.25 * (acc_var[ei] + acc_var[si])
+    j0, j1 = 0.5 * dt * dt, dt
+    nu0, nu1 = wrap_angle(nu0 - a_bar * j0), nu1 - a_bar * j1
+    c00, c01, c10, c11 = (c00 + v_bar * j0 * j0, c01 + v_bar * j0 * j1, c10 + v_bar * j1 * j0,
+                          c11 + v_bar * j1 * j1)
+    det = c00 * c11 - c01 * c10
+    d2 = (nu0 * (c11 * nu0 - c01 * nu1) + nu1 * (c00 * nu1 - c10 * nu0)) / det
+    return d2, np.log(det)
 
 
 def segment_accelerations(ends: list[tuple], scan_times: FloatArray, *, q: float = 0.0

@@ -93,3 +93,37 @@ def test_an_acceleration_the_white_noise_explains_is_not_used():
     assert segment_accelerations(ends, SCAN_TIMES, q=0.0)[0][0] == pytest.approx(1e-6)
     acc, var = segment_accelerations(ends, SCAN_TIMES, q=1e-9)
     assert acc[0] == 0.0 and var[0] == 0.0
+
+
+@pytest.mark.parametrize("curvature", [False, True])
+def test_link_distances_equal_the_per_pair_matrices(curvature):
+    """The closed-form 2 x 2 distances of all links at once equal ``nu' S^-1 nu`` and
+    ``ln det S`` built per pair with the motion model's F and Q and a linear solve."""
+    from factors.motion import transition_matrix, wna_covariance
+    from fusion.geometry import wrap_angle
+    from fusion.passive.smoothing.linking import _link_distances
+
+    rng = np.random.default_rng(3)
+    ends = []
+    for k in range(6):
+        a = rng.normal(size=(2, 2))
+        p0 = a @ a.T * np.array([[1e-5, 1e-7], [1e-7, 1e-9]]) + np.diag([1e-6, 1e-10])
+        s0 = 14 * k
+        ends.append((s0, rng.normal([3.0, 0.0], [0.5, 1e-3]), p0, s0 + 11,
+                     rng.normal([-3.0, 0.0], [0.5, 1e-3]), p0.T.copy()))
+    q = 1e-9
+    acc, var = (segment_accelerations(ends, SCAN_TIMES, q=0.0) if curvature
+                else (np.zeros(6), np.zeros(6)))
+    ei, si = np.array([0, 0, 1, 2, 3, 4]), np.array([1, 3, 5, 4, 5, 5])
+    dt = SCAN_TIMES[[ends[s][0] for s in si]] - SCAN_TIMES[[ends[e][3] for e in ei]]
+    assert (acc != 0).sum() == (5 if curvature else 0)
+    d2, lndet = _link_distances(ends, ei, si, dt, q, acc, var)
+    for k, (e, s) in enumerate(zip(ei, si, strict=True)):
+        f = transition_matrix(dt[k], 1)
+        cov = f @ ends[e][5] @ f.T + wna_covariance(dt[k], q, 1) + ends[s][2]
+        jac = np.array([0.5 * dt[k] ** 2, dt[k]])
+        nu = ends[s][1] - f @ ends[e][4] - 0.5 * (acc[e] + acc[s]) * jac
+        cov = cov + 0.25 * (var[e] + var[s]) * np.outer(jac, jac)
+        nu[0] = wrap_angle(nu[0])
+        assert d2[k] == pytest.approx(nu @ np.linalg.solve(cov, nu), rel=1e-9)
+        assert lndet[k] == pytest.approx(np.log(np.linalg.det(cov)), rel=1e-9)
