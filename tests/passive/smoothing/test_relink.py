@@ -292,3 +292,24 @@ def test_cli_rejects_a_bad_crossing_gap(tmp_path, capsys):
     assert main(["smooth", "--bearings", str(src), "--out", str(tmp_path / "o.csv"),
                  "--crossing-gap-scans", "0"]) == 2
     assert "--crossing-gap-scans: must be >= 1" in capsys.readouterr().err
+
+
+def test_across_crossings_known_answer():
+    """Pairs (end, start) whose gap (one scan of margin) holds an ambiguous scan of the end's
+    or the start's tracker track: tracker track 0 is ambiguous at scan 5 only."""
+    from fusion.passive.smoothing.segments import across_crossings
+
+    ambiguous = np.zeros((2, 30), bool)
+    ambiguous[0, 5] = True
+    tr = SimpleNamespace(labels=np.array([0, 1, 1, 0]))
+    segments = [np.array([0]), np.array([1]), np.array([2]), np.array([3])]
+    # (first scan, ., ., last scan) of segments A (track 0), B (1), C (1), D (0)
+    ends = [(0, None, None, 3), (8, None, None, 10), (12, None, None, 16),
+            (20, None, None, 25)]
+    out = across_crossings(ambiguous, tr, segments, ends)
+    want = np.zeros((4, 4), bool)
+    want[0, 1] = want[0, 2] = want[0, 3] = True  # gaps from scan 3 hold scan 5
+    assert (out == want).all()
+    ambiguous[1, 17] = True  # now the gaps of B -> D and C -> D hold track 1's scan 17
+    want[1, 3] = want[2, 3] = True
+    assert (across_crossings(ambiguous, tr, segments, ends) == want).all()
