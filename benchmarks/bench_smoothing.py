@@ -5,12 +5,15 @@ Prints one JSON line of measured metrics (human lines on stderr)::
     python benchmarks/bench_smoothing.py [--seeds N] [--min-crossings M] [--tracks T]
     python benchmarks/bench_smoothing.py --association [--report]   # the ablation alone
     python benchmarks/bench_smoothing.py --association --seeds-from 9700 --seed-count 30 \
-        [--variants weighted no-relink ends nearest nn jpda] [--slow-deg-per-min 6]
+        [--variants weighted no-relink short-gaps no-curvature ends nearest nn jpda] \
+        [--slow-deg-per-min 6]
 
 The association ablation (``--association``, issue 18) runs on :data:`TUNING_SEEDS` (the seeds
 the association was developed on), with ``--report`` once on :data:`REPORT_SEEDS`, or on a
 fresh range (``--seeds-from``). Variants: weighted (the default smoother), ``no-relink``
-(weighted, no second link assignment: ``fusion smooth --relink-gate 30``), ``ends`` (weighted,
+(weighted, no second link assignment: ``fusion smooth --relink-gate 30``), ``short-gaps``
+(weighted, links across a crossing no longer than others: ``--crossing-gap-scans 40``),
+``no-curvature`` (weighted, constant-rate links: ``--no-link-curvature``), ``ends`` (weighted,
 tracks extended over their ambiguous ends: ``fusion smooth --end-extension``), nearest
 assignment, the nearest-neighbour tracker alone, Stone Soup's JPDA. Every crossing not kept
 is classified (``crossing_failure_causes``: one stderr line each, counts in the JSON).
@@ -157,7 +160,8 @@ def _association_scenario(seed: int):
 
 
 def _smoother_from_data(t, z, association: str, st=None,
-                        extend_ends: bool = False, relink_gate: float = 100.0
+                        extend_ends: bool = False, relink_gate: float = 100.0,
+                        crossing_gap_scans: int | None = 60, link_curvature: bool = True
                         ) -> tuple[MultiTrackSmoother, object]:
     """The multi-track smoother as ``fusion smooth`` builds it: every setting fitted to the
     unlabelled rows (nothing from the truth; `st` those settings if already fitted); the
@@ -169,12 +173,14 @@ def _smoother_from_data(t, z, association: str, st=None,
         q=st.q_deg2_per_s3 * np.radians(1.0) ** 2, clutter_density=None,
         p_detect=st.p_detect, min_length=st.min_length, association=association,
         init_sigma_rate=np.radians(st.init_sigma_rate_deg_per_s), max_misses=st.max_misses,
-        max_gap_scans=st.max_gap_scans, extend_ends=extend_ends, relink_gate=relink_gate)
+        max_gap_scans=st.max_gap_scans, extend_ends=extend_ends, relink_gate=relink_gate,
+        crossing_gap_scans=crossing_gap_scans, link_curvature=link_curvature)
     return mts, st
 
 
 #: Variants of the association ablation.
-VARIANTS = ("weighted", "no-relink", "ends", "nearest", "nn", "jpda")
+VARIANTS = ("weighted", "no-relink", "short-gaps", "no-curvature", "ends", "nearest", "nn",
+            "jpda")
 
 
 def bench_association(seeds, within_s: float = 60.0, names=VARIANTS,
@@ -220,10 +226,14 @@ def bench_association(seeds, within_s: float = 60.0, names=VARIANTS,
                 tracks = {m: (res.scan_times[res.first_scan[m]: res.last_scan[m] + 1],
                               res.states[m][:, 0]) for m in range(res.n_tracks)}
             else:  # "ends": weighted, tracks extended beyond their end segments;
-                # "no-relink": weighted, no second link assignment (relink_gate = link_gate)
+                # "no-relink": weighted, no second link assignment (relink_gate = link_gate);
+                # "short-gaps": weighted, links across crossings no longer than other links;
+                # "no-curvature": weighted, constant-rate links
                 mts, _ = _smoother_from_data(
                     t, z, "nearest" if name == "nearest" else "weighted", st,
-                    extend_ends=name == "ends", relink_gate=30.0 if name == "no-relink" else 100.0)
+                    extend_ends=name == "ends", relink_gate=30.0 if name == "no-relink" else 100.0,
+                    crossing_gap_scans=None if name == "short-gaps" else 60,
+                    link_curvature=name != "no-curvature")
                 res = mts.run(t, z)
                 if name == "weighted":
                     lam_counted = mts.used_clutter_density

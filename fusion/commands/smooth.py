@@ -74,6 +74,16 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="unknown-origin rows: the wider gate of a second link assignment "
                         "among the segment ends and starts the first left unlinked (default "
                         "100; not above --link-gate: no second assignment)")
+    p.add_argument("--crossing-gap-scans", type=number(int, ge=1, le=MAX_SCANS_OPTION),
+                   default=60,
+                   help="unknown-origin rows: longest gap, in scans, a link may bridge across "
+                        "a crossing (an ambiguous scan in the gap; slow crossings keep two "
+                        "tracks ambiguous for long); default 60, not above --max-gap-scans: "
+                        "off")
+    p.add_argument("--link-curvature", action=argparse.BooleanOptionalAction, default=True,
+                   help="unknown-origin rows: a link between two segments propagates the "
+                        "bearing with their mean bearing acceleration (default: on; "
+                        "--no-link-curvature: constant rate)")
     p.add_argument("--output-times", choices=("grid", "states"), default="states",
                    help="states (default): the smoother's own state times; grid: every track "
                         "on the regular grid of --period-s through gaps up to --max-gap-scans "
@@ -149,6 +159,8 @@ def run(args: argparse.Namespace) -> int:
                                  extend_ends=args.extend_ends,
                                  end_detections=args.end_detections,
                                  link_gate=args.link_gate, relink_gate=args.relink_gate,
+                                 crossing_gap_scans=args.crossing_gap_scans,
+                                 link_curvature=args.link_curvature,
                                  on_rows=bar.update)
     except RuntimeError as e:  # gtsam: an ill-posed graph
         bar.close()
@@ -161,7 +173,9 @@ def run(args: argparse.Namespace) -> int:
     counted = result.association_clutter_density
     assoc = {"association": args.association, "output_times": args.output_times,
              "end_extension": args.extend_ends, "end_detections": args.end_detections,
-             "link_gate": args.link_gate, "relink_gate": args.relink_gate}
+             "link_gate": args.link_gate, "relink_gate": args.relink_gate,
+             "crossing_gap_scans": args.crossing_gap_scans,
+             "link_curvature": args.link_curvature}
     if counted is not None:
         assoc["association_clutter_density"] = float(counted)
     write_settings(args.out, {"command": "smooth", "tracks": len(tracks), "settings": st.as_dict(),

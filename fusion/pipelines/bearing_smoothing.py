@@ -139,6 +139,8 @@ def smooth_bearings(
     end_detections: str = "own",
     link_gate: float = 30.0,
     relink_gate: float = 100.0,
+    crossing_gap_scans: int | None = 60,
+    link_curvature: bool = True,
     on_rows: Callable[[int], None] | None = None,
     **given: Any,
 ) -> SmoothingResult:
@@ -159,9 +161,11 @@ def smooth_bearings(
     extend_ends : bool, keyword-only
         Tracks from unknown-origin rows extended over the ambiguous detections beyond their
         first and last segments (``fusion smooth --end-extension``: True; default False).
-    end_detections, link_gate, relink_gate : keyword-only
+    end_detections, link_gate, relink_gate, crossing_gap_scans, link_curvature : keyword-only
         As :class:`~fusion.passive.smoothing.multitrack.MultiTrackSmoother`'s
-        (``--end-detections``, ``--link-gate``, ``--relink-gate``).
+        (``--end-detections``, ``--link-gate``, ``--relink-gate``,
+        ``--crossing-gap-scans``, ``--link-curvature``; the last two on here, off in the
+        library).
     on_rows : callable, keyword-only
         Progress callback of the smoothing (see
         :func:`fusion.passive.smoothing.table.smooth_bearings`).
@@ -197,7 +201,9 @@ def smooth_bearings(
                                init_sigma_rate=np.radians(st.init_sigma_rate_deg_per_s),
                                max_misses=st.max_misses, max_gap_scans=st.max_gap_scans,
                                extend_ends=extend_ends, end_detections=end_detections,
-                               link_gate=link_gate, relink_gate=relink_gate)
+                               link_gate=link_gate, relink_gate=relink_gate,
+                               crossing_gap_scans=crossing_gap_scans,
+                               link_curvature=link_curvature)
     bearing_deg = np.asarray(table["bearing_deg"], dtype=float)
     times = np.asarray(table["time"], dtype=float)
     tracks = smooth_rows(np.asarray(table["track_id"]), times, _radians(bearing_deg),

@@ -101,6 +101,10 @@ class MultiTrackSmoother:
         one track end left free for it instead of starting a new track (Notes, 3).
     max_gap_scans : int, keyword-only
         Longest gap, in scan periods, that a segment link may bridge (default 40).
+    crossing_gap_scans, link_curvature : keyword-only
+        Of :func:`~fusion.passive.smoothing.linking.link_segments`: longest gap of a link
+        across a crossing (default None: `max_gap_scans`), links with the segments' bearing
+        accelerations (default False); ``fusion smooth``: 60 and True.
     fit_scans : int, keyword-only
         Scans at each end of a segment used for its end states (default 30).
     margin_scans : int, keyword-only
@@ -174,6 +178,8 @@ class MultiTrackSmoother:
         link_gate: float = 30.0,
         relink_gate: float = 100.0,
         max_gap_scans: int = 40,
+        crossing_gap_scans: int | None = None,
+        link_curvature: bool = False,
         fit_scans: int = 30,
         margin_scans: int = 10,
         em_tol: float = 1e-3,
@@ -210,6 +216,7 @@ class MultiTrackSmoother:
         if max_gap_scans < 1 or fit_scans < 2 or margin_scans < 0:
             raise ValueError("max_gap_scans must be >= 1, fit_scans >= 2, margin_scans >= 0")
         self.max_gap_scans = int(max_gap_scans)
+        self.crossing_gap_scans, self.link_curvature = crossing_gap_scans, bool(link_curvature)
         self.fit_scans = int(fit_scans)
         self.margin_scans = int(margin_scans)
         self.em_tol = check_positive("em_tol", em_tol)
@@ -250,9 +257,8 @@ class MultiTrackSmoother:
         scan_times = tr.scan_times
         scan_of = np.searchsorted(scan_times, t)
         segments = self._segments(tr, z, scan_of)
-        # what a track may be extended over beyond its ends: detections the tracker took
-        # (``tracked``) or only those of the tracker track its end segment came from, and
-        # those it left shared with that track as a candidate (``own``)
+        # what a track's ends may be extended over: detections the tracker took (``tracked``)
+        # or those of its end segment's tracker track and those left shared with it (``own``)
         tracked = (tr.labels >= 0) | np.array([len(c) > 0 for c in tr.candidates], bool)
         self._failed_fits: list[tuple[int, int, str]] = []
         self._n_fits = 0
@@ -263,10 +269,11 @@ class MultiTrackSmoother:
                            "keep their initial line with weak covariances",
                            self._failed_fits[0][2], len(self._failed_fits), self._n_fits, spans,
                            ", ..." if len(self._failed_fits) > 5 else "")
-        chains = link_segments(ends, scan_times, q=self.model.q, link_gate=self.link_gate,
-                               max_gap_scans=self.max_gap_scans, relink_gate=self.relink_gate,
-                               relink_allowed=across_crossings(self._ambiguous, tr, segments,
-                                                               ends))
+        across = across_crossings(self._ambiguous, tr, segments, ends)
+        chains = link_segments(
+            ends, scan_times, q=self.model.q, link_gate=self.link_gate, relink_allowed=across,
+            max_gap_scans=self.max_gap_scans, relink_gate=self.relink_gate,
+            crossing_gap_scans=self.crossing_gap_scans, curvature=self.link_curvature)
         # hard labels per track, drop short tracks
         labels = np.full(t.size, -1, np.int64)
         kept: list[list[int]] = []

@@ -70,12 +70,15 @@ def across_crossings(ambiguous: NDArray[np.bool_], tr: TrackerResult,
     """Pairs (end, start) of the second link assignment: the gap between them (one scan of
     margin) holds an ambiguous scan of the end's or the start's tracker track -- a fragment
     across a crossing, not a track that ended and another that began."""
-    k = [int(tr.labels[seg[0]]) for seg in segments]
     n = len(segments)
-    out = np.zeros((n, n), bool)
-    for e in range(n):
-        for s in range(n):
-            lo, hi = ends[e][3], ends[s][0] + 2
-            if hi > lo + 1:
-                out[e, s] = bool(ambiguous[k[e], lo:hi].any() or ambiguous[k[s], lo:hi].any())
-    return out
+    if n == 0:
+        return np.zeros((0, 0), bool)
+    k = np.array([int(tr.labels[seg[0]]) for seg in segments])
+    lo = np.array([int(x[3]) for x in ends])  # scans [lo, hi) of the gap from end e to start s
+    hi = np.minimum(np.array([int(x[0]) for x in ends]) + 2, ambiguous.shape[1])
+    # ambiguous scans of each tracker track before each scan (a prefix count)
+    before = np.zeros((ambiguous.shape[0], ambiguous.shape[1] + 1), np.int64)
+    np.cumsum(ambiguous, axis=1, out=before[:, 1:])
+    in_end = before[k[:, None], hi[None, :]] - before[k, lo][:, None]
+    in_start = before[k[None, :], hi[None, :]] - before[k[None, :], lo[:, None]]
+    return (hi[None, :] > lo[:, None] + 1) & ((in_end > 0) | (in_start > 0))

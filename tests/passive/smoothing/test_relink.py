@@ -209,3 +209,107 @@ def test_crossing_failure_causes_known_answers(case, rate, cause):
     got = crossing_failure_causes(true, est, t, cr, [rate], slow_deg_per_min=6.0, **KW)
     assert got == [cause]
     assert (cause == "") == (crossing_outcomes(true, est, t, cr, **KW)[0] == "kept")
+
+
+def test_crossing_gap_scans_links_across_a_long_ambiguous_gap():
+    """A gap of 50 scans across a crossing (relink_allowed): linked with crossing_gap_scans
+    60, not with it off (None, or not above max_gap_scans), nor where the gap holds no
+    ambiguous scan."""
+    scan_times = 10.0 * np.arange(120)
+    p = np.diag([1e-6, 1e-10])
+    x_e = np.array([0.3, 1e-4])
+    dt = scan_times[60] - scan_times[10]
+    x_s = transition_matrix(dt, 1) @ x_e
+    ends = [_end(0, x_e - [1e-2, 0], 10, x_e, p), _end(60, x_s, 80, x_s + [2e-2, 0], p)]
+    kw = {"q": Q, "link_gate": 30.0, "max_gap_scans": 40, "relink_gate": 100.0}
+    across = np.array([[False, True], [False, False]])
+    assert link_segments(ends, scan_times, relink_allowed=across, crossing_gap_scans=60,
+                         **kw) == [[0, 1]]
+    assert link_segments(ends, scan_times, relink_allowed=across, **kw) == [[0], [1]]
+    assert link_segments(ends, scan_times, relink_allowed=across, crossing_gap_scans=40,
+                         **kw) == [[0], [1]]
+    assert link_segments(ends, scan_times, relink_allowed=np.zeros((2, 2), bool),
+                         crossing_gap_scans=60, **kw) == [[0], [1]]
+
+
+def _slow_crossing(seed=0):
+    """Targets 0 and 1 cross at 700 s at 5e-5 rad/s relative rate (0.17 deg/min): within the
+    smoother's separation for more than 40 scans."""
+    rng = np.random.default_rng(seed)
+    ts = 10.0 * np.arange(140)
+    t = np.repeat(ts, 2)
+    lab = np.tile([0, 1], ts.size)
+    z = np.where(lab == 0, 0.3 + 2.5e-5 * (t - 700), 0.3 - 2.5e-5 * (t - 700))
+    return t, z + rng.normal(0, 0.004, t.size), lab
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2, 3])
+def test_smoother_links_across_a_slow_crossing(seed):
+    """With crossing_gap_scans 60 each target of a slow crossing is followed by one track
+    before and after it (two tracks); with the gap limited to max_gap_scans (40) the
+    tracks end at the ambiguous stretch and the targets after it get new ones (four
+    tracks). Straight bearing lines: q small enough that the rates tell the pairs apart."""
+    t, z, lab = _slow_crossing(seed)
+    for gap, kept in ((60, True), (None, False)):
+        res = MultiTrackSmoother(crossing_gap_scans=gap, **{**KW_MTS, "q": 1e-13}).run(t, z)
+        follow = []
+        for k in (0, 1):
+            for sel in ((lab == k) & (t < 250), (lab == k) & (t > 1150)):
+                lk = res.labels[sel]
+                follow.append(np.bincount(lk[lk >= 0]).argmax() if (lk >= 0).any() else -1)
+        same = follow[0] == follow[1] and follow[2] == follow[3] and follow[0] != follow[2]
+        assert same == kept, (gap, follow, len(res.tracks))
+        assert len(res.tracks) == (2 if kept else 4)
+
+
+def test_cli_crossing_gap_scans_reaches_the_smoother(tmp_path):
+    """``fusion smooth --crossing-gap-scans``: 60 (default) links the slow crossing's
+    fragments (2 tracks), 40 (= --max-gap-scans: off) leaves 4; written to the settings."""
+    t, z, _ = _slow_crossing(0)
+    src = tmp_path / "b.csv"
+    src.write_text("track_id,time,bearing_deg\n" + "".join(
+        f"-1,{a},{b}\n" for a, b in zip(t, np.degrees(z), strict=True)))
+    n = {}
+    for gap in ("60", "40", None):
+        out = tmp_path / f"s{gap}.csv"
+        assert main(["smooth", "--bearings", str(src), "--out", str(out), "--quiet",
+                     "--bearing-sigma-deg", "0.2292", "--accel-psd-deg2-per-s3", "3.283e-10",
+                     "--clutter-density", "0.1", "--detection-probability", "0.9",
+                     "--init-rate-sigma-deg-per-s", "0.573", "--max-misses", "5",
+                     "--max-gap-scans", "40", "--min-length", "5", "--merge-deg", "0",
+                     "--twin-deg", "0"] + ([] if gap is None else ["--crossing-gap-scans", gap])
+                    ) == 0
+        _, *rows = out.read_text().splitlines()
+        n[gap] = len({r.split(",")[0] for r in rows})
+        meta = json.loads((tmp_path / f"s{gap}.settings.json").read_text())
+        assert meta["crossing_gap_scans"] == int(gap or 60)
+    assert n == {"60": 2, "40": 4, None: 2}
+
+
+def test_cli_rejects_a_bad_crossing_gap(tmp_path, capsys):
+    src = tmp_path / "b.csv"
+    src.write_text("track_id,time,bearing_deg\n-1,0,1\n-1,10,1.1\n")
+    assert main(["smooth", "--bearings", str(src), "--out", str(tmp_path / "o.csv"),
+                 "--crossing-gap-scans", "0"]) == 2
+    assert "--crossing-gap-scans: must be >= 1" in capsys.readouterr().err
+
+
+def test_across_crossings_known_answer():
+    """Pairs (end, start) whose gap (one scan of margin) holds an ambiguous scan of the end's
+    or the start's tracker track: tracker track 0 is ambiguous at scan 5 only."""
+    from fusion.passive.smoothing.segments import across_crossings
+
+    ambiguous = np.zeros((2, 30), bool)
+    ambiguous[0, 5] = True
+    tr = SimpleNamespace(labels=np.array([0, 1, 1, 0]))
+    segments = [np.array([0]), np.array([1]), np.array([2]), np.array([3])]
+    # (first scan, ., ., last scan) of segments A (track 0), B (1), C (1), D (0)
+    ends = [(0, None, None, 3), (8, None, None, 10), (12, None, None, 16),
+            (20, None, None, 25)]
+    out = across_crossings(ambiguous, tr, segments, ends)
+    want = np.zeros((4, 4), bool)
+    want[0, 1] = want[0, 2] = want[0, 3] = True  # gaps from scan 3 hold scan 5
+    assert (out == want).all()
+    ambiguous[1, 17] = True  # now the gaps of B -> D and C -> D hold track 1's scan 17
+    want[1, 3] = want[2, 3] = True
+    assert (across_crossings(ambiguous, tr, segments, ends) == want).all()
