@@ -1,15 +1,15 @@
 """A window's TDOAs of weakly heard sensors from integrated click trains.
 
 Where the validated TDOAs of a window (those of eight clicks or more) span fewer than four
-sensors (no 3-D fix without more),
-the click train of a sensor that hears the whale well -- the clicks of its strongest validated
-TDOA, or, where nothing validated, the clicks detected on the sensor with the most of them --
-is the reference; every sensor outside the validated ones gets the detection statistic (each
-frame clipped at the detection threshold) summed along that train over its pair's possible delays and drifts
-(:func:`fusion.clicks.train_integration.train_delay`). A delay whose sum stands above the sum's
-own noise at the false-alarm probability becomes a TDOA of the pair (``passes`` True,
-``train_z`` its excess), its sigma from the peak's curvature; it is then associated across
-time, like the others, before a fix may use it. ``docs/localization.md`` section 19.
+sensors (no 3-D fix without more), the click train of a sensor that hears the whale well -- the
+clicks of its strongest validated TDOA, or, where nothing validated, the clicks detected on the
+sensor with the most of them -- is the reference; every sensor outside the validated ones gets
+the detection statistic (each frame clipped at the detection threshold) summed along that train
+over its pair's possible delays and drifts (:func:`fusion.clicks.train_integration.train_delay`).
+A delay whose sum stands above the sum's own noise at the false-alarm probability becomes a TDOA
+of the pair (``passes`` True, ``train_z`` its excess), its sigma from the peak's curvature; it
+is then associated across time, like the others, before a fix may use it.
+``docs/localization.md`` section 19.
 """
 
 from __future__ import annotations
@@ -59,8 +59,8 @@ def _as_tdoa(m: int, k: int, ref: NDArray[np.float64], dl: TrainDelay) -> Window
     if m < k:  # t_m - t_k = -(delay + r (t_m - t_c))
         pair, tau, rate, times = (m, k), -dl.delay_s, -dl.rate, ref
     else:  # t_k - t_m at t_k = t_c: delay + r (t_c - delay - t_c)
-        pair, tau, rate, times = (k, m), dl.delay_s * (1.0 - dl.rate), dl.rate, \
-            dl.times_at_weak(ref)
+        pair, tau, rate = (k, m), dl.delay_s * (1.0 - dl.rate), dl.rate
+        times = dl.times_at_weak(ref)
     return WindowTdoa(pair=pair, tau_s=float(tau), tau_coarse_s=float(tau),
                       sigma_s=dl.sigma_s, crb_s=math.nan, snr_db=math.nan, rate=float(rate),
                       scm_peak=math.nan, n_clicks=dl.n_clicks, features=np.full(4, np.nan),
