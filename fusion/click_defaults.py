@@ -9,7 +9,7 @@ validate alike (``docs/localization.md`` sections 8, 13 and 18).
 
 from __future__ import annotations
 
-__all__ = ["DETECT_FALSE_ALARMS_PER_S", "LLR_THRESHOLD"]
+__all__ = ["DETECT_FALSE_ALARMS_PER_S", "LLR_THRESHOLD", "TRAIN_FALSE_ALARMS"]
 
 #: Detection threshold as a noise false-alarm rate (``--detect-false-alarms-per-s``): the click
 #: detector's threshold is the level at which it finds this many clicks per channel-second in
@@ -25,3 +25,7 @@ DETECT_FALSE_ALARMS_PER_S = 0.5
 #: along their paths, rejects most false TDOAs that pass. With ``validator_v2.npz`` surface-echo
 #: trains of 8-11 clicks score LLR 0.03-0.4, so the bar is 0.5, not 0.
 LLR_THRESHOLD = 0.5
+
+#: False-alarm probability of one (window, pair) search of train integration
+#: (``--train-false-alarms-per-pair``, :mod:`fusion.clicks.train_integration`).
+TRAIN_FALSE_ALARMS = 1e-3

@@ -11,10 +11,10 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from fusion.clicks._frames import CHUNK, framed_filter, gather_frames
+from fusion.clicks._frames import CHUNK, framed_filter, gather_frames, interp_nodes, segment_medians
 from fusion.clicks._kernels import DetectorKernels
 
-__all__ = ["all_finite", "centre_frequency", "checked_input", "chunked_statistic",
+__all__ = ["all_finite", "centre_frequency", "checked_input", "chunked_statistic", "frame_statistic",
            "smoothed_envelope"]
 
 
@@ -121,3 +121,43 @@ def checked_input(samples, t0: float, span_s: tuple[float, float] | None
         if not (np.isfinite(span_s[0]) and np.isfinite(span_s[1]) and span_s[0] <= span_s[1]):
             raise ValueError(f"span_s must be (start, end) with start <= end, got {span_s!r}")
     return x, span_s
+
+
+def frame_statistic(det, x: NDArray[np.floating], fs: float, s0: int, k: DetectorKernels,
+                    frames: NDArray[np.int64], f_lo: int, f_hi: int) -> tuple[
+                        NDArray[np.int64], NDArray[np.int64], NDArray[np.float64],
+                        NDArray[np.float64], NDArray[np.float32]]:
+    """The normalised detection statistic of `det` (a :class:`~fusion.clicks.detect.
+    ClickDetector`) on ``frames[f_lo:f_hi]`` of `x` (n, ch) starting at absolute sample `s0`:
+    per-bin medians on every D-th frame of absolute segments as the background, then the band
+    sum over it (or the envelope over its own background). Returns the frames kept, their
+    background node interpolation (``left``, ``wgt``), the per-bin background and the
+    statistic (ch, frames)."""
+    tiny = float(np.finfo(np.float32).tiny)
+    n_frames = frames.size
+    sub = np.flatnonzero(frames % det.background_decimation == 0)
+    if sub.size == 0:
+        sub = np.arange(n_frames)
+    spec = gather_frames(x, s0, frames[sub], k.full)
+    p_sub = spec[..., 0::2] ** 2 + spec[..., 1::2] ** 2  # (ch, k, n_bins)
+    seg_len = det._seg_len(fs)
+    # a segment cut to under a quarter by an end of the audio gets no node of its own
+    min_count = max(1, -(-seg_len // det.background_decimation) // 4)
+    nodes, med = segment_medians(p_sub, frames[sub], seg_len, min_count)
+    bin_bg = np.maximum(med / np.log(2.0), tiny)  # mean = median / ln 2 (exponential)
+    frames = frames[f_lo:f_hi]
+    j_a, n_frames = int(frames[0]), frames.size
+    left, wgt = interp_nodes(frames.astype(float), nodes)
+    if det.method == "stft":
+        # flat band weights over the per-bin background, on the re and im columns
+        coef = np.repeat((1.0 / k.band.size) / bin_bg[:, :, k.band], 2, axis=2)
+        stat = chunked_statistic(x, s0, j_a, n_frames, k, coef.astype(np.float32), left, wgt,
+                                 nfft=det.nfft)
+    else:
+        env = chunked_statistic(x, s0, j_a, n_frames, k, None, left, wgt, nfft=det.nfft)
+        _, env_bg = segment_medians(env[:, sub], frames[sub], seg_len, min_count)
+        env_bg = np.maximum(env_bg / k.env_median_to_mean, tiny)  # mean-equivalent
+        right = np.minimum(left + 1, nodes.size - 1)
+        bg = env_bg[:, left] * (1.0 - wgt) + env_bg[:, right] * wgt
+        stat = env / bg.astype(np.float32)
+    return frames, left, wgt, bin_bg, stat

@@ -60,8 +60,7 @@ from numpy.typing import ArrayLike
 
 from fusion._validation import check_positive
 from fusion.clicks._click_peaks import local_maxima, not_echo, not_ringing
-from fusion.clicks._detect_statistic import centre_frequency, checked_input, chunked_statistic
-from fusion.clicks._frames import gather_frames, interp_nodes, segment_medians
+from fusion.clicks._detect_statistic import centre_frequency, checked_input, frame_statistic
 from fusion.clicks._kernels import DetectorKernels
 from fusion.clicks._noise_threshold import noise_threshold
 from fusion.clicks.band import DEFAULT_BAND_HZ
@@ -276,6 +275,22 @@ class ClickDetector:
         """
         return self._run(samples, fs, t0=t0, timings=None, span_s=span_s)
 
+    def statistic(self, samples: ArrayLike, fs: float, *, t0: float = 0.0
+                  ) -> tuple[np.ndarray, np.ndarray]:
+        """The normalised detection statistic itself (noise mean 1), the one :meth:`detect`
+        thresholds: the times of its frames (s, on the clock of `t0`; the replica's centre,
+        as click times) and its values (channels, frames), float32."""
+        x, _ = checked_input(samples, t0, None)
+        k = self._bank(float(fs))
+        s0 = int(round(t0 * fs))
+        j_a = -((k.centre - s0) // self.hop)
+        j_b = (s0 + x.shape[0] - 1 - k.centre) // self.hop
+        if j_b - j_a + 1 < 3:
+            return np.zeros(0), np.zeros((x.shape[1], 0), dtype=np.float32)
+        frames = np.arange(j_a, j_b + 1)
+        frames, *_, stat = frame_statistic(self, x, float(fs), s0, k, frames, 0, frames.size)
+        return t0 + (self.hop * frames + k.centre - s0) / float(fs), stat
+
     def with_recording_replica(
         self, samples: ArrayLike, fs: float, *, max_clicks: int = 300, min_clicks: int = 20,
     ) -> tuple[ClickDetector, ReplicaEstimate | None]:
@@ -439,35 +454,8 @@ class ClickDetector:
             if f_hi - f_lo < 3:
                 return [ChannelClicks(c) for c in range(n_ch)]
         lap("prepare")
-
-        # background: per-bin medians on every D-th frame of absolute segments
-        sub = np.flatnonzero(frames % self.background_decimation == 0)
-        if sub.size == 0:
-            sub = np.arange(n_frames)
-        spec = gather_frames(x32, s0, frames[sub], k.full)
-        p_sub = spec[..., 0::2] ** 2 + spec[..., 1::2] ** 2  # (ch, k, n_bins)
-        seg_len = self._seg_len(fs)
-        # a segment cut to under a quarter by an end of the audio gets no node of its own
-        min_count = max(1, -(-seg_len // self.background_decimation) // 4)
-        nodes, med = segment_medians(p_sub, frames[sub], seg_len, min_count)
-        bin_bg = np.maximum(med / np.log(2.0), _TINY)  # mean = median / ln 2 (exponential)
-        frames = frames[f_lo:f_hi]
+        frames, left, wgt, bin_bg, stat = frame_statistic(self, x, fs, s0, k, frames, f_lo, f_hi)
         j_a, n_frames = int(frames[0]), frames.size
-        left, wgt = interp_nodes(frames.astype(float), nodes)
-        lap("background")
-
-        if self.method == "stft":
-            # flat band weights over the per-bin background, on the re and im columns
-            coef = np.repeat((1.0 / k.band.size) / bin_bg[:, :, k.band], 2, axis=2)
-            stat = chunked_statistic(x, s0, j_a, n_frames, k, coef.astype(np.float32), left, wgt,
-                                     nfft=self.nfft)
-        else:
-            env = chunked_statistic(x, s0, j_a, n_frames, k, None, left, wgt, nfft=self.nfft)
-            _, env_bg = segment_medians(env[:, sub], frames[sub], seg_len, min_count)
-            env_bg = np.maximum(env_bg / k.env_median_to_mean, _TINY)  # mean-equivalent
-            right = np.minimum(left + 1, nodes.size - 1)
-            bg = env_bg[:, left] * (1.0 - wgt) + env_bg[:, right] * wgt
-            stat = env / bg.astype(np.float32)
         lap("statistic")
 
         out = []

@@ -64,6 +64,10 @@ class WindowTdoa:
     t_s : float
         Arrival time at sensor ``i`` at which `tau_s` holds, s from the start of the audio (the
         window centre; ``tau_s + rate (t - t_s)`` follows the delay through the window).
+    train_z : float
+        For a TDOA found by integrating a click train (:mod:`fusion.pipelines.clicks.
+        train_tdoas`): the excess of its sum over the sum's noise, robust standard deviations;
+        NaN for the click-map TDOAs.
     """
 
     pair: tuple[int, int]
@@ -82,6 +86,7 @@ class WindowTdoa:
     consistent: bool = True
     click_times_s: NDArray[np.float64] = field(default_factory=lambda: frozen_array([]))
     t_s: float = math.nan
+    train_z: float = math.nan
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "features", frozen_array(self.features))

@@ -61,7 +61,7 @@ import os
 from pathlib import Path
 
 from fusion.cli import emit, number, summary
-from fusion.click_defaults import DETECT_FALSE_ALARMS_PER_S
+from fusion.click_defaults import DETECT_FALSE_ALARMS_PER_S, TRAIN_FALSE_ALARMS
 
 #: Default of --max-tdoa-rate (fusion.clicks.scm.MAX_TDOA_RATE, not imported here: --help stays
 #: light).
@@ -149,6 +149,15 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="admit no TDOA that failed validation (default: where the validated "
                         "TDOAs of a window span fewer than four sensors, partial click trains "
                         "of another sensor that close with them are admitted)")
+    p.add_argument("--no-train-integration", action="store_true",
+                   help="no TDOAs from click trains summed on weakly heard sensors (default: "
+                        "where the validated TDOAs of a window span fewer than four sensors, each "
+                        "other sensor's detection statistic is summed along a well-heard sensor's "
+                        "click train; docs/localization.md section 19)")
+    p.add_argument("--train-false-alarms-per-pair", type=number(float, gt=0, le=0.5),
+                   default=TRAIN_FALSE_ALARMS, metavar="P",
+                   help="false-alarm probability of one (window, sensor pair) train search "
+                        f"(default {TRAIN_FALSE_ALARMS:g})")
     p.add_argument("--strong-echoes-only", action="store_true",
                    help="count a sensor's bottom echo only at the full evidence threshold "
                         "(default: once one sensor shows one, weaker evidence on the others "
@@ -338,6 +347,7 @@ def _run_key(args: argparse.Namespace, audio: list) -> str:
         "options": {k: getattr(args, k) for k in (
             "window", "hop", "band", "min_centre_freq", "detect_threshold", "detect_false_alarms",
             "llr_threshold", "no_refine", "keep_aliases", "no_closure_support",
+            "no_train_integration", "train_false_alarms_per_pair",
             "strong_echoes_only", "max_tdoa_rate", "method", "chunk",
             "surface_paths", "sea_floor_z",
             "candidates", "min_source_tdoas")},
@@ -402,7 +412,9 @@ def run(args: argparse.Namespace) -> int:
         correlator=ClickMapCorrelator(config=ScmConfig(window_s=args.window),
                                       rates=drift_grid(args.max_tdoa_rate)),
         validator=validator, refiner=not args.no_refine, hop_s=args.hop,
-        alias_screen=not args.keep_aliases, closure_support=not args.no_closure_support)
+        alias_screen=not args.keep_aliases, closure_support=not args.no_closure_support,
+        train_integration=not args.no_train_integration,
+        train_false_alarms=args.train_false_alarms_per_pair)
     pipe, decided = _decided(args, ClickLocalization(front_end=front, localizer=localizer),
                              recordings[0][0], array)
     localizer = pipe.settings

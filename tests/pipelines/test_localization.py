@@ -324,8 +324,11 @@ def test_even_odds_validation_keeps_the_pairs_a_fix_needs(tmp_path):
     found = {}
     # the model's threshold alone: closure support (section 15) admits the far pairs' partial
     # trains that this threshold drops where the others span three sensors
+    # and train integration (section 19) sums the far sensors' statistic along the near ones'
+    # trains: both off for the model arm (with it, all 10 windows are localized there too)
     for name, extra in (("even", []), ("model", ["--validator", str(V1_MODEL_PATH),
-                                                 "--no-closure-support"])):
+                                                 "--no-closure-support",
+                                                 "--no-train-integration"])):
         extra = ["--detect-threshold", "6", *extra]
         found[name] = _localized_within_10_m(tmp_path, name, extra, truth)
     assert found["even"] == (10, 0, 10)

@@ -68,11 +68,13 @@ from fusion.clicks.detect import ClickDetector
 from fusion.clicks.scm import ClickMapCorrelator, ScmConfig, drift_grid, scm2_many
 from fusion.clicks.support import SUPPORT_MIN_LLR, closure_support
 from fusion.clicks.tdoa import TdoaRefiner
+from fusion.clicks.train_integration import TRAIN_FALSE_ALARMS
 from fusion.clicks.types import ChannelClicks
 from fusion.clicks.validate import TdoaValidator, scm2_features
 from fusion.clicks.window import ClickWindow, WindowTdoa
 from fusion.geometry import SensorArray
 from fusion.pipelines.clicks.stream import MeasuredWindow, measure_stream, window_starts_count
+from fusion.pipelines.clicks.train_tdoas import train_tdoas
 
 __all__ = ["DETECT_FALSE_ALARMS_PER_S", "LLR_THRESHOLD", "ClickFrontEnd", "ClickWindow",
            "WindowTdoa", "default_validator",
@@ -143,6 +145,12 @@ class ClickFrontEnd:
         Where the validated TDOAs of a window span fewer than four sensors, admit the partial
         trains of another sensor that close with them (:func:`fusion.clicks.support.
         closure_support`; default True, ``docs/localization.md`` section 15).
+    train_integration : bool, optional
+        Where they still span fewer than four, sum each other sensor's detection statistic
+        along a well-heard sensor's click train (:mod:`fusion.pipelines.clicks.train_tdoas`;
+        default True, ``docs/localization.md`` section 19).
+    train_false_alarms : float, optional
+        False-alarm probability of one (window, pair) train search.
     """
 
     def __init__(
@@ -159,6 +167,8 @@ class ClickFrontEnd:
         feature_decimation: int = 10,
         alias_screen: bool = True,
         closure_support: bool = True,
+        train_integration: bool = True,
+        train_false_alarms: float = TRAIN_FALSE_ALARMS,
     ) -> None:
         check_positive("hop_s", hop_s)
         check_positive("sigma_t_s", sigma_t_s)
@@ -187,6 +197,8 @@ class ClickFrontEnd:
         self.feature_decimation = int(feature_decimation)
         self.alias_screen = bool(alias_screen)
         self.closure_support = bool(closure_support)
+        self.train_integration = bool(train_integration)
+        self.train_false_alarms = check_positive("train_false_alarms", train_false_alarms)
 
     @property
     def window_s(self) -> float:
@@ -235,7 +247,7 @@ class ClickFrontEnd:
         inside = [c.between(t0_s, t1) for c in clicks]
         corr = self.correlator.correlate(inside, t0_s=t0_s, sensors=sensors)
         if not corr.peaks:
-            return []
+            return self._trains([], inside, sensors, audio, audio_t0_s, fs, t0_s)
         if audio is None or fs is None:
             refiner = None
         elif refiner is None and self._make_refiner is not None:
@@ -286,7 +298,21 @@ class ClickFrontEnd:
                    for d, a in zip(out, alias, strict=True)]
         if self.validator is not None and self.closure_support:
             out = self._supported(out, alias, measured)
-        return out
+        return self._trains(out, inside, sensors, audio, audio_t0_s, fs, t0_s)
+
+    def _trains(self, out: list[WindowTdoa], inside: list[ChannelClicks], sensors: SensorArray,
+                audio: NDArray | None, audio_t0_s: float, fs: float | None,
+                t0_s: float) -> list[WindowTdoa]:
+        """`out` and the TDOAs of click trains integrated on weakly heard sensors
+        (:func:`fusion.pipelines.clicks.train_tdoas.train_tdoas`), when switched on, validated
+        and given the audio."""
+        if not self.train_integration or self.validator is None or audio is None or fs is None:
+            return out
+        return out + train_tdoas(out, inside, detector=self.detector, sensors=sensors,
+                                 audio=audio, audio_t0_s=audio_t0_s, fs=fs,
+                                 t_c_s=t0_s + 0.5 * self.window_s,
+                                 max_rate=float(np.max(np.abs(self.correlator.rates))),
+                                 false_alarms=self.train_false_alarms)
 
     def _supported(self, out: list[WindowTdoa], alias: NDArray[np.bool_],
                    measured: Callable[[int, bool], WindowTdoa]) -> list[WindowTdoa]:
