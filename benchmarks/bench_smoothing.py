@@ -5,7 +5,8 @@ Prints one JSON line of measured metrics (human lines on stderr)::
     python benchmarks/bench_smoothing.py [--seeds N] [--min-crossings M] [--tracks T]
     python benchmarks/bench_smoothing.py --association [--report]   # the ablation alone
     python benchmarks/bench_smoothing.py --association --seeds-from 9700 --seed-count 30 \
-        [--variants weighted no-relink short-gaps no-curvature ends nearest nn jpda] \
+        [--variants weighted no-relink short-gaps no-curvature no-short-links ends starts nearest nn jpda] \
+        [--short-link-accel-psd-deg2-per-s3 5e-4] \
         [--slow-deg-per-min 6]
 
 The association ablation (``--association``, issue 18) runs on :data:`TUNING_SEEDS` (the seeds
@@ -46,6 +47,7 @@ from fusion.passive.smoothing import (
     rts_reference,
 )
 from fusion.passive.smoothing.settings import fit_smooth_settings
+from fusion.pipelines.bearing_smoothing import SHORT_LINK_Q_DEG2_PER_S3
 from fusion.simulate.bearings import simulate_bearings
 
 #: Seeds of the association ablation used while developing it (issue 18) ...
@@ -161,7 +163,9 @@ def _association_scenario(seed: int):
 
 def _smoother_from_data(t, z, association: str, st=None,
                         extend_ends: bool = False, relink_gate: float = 100.0,
-                        crossing_gap_scans: int | None = 60, link_curvature: bool = True
+                        crossing_gap_scans: int | None = 60, link_curvature: bool = True,
+                        extend_starts: bool = False,
+                        short_link_q_deg2_per_s3: float = SHORT_LINK_Q_DEG2_PER_S3
                         ) -> tuple[MultiTrackSmoother, object]:
     """The multi-track smoother as ``fusion smooth`` builds it: every setting fitted to the
     unlabelled rows (nothing from the truth; `st` those settings if already fitted); the
@@ -174,17 +178,19 @@ def _smoother_from_data(t, z, association: str, st=None,
         p_detect=st.p_detect, min_length=st.min_length, association=association,
         init_sigma_rate=np.radians(st.init_sigma_rate_deg_per_s), max_misses=st.max_misses,
         max_gap_scans=st.max_gap_scans, extend_ends=extend_ends, relink_gate=relink_gate,
-        crossing_gap_scans=crossing_gap_scans, link_curvature=link_curvature)
+        crossing_gap_scans=crossing_gap_scans, link_curvature=link_curvature,
+        extend_starts=extend_starts, short_link_q=short_link_q_deg2_per_s3 * np.radians(1.0) ** 2)
     return mts, st
 
 
 #: Variants of the association ablation.
-VARIANTS = ("weighted", "no-relink", "short-gaps", "no-curvature", "ends", "nearest", "nn",
-            "jpda")
+VARIANTS = ("weighted", "no-relink", "short-gaps", "no-curvature", "no-short-links", "ends",
+            "starts", "nearest", "nn", "jpda")
 
 
 def bench_association(seeds, within_s: float = 60.0, names=VARIANTS,
-                      slow_deg_per_min: float = 6.0) -> dict:
+                      slow_deg_per_min: float = 6.0,
+                      short_link_q_deg2_per_s3: float = SHORT_LINK_Q_DEG2_PER_S3) -> dict:
     """Weighted against nearest association, the plain nearest-neighbour tracker and Stone
     Soup's JPDA tracker (:mod:`_jpda`) on the same unlabelled bearings (settings fitted once
     per scenario, outside the timings): outcomes around each crossing (15-scan guard, 20-scan
@@ -228,12 +234,15 @@ def bench_association(seeds, within_s: float = 60.0, names=VARIANTS,
             else:  # "ends": weighted, tracks extended beyond their end segments;
                 # "no-relink": weighted, no second link assignment (relink_gate = link_gate);
                 # "short-gaps": weighted, links across crossings no longer than other links;
-                # "no-curvature": weighted, constant-rate links
+                # "no-curvature": weighted, constant-rate links; "no-short-links": no short-chain
+                # links; "starts": tracks extended before their first segment
                 mts, _ = _smoother_from_data(
                     t, z, "nearest" if name == "nearest" else "weighted", st,
                     extend_ends=name == "ends", relink_gate=30.0 if name == "no-relink" else 100.0,
                     crossing_gap_scans=None if name == "short-gaps" else 60,
-                    link_curvature=name != "no-curvature")
+                    link_curvature=name != "no-curvature", extend_starts=name == "starts",
+                    short_link_q_deg2_per_s3=0.0 if name == "no-short-links"
+                    else short_link_q_deg2_per_s3)
                 res = mts.run(t, z)
                 if name == "weighted":
                     lam_counted = mts.used_clutter_density
@@ -352,6 +361,10 @@ def main(argv=None) -> int:
     ap.add_argument("--slow-deg-per-min", type=float, default=6.0,
                     help="a swapped crossing whose bearing rates differ by less than this is "
                          "counted as a slow-crossing swap")
+    ap.add_argument("--short-link-accel-psd-deg2-per-s3", type=float,
+                    default=SHORT_LINK_Q_DEG2_PER_S3,
+                    help="acceleration PSD of the short-chain links of the smoother's variants, "
+                         f"deg^2/s^3 (default {SHORT_LINK_Q_DEG2_PER_S3:g}, as fusion smooth)")
     ap.add_argument("--variants", nargs="+", choices=VARIANTS, default=list(VARIANTS),
                     help="variants of the ablation (default all)")
     a = ap.parse_args(argv)
@@ -364,7 +377,9 @@ def main(argv=None) -> int:
             label = f"from {a.seeds_from}"
         names = tuple(v for v in VARIANTS if v in a.variants)  # jpda after weighted
         out = {"seed_set": label, **bench_association(seeds, names=names,
-                                                           slow_deg_per_min=a.slow_deg_per_min)}
+                                                           slow_deg_per_min=a.slow_deg_per_min,
+                                                           short_link_q_deg2_per_s3=(
+                                                               a.short_link_accel_psd_deg2_per_s3))}
         print(json.dumps(out))
         return 0
     out = {}

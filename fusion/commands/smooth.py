@@ -30,7 +30,12 @@ from fusion._progress import progress
 from fusion.cli import MAX_SCANS_OPTION, emit, number
 from fusion.io import read_bearings, write_settings, write_table
 from fusion.passive.smoothing.multitrack import ASSOCIATIONS, END_DETECTIONS
-from fusion.pipelines.bearing_smoothing import check_track_lengths, fit_smoothing, smooth_bearings
+from fusion.pipelines.bearing_smoothing import (
+    SHORT_LINK_Q_DEG2_PER_S3,
+    check_track_lengths,
+    fit_smoothing,
+    smooth_bearings,
+)
 
 logger = logging.getLogger(__name__)
 
@@ -62,6 +67,15 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "before its first and after its last segment (where it starts or ends "
                         "beside another track), weighted like the detections of its gaps "
                         "(default: off; on real camera bearings it added false crossing alerts)")
+    p.add_argument("--start-extension", dest="extend_starts",
+                   action=argparse.BooleanOptionalAction, default=False,
+                   help="unknown-origin rows: extend a track over the ambiguous detections "
+                        "before its first segment only, as --end-extension does (default: off)")
+    p.add_argument("--short-link-accel-psd-deg2-per-s3", dest="short_link_q_deg2_per_s3",
+                   type=number(float, ge=0), default=SHORT_LINK_Q_DEG2_PER_S3,
+                   help="unknown-origin rows: a chain of segments too short to be kept is "
+                        "offered a link to a later track start with this bearing acceleration "
+                        f"PSD, deg^2/s^3 (default {SHORT_LINK_Q_DEG2_PER_S3:g}; 0: off)")
     p.add_argument("--end-detections", choices=END_DETECTIONS, default="own",
                    help="with --end-extension: extend a track's ends only over the detections "
                         "the initial tracker gave the track its end segment came from or left "
@@ -157,6 +171,8 @@ def run(args: argparse.Namespace) -> int:
                                  clutter_density=args.clutter_density, merge_deg=args.merge_deg,
                                  twin_deg=args.twin_deg, output_times=args.output_times,
                                  extend_ends=args.extend_ends,
+                                 extend_starts=args.extend_starts,
+                                 short_link_q_deg2_per_s3=args.short_link_q_deg2_per_s3,
                                  end_detections=args.end_detections,
                                  link_gate=args.link_gate, relink_gate=args.relink_gate,
                                  crossing_gap_scans=args.crossing_gap_scans,
@@ -175,7 +191,8 @@ def run(args: argparse.Namespace) -> int:
              "end_extension": args.extend_ends, "end_detections": args.end_detections,
              "link_gate": args.link_gate, "relink_gate": args.relink_gate,
              "crossing_gap_scans": args.crossing_gap_scans,
-             "link_curvature": args.link_curvature}
+             "link_curvature": args.link_curvature, "start_extension": args.extend_starts,
+             "short_link_accel_psd_deg2_per_s3": args.short_link_q_deg2_per_s3}
     if counted is not None:
         assoc["association_clutter_density"] = float(counted)
     write_settings(args.out, {"command": "smooth", "tracks": len(tracks), "settings": st.as_dict(),

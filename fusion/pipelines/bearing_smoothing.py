@@ -29,12 +29,19 @@ from fusion.passive.smoothing.settings import SmoothSettings, fit_smooth_setting
 
 __all__ = [
     "OUTPUT_TIMES",
+    "SHORT_LINK_Q_DEG2_PER_S3",
     "SmoothingResult",
     "check_track_lengths",
     "fit_smoothing",
     "smooth_bearings",
     "smoothed_columns",
 ]
+
+#: Acceleration PSD of the links of short chains to later track starts in ``fusion smooth``,
+#: deg^2/s^3 (:mod:`fusion.passive.smoothing.rescue`; tuning seeds 9200-9259 and diagnosis
+#: seeds, docs/smoothing.md "Late starts": 1e-4 too narrow, 3e-3 links wrongly, 3e-4 - 1e-3
+#: the same outcomes).
+SHORT_LINK_Q_DEG2_PER_S3 = 5e-4
 
 #: Where the tracks are returned: the smoother's own state times, or a regular grid.
 OUTPUT_TIMES = ("states", "grid")
@@ -141,6 +148,8 @@ def smooth_bearings(
     relink_gate: float = 100.0,
     crossing_gap_scans: int | None = 60,
     link_curvature: bool = True,
+    extend_starts: bool = False,
+    short_link_q_deg2_per_s3: float = SHORT_LINK_Q_DEG2_PER_S3,
     on_rows: Callable[[int], None] | None = None,
     **given: Any,
 ) -> SmoothingResult:
@@ -166,6 +175,12 @@ def smooth_bearings(
         (``--end-detections``, ``--link-gate``, ``--relink-gate``,
         ``--crossing-gap-scans``, ``--link-curvature``; the last two on here, off in the
         library).
+    extend_starts : bool, keyword-only
+        Tracks extended over the ambiguous detections before their first segment only
+        (``--start-extension``; default False).
+    short_link_q_deg2_per_s3 : float, keyword-only
+        Acceleration PSD of the links of chains too short to be kept to later track starts,
+        deg^2/s^3 (``--short-link-accel-psd-deg2-per-s3``; 0: none).
     on_rows : callable, keyword-only
         Progress callback of the smoothing (see
         :func:`fusion.passive.smoothing.table.smooth_bearings`).
@@ -203,7 +218,8 @@ def smooth_bearings(
                                extend_ends=extend_ends, end_detections=end_detections,
                                link_gate=link_gate, relink_gate=relink_gate,
                                crossing_gap_scans=crossing_gap_scans,
-                               link_curvature=link_curvature)
+                               link_curvature=link_curvature, extend_starts=extend_starts,
+                               short_link_q=short_link_q_deg2_per_s3 * np.radians(1.0) ** 2)
     bearing_deg = np.asarray(table["bearing_deg"], dtype=float)
     times = np.asarray(table["time"], dtype=float)
     tracks = smooth_rows(np.asarray(table["track_id"]), times, _radians(bearing_deg),

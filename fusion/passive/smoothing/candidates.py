@@ -84,3 +84,35 @@ def end_candidates(end: tuple, forward: bool, scan_times: FloatArray, z: FloatAr
             if misses > max_misses:
                 break
     return out
+
+
+def track_candidates(kept: list[list[int]], ends: list[tuple], scan_times: FloatArray,
+                     z: FloatArray, scan_of: NDArray[np.int64], labels: NDArray[np.int64],
+                     first: NDArray[np.int64], last: NDArray[np.int64], *, q: float,
+                     sigma_bearing: float, gate: float, starts: bool, finishes: bool,
+                     max_misses: int, max_scans: int, eligible) -> list[list[int]]:
+    """Candidate tracks of every detection: the gaps of each chain of `kept` (segment indices
+    into `ends`), and with `starts` / `finishes` also before its first / after its last
+    segment (:func:`end_candidates` over the detections ``eligible(p)`` allows for segment
+    ``p``); `first` and `last` (scan per track) are widened in place to the extensions."""
+    cand: list[list[int]] = [[] for _ in range(z.size)]
+    gating = {"q": q, "sigma_bearing": sigma_bearing, "gate": gate}
+    for m, ch in enumerate(kept):
+        for p, p_next in zip(ch[:-1], ch[1:], strict=True):
+            for j in gap_candidates(ends[p], ends[p_next], scan_times, z, scan_of, labels,
+                                    **gating):
+                cand[j].append(m)
+        for fwd, p, on in ((False, ch[0], starts), (True, ch[-1], finishes)):
+            if not on:
+                continue
+            js = end_candidates(ends[p], fwd, scan_times, z, scan_of, labels, **gating,
+                                max_misses=max_misses, max_scans=max_scans,
+                                eligible=eligible(p))
+            for j in js:
+                cand[j].append(m)
+            if js:
+                if fwd:
+                    last[m] = max(last[m], int(scan_of[js].max()))
+                else:
+                    first[m] = min(first[m], int(scan_of[js].min()))
+    return cand

@@ -23,7 +23,7 @@ from fusion.passive.smoothing.association import (
     joint_weights,
     nearest_weights,
 )
-from fusion.passive.smoothing.candidates import end_candidates, gap_candidates
+from fusion.passive.smoothing.candidates import track_candidates
 from fusion.passive.smoothing.em import SharedBearingPosterior
 from fusion.passive.smoothing.graph import (
     _check_detections,
@@ -35,6 +35,7 @@ from fusion.passive.smoothing.graph import (
 )
 from fusion.passive.smoothing.linking import crossing_clusters, link_segments
 from fusion.passive.smoothing.nearest_neighbour import NearestNeighbourTracker
+from fusion.passive.smoothing.rescue import link_short_chains
 from fusion.passive.smoothing.segments import across_crossings, cut_segments
 from fusion.passive.smoothing.types import (
     MultiTrackResult,
@@ -124,6 +125,11 @@ class MultiTrackSmoother:
         Detections an end may be extended over: ``own`` (default) those the initial tracker
         gave the tracker track the end segment came from, or left shared with it; ``tracked``
         any the tracker took (:data:`END_DETECTIONS`).
+    extend_starts : bool, keyword-only
+        Extend each track over those detections before its first segment only (default False).
+    short_link_q : float, keyword-only
+        Acceleration PSD of the links of chains shorter than `min_length` to later track
+        starts, rad^2/s^3 (:mod:`~fusion.passive.smoothing.rescue`; default 0, <= q: none).
 
     Notes
     -----
@@ -189,6 +195,8 @@ class MultiTrackSmoother:
         min_length: int = 5,
         extend_ends: bool = False,
         end_detections: str = "own",
+        extend_starts: bool = False,
+        short_link_q: float = 0.0,
     ) -> None:
         self.model = _Model.checked(sigma_bearing=sigma_bearing, q=q, robust=robust,
                                     robust_k=robust_k, max_iterations=50)
@@ -222,7 +230,8 @@ class MultiTrackSmoother:
         self.em_tol = check_positive("em_tol", em_tol)
         self.em_max_iterations = int(em_max_iterations)
         self.min_length = int(min_length)
-        self.extend_ends = bool(extend_ends)
+        self.extend_ends, self.extend_starts = bool(extend_ends), bool(extend_starts)
+        self.short_link_q = check_positive("short_link_q", short_link_q, allow_zero=True)
         if end_detections not in END_DETECTIONS:
             raise ValueError(f"end_detections must be one of {', '.join(END_DETECTIONS)}, got "
                              f"{end_detections!r}")
@@ -274,6 +283,10 @@ class MultiTrackSmoother:
             ends, scan_times, q=self.model.q, link_gate=self.link_gate, relink_allowed=across,
             max_gap_scans=self.max_gap_scans, relink_gate=self.relink_gate,
             crossing_gap_scans=self.crossing_gap_scans, curvature=self.link_curvature)
+        chains = link_short_chains(  # short chains before a crossing: no late start
+            chains, np.array([s.size for s in segments], np.int64), ends, scan_times,
+            q=self.model.q, min_length=self.min_length, gate=self.link_gate,
+            q_link=self.short_link_q, max_gap_scans=self.max_gap_scans)
         # hard labels per track, drop short tracks
         labels = np.full(t.size, -1, np.int64)
         kept: list[list[int]] = []
@@ -285,28 +298,13 @@ class MultiTrackSmoother:
         n_tracks = len(kept)
         first = np.array([scan_of[segments[ch[0]][0]] for ch in kept], np.int64)
         last = np.array([scan_of[segments[ch[-1]][-1]] for ch in kept], np.int64)
-        # candidates in the gaps of every track
-        cand: list[list[int]] = [[] for _ in range(t.size)]
-        gating = {"q": self.model.q, "sigma_bearing": self.model.sigma_bearing,
-                  "gate": self.tracker.gate}
-        for m, ch in enumerate(kept):
-            for p, p_next in zip(ch[:-1], ch[1:], strict=True):
-                for j in gap_candidates(ends[p], ends[p_next], scan_times, z, scan_of, labels,
-                                        **gating):
-                    cand[j].append(m)
-            if self.extend_ends:  # and beyond its first and last segment
-                for fwd, p in ((False, ch[0]), (True, ch[-1])):
-                    js = end_candidates(ends[p], fwd, scan_times, z, scan_of, labels, **gating,
-                                        max_misses=self.tracker.max_misses,
-                                        max_scans=self.max_gap_scans,
-                                        eligible=self._eligible(tr, segments[p], tracked))
-                    for j in js:
-                        cand[j].append(m)
-                    if js:
-                        if fwd:
-                            last[m] = max(last[m], int(scan_of[js].max()))
-                        else:
-                            first[m] = min(first[m], int(scan_of[js].min()))
+        # candidates in the gaps of every track (and beyond its ends: extend_starts/_ends)
+        cand = track_candidates(
+            kept, ends, scan_times, z, scan_of, labels, first, last, q=self.model.q,
+            sigma_bearing=self.model.sigma_bearing, gate=self.tracker.gate,
+            starts=self.extend_ends or self.extend_starts, finishes=self.extend_ends,
+            max_misses=self.tracker.max_misses, max_scans=self.max_gap_scans,
+            eligible=lambda p: self._eligible(tr, segments[p], tracked))
         pairs_l = [(j, m) for j, c in enumerate(cand) for m in c]
         pair_det = np.array([j for j, _ in pairs_l], np.int64)
         pair_track = np.array([m for _, m in pairs_l], np.int64)
