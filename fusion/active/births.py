@@ -98,7 +98,7 @@ def start_tracks(tr: Any, scan: PingScan, key: object, idx: NDArray[np.int64],
     if tr.scorer is not None and tr.birth_evidence:     # the features' likelihood ratio
         clues = scan.ping.clues
         llr0 = llr0 + tr.scorer.birth_delta(
-            clues["score"][idx[new]] if "score" in clues else None,
+            new.size, clues["score"][idx[new]] if "score" in clues else None,
             clues["snr_db"][idx[new]] if "snr_db" in clues else None)
     tr._llr = np.concatenate([tr._llr, llr0])
     tr._life += [Lifecycle()] * new.size

@@ -364,12 +364,13 @@ class TrackScorer:
         f_t = (_SNR_PRIOR * f_c + self._snr_target) / (_SNR_PRIOR + self._snr_target.sum())
         return np.log(f_t[b] / f_c[b])
 
-    def birth_delta(self, scores: ArrayLike | None, snr_db: ArrayLike | None) -> NDArray[np.float64]:
-        """Starting score of tracks born from detections: the likelihood ratio of their
-        classifier score (with ``score_evidence``) and SNR (with ``snr_evidence``); the
-        position of a first detection says nothing of target against clutter."""
-        n = np.size(scores) if scores is not None else np.size(snr_db) if snr_db is not None else 0
-        out = np.zeros(n)
+    def birth_delta(self, n: int, scores: ArrayLike | None,
+                    snr_db: ArrayLike | None) -> NDArray[np.float64]:
+        """Starting score of `n` tracks born from detections: the likelihood ratio of their
+        classifier score (with ``score_evidence``) and SNR (with ``snr_evidence``), 0 for a
+        clue the detections lack; the position of a first detection says nothing of target
+        against clutter."""
+        out = np.zeros(int(n))
         if scores is not None and self.score_evidence:
             out += self.score_delta(scores)
         if snr_db is not None and self.snr_evidence:

@@ -79,6 +79,13 @@ def test_birth_evidence_starts_a_track_at_its_detections_feature_ratio():
         if not kw:
             assert_allclose(tr._llr, 0.0)
             continue
-        assert_allclose(tr._llr, tr.scorer.birth_delta(ping.clues["score"], ping.clues["snr_db"]))
+        assert_allclose(tr._llr, tr.scorer.birth_delta(2, ping.clues["score"], ping.clues["snr_db"]))
         assert_allclose(tr._llr, tr.scorer.score_delta(ping.clues["score"]))  # SNR: no teacher yet
         assert tr._llr[0] > 0.1 and tr._llr[1] < -2.0
+
+
+def test_birth_evidence_without_clues_starts_at_zero():
+    """Detections with neither a score nor an SNR (e.g. radar positions only): births at 0."""
+    tr = _tracker(birth_evidence=True, snr_evidence=True)
+    tr.step(Ping(0, 0.0, [[0.0, 0.0], [9000.0, 0.0]], {}))
+    assert_allclose(tr._llr, [0.0, 0.0])
