@@ -207,6 +207,10 @@ def _grid_variants() -> dict:
         # --coast-gate-births, and with --successor-llr 3 (issue 20, 2026-12-03 evening)
         "coast_gate_births": {"coast_gate_births": True, "pilot_same": True},
         "successor": {"coast_gate_births": True, "successor_llr": 3.0, "pilot_same": True},
+        # --snr-evidence, --birth-evidence and both (issue 20, 2026-12-03 late evening)
+        "snr_evidence": {"snr_evidence": True, "pilot_same": True},
+        "birth_evidence": {"birth_evidence": True, "pilot_same": True},
+        "snr_birth_evidence": {"snr_evidence": True, "birth_evidence": True, "pilot_same": True},
     }
 
 

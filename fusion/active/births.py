@@ -83,7 +83,9 @@ def start_tracks(tr: Any, scan: PingScan, key: object, idx: NDArray[np.int64],
     """Append a tentative track for each detection ``new`` of a receiver's scan (``idx``: the
     scan's detections in the ping; ``xy``, ``R``: their positions and covariances) to the arrays
     of the tracker `tr` (a :class:`fusion.active.tracker.Tracker`, not imported here: the tracker
-    imports this module); `successor` marks successors (``tr.successor_llr``)."""
+    imports this module); `successor` marks successors (``tr.successor_llr``). With
+    ``tr.birth_evidence`` a track starts at its detection's feature likelihood ratio
+    (:meth:`fusion.active.track_score.TrackScorer.birth_delta`)."""
     nt = tr._ids.size
     x_new, P_new = birth_states(xy[new], R[new], speed_sigma_mps=tr.speed_sigma_mps)
     tr._ids = np.concatenate([tr._ids, np.arange(tr._next_id, tr._next_id + new.size)])
@@ -92,7 +94,13 @@ def start_tracks(tr: Any, scan: PingScan, key: object, idx: NDArray[np.int64],
     tr._P = np.concatenate([tr._P, P_new])
     succ = successor & (tr.successor_llr is not None)
     tr._succ = np.concatenate([tr._succ, succ])
-    tr._llr = np.concatenate([tr._llr, np.where(succ, tr.successor_llr or 0.0, 0.0)])
+    llr0 = np.where(succ, tr.successor_llr or 0.0, 0.0)
+    if tr.scorer is not None and tr.birth_evidence:     # the features' likelihood ratio
+        clues = scan.ping.clues
+        llr0 = llr0 + tr.scorer.birth_delta(
+            new.size, clues["score"][idx[new]] if "score" in clues else None,
+            clues["snr_db"][idx[new]] if "snr_db" in clues else None)
+    tr._llr = np.concatenate([tr._llr, llr0])
     tr._life += [Lifecycle()] * new.size
     tr._seen += [[scan.rows[j]] for j in idx[new].tolist()]
     if tr.scorer is not None:

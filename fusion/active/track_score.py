@@ -56,6 +56,10 @@ __all__ = ["TrackScorer"]
 
 
 _SCORE_BINS = 10
+#: SNR histogram of :meth:`TrackScorer.snr_delta`: bins of 2 dB from 0 dB (the last open).
+_SNR_BINS, _SNR_BIN_DB = 20, 2.0
+#: Weight (detections) of the prior ``f_T = f_C`` of the SNR likelihood ratio.
+_SNR_PRIOR = 20.0
 
 
 def _excess(xy: NDArray[np.float64], key: Hashable) -> NDArray[np.float64]:
@@ -101,6 +105,9 @@ class TrackScorer:
         The estimated clutter intensity at a track's hit leaves out the detection's own kernel
         and the kernels of the track's own earlier detections that the estimate still holds
         (default False; see :meth:`scan_delta`, argument ``own``).
+    snr_evidence : bool, optional
+        Add the SNR's likelihood ratio to each hit (default False; :meth:`snr_delta`), when
+        the detections carry an ``snr_db``.
 
     Examples
     --------
@@ -122,6 +129,7 @@ class TrackScorer:
         score_evidence: bool = True,
         leave_one_out: bool = False,
         leave_track_out: bool = False,
+        snr_evidence: bool = False,
     ) -> None:
         if not (np.isfinite(confirm_llr) and np.isfinite(delete_llr)) or delete_llr >= confirm_llr:
             raise ValueError(f"need finite delete_llr < confirm_llr, got {delete_llr!r}, "
@@ -144,6 +152,7 @@ class TrackScorer:
         self.score_evidence = bool(score_evidence)
         self.leave_one_out = bool(leave_one_out)
         self.leave_track_out = bool(leave_track_out)
+        self.snr_evidence = bool(snr_evidence)
         self.last_added = np.zeros(0, dtype=bool)
         self.last_update = 0
         self.reset()
@@ -153,6 +162,8 @@ class TrackScorer:
         zones, score histograms)."""
         self._score_all = np.zeros(_SCORE_BINS)
         self._score_target = np.zeros(_SCORE_BINS)
+        self._snr_all = np.zeros(_SNR_BINS)
+        self._snr_target = np.zeros(_SNR_BINS)
         self._counts: dict[Hashable, list[float]] = {}
         self._intensity: dict[Hashable, ClutterIntensity] = {}
         self._blind: dict[Hashable, float] = {}
@@ -326,6 +337,46 @@ class TrackScorer:
         f_c = (1.0 + self._score_all) / (_SCORE_BINS + self._score_all.sum())
         return np.log(f_t[b] / f_c[b])
 
+    @staticmethod
+    def _snr_bins(snr_db: ArrayLike) -> NDArray[np.int64]:
+        v = np.nan_to_num(np.asarray(snr_db, float).reshape(-1), nan=0.0)
+        return np.clip(v // _SNR_BIN_DB, 0, _SNR_BINS - 1).astype(np.int64)
+
+    def snr_delta(self, snr_db: ArrayLike) -> NDArray[np.float64]:
+        """Score change of hits from their SNR, ``ln f_T(snr) / f_C(snr)`` (``snr_evidence``).
+
+        Parameters
+        ----------
+        snr_db : array_like, shape (k,)
+            SNR of each hit's detection, dB.
+
+        Returns
+        -------
+        ndarray, shape (k,)
+            ``f_C``: histogram (2-dB bins, one pseudo-count each) of the SNR of all detections
+            seen, nearly all of them clutter; ``f_T``: histogram of the SNR of the detections
+            confirmed tracks took, with the prior ``f_T = f_C`` worth 20 detections. Unlike the
+            classifier score, the SNR has no side that is the target's a priori, so it is 0
+            until confirmed tracks show where targets lie.
+        """
+        b = self._snr_bins(snr_db)
+        f_c = (1.0 + self._snr_all) / (_SNR_BINS + self._snr_all.sum())
+        f_t = (_SNR_PRIOR * f_c + self._snr_target) / (_SNR_PRIOR + self._snr_target.sum())
+        return np.log(f_t[b] / f_c[b])
+
+    def birth_delta(self, n: int, scores: ArrayLike | None,
+                    snr_db: ArrayLike | None) -> NDArray[np.float64]:
+        """Starting score of `n` tracks born from detections: the likelihood ratio of their
+        classifier score (with ``score_evidence``) and SNR (with ``snr_evidence``), 0 for a
+        clue the detections lack; the position of a first detection says nothing of target
+        against clutter."""
+        out = np.zeros(int(n))
+        if scores is not None and self.score_evidence:
+            out += self.score_delta(scores)
+        if snr_db is not None and self.snr_evidence:
+            out += self.snr_delta(snr_db)
+        return out
+
     def scan_delta(
         self, key: Hashable, *, xy: NDArray[np.float64], cov: NDArray[np.float64],
         scores: NDArray[np.float64] | None, hotspots: Hotspots | None,
@@ -334,6 +385,7 @@ class TrackScorer:
         teach: NDArray[np.bool_] | None = None,
         contested: NDArray[np.bool_] | None = None,
         own: list[NDArray[np.float64]] | None = None,
+        snr_db: NDArray[np.float64] | None = None,
     ) -> NDArray[np.float64]:
         """Score change of every track on one receiver's scan; learns from the scan.
 
@@ -371,6 +423,8 @@ class TrackScorer:
             path and weighs against its own hits (the intensity at the target's hits of
             tentative tracks was measured at ~10 times the clutter at 2 echoes per receiver and
             ping, issue 20).
+        snr_db : ndarray, shape (n,), optional
+            The detections' SNR, dB (used with ``snr_evidence``: :meth:`snr_delta`).
 
         Returns
         -------
@@ -399,6 +453,12 @@ class TrackScorer:
                                                   minlength=_SCORE_BINS)
         if with_scores:
             self._score_all += np.bincount(self._bins(scores), minlength=_SCORE_BINS)
+        if snr_db is not None and self.snr_evidence:
+            if hits.size:
+                delta[hits] += self.snr_delta(snr_db[dets])
+                self._snr_target += np.bincount(self._snr_bins(snr_db[dets[confirmed[hits]]]),
+                                                minlength=_SNR_BINS)
+            self._snr_all += np.bincount(self._snr_bins(snr_db), minlength=_SNR_BINS)
         # P_D counts: a track hidden by the direct blast (a miss scoring 0) is no trial.
         w = np.asarray(confirmed if teach is None else teach, dtype=float)
         trial = self.miss_delta(key, track_xy) != 0.0

@@ -158,11 +158,9 @@ class Tracker:
     motion_recent : bool, optional
         The motion test also fits the later half of the detections (default False).
     pd_from_tentative : bool, optional
-        ``P_D`` is also learnt from tentative tracks whose score reached `confirm_llr`
-        (default True; False: confirmed tracks alone).
+        ``P_D`` also learnt from tentative tracks at `confirm_llr` (default True; False: confirmed alone).
     coast_probability : float, optional
-        Confirmed tracks coast for :func:`fusion.active.lifecycle.coast_misses` misses
-        (default 0.01); None: `max_misses`.
+        Confirmed tracks coast for `lifecycle.coast_misses` misses (default 0.01; None: `max_misses`).
     intensity_leave_one_out, intensity_leave_track_out : bool, optional
         The clutter intensity at a hit leaves out the hit's own kernel, or that and the track's
         own earlier detections (defaults False; `TrackScorer`).
@@ -171,6 +169,8 @@ class Tracker:
     coast_gate_births, successor_llr : bool and float, optional
         Births in coasting confirmed tracks' gates, and the starting score of a track born
         there, which then needs one hit fewer (defaults False, None; :mod:`fusion.active.births`).
+    snr_evidence, birth_evidence : bool, optional
+        SNR likelihood ratio in the track score; births start at their features' ratio (`TrackScorer`).
     shadow : bool, optional
         Fuzzy mode, monostatic sensors (detections with ``own_x, own_y`` and no ``rcv_x,
         rcv_y``): hold tentative tracks behind a near confirmed track (default True;
@@ -219,6 +219,7 @@ class Tracker:
         shadow_extent_sigmas: float = 8.0, intensity_leave_one_out: bool = False,
         intensity_leave_track_out: bool = False, hits_per_detection: bool = False,
         coast_gate_births: bool = False, successor_llr: float | None = None,
+        snr_evidence: bool = False, birth_evidence: bool = False,
     ) -> None:
         check_tracker_options(mode=mode, speed_sigma_mps=speed_sigma_mps, accel_psd=accel_psd,
                               confirm=(confirm_hits, confirm_window), max_misses=max_misses,
@@ -246,7 +247,7 @@ class Tracker:
                                    detection_probability=detection_probability,
                                    clutter_intensity=clutter_intensity, score_evidence=score_evidence,
                                    leave_one_out=intensity_leave_one_out,
-                                   leave_track_out=intensity_leave_track_out,
+                                   leave_track_out=intensity_leave_track_out, snr_evidence=snr_evidence,
                                    intensity=ClutterIntensity(bandwidth_m=intensity_bandwidth_m))
                        if mode == "fuzzy" and confirm_llr is not None else None)
         self.motion_test = MotionTest(probability=motion_probability,
@@ -262,7 +263,7 @@ class Tracker:
         self.m, self.n, self.max_misses = int(confirm_hits), int(confirm_window), int(max_misses)
         self.init_exclusion_m = float(init_exclusion_m)
         self.hold_stationary, self.hits_per_detection = bool(hold_stationary), bool(hits_per_detection)
-        self.coast_gate_births = bool(coast_gate_births)
+        self.coast_gate_births, self.birth_evidence = bool(coast_gate_births), bool(birth_evidence)
         self.successor_llr = None if successor_llr is None else float(successor_llr)
         if mode == "fuzzy":
             self.clutter_map = (clutter_map if clutter_map is not None
@@ -403,11 +404,11 @@ class Tracker:
                 key, xy=xy, cov=R, track_xy=self._x[:, :2], hits=i, dets=j,
                 scores=ping.clues["score"][idx] if "score" in ping.clues else None,
                 hotspots=self.clutter_map.hotspots() if self.clutter_map is not None else None,
-                log_pdf=(-0.5 * stats.d2[i, j] - np.log(2.0 * np.pi)
-                         - 0.5 * np.log(stats.det[i, j])),
+                log_pdf=-0.5 * stats.d2[i, j] - np.log(2.0 * np.pi) - 0.5 * np.log(stats.det[i, j]),
                 confirmed=confirmed, contested=~hit & gated[:, taken].any(axis=1),
                 teach=confirmed | (self.pd_from_tentative & (self._llr >= self.scorer.confirm_llr)),
-                own=self.scorer.own_rows(i, key))
+                own=self.scorer.own_rows(i, key),
+                snr_db=ping.clues["snr_db"][idx] if "snr_db" in ping.clues else None)
             self.scorer.remember(i, j, key, xy)
 
         # New tentative tracks: free detections (taken by no track, inside no blocking track's

@@ -176,6 +176,12 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="with --coast-gate-births: a track born in a coasting confirmed track's "
                         "gate starts with this track score and is confirmed with one hit fewer "
                         "(default: off)")
+    p.add_argument("--snr-evidence", action="store_true",
+                   help="the track score adds each hit's SNR likelihood ratio, target against "
+                        "clutter, learnt from the detections (column snr_db; default: off)")
+    p.add_argument("--birth-evidence", action="store_true",
+                   help="a new track starts at its detection's classifier-score likelihood ratio "
+                        "(and SNR ratio with --snr-evidence) instead of 0 (default: off)")
     p.add_argument("--no-pilot-speed", dest="pilot_speed", action="store_false",
                    help="the speed prior (when --speed-sigma-mps is not given) stays the one of "
                         "straight-line triplets of detections (default: the median speed of the "
