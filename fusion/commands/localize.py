@@ -234,7 +234,7 @@ def _decided(args: argparse.Namespace, pipe, source, array):
 
     given = args.replica not in (None, "generic")
     n = min(source.frames, int(round(RECORDING_SPAN_S * source.fs)))
-    _, first = next(source.blocks(block=n))
+    first = source.start_samples(n)  # kept for the first chunk: decoded once
     return pipe.with_recording_decisions(
         first, source.fs, array, estimate_replica=args.replica is None,
         estimate_band=args.band is None,

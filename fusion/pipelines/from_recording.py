@@ -133,6 +133,7 @@ def decide_from_recording(
     -------
     RecordingDecisions
     """
+    given32 = np.asarray(samples)  # float32 from a file: the detector reads float32 itself
     x = np.asarray(samples, dtype=float)
     det = detector if detector is not None else ClickDetector()
     # the decisions read strong clicks at the fixed threshold; a threshold set from a noise
@@ -163,7 +164,9 @@ def decide_from_recording(
     det, band_note, band_record = _band(det, est if estimate_band else None,
                                         given=not estimate_band, span=span)
 
-    echoes = bottom_echoes(x, fs, det.detect(x, fs), band_hz=det.band_hz, weak=weak_echoes)
+    # the same clicks from float32 samples as from their float64 copy, without converting back
+    clicks = det.detect(given32 if given32.dtype == np.float32 else x, fs)
+    echoes = bottom_echoes(x, fs, clicks, band_hz=det.band_hz, weak=weak_echoes)
     given = settings is not None and settings.sea_floor_z is not None
     floor_record: dict[str, Any] = {
         "source": "given" if given else "none",

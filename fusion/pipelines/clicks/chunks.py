@@ -31,7 +31,7 @@ calls to :func:`fusion.scale.run_tasks`, on forked worker processes with ``--wor
     array = read_array("array.json")
     source = AudioSource.of(check_audio_files(["audio.flac"], array.n_sensors))
     # decided once, from the first minute (the chunks run the pipeline as given)
-    _, first = next(source.blocks(block=int(60 * source.fs)))
+    first = source.start_samples(int(60 * source.fs))  # kept: the first chunk reuses it
     pipe, decided = ClickLocalization().with_recording_decisions(first, source.fs, array)
     parts = [localize_chunk((pipe, array), task) for task in plan_chunks(source, pipe)]
     document = DocumentText(parts)
@@ -58,6 +58,10 @@ from fusion.pipelines.localization import ClickLocalization, LocalizedWindow, re
 
 __all__ = ["FEW_TDOAS", "AudioSource", "ChunkTask", "DocumentSummary", "DocumentText",
            "localize_chunk", "plan_chunks", "source_flags"]
+
+#: The start of one recording read by :meth:`AudioSource.start_samples`: [(source, samples)].
+_HELD: list[tuple[AudioSource, NDArray[np.float32]]] = []
+
 
 @dataclass(frozen=True)
 class AudioSource:
@@ -92,19 +96,39 @@ class AudioSource:
         return cls(tuple(str(Path(p).resolve()) for p in files.paths), float(files.fs),
                    int(files.frames))
 
+    def start_samples(self, n: int) -> NDArray[np.float32]:
+        """The first `n` samples (n, channels), float32, kept in this process for the next
+        :meth:`blocks` that reads them (the first minute is read for the decisions and again
+        by the first chunk: decoded once). One recording's start is kept at a time."""
+        _, first = next(self.blocks(block=n))
+        _HELD[:] = [(self, first)]
+        return first
+
     def blocks(self, *, block: int, start: int = 0) -> Iterator[tuple[float, NDArray[np.float32]]]:
         """Consecutive blocks ``(t0, samples (n, channels))`` of `block` samples from `start`.
 
         The blocks lie on the grid ``[start + k block, ...)``; the last may be shorter. Read with
-        soundfile as float32, never the whole file.
+        soundfile as float32, never the whole file (blocks inside the start kept by
+        :meth:`start_samples` are copied from it: the same samples, decoded once).
         """
         import soundfile as sf
 
         if block < 1 or not 0 <= start < self.frames:
             raise ValueError(f"block {block} must be >= 1 and start {start} in [0, {self.frames})")
-        readers = [sf.blocks(p, blocksize=block, dtype="float32", always_2d=True, start=start,
-                             stop=self.frames) for p in self.paths]
         first = start
+        held = next((x for src, x in _HELD if src == self), None)
+        if held is not None:
+            _HELD.clear()  # read once more at most
+            while first < self.frames and (first + block <= held.shape[0]
+                                           or held.shape[0] == self.frames):
+                x = held[first:first + block].copy()
+                yield first / self.fs, x
+                first += x.shape[0]
+            del held
+            if first >= self.frames:
+                return
+        readers = [sf.blocks(p, blocksize=block, dtype="float32", always_2d=True, start=first,
+                             stop=self.frames) for p in self.paths]
         try:
             for parts in zip(*readers, strict=True):
                 x = parts[0] if len(parts) == 1 else np.concatenate(parts, axis=1)

@@ -345,6 +345,35 @@ def test_audio_blocks_on_a_grid_from_any_start(recording):
     np.testing.assert_array_equal(np.concatenate([x for _, x in got]), whole[start:])
 
 
+@pytest.mark.parametrize("n_s, start, block", [(5, 0, 96000), (5, 7000, 50000), (20, 0, 96000),
+                                               (5, 6 * 96000, 96000)])
+def test_blocks_from_the_kept_start_are_the_decoded_samples(recording, monkeypatch, n_s, start,
+                                                            block):
+    """After start_samples, the next blocks copy the kept start and read on past it: the same
+    blocks (grid, values) as a fresh read; the start is used once, then read from the file."""
+    from fusion.pipelines.clicks import chunks
+
+    src = AudioSource.of(check_audio_files([recording / "audio.flac"], 4))
+    want = list(src.blocks(block=block, start=start))
+    first = src.start_samples(n_s * 96000)
+    np.testing.assert_array_equal(first, np.concatenate([x for _, x in want])[:n_s * 96000]
+                                  if start == 0 else first)
+    assert chunks._HELD and chunks._HELD[0][0] == src
+    reads = []
+    real = sf.blocks
+    monkeypatch.setattr(sf, "blocks", lambda *a, **k: reads.append(k["start"]) or real(*a, **k))
+    got = list(src.blocks(block=block, start=start))
+    assert not chunks._HELD
+    assert [t for t, _ in got] == [t for t, _ in want]
+    for (_, x), (_, y) in zip(got, want, strict=True):
+        assert x.dtype == y.dtype and x.flags.c_contiguous
+        np.testing.assert_array_equal(x, y)
+    if start + block <= n_s * 96000 < src.frames:  # the kept part was not decoded again
+        assert reads and reads[0] >= block and reads[0] % block == start % block
+    if n_s * 96000 >= src.frames:
+        assert not reads
+
+
 def _write(path, parts):
     """Write a DocumentText of `parts` to `path`; its summary."""
     from fusion.pipelines.clicks.chunks import DocumentText
