@@ -16,6 +16,12 @@ By default the speed is a linear profile of depth (the speed halfway between the
 sensors' depths and its gradient, :class:`fusion.localization.sound_speed.LinearProfile`) where
 the fixes tell the gradient, every fix re-solved along straight rays through it; ``fusion
 localize --no-speed-gradient`` estimates one speed (the ablation).
+
+With ``fusion localize --sensor-position-sigma-m M`` the sensors' offsets from their surveyed
+positions are estimated with the chosen speed model on the same fixes
+(:func:`fusion.localization.sensor_positions.estimate_sensor_positions`) and used where they fit
+them significantly better (an F test against the surveyed positions, :data:`MIN_POSITION_F`);
+every fix is then re-solved at the refined positions (docs/localization.md section 22).
 """
 
 from __future__ import annotations
