@@ -7,7 +7,9 @@ would (:func:`fusion.pipelines.sound_speed.calibrate_speed`) and scores them as
 ``bench_localize_baseline.py`` does (same truth, same 10 m gate, fixes flagged unobservable or
 mirror-ambiguous left out). Variants: ``array`` (the file's speed), ``one`` (one speed,
 ``--no-speed-gradient``), ``profile`` (the default: a speed linear in depth where the fixes tell
-it). The figures equal ``bench_localize_baseline.py --methods project`` on the same seeds and
+it), ``positions`` (the profile with the sensors' positions refined from the fixes, prior
+``--sensor-position-sigma-m``, ``fusion localize --sensor-position-sigma-m``). The figures
+equal ``bench_localize_baseline.py --methods project`` on the same seeds and
 options (checked on seeds 7900-7909, ``--vary-only sound-speed``, one whale).
 
 Usage::
@@ -34,7 +36,8 @@ from fusion.cli import main as fusion_main  # noqa: E402
 from fusion.metrics.localization import match_fixes  # noqa: E402
 from fusion.pipelines.sound_speed import calibrate_speed  # noqa: E402
 
-VARIANTS = {"array": None, "one": {"gradient": False}, "profile": {"gradient": True}}
+VARIANTS = {"array": None, "one": {"gradient": False}, "profile": {"gradient": True},
+            "positions": {"gradient": True, "sensor_sigma_m": None}}
 
 
 def cached(folder: Path, seed: int, options: dict) -> tuple[list, np.ndarray, float, Truth]:
@@ -68,6 +71,8 @@ def main(argv: list[str] | None = None) -> None:
     group.add_argument("--vary-only", default=None, metavar="GROUPS")
     ap.add_argument("--variants", default="array,one,profile",
                     help=f"comma list of {', '.join(VARIANTS)}")
+    ap.add_argument("--sensor-position-sigma-m", type=float, default=2.0,
+                    help="prior sigma of the sensor positions of the positions variant, m")
     ap.add_argument("--cache-dir", type=Path, default=Path("bench_speed_cache"))
     ap.add_argument("--verbose", action="store_true", help="a line per seed (the speed note)")
     args = ap.parse_args(argv)
@@ -87,8 +92,10 @@ def main(argv: list[str] | None = None) -> None:
         tot = {"found": 0, "pairs": 0, "reported": 0, "false": 0, "errors": []}
         for seed in args.seeds:
             windows, sensors, c, truth = cached(args.cache_dir / f"{tag}_{seed}", seed, options)
-            cal = None if VARIANTS[v] is None else calibrate_speed(windows, sensors, c,
-                                                                   **VARIANTS[v])
+            kw = None if VARIANTS[v] is None else {**VARIANTS[v]}
+            if kw is not None and "sensor_sigma_m" in kw:
+                kw["sensor_sigma_m"] = args.sensor_position_sigma_m
+            cal = None if kw is None else calibrate_speed(windows, sensors, c, **kw)
             found = 0
             for w in (windows if cal is None else [cal.apply(w) for w in windows]):
                 srcs = [[s["x"], s["y"], s["z"]] for s in w["sources"]

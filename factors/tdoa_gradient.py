@@ -73,7 +73,8 @@ def _layer(d: NDArray[np.float64], c0: float, g: float) -> tuple:
 
 def travel_times(p: ArrayLike, sensors: ArrayLike, c_ref: float, g: float, d_ref: float,
                  *, jacobian: bool = False) -> tuple:
-    """Straight-ray travel times from a source `p` (3,) to each sensor (n, 3), s.
+    """Straight-ray travel times from a source `p` (3,) to each sensor (n, 3), s; or with
+    `p` of shape (n, 3), from each ``p[k]`` to ``sensors[k]``.
 
     Returns ``(T (n,), dT/dp (n, 3), dT/d[c_ref, g] (n, 2))``; the derivatives are None
     unless `jacobian`. A sensor above the surface (``z > 0``) is a surface image.
@@ -82,7 +83,7 @@ def travel_times(p: ArrayLike, sensors: ArrayLike, c_ref: float, g: float, d_ref
     s = np.asarray(sensors, dtype=float)
     diff = p - s
     length = np.sqrt(np.einsum("ij,ij->i", diff, diff))
-    b = max(-float(p[2]), 0.0)  # source depth (a source above the surface: at it)
+    b = np.maximum(-p[..., 2], 0.0)  # source depth (a source above the surface: at it)
     a = -s[:, 2]
     image = a < 0.0
     # direct rays: T = L h(u)/c(a)
@@ -93,14 +94,14 @@ def travel_times(p: ArrayLike, sensors: ArrayLike, c_ref: float, g: float, d_ref
     # surface images: T = L (G(|a|) + G(b)) / (b + |a|)
     c0 = c_ref - g * d_ref
     ga, _, ga_c0, ga_g = _layer(np.abs(a), c0, g)
-    gb, gb_d, gb_c0, gb_g = _layer(np.array(b), c0, g)
+    gb, gb_d, gb_c0, gb_g = _layer(np.asarray(b), c0, g)
     span = np.where(image, b - a, 1.0)
     t_img = length * (ga + gb) / span
     t = np.where(image, t_img, t_dir)
     if not jacobian:
         return t, None, None
     unit = diff / np.maximum(length, MIN_RANGE)[:, None]
-    below = 1.0 if -p[2] >= 0.0 else 0.0  # db/dz = -1 under the surface
+    below = np.where(-p[..., 2] >= 0.0, 1.0, 0.0)  # db/dz = -1 under the surface
     # direct: dT/db = L h'(u) g / c(a)^2; dT/dc_ref, dT/dg through c(a) and u
     dir_b = length * dh * g / (ca * ca)
     dir_c = -length * h / ca**2 + length * dh / ca * (-u / ca)

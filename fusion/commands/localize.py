@@ -195,6 +195,13 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="estimate one sound speed (ablation): by default a speed linear in "
                         "depth (a speed and its depth gradient, where the fixes tell it), "
                         "every fix re-solved along straight rays through it")
+    p.add_argument("--sensor-position-sigma-m", dest="sensor_position_sigma",
+                   type=number(float, ge=0, le=100), default=0.0, metavar="M",
+                   help="standard deviation of the array file's sensor positions per axis, m: "
+                        "above 0 each sensor's offset is estimated with the sound speed from "
+                        "all fixes and used where it fits them significantly better (F test), "
+                        "every fix re-solved at the refined positions (printed, and written "
+                        "beside the output with their sigmas); 0 (default): positions exact")
     p.add_argument("--candidates", type=number(int, ge=1, le=MAX_CANDIDATES), default=None,
                    metavar="N", help="candidates per window, at most "
                    f"{MAX_CANDIDATES} (default 16 reading surface paths, 8 direct)")
@@ -468,7 +475,8 @@ def run(args: argparse.Namespace) -> int:
                 cal = calibrate_speed((w for t in plan for w in json.loads(store.read(name(t)))),
                                       array.positions, array.sound_speed,
                                       recruit_far=args.far_delays,
-                                      gradient=args.speed_gradient)
+                                      gradient=args.speed_gradient,
+                                      sensor_sigma_m=args.sensor_position_sigma)
                 transform, speeds[str(out)] = cal.apply, cal.record()
                 notes.append(cal.note if len(recordings) == 1 else f"{out}: {cal.note}")
             document = DocumentText((store.read(name(t)) for t in plan), transform=transform)

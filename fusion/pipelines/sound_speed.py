@@ -16,6 +16,12 @@ By default the speed is a linear profile of depth (the speed halfway between the
 sensors' depths and its gradient, :class:`fusion.localization.sound_speed.LinearProfile`) where
 the fixes tell the gradient, every fix re-solved along straight rays through it; ``fusion
 localize --no-speed-gradient`` estimates one speed (the ablation).
+
+With ``fusion localize --sensor-position-sigma-m M`` the sensors' offsets from their surveyed
+positions are estimated with the chosen speed model on the same fixes
+(:func:`fusion.localization.sensor_positions.estimate_sensor_positions`) and used where they fit
+them significantly better (an F test against the surveyed positions, :data:`MIN_POSITION_F`);
+every fix is then re-solved at the refined positions (docs/localization.md section 22).
 """
 
 from __future__ import annotations
@@ -27,6 +33,11 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from fusion.localization.retime import emission_shift
+from fusion.localization.sensor_positions import (
+    SensorPositionEstimate,
+    estimate_sensor_positions,
+    position_f,
+)
 from fusion.localization.sound_speed import (
     GRADIENT_PRIOR_PER_S,
     GRADIENT_SIGMA_PER_S,
@@ -73,6 +84,9 @@ MIN_GRADIENT_F = 9.0
 #: its bar; candidates of sparse trains were 0-400 us off, often under 100 us, on seeds 7703,
 #: 7800, 7803).
 RECRUIT_SIGMA_S = 50e-6
+#: Smallest F statistic of the sensor offsets (chi-square drop per offset parameter over the
+#: residual variance) at which the refined positions replace the surveyed ones.
+MIN_POSITION_F = 3.0
 
 
 def fix_tdoas(window: dict, source: dict, sensors: ArrayLike, c: float,
@@ -156,6 +170,7 @@ class SpeedCalibration:
     estimate: SoundSpeedEstimate | None
     note: str
     sensors: NDArray[np.float64]
+    sensor_positions: dict | None = None
 
     @property
     def speed_mps(self) -> float:
@@ -168,6 +183,8 @@ class SpeedCalibration:
                "speed_mps": self.speed_mps, "nominal_mps": self.nominal_mps}
         if self.estimate is not None:
             out.update(self.estimate.to_dict())
+        if self.sensor_positions is not None:
+            out["sensor_positions"] = self.sensor_positions
         return out
 
     def _solved(self, window: dict, src: dict) -> dict:
@@ -235,7 +252,8 @@ def _far_candidates(window: dict, src: dict, fix: FixTdoas, sensors: NDArray[np.
 
 
 def calibrate_speed(windows: Iterable[dict], sensors: ArrayLike, nominal_mps: float,
-                    *, recruit_far: bool = True, gradient: bool = True) -> SpeedCalibration:
+                    *, recruit_far: bool = True, gradient: bool = True,
+                    sensor_sigma_m: float = 0.0) -> SpeedCalibration:
     """Estimate the speed shared by the fixes of written windows (see the module docstring).
 
     Parameters
@@ -254,6 +272,10 @@ def calibrate_speed(windows: Iterable[dict], sensors: ArrayLike, nominal_mps: fl
     gradient : bool
         Estimate the speed's depth gradient beside it (a linear profile); False: one speed
         (``fusion localize --no-speed-gradient``, the ablation).
+    sensor_sigma_m : float
+        Standard deviation of the array file's sensor positions per axis, m: above 0 the
+        sensors' offsets are estimated with the speed on one graph and used where they fit the
+        fixes significantly better (:func:`_refined`); 0: the file's positions are exact.
     """
     s = np.asarray(sensors, dtype=float)
     fixes = []
@@ -280,6 +302,7 @@ def calibrate_speed(windows: Iterable[dict], sensors: ArrayLike, nominal_mps: fl
     try:
         est, kept = _fit(fixes, nominal_mps, len(s), gradient=False)
         why = _refusal(est, nominal_mps)
+        used = kept
         if gradient and recruited:
             gradient_note = ("; its depth gradient not estimated: the far delays were "
                              "recruited by one speed's consensus")
@@ -292,15 +315,21 @@ def calibrate_speed(windows: Iterable[dict], sensors: ArrayLike, nominal_mps: fl
             except (ValueError, RuntimeError) as e:
                 why_g = f"not estimated: {e}"
             if why_g is None:
-                est, why = prof, None
+                est, why, used = prof, None, kept_g
             else:
                 gradient_note = f"; its depth gradient not used: {why_g}"
                 if why is None:  # what one speed leaves out: the two models' difference
                     gradient_note += (f" (the profile's speed there differs from the one speed "
                                       f"by {abs(prof.speed_mps - est.speed_mps):.2g} m/s)")
+        refined = _refined(used, s, nominal_mps, sensor_sigma_m, est) if sensor_sigma_m > 0 \
+            else None
+        if refined is not None and not isinstance(refined, str):
+            (refined, f_pos), why = refined, None
+            est = refined.speed
         if why is not None:
             return SpeedCalibration(nominal_mps, None, (
-                f"sound speed: the array file's {nominal_mps:g} m/s ({why})"), s)
+                f"sound speed: the array file's {nominal_mps:g} m/s ({why})"
+                + (f"; {refined}" if refined else "")), s)
     except ValueError as e:
         return SpeedCalibration(nominal_mps, None, (
             f"sound speed: the array file's {nominal_mps:g} m/s (not estimated: {e})"), s)
@@ -308,12 +337,19 @@ def calibrate_speed(windows: Iterable[dict], sensors: ArrayLike, nominal_mps: fl
         return SpeedCalibration(nominal_mps, None, (
             f"sound speed: the array file's {nominal_mps:g} m/s (not estimated: the "
             f"{len(fixes)} fixes do not constrain it)"), s)
+    if isinstance(refined, SensorPositionEstimate):
+        return SpeedCalibration(nominal_mps, est, (
+            f"sound speed: {_described(est)} and sensor positions estimated together from "
+            f"{est.n_tdoas} TDOAs of {est.n_fixes} fixes (they fit them better than the "
+            f"array file's: F = {f_pos:.3g} >= {MIN_POSITION_F:g}); every fix re-solved at them; "
+            + _positions_line(refined, s)), refined.positions(s), refined.to_dict(s))
     return SpeedCalibration(nominal_mps, est, (
         f"sound speed: {_described(est)} estimated from "
         f"{est.n_tdoas} TDOAs of {est.n_fixes} fixes"
         + (f" ({recruited} with a far sensor's delays recruited)" if recruited else "")
         + f" (array file {nominal_mps:g} m/s); every "
-        "fix re-solved at it (--sound-speed array keeps the file's)" + gradient_note), s)
+        "fix re-solved at it (--sound-speed array keeps the file's)" + gradient_note
+        + (f"; {refined}" if refined else "")), s)
 
 
 def _fit(fixes: list[FixTdoas], nominal_mps: float, n_sensors: int, *, gradient: bool
@@ -376,3 +412,39 @@ def _described(est: SoundSpeedEstimate) -> str:
     return (f"{est.speed_mps:.1f} +- {est.sigma_mps:.2g} m/s at {est.reference_depth_m:.0f} m "
             f"depth (halfway between the fixes and the sensors), gradient "
             f"{est.gradient_per_s:.4f} +- {est.gradient_sigma_per_s:.2g} 1/s")
+
+
+def _refined(fixes: list[FixTdoas], sensors: NDArray[np.float64], nominal_mps: float,
+             sigma_m: float, without: SoundSpeedEstimate
+             ) -> tuple[SensorPositionEstimate, float] | str:
+    """The sensors' offsets estimated with the speed model of `without` on its fixes, or why
+    the surveyed positions are kept: the offsets do not fit the fixes better than the survey
+    (F below :data:`MIN_POSITION_F`: a whale that barely moves leaves them unobservable),
+    or the speed estimated with them is more than :data:`MAX_CHANGE` from the file's."""
+    grad = bool(np.isfinite(without.gradient_sigma_per_s))
+    try:
+        est = estimate_sensor_positions(fixes, n_real=len(sensors), nominal_mps=nominal_mps,
+                                        sigma_m=sigma_m,
+                                        d_ref=without.reference_depth_m if grad else None)
+    except (ValueError, RuntimeError) as e:
+        return f"sensor positions: the array file's (not estimated: {e})"
+    f = position_f(est, without)
+    if not f >= MIN_POSITION_F:
+        return (f"sensor positions: the array file's (offsets of up to "
+                f"{np.max(np.abs(est.offsets)):.2g} m fit the fixes no better: "
+                f"F = {f:.3g} < {MIN_POSITION_F:g}; the fixes do not tell them)")
+    # only the change is checked: with the sensors free, the speed trades against the array's
+    # scale (a wide sigma the fixes' covariances hold), so its sigma says nothing of the fixes
+    if abs(est.speed.speed_mps - nominal_mps) > MAX_CHANGE * nominal_mps:
+        return (f"sensor positions: the array file's (with them the fixes point to "
+                f"{est.speed.speed_mps:.1f} m/s, more than {100 * MAX_CHANGE:g} % from it)")
+    return est, f
+
+
+def _positions_line(est: SensorPositionEstimate, surveyed: NDArray[np.float64]) -> str:
+    """The refined positions with their standard deviations, m."""
+    parts = [f"{q}: ({p[0]:.1f}, {p[1]:.1f}, {p[2]:.1f}) +- "
+             f"({sg[0]:.2g}, {sg[1]:.2g}, {sg[2]:.2g}) m"
+             for q, (p, sg) in enumerate(zip(est.positions(surveyed), est.sigmas, strict=True))]
+    return ("sensor positions (prior +- " + f"{est.sigma_m:g} m from the array file): "
+            + "; ".join(parts))

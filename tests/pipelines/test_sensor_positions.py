@@ -1,0 +1,73 @@
+"""Sensor positions refined from a recording's fixes (``fusion localize
+--sensor-position-sigma-m``): survey errors the fixes of a moving whale tell, and a still whale
+whose fixes do not.
+
+(A whale that moves a few metres with noiseless delays passes the F test and its fixes get
+worse -- 0.7 m to 6 m here; docs/localization.md section 22 says so.)"""
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from factors.tdoa_model import predicted_tdoas
+from fusion.pipelines.sound_speed import calibrate_speed
+
+SURVEYED = np.array([[0.0, 0, -1500], [3200, 150, -1610], [1500, 2900, -1550],
+                     [-1800, 1400, -1480], [400, -2500, -1590]])
+#: Survey errors of 1-3 m per axis (zero mean: the gauge the priors hold is the survey's mean).
+ERRORS = np.array([[2.0, -1.5, 1.0], [-2.5, 1.0, -2.0], [1.5, 2.5, 1.5], [-1.0, -2.0, 2.5],
+                   [0.0, 0.0, -3.0]])
+TRUE_SENSORS = SURVEYED + ERRORS
+PAIRS = [(i, j) for i in range(5) for j in range(i + 1, 5)]
+#: A whale crossing the range (a few hundred metres per fix).
+CROSSING = np.array([[-600.0, -300, -900], [0, 200, -1000], [600, 700, -1100], [1200, 1200, -950],
+                     [1800, 1600, -800], [2400, 2100, -1000]])
+
+
+def _window(p_true, t0):
+    """A written window: delays of the true sensors, its fix solved on the surveyed ones."""
+    q = np.array(PAIRS)
+    taus = predicted_tdoas(p_true, TRUE_SENSORS, q, c=1500.0)
+    start = least_squares(lambda x: (predicted_tdoas(x, SURVEYED, q, c=1500.0) - taus) * 1e6,
+                          p_true).x
+    tdoas = [{"pair": list(pr), "tau": float(t), "t": t0 + 6.0, "rate": 0.0, "valid": True,
+              "llr": 5.0, "sigma": 1e-6} for pr, t in zip(PAIRS, taus, strict=True)]
+    src = {"x": start[0], "y": start[1], "z": start[2], "cov": np.eye(3).tolist(),
+           "tdoas_used": len(PAIRS), "observable": True, "mirror_ambiguous": False,
+           "owned_tdoas": list(range(len(PAIRS))), "paths": ["direct"] * len(PAIRS)}
+    return {"t_start": t0, "t_end": t0 + 12.0, "tdoas": tdoas, "sources": [src]}
+
+
+def _errors(windows, cal):
+    pos = np.array([[cal.apply(w)["sources"][0][a] for a in "xyz"] for w in windows])
+    return np.linalg.norm(pos - CROSSING[:len(windows)], axis=1)
+
+
+def test_a_crossing_whale_tells_the_survey_errors():
+    windows = [_window(p, 2.0 * k) for k, p in enumerate(CROSSING)]
+    surveyed = calibrate_speed(windows, SURVEYED, 1500.0, gradient=False)
+    refined = calibrate_speed(windows, SURVEYED, 1500.0, gradient=False, sensor_sigma_m=2.0)
+    before, after = _errors(windows, surveyed), _errors(windows, refined)
+    assert np.median(before) > 3.0  # the survey errors move the fixes by metres
+    # what is left is the gauge the priors hold (a rotation or scale of the whole array)
+    assert np.median(after) < 0.4 * np.median(before)
+    rec = refined.record()["sensor_positions"]
+    assert rec["prior_sigma_m"] == 2.0 and len(rec["sensors"]) == 5
+    pos = np.array([[s[a] for a in "xyz"] for s in rec["sensors"]])
+    np.testing.assert_allclose(pos, refined.sensors)
+    # the refined fixes and positions explain the delays the surveyed ones could not
+    rms = [[cal.apply(w)["sources"][0]["residual_rms_s"] for w in windows]
+           for cal in (surveyed, refined)]
+    assert np.max(rms[1]) < 0.1 * np.median(rms[0])
+    # each sigma finite and at most the prior's (the gauge the survey holds)
+    sig = np.array([s["sigma_m"] for s in rec["sensors"]])
+    assert np.all(np.isfinite(sig)) and np.all(sig <= 2.0 + 1e-6)
+    assert "sensor positions (prior +- 2 m" in refined.note and "F = " in refined.note
+    assert "sensor_positions" not in surveyed.record()
+
+
+def test_a_still_whale_keeps_the_surveyed_positions_and_says_so():
+    windows = [_window(CROSSING[1], 2.0 * k) for k in range(4)]  # one place, four windows
+    cal = calibrate_speed(windows, SURVEYED, 1500.0, gradient=False, sensor_sigma_m=2.0)
+    np.testing.assert_array_equal(cal.sensors, SURVEYED)
+    assert "sensor_positions" not in cal.record()
+    assert "sensor positions: the array file's" in cal.note and "do not tell them" in cal.note
