@@ -144,12 +144,16 @@ def test_cli_relink_gate_reaches_the_smoother(tmp_path):
     assert n == {"30": 3, "100": 2}
 
 
-def test_cli_rejects_a_bad_relink_gate(tmp_path, capsys):
+@pytest.mark.parametrize(("option", "value", "message"), [
+    ("--relink-gate", "-1", "--relink-gate: must be > 0"),
+    ("--crossing-gap-scans", "0", "--crossing-gap-scans: must be >= 1"),
+])
+def test_cli_rejects_a_bad_link_option(tmp_path, capsys, option, value, message):
     src = tmp_path / "b.csv"
     src.write_text("track_id,time,bearing_deg\n-1,0,1\n-1,10,1.1\n")
     assert main(["smooth", "--bearings", str(src), "--out", str(tmp_path / "o.csv"),
-                 "--relink-gate", "-1"]) == 2
-    assert "--relink-gate: must be > 0" in capsys.readouterr().err
+                 option, value]) == 2
+    assert message in capsys.readouterr().err
 
 
 def test_end_detections_own_are_the_tracker_tracks_and_its_shared_ones():
@@ -284,14 +288,6 @@ def test_cli_crossing_gap_scans_reaches_the_smoother(tmp_path):
         meta = json.loads((tmp_path / f"s{gap}.settings.json").read_text())
         assert meta["crossing_gap_scans"] == int(gap or 60)
     assert n == {"60": 2, "40": 4, None: 2}
-
-
-def test_cli_rejects_a_bad_crossing_gap(tmp_path, capsys):
-    src = tmp_path / "b.csv"
-    src.write_text("track_id,time,bearing_deg\n-1,0,1\n-1,10,1.1\n")
-    assert main(["smooth", "--bearings", str(src), "--out", str(tmp_path / "o.csv"),
-                 "--crossing-gap-scans", "0"]) == 2
-    assert "--crossing-gap-scans: must be >= 1" in capsys.readouterr().err
 
 
 def test_across_crossings_known_answer():
