@@ -192,6 +192,7 @@ def pair_intervals(
     manoeuvre: tuple[NDArray[np.float64], float] | None = None,
     far_side: bool = False,
     own_width: bool = False,
+    max_width_s: float | None = None,
 ) -> tuple[NDArray[np.float64], ...]:
     """Crossing time and its Fieller interval for given pairs, relative to the current sample.
 
@@ -222,6 +223,11 @@ def pair_intervals(
     own_width : bool, optional
         Also return the width of the interval with `curvature` only (no `manoeuvre`, no
         `far_side`), from the same terms (default False).
+    max_width_s : float, optional
+        Only pairs whose interval may be this narrow are widened: a pair whose interval from
+        the lines' covariance alone is unbounded or wider (the lead-dependent terms only add
+        variance, so it stays wider) is returned unbounded, with NaN bounds and width, without
+        its curvature, manoeuvre and far-end terms (default None: every pair).
 
     Returns
     -------
@@ -250,14 +256,33 @@ def pair_intervals(
     q = t_quantile(level, dof) * np.sqrt(var_scale)
     v00 = stats.var_value[index_a] + stats.var_value[index_b]
     v01 = stats.cov[index_a] + stats.cov[index_b]
+    widened = curvature is not None or manoeuvre is not None
+    tau_all, kept = tau, None
+    if max_width_s is not None and widened:  # leave out the pairs the widening cannot resolve
+        low, high, bounded = crossing_time_interval(d0, d1, v00, v01, v11, q)
+        with np.errstate(invalid="ignore"):
+            keep = bounded & (high - low <= max_width_s)
+        if not keep.all():
+            kept = np.flatnonzero(keep)
+            index_a, index_b, d0, d1, v00, v01, v11, q, tau = (
+                x[kept] for x in (index_a, index_b, d0, d1, v00, v01, v11, q, tau))
+    ahead = np.isfinite(tau) & (tau > 0)
+    cv_tau = None
+    if curvature is not None:  # the curvature the lines leave out, at the crossing
+        cv_tau = np.where(ahead, curvature_variance(curvature, index_a, index_b,
+                                                    np.where(ahead, tau, 0.0)), 0.0)
 
-    def ahead_var(at: NDArray[np.float64]) -> NDArray[np.float64]:
-        """The variance the lines' own covariance leaves out, at `at` ahead (0 behind)."""
+    def ahead_var(at: NDArray[np.float64], cv: NDArray[np.float64] | None = None
+                  ) -> NDArray[np.float64]:
+        """The variance the lines' own covariance leaves out, at `at` ahead (0 behind); `cv`
+        the curvature term at `at` if known."""
         extra = np.zeros(at.shape)
-        ahead = np.isfinite(at) & (at > 0)
         if curvature is not None:  # the curvature the lines leave out
-            extra = extra + np.where(ahead, curvature_variance(curvature, index_a, index_b,
-                                                               np.where(ahead, at, 0.0)), 0.0)
+            if cv is None:
+                ok = np.isfinite(at) & (at > 0)
+                cv = np.where(ok, curvature_variance(curvature, index_a, index_b,
+                                                     np.where(ok, at, 0.0)), 0.0)
+            extra = extra + cv
         if manoeuvre is not None:  # the rate wander the lines cannot show
             qm = manoeuvre[0]
             extra = extra + manoeuvre_variance(qm[index_a] + qm[index_b], manoeuvre[1], at)
@@ -265,21 +290,26 @@ def pair_intervals(
 
     width = None
     if own_width:
-        ahead = np.isfinite(tau) & (tau > 0)
-        v_own = v00 if curvature is None else v00 + np.where(ahead, curvature_variance(
-            curvature, index_a, index_b, np.where(ahead, tau, 0.0)), 0.0)
+        v_own = v00 if curvature is None else v00 + cv_tau
         lo_own, hi_own, _ = crossing_time_interval(d0, d1, v_own, v01, v11, q)
         width = hi_own - lo_own
-    if curvature is None and manoeuvre is None:
+    if not widened:
         low, high, bounded = crossing_time_interval(d0, d1, v00, v01, v11, q)
     else:  # at the predicted crossing, then (`far_side`) again at the interval's far end
-        low, high, bounded = crossing_time_interval(d0, d1, v00 + ahead_var(tau), v01, v11, q)
+        low, high, bounded = crossing_time_interval(d0, d1, v00 + ahead_var(tau, cv_tau),
+                                                    v01, v11, q)
         if far_side:
             far = np.where(bounded & np.isfinite(high) & (high > tau), high, tau)
             _, high, _ = crossing_time_interval(d0, d1, v00 + ahead_var(far), v01, v11, q)
     bounded &= np.isfinite(low) & np.isfinite(high)
-    return (tau, low, high, bounded) if width is None else (tau, low, high, bounded, width)
-
+    out = (low, high, bounded) if width is None else (low, high, bounded, width)
+    if kept is not None:  # the pairs left out: unbounded, NaN bounds and width
+        full = tuple(np.full(tau_all.size, np.nan if x.dtype.kind == "f" else False, x.dtype)
+                     for x in out)
+        for f, x in zip(full, out, strict=True):
+            f[kept] = x
+        out = full
+    return (tau_all, *out)
 
 
 def evaluate_pairs(
