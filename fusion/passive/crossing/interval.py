@@ -48,7 +48,8 @@ def t_quantile(level: float, dof: ArrayLike) -> NDArray[np.float64]:
     """
     if not 0.0 < level < 1.0:
         raise ValueError(f"level must lie in (0, 1), got {level!r}")
-    d = np.clip(np.floor(np.nan_to_num(np.asarray(dof, dtype=float), nan=1.0)), 1, _MAX_DOF)
+    # fmax/fmin: NaN -> 1, like nan_to_num(nan=1) then clip, in two passes fewer
+    d = np.fmin(np.fmax(np.floor(np.asarray(dof, dtype=float)), 1.0), float(_MAX_DOF))
     return _t_table(float(level))[d.astype(np.int64)]
 
 

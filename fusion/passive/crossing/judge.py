@@ -28,7 +28,7 @@ CURVE_ALLOWANCE_REACHES = 2.0
 def judge_pairs(
     det: Any, model: tuple[LineStats, CurveStats | None, CurvatureStats | None],
     ia: NDArray[np.int64], ib: NDArray[np.int64], *, back_s: float, reach_s: float,
-    span_s: float,
+    span_s: float, only_resolved: bool = False,
 ) -> tuple[NDArray[np.float64], ...]:
     """Crossing time, interval, resolved flag, direction and confirming interval of pairs on
     one window.
@@ -38,21 +38,26 @@ def judge_pairs(
     confirming interval (``conf_low``, ``conf_high``) is the reported one except for pairs on
     curves widened by the manoeuvre allowance (`det.curve_manoeuvre`): for them it is the
     curves' own, so the allowance only widens what is reported (below the gate level).
+    `only_resolved`: only the resolved flag is wanted, the other values of pairs not resolved
+    may be NaN (pairs on lines whose lines' own interval is already too wide skip the
+    allowances: ``max_width_s`` of :func:`~fusion.passive.crossing.pairs.pair_intervals`).
     """
     st, cs, qs = model
     man = None if det.manoeuvre_q is None else (det.manoeuvre_q, span_s)
     gates = det.allowance_gate_level is not None and \
         span_s >= (1 << det.allowance_gate_level) * det.J * det.K * (1 - 1e-9)
+    prune = det.max_interval_s if only_resolved else None
     # below the gate resolved as without the allowances, which only widen (`gate_width`)
     tau, low, high, ok, *gate = pair_intervals(
         ia, ib, st.value, st, level=det.level, curvature=qs, manoeuvre=man,
-        far_side=det.far_side, own_width=not gates and (man is not None or det.far_side))
+        far_side=det.far_side, own_width=not gates and (man is not None or det.far_side),
+        max_width_s=prune)
     gate_width = gate[0] if gate else None
     k = det.extrapolation_scale
     if k > 1.0:  # predictions: the lines' extrapolation variance grown by k
         _, lk, hk, okk = pair_intervals(ia, ib, st.value, st, level=det.level, var_scale=k,
                                         curvature=qs, manoeuvre=man,
-                                        far_side=det.far_side)
+                                        far_side=det.far_side, max_width_s=prune)
         ahead = tau > 0
         low, high, ok = (np.where(ahead, x, y) for x, y in ((lk, low), (hk, high), (okk, ok)))
     direction = np.sign(st.slope[ib] - st.slope[ia])
@@ -184,7 +189,7 @@ def ladder_hits(det: Any, t: float, ids: NDArray[np.int64]) -> _Hits:
                 if new.size:
                     r = judge_pairs(det, models[lower], ia[k[new]], ib[k[new]],
                                     back_s=reach[lower][0], reach_s=reach[lower][1],
-                                    span_s=det.windows[lower] * det.K)[3]
+                                    span_s=det.windows[lower] * det.K, only_resolved=True)[3]
                     judged[lower].add(key[new], r)
                     res[new] = r
                 k = k[~res]

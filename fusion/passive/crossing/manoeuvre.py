@@ -75,9 +75,9 @@ def manoeuvre_variance(q: NDArray[np.float64] | float, span_s: float, tau: NDArr
     """
     A, B, C, _ = miss_constants()
     T = float(span_s)
-    x = np.where(np.isfinite(tau) & (tau > 0), tau, 0.0) / T
-    return np.where(np.isfinite(tau) & (tau > 0),
-                    q * T ** 3 * (x ** 3 / 3.0 + A * x * x + 2.0 * B * x + C), 0.0)
+    ahead = np.isfinite(tau) & (tau > 0)
+    x = np.where(ahead, tau, 0.0) / T
+    return np.where(ahead, q * T ** 3 * (x ** 3 / 3.0 + A * x * x + 2.0 * B * x + C), 0.0)
 
 
 def half_window_slopes(

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from fusion.passive.crossing.curvature import CurvatureStats, curvature_variance
+from fusion.passive.crossing.curvature import CurvatureStats
 from fusion.passive.crossing.interval import crossing_time_interval, t_quantile, welch_dof
 from fusion.passive.crossing.manoeuvre import manoeuvre_variance
 from fusion.passive.crossing.timing import crossing_time_terms
@@ -180,6 +180,23 @@ def pairs_in_reach(
     return ia[k], ib[k], num[k] / den[k]  # t_c - t_i, equation (2)
 
 
+def _curvature_terms(cs: CurvatureStats, index_a: NDArray[np.int64], index_b: NDArray[np.int64]
+                     ) -> tuple[NDArray[np.float64], ...]:
+    """The pairs' curvature statistics, gathered once for several leads."""
+    return (cs.alpha[index_a], cs.beta[index_a], cs.c[index_a], cs.var_c[index_a],
+            cs.alpha[index_b], cs.beta[index_b], cs.c[index_b], cs.var_c[index_b])
+
+
+def _curvature_miss(terms: tuple[NDArray[np.float64], ...], t: NDArray[np.float64]
+                    ) -> NDArray[np.float64]:
+    """:func:`~fusion.passive.crossing.curvature.curvature_variance` at finite `t`, from
+    :func:`_curvature_terms` (the same operations in the same order)."""
+    al_a, be_a, c_a, vc_a, al_b, be_b, c_b, vc_b = terms
+    tt = t * t
+    ga, gb = tt - al_a - be_a * t, tt - al_b - be_b * t
+    return (c_b * gb - c_a * ga) ** 2 + vc_a * ga * ga + vc_b * gb * gb
+
+
 def pair_intervals(
     index_a: NDArray[np.int64],
     index_b: NDArray[np.int64],
@@ -192,6 +209,7 @@ def pair_intervals(
     manoeuvre: tuple[NDArray[np.float64], float] | None = None,
     far_side: bool = False,
     own_width: bool = False,
+    max_width_s: float | None = None,
 ) -> tuple[NDArray[np.float64], ...]:
     """Crossing time and its Fieller interval for given pairs, relative to the current sample.
 
@@ -222,6 +240,12 @@ def pair_intervals(
     own_width : bool, optional
         Also return the width of the interval with `curvature` only (no `manoeuvre`, no
         `far_side`), from the same terms (default False).
+    max_width_s : float, optional
+        Only pairs whose interval may be this narrow are widened: a pair whose interval from
+        the lines' covariance alone is unbounded or wider (the lead-dependent terms only add
+        variance, so it stays wider) may be returned unbounded, with NaN bounds and width,
+        without its curvature, manoeuvre and far-end terms (when a quarter of the pairs or
+        more are such; default None: every pair computed).
 
     Returns
     -------
@@ -247,39 +271,75 @@ def pair_intervals(
     dof = welch_dof(va, vb, stats.n[index_a] - 2.0, stats.n[index_b] - 2.0)
     with np.errstate(invalid="ignore", divide="ignore"):
         tau = np.where(den != 0, num / np.where(den != 0, den, 1.0), np.inf)  # equation (2)
-    q = t_quantile(level, dof) * np.sqrt(var_scale)
+    q = t_quantile(level, dof)
+    if var_scale != 1.0:
+        q = q * np.sqrt(var_scale)
     v00 = stats.var_value[index_a] + stats.var_value[index_b]
     v01 = stats.cov[index_a] + stats.cov[index_b]
+    widened = curvature is not None or manoeuvre is not None
+    tau_all, kept = tau, None
+    if max_width_s is not None and widened:  # leave out the pairs the widening cannot resolve
+        low, high, bounded = crossing_time_interval(d0, d1, v00, v01, v11, q)
+        with np.errstate(invalid="ignore"):
+            keep = bounded & (high - low <= max_width_s)
+        if keep.sum() < 0.75 * keep.size:  # worth the gathers (the others lose nothing)
+            kept = np.flatnonzero(keep)
+            index_a, index_b, d0, d1, v00, v01, v11, q, tau = (
+                x[kept] for x in (index_a, index_b, d0, d1, v00, v01, v11, q, tau))
+    # Fieller's interval (crossing_time_interval) term by term: only C changes with the variance
+    q2 = q ** 2
+    A = d1 * d1 - q2 * v11
+    B = d0 * d1 - q2 * v01
+    d00 = d0 * d0
+    bounded = A > 0
+    A_ok = np.where(bounded, A, 1.0)
 
-    def ahead_var(at: NDArray[np.float64]) -> NDArray[np.float64]:
-        """The variance the lines' own covariance leaves out, at `at` ahead (0 behind)."""
+    def roots(v: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        root = np.sqrt(np.maximum(B * B - A * (d00 - q2 * v), 0.0))
+        return (np.where(bounded, (-B - root) / A_ok, -np.inf),
+                np.where(bounded, (-B + root) / A_ok, np.inf))
+
+    cterms = None if curvature is None else _curvature_terms(curvature, index_a, index_b)
+    q_man = None if manoeuvre is None else manoeuvre[0][index_a] + manoeuvre[0][index_b]
+    ahead = np.isfinite(tau) & (tau > 0)
+    cv_tau = None
+    if curvature is not None:  # the curvature the lines leave out, at the crossing
+        cv_tau = np.where(ahead, _curvature_miss(cterms, np.where(ahead, tau, 0.0)), 0.0)
+
+    def ahead_var(at: NDArray[np.float64], cv: NDArray[np.float64] | None = None
+                  ) -> NDArray[np.float64]:
+        """The variance the lines' own covariance leaves out, at `at` ahead (0 behind); `cv`
+        the curvature term at `at` if known."""
         extra = np.zeros(at.shape)
-        ahead = np.isfinite(at) & (at > 0)
         if curvature is not None:  # the curvature the lines leave out
-            extra = extra + np.where(ahead, curvature_variance(curvature, index_a, index_b,
-                                                               np.where(ahead, at, 0.0)), 0.0)
+            if cv is None:
+                ok = np.isfinite(at) & (at > 0)
+                cv = np.where(ok, _curvature_miss(cterms, np.where(ok, at, 0.0)), 0.0)
+            extra = extra + cv
         if manoeuvre is not None:  # the rate wander the lines cannot show
-            qm = manoeuvre[0]
-            extra = extra + manoeuvre_variance(qm[index_a] + qm[index_b], manoeuvre[1], at)
+            extra = extra + manoeuvre_variance(q_man, manoeuvre[1], at)
         return extra
 
     width = None
     if own_width:
-        ahead = np.isfinite(tau) & (tau > 0)
-        v_own = v00 if curvature is None else v00 + np.where(ahead, curvature_variance(
-            curvature, index_a, index_b, np.where(ahead, tau, 0.0)), 0.0)
-        lo_own, hi_own, _ = crossing_time_interval(d0, d1, v_own, v01, v11, q)
+        lo_own, hi_own = roots(v00 if curvature is None else v00 + cv_tau)
         width = hi_own - lo_own
-    if curvature is None and manoeuvre is None:
-        low, high, bounded = crossing_time_interval(d0, d1, v00, v01, v11, q)
+    if not widened:
+        low, high = roots(v00)
     else:  # at the predicted crossing, then (`far_side`) again at the interval's far end
-        low, high, bounded = crossing_time_interval(d0, d1, v00 + ahead_var(tau), v01, v11, q)
+        low, high = roots(v00 + ahead_var(tau, cv_tau))
         if far_side:
             far = np.where(bounded & np.isfinite(high) & (high > tau), high, tau)
-            _, high, _ = crossing_time_interval(d0, d1, v00 + ahead_var(far), v01, v11, q)
+            high = roots(v00 + ahead_var(far))[1]
     bounded &= np.isfinite(low) & np.isfinite(high)
-    return (tau, low, high, bounded) if width is None else (tau, low, high, bounded, width)
-
+    out = (low, high, bounded) if width is None else (low, high, bounded, width)
+    if kept is not None:  # the pairs left out: unbounded, NaN bounds and width
+        full = tuple(np.full(tau_all.size, np.nan if x.dtype.kind == "f" else False, x.dtype)
+                     for x in out)
+        for f, x in zip(full, out, strict=True):
+            f[kept] = x
+        out = full
+    return (tau_all, *out)
 
 
 def evaluate_pairs(
