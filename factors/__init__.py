@@ -13,7 +13,7 @@ one:
   (``JacobianFactor`` in a ``LinearContainerFactor``), set up for a whole chain.
 - :mod:`factors.target` -- true bearing of a constant-velocity target: one vector
   ``CustomFactor`` per batch of bearings, analytic Jacobians.
-- :mod:`factors.tdoa` (with :mod:`factors.tdoa_model` and :mod:`factors.tdoa_factors`) -- time
+- :mod:`factors.tdoa` (with :mod:`factors.tdoa.model` and :mod:`factors.tdoa.factors`) -- time
   differences of arrival: the model, the factories and the one-source solve.
 - :mod:`factors.weighted` -- association weights read live from an array, one per factor or
   one per row of a vector factor.

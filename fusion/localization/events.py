@@ -44,7 +44,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy import stats
 
 from factors.tdoa import solve_source
-from factors.tdoa_model import predicted_tdoas
+from factors.tdoa.model import predicted_tdoas
 from fusion._validation import check_positive
 from fusion.geometry import SensorArray
 from fusion.localization.event_tdoa import (

@@ -9,7 +9,7 @@ shared by all of them and bends their delays differently from each position.
 :func:`estimate_sensor_positions` extends the recording's sound-speed graph
 (:mod:`fusion.localization.sound_speed`) by a ``Point3`` offset per real sensor from its
 surveyed position, with a zero-mean prior of the user's standard deviation
-(:mod:`factors.tdoa_sensors`). The priors also hold the gauge: a translation or rotation of the
+(:mod:`factors.tdoa.sensors`). The priors also hold the gauge: a translation or rotation of the
 whole array with every fix, or its scale with the speed, leaves every delay unchanged, and only
 the priors (the survey) pin them. Like the speed, it is solved by least squares and then with a
 per-TDOA Huber kernel; the offsets' standard deviations come from the marginal covariance
@@ -34,7 +34,7 @@ import gtsam
 import numpy as np
 from numpy.typing import NDArray
 
-from factors.tdoa_sensors import sensor_offset_tdoa_factor
+from factors.tdoa.sensors import sensor_offset_tdoa_factor
 from fusion.localization.sound_speed import (
     GRADIENT_PRIOR_PER_S,
     GRADIENT_SIGMA_PER_S,

@@ -18,7 +18,7 @@ sigmas of the front end hold the measurement noise, not the sensor-position or r
 errors the residuals show). :func:`refit_fix` then re-solves any fix at the estimated speed.
 
 With ``gradient=True`` the speed is a linear profile ``c(d) = c_ref + g (d - d_ref)`` of depth
-``d`` (:class:`LinearProfile`; :mod:`factors.tdoa_gradient`: travel times along straight rays,
+``d`` (:class:`LinearProfile`; :mod:`factors.tdoa.gradient`: travel times along straight rays,
 their log-mean speed), ``[c_ref, g]`` one ``Vector(2)`` of the graph with a weak prior on ``g``
 around the deep-water (pressure) gradient: one speed cannot fit paths that cross different
 depths (a fix 11 m off on seed 7904 of ``--vary-only sound-speed``; docs/localization.md, "A
@@ -41,8 +41,8 @@ import gtsam
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from factors.tdoa_factors import weighted_tdoa_vector_factor
-from factors.tdoa_gradient import gradient_tdoa_factor, travel_times
+from factors.tdoa.factors import weighted_tdoa_vector_factor
+from factors.tdoa.gradient import gradient_tdoa_factor, travel_times
 from fusion.types import frozen_array
 
 __all__ = [

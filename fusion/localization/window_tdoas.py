@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from factors.tdoa_model import TdoaModel, check_speed
+from factors.tdoa.model import TdoaModel, check_speed
 from fusion.types import frozen_array
 
 __all__ = ["WindowTdoas"]
@@ -82,7 +82,7 @@ class WindowTdoas:
 
     @property
     def model(self) -> TdoaModel:
-        """The measurement model of all TDOAs (:class:`factors.tdoa_model.TdoaModel`)."""
+        """The measurement model of all TDOAs (:class:`factors.tdoa.model.TdoaModel`)."""
         return self._model
 
     @property

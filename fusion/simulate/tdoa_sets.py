@@ -30,7 +30,7 @@ from itertools import combinations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from factors.tdoa_model import predicted_tdoas
+from factors.tdoa.model import predicted_tdoas
 
 __all__ = ["SyntheticTdoaWindow", "all_pairs", "simulate_tdoa_window", "sharing_one_sensor"]
 

@@ -256,7 +256,7 @@ def test_weights_are_read_live():
 def test_fixed_speed_weighted_error_is_the_models_arithmetic():
     """At a known speed without a robust loss the weighted factor returns, bit for bit, the
     model's residual and Jacobian scaled by sqrt(w) / sigma, also after in-place weight updates."""
-    from factors.tdoa_model import TdoaModel
+    from factors.tdoa.model import TdoaModel
 
     rng = np.random.default_rng(24)
     for _, s, p, c in _geometries(rng):

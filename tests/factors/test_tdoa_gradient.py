@@ -1,4 +1,4 @@
-"""Tests of factors.tdoa_gradient: travel times of a linear sound-speed profile, the factor's
+"""Tests of factors.tdoa.gradient: travel times of a linear sound-speed profile, the factor's
 Jacobians (central differences), and a solve the one-speed model cannot match."""
 
 import gtsam
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from factors.tdoa_gradient import GradientTdoaModel, gradient_tdoa_factor, travel_times
+from factors.tdoa.gradient import GradientTdoaModel, gradient_tdoa_factor, travel_times
 from factors.testing import assert_jacobians
 from fusion.simulate.whale_range.propagation import SoundSpeedProfile, segment_time
 

@@ -1,4 +1,4 @@
-"""Tests of factors.tdoa_model: the TDOA measurement model and its checks."""
+"""Tests of factors.tdoa.model: the TDOA measurement model and its checks."""
 
 import numpy as np
 import pytest
@@ -6,7 +6,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
-from factors.tdoa_model import TdoaModel, predicted_tdoas
+from factors.tdoa.model import TdoaModel, predicted_tdoas
 
 _coord = st.floats(-2000.0, 2000.0, allow_nan=False)
 _point = st.tuples(_coord, _coord, _coord)

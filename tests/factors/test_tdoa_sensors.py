@@ -1,4 +1,4 @@
-"""Tests of factors.tdoa_sensors: travel times with the sensors as variables, their Jacobians
+"""Tests of factors.tdoa.sensors: travel times with the sensors as variables, their Jacobians
 (central differences), the time symmetry the sensor derivative rests on, and a solve that
 recovers a sensor's survey error."""
 
@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from factors.tdoa_gradient import travel_times
-from factors.tdoa_sensors import sensor_offset_tdoa_factor, sensor_times
+from factors.tdoa.gradient import travel_times
+from factors.tdoa.sensors import sensor_offset_tdoa_factor, sensor_times
 from factors.testing import assert_jacobians
 
 P, C = gtsam.symbol("p", 0), gtsam.symbol("c", 0)

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 import soundfile as sf
 
-from factors.tdoa_model import predicted_tdoas
+from factors.tdoa.model import predicted_tdoas
 from fusion.commands.localize_events import add_event_options, event_document, run_events
 from fusion.geometry import SensorArray
 from fusion.io import read_array, read_audio_files, write_json

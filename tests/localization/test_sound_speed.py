@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from scipy.optimize import least_squares, minimize_scalar
 
-from factors.tdoa_model import predicted_tdoas
+from factors.tdoa.model import predicted_tdoas
 from fusion.localization.retime import emission_shift
 from fusion.localization.sound_speed import (
     FixTdoas,
@@ -146,7 +146,7 @@ def test_a_linear_profile_and_its_fixes_recovered_on_one_graph():
     """Delays of c(d) = 1475 + 0.0165 d along straight rays: the profile's graph recovers the
     gradient, the speed at its reference depth (halfway between sensors and fixes) and every
     fix; one speed's graph leaves the fixes off and its residuals show the misfit."""
-    from factors.tdoa_gradient import travel_times
+    from factors.tdoa.gradient import travel_times
     from fusion.localization.sound_speed import LinearProfile, fix_residuals
 
     out = []

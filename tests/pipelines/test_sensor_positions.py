@@ -8,7 +8,7 @@ worse -- 0.7 m to 6 m here; docs/localization.md section 22 says so.)"""
 import numpy as np
 from scipy.optimize import least_squares
 
-from factors.tdoa_model import predicted_tdoas
+from factors.tdoa.model import predicted_tdoas
 from fusion.pipelines.sound_speed import calibrate_speed
 
 SURVEYED = np.array([[0.0, 0, -1500], [3200, 150, -1610], [1500, 2900, -1550],

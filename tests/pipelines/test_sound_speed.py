@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.optimize import least_squares
 
-from factors.tdoa_model import predicted_tdoas
+from factors.tdoa.model import predicted_tdoas
 from fusion.pipelines.sound_speed import calibrate_speed, fix_tdoas
 
 SENSORS = np.array([[0.0, 0, -1500], [3200, 150, -1610], [1500, 2900, -1550],
@@ -210,7 +210,7 @@ def test_chance_candidates_alone_teach_no_speed():
 def _profile_window(p_true, t0, c0=1475.0, g=0.0165, c_file=1494.0):
     """A written window whose delays follow the linear profile ``c(d) = c0 + g d`` along
     straight rays (the simulator's model), solved at the file's one speed."""
-    from factors.tdoa_gradient import travel_times
+    from factors.tdoa.gradient import travel_times
 
     q = np.array(PAIRS)
     t, _, _ = travel_times(p_true, SENSORS, c0, g, 0.0)

@@ -1,7 +1,7 @@
 """TDOA factory functions on a click source position: all of a source's TDOAs, weighted.
 
 Typed factories around closures (:class:`gtsam.CustomFactor`) of the model of
-:mod:`factors.tdoa_model`, residual ``(d_i - d_j)/c + b_i - b_j - tau`` in seconds (predicted
+:mod:`factors.tdoa.model`, residual ``(d_i - d_j)/c + b_i - b_j - tau`` in seconds (predicted
 minus measured). The module notes of :mod:`factors.tdoa` give the Jacobians; these names are
 importable from there too.
 """
@@ -14,7 +14,7 @@ import gtsam
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from factors.tdoa_model import (
+from factors.tdoa.model import (
     MIN_RANGE,
     TdoaModel,
     check_speed,

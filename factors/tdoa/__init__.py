@@ -1,8 +1,17 @@
-"""Time-difference-of-arrival (TDOA) factors on a click source position, and a one-source solve.
+"""TDOA factors of a click source: the model, the GTSAM factors, a depth-gradient speed, sensor
+offsets, and a one-source solve.
+
+Modules: :mod:`factors.tdoa.model` (predicted delays and their derivatives, one speed),
+:mod:`factors.tdoa.factors` (the vector and weighted vector factors), :mod:`factors.tdoa.gradient`
+(travel times and the factor under a speed linear in depth), :mod:`factors.tdoa.sensors` (the
+factor with each sensor's offset from its surveyed position as a variable). This module holds
+the one-source solve.
+
+Time-difference-of-arrival (TDOA) factors on a click source position, and a one-source solve.
 
 The unknown source position ``p`` is a GTSAM ``Point3`` (m); sensors ``s_i`` (m) are known. The
 residual of the pair ``(i, j)`` with measured delay ``tau`` (s, arrival at ``i`` minus arrival
-at ``j``) is predicted minus measured (:mod:`factors.tdoa_model`), in seconds::
+at ``j``) is predicted minus measured (:mod:`factors.tdoa.model`), in seconds::
 
     r = (d_i - d_j)/c + b_i - b_j - tau,   d_i = |p - s_i|
     dr/dp = (u_i - u_j)/c,   dr/dc = -(d_i - d_j)/c^2,   dr/db_i = +1,   dr/db_j = -1
@@ -26,7 +35,7 @@ TDOAs on a 5-sensor km array, graph build + Levenberg-Marquardt, 4-6 iterations,
 factors, the form it replaced, took 2.7-7.1 ms (8-19 times slower). A whole
 :func:`solve_source` call (with ``Marginals``) takes 1.2-1.8 ms.
 
-The factories live in :mod:`factors.tdoa_factors`, the one-source solve here; all are importable
+The factories live in :mod:`factors.tdoa.factors`, the one-source solve here; all are importable
 from here.
 """
 
@@ -39,8 +48,8 @@ import gtsam
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from factors.tdoa_factors import tdoa_vector_factor, weighted_tdoa_vector_factor
-from factors.tdoa_model import TdoaModel, check_speed, predicted_tdoas
+from factors.tdoa.factors import tdoa_vector_factor, weighted_tdoa_vector_factor
+from factors.tdoa.model import TdoaModel, check_speed, predicted_tdoas
 
 __all__ = [
     "TdoaSolveInfo",

@@ -7,7 +7,7 @@ has an offset ``delta_q`` (``Point3``, m) from its surveyed position ``s_q``, a 
 the graph shared by every fix's factor; a sensor's surface image (``z -> -z``,
 :func:`fusion.localization.sound_speed.path_sensors`) moves by the mirrored offset.
 
-The travel times are those of :func:`factors.tdoa_gradient.travel_times` (straight rays, a
+The travel times are those of :func:`factors.tdoa.gradient.travel_times` (straight rays, a
 speed linear in depth, ``g = 0`` one speed). Their derivative by a sensor's position comes from
 their symmetry: the time from ``p`` to sensor ``s`` equals the time from ``s`` to ``p``
 (``ln(c(b)/c(a)) / (g (b - a))`` is symmetric in the two depths), and the time from ``p`` to the
@@ -29,8 +29,8 @@ import gtsam
 import numpy as np
 from numpy.typing import ArrayLike
 
-from factors.tdoa_gradient import travel_times
-from factors.tdoa_model import TdoaModel
+from factors.tdoa.gradient import travel_times
+from factors.tdoa.model import TdoaModel
 
 __all__ = ["sensor_offset_tdoa_factor", "sensor_times"]
 

@@ -20,7 +20,7 @@ path_sensors`) stands for the reflected path: the profile is mirrored about the 
 ``c_0 = c_ref - g d_ref`` the speed at the surface.
 
 The residual of pair ``(i, j)`` is ``T_i - T_j - tau`` (s), optionally weighted by
-``sqrt(w_k)`` like :func:`factors.tdoa_factors.weighted_tdoa_vector_factor`. Derivatives
+``sqrt(w_k)`` like :func:`factors.tdoa.factors.weighted_tdoa_vector_factor`. Derivatives
 (``dT/dL = h / c(a)`` etc.) are in :meth:`GradientTdoaModel.residual`; ``h'(u) = (1/(1+u) - h)/u``.
 
 Notes
@@ -39,7 +39,7 @@ import gtsam
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from factors.tdoa_model import MIN_RANGE, TdoaModel
+from factors.tdoa.model import MIN_RANGE, TdoaModel
 
 __all__ = ["GradientTdoaModel", "gradient_tdoa_factor", "travel_times"]
 
