@@ -36,14 +36,13 @@ from numpy.typing import NDArray
 
 from factors.tdoa.sensors import sensor_offset_tdoa_factor
 from fusion.localization.sound_speed import (
-    GRADIENT_PRIOR_PER_S,
-    GRADIENT_SIGMA_PER_S,
     HUBER_K,
     POSITION_PRIOR_M,
     PRIOR_SIGMA_MPS,
     FixTdoas,
     LinearProfile,
     SoundSpeedEstimate,
+    add_speed_prior,
     fix_residuals,
 )
 
@@ -126,13 +125,7 @@ def estimate_sensor_positions(fixes: Sequence[FixTdoas], *, n_real: int, nominal
     ckey = gtsam.symbol("c", 0)
     okeys = [gtsam.symbol("o", q) for q in range(n_real)]
     graph, values = gtsam.NonlinearFactorGraph(), gtsam.Values()
-    if d_ref is None:
-        mean, sig = np.array([nominal_mps]), np.array([prior_sigma_mps])
-    else:
-        mean = np.array([nominal_mps, GRADIENT_PRIOR_PER_S])
-        sig = np.array([prior_sigma_mps, GRADIENT_SIGMA_PER_S])
-    graph.add(gtsam.PriorFactorVector(ckey, mean, gtsam.noiseModel.Diagonal.Sigmas(sig)))
-    values.insert(ckey, mean)
+    add_speed_prior(graph, values, ckey, nominal_mps, prior_sigma_mps, d_ref)
     off_prior = gtsam.noiseModel.Isotropic.Sigma(3, sigma_m)
     for k in okeys:
         graph.add(gtsam.PriorFactorPoint3(k, gtsam.Point3(0.0, 0.0, 0.0), off_prior))

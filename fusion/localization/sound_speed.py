@@ -50,6 +50,7 @@ __all__ = [
     "FixTdoas",
     "LinearProfile",
     "SoundSpeedEstimate",
+    "add_speed_prior",
     "estimate_sound_speed",
     "fix_residuals",
     "path_sensors",
@@ -279,6 +280,20 @@ def _whitened(fix: FixTdoas, p: NDArray, c: float | LinearProfile) -> NDArray[np
     return np.sqrt(np.maximum(fix.weights, 0.0)) * fix_residuals(fix, p, c) / fix.sigmas
 
 
+def add_speed_prior(graph: gtsam.NonlinearFactorGraph, values: gtsam.Values, key: int,
+                    nominal_mps: float, prior_sigma_mps: float, d_ref: float | None) -> None:
+    """The speed variable `key` of a recording graph with its prior: one speed about the array
+    file's value, or with `d_ref` the linear profile ``[c_ref, g]`` (g about the deep-water
+    pressure gradient)."""
+    if d_ref is None:
+        mean, sig = np.array([nominal_mps]), np.array([prior_sigma_mps])
+    else:
+        mean = np.array([nominal_mps, GRADIENT_PRIOR_PER_S])
+        sig = np.array([prior_sigma_mps, GRADIENT_SIGMA_PER_S])
+    graph.add(gtsam.PriorFactorVector(key, mean, gtsam.noiseModel.Diagonal.Sigmas(sig)))
+    values.insert(key, mean)
+
+
 def _solve(fixes: Sequence[FixTdoas], nominal_mps: float, prior_sigma_mps: float,
            max_iterations: int, d_ref: float | None = None
            ) -> tuple[gtsam.NonlinearFactorGraph, gtsam.Values]:
@@ -287,13 +302,7 @@ def _solve(fixes: Sequence[FixTdoas], nominal_mps: float, prior_sigma_mps: float
     ckey = gtsam.symbol("c", 0)
     graph = gtsam.NonlinearFactorGraph()
     values = gtsam.Values()
-    if d_ref is None:
-        mean, sig = np.array([nominal_mps]), np.array([prior_sigma_mps])
-    else:
-        mean = np.array([nominal_mps, GRADIENT_PRIOR_PER_S])
-        sig = np.array([prior_sigma_mps, GRADIENT_SIGMA_PER_S])
-    graph.add(gtsam.PriorFactorVector(ckey, mean, gtsam.noiseModel.Diagonal.Sigmas(sig)))
-    values.insert(ckey, mean)
+    add_speed_prior(graph, values, ckey, nominal_mps, prior_sigma_mps, d_ref)
     pos_prior = gtsam.noiseModel.Isotropic.Sigma(3, POSITION_PRIOR_M)
     priors = gtsam.NonlinearFactorGraph()
     for k, fix in enumerate(fixes):
