@@ -150,7 +150,7 @@ def train_delay(
     >>> s = rng.exponential(1.0, 200_000)            # noise statistic, mean 1
     >>> ref = 1.0 + np.cumsum(rng.uniform(0.3, 0.45, 25))
     >>> idx = np.round((ref + 0.4321) / hop).astype(int)
-    >>> s[idx] += 2.0                                # each click well below a 6.0 threshold
+    >>> s[idx] += 3.0                                # each click well below a 6.0 threshold
     >>> d = train_delay(s, 0.0, hop, ref, max_delay_s=1.5, t_c_s=6.0, max_rate=0.0)
     >>> round(d.delay_s, 4), d.z > d.z_threshold
     (0.4321, True)
