@@ -6,10 +6,9 @@ whose fixes do not.
 worse -- 0.7 m to 6 m here; docs/localization.md section 22 says so.)"""
 
 import numpy as np
-from scipy.optimize import least_squares
 
-from factors.tdoa.model import predicted_tdoas
 from fusion.pipelines.sound_speed import calibrate_speed
+from tests.pipelines.written_windows import written_window
 
 SURVEYED = np.array([[0.0, 0, -1500], [3200, 150, -1610], [1500, 2900, -1550],
                      [-1800, 1400, -1480], [400, -2500, -1590]])
@@ -25,16 +24,8 @@ CROSSING = np.array([[-600.0, -300, -900], [0, 200, -1000], [600, 700, -1100], [
 
 def _window(p_true, t0):
     """A written window: delays of the true sensors, its fix solved on the surveyed ones."""
-    q = np.array(PAIRS)
-    taus = predicted_tdoas(p_true, TRUE_SENSORS, q, c=1500.0)
-    start = least_squares(lambda x: (predicted_tdoas(x, SURVEYED, q, c=1500.0) - taus) * 1e6,
-                          p_true).x
-    tdoas = [{"pair": list(pr), "tau": float(t), "t": t0 + 6.0, "rate": 0.0, "valid": True,
-              "llr": 5.0, "sigma": 1e-6} for pr, t in zip(PAIRS, taus, strict=True)]
-    src = {"x": start[0], "y": start[1], "z": start[2], "cov": np.eye(3).tolist(),
-           "tdoas_used": len(PAIRS), "observable": True, "mirror_ambiguous": False,
-           "owned_tdoas": list(range(len(PAIRS))), "paths": ["direct"] * len(PAIRS)}
-    return {"t_start": t0, "t_end": t0 + 12.0, "tdoas": tdoas, "sources": [src]}
+    return written_window(p_true, t0, PAIRS, true_sensors=TRUE_SENSORS, sensors=SURVEYED,
+                          sigma_s=1e-6)
 
 
 def _errors(windows, cal):

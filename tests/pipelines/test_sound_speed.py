@@ -8,6 +8,7 @@ from scipy.optimize import least_squares
 
 from factors.tdoa.model import predicted_tdoas
 from fusion.pipelines.sound_speed import calibrate_speed, fix_tdoas
+from tests.pipelines.written_windows import written_window
 
 SENSORS = np.array([[0.0, 0, -1500], [3200, 150, -1610], [1500, 2900, -1550],
                     [-1800, 1400, -1480], [400, -2500, -1590]])
@@ -17,16 +18,8 @@ PAIRS = [(i, j) for i in range(5) for j in range(i + 1, 5)]
 def _window(p_true, c_true, c_file, t0, pairs=PAIRS):
     """A written window whose one source owns the delays of `pairs`, solved at the file's
     speed."""
-    q = np.array(pairs)
-    taus = predicted_tdoas(p_true, SENSORS, q, c=c_true)
-    start = least_squares(lambda x: (predicted_tdoas(x, SENSORS, q, c=c_file) - taus) * 1e6,
-                          p_true).x
-    tdoas = [{"pair": list(pr), "tau": float(t), "t": t0 + 6.0, "rate": 0.0, "valid": True,
-              "llr": 5.0, "sigma": 1e-7} for pr, t in zip(pairs, taus, strict=True)]
-    src = {"x": start[0], "y": start[1], "z": start[2], "cov": np.eye(3).tolist(),
-           "tdoas_used": len(pairs), "observable": True, "mirror_ambiguous": False,
-           "owned_tdoas": list(range(len(pairs))), "paths": ["direct"] * len(pairs)}
-    return {"t_start": t0, "t_end": t0 + 12.0, "tdoas": tdoas, "sources": [src]}
+    return written_window(p_true, t0, pairs, true_sensors=SENSORS, sensors=SENSORS,
+                          c_true=c_true, c_file=c_file)
 
 
 TRUE = np.array([[800.0, 600, -900], [820, 630, -905], [850, 650, -910], [870, 690, -915]])
