@@ -211,6 +211,9 @@ def _grid_variants() -> dict:
         "snr_evidence": {"snr_evidence": True, "pilot_same": True},
         "birth_evidence": {"birth_evidence": True, "pilot_same": True},
         "snr_birth_evidence": {"snr_evidence": True, "birth_evidence": True, "pilot_same": True},
+        # --track-pd-prior-pings 1 and 2: each track's own P_D per receiver (issue 20, 2026-12-03 night)
+        "track_pd1": {"track_pd_prior_pings": 1.0, "pilot_same": True},
+        "track_pd2": {"track_pd_prior_pings": 2.0, "pilot_same": True},
     }
 
 

@@ -51,6 +51,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from fusion.active.clutter.base import Hotspots
 from fusion.active.clutter.intensity import ClutterIntensity
+from fusion.active.track_pd import TrackRates
 
 __all__ = ["TrackScorer"]
 
@@ -108,6 +109,10 @@ class TrackScorer:
     snr_evidence : bool, optional
         Add the SNR's likelihood ratio to each hit (default False; :meth:`snr_delta`), when
         the detections carry an ``snr_db``.
+    track_pd_prior_pings : float, optional
+        Score hits and misses with each track's own ``P_D`` per receiver, a Beta prior of the
+        receiver's ``P_D`` worth this many pings updated by the track's hits
+        (:mod:`fusion.active.track_pd`); None (default): the receiver's ``P_D``.
 
     Examples
     --------
@@ -130,6 +135,7 @@ class TrackScorer:
         leave_one_out: bool = False,
         leave_track_out: bool = False,
         snr_evidence: bool = False,
+        track_pd_prior_pings: float | None = None,
     ) -> None:
         if not (np.isfinite(confirm_llr) and np.isfinite(delete_llr)) or delete_llr >= confirm_llr:
             raise ValueError(f"need finite delete_llr < confirm_llr, got {delete_llr!r}, "
@@ -153,6 +159,8 @@ class TrackScorer:
         self.leave_one_out = bool(leave_one_out)
         self.leave_track_out = bool(leave_track_out)
         self.snr_evidence = bool(snr_evidence)
+        self.rates = (None if track_pd_prior_pings is None
+                      else TrackRates(prior_pings=track_pd_prior_pings))
         self.last_added = np.zeros(0, dtype=bool)
         self.last_update = 0
         self.reset()
@@ -170,6 +178,8 @@ class TrackScorer:
         # Per track (in the tracker's order): receiver -> rows (update, x, y) of its detections
         # that went into that receiver's intensity estimate (used with leave_track_out).
         self._own: list[dict[Hashable, list[tuple[float, float, float]]]] = []
+        if getattr(self, "rates", None) is not None:
+            self.rates.reset()
 
     def own_rows(self, tracks: NDArray[np.int64], key: Hashable) -> list[NDArray[np.float64]] | None:
         """The ``own`` argument of :meth:`scan_delta` for these tracks (None without
@@ -184,6 +194,8 @@ class TrackScorer:
         (appended), and each of `tracks` took detection `dets` of `xy` (kept if it went into the
         intensity estimate). Only with ``leave_track_out``, apart from the births."""
         self._own += [{} for _ in range(new)]
+        if self.rates is not None:
+            self.rates.add(new)
         if not self.leave_track_out or self.clutter_intensity is not None:
             return
         u = float(self.last_update)
@@ -194,6 +206,8 @@ class TrackScorer:
     def keep_tracks(self, alive: NDArray[np.bool_]) -> None:
         """Forget the deleted tracks' detections (`alive`: one flag per track)."""
         self._own = [o for o, a in zip(self._own, alive.tolist(), strict=True) if a]
+        if self.rates is not None:
+            self.rates.keep(alive)
 
     def pd(self, key: Hashable) -> float:
         """Current detection probability of a receiver per ping (given or estimated)."""
@@ -462,6 +476,16 @@ class TrackScorer:
         # P_D counts: a track hidden by the direct blast (a miss scoring 0) is no trial.
         w = np.asarray(confirmed if teach is None else teach, dtype=float)
         trial = self.miss_delta(key, track_xy) != 0.0
+        if self.rates is not None:                # each track's own P_D (track_pd)
+            seen = trial.copy()
+            seen[hits] = True
+            got = np.zeros(seen.size, dtype=bool)
+            got[hits] = True
+            t_all = np.arange(seen.size)
+            p_hat = np.clip(self.rates.predictive(key, self.pd(key), t_all), 1e-3, 1 - 1e-3)
+            delta[seen & ~got] = np.log1p(-p_hat[seen & ~got])
+            delta[hits] += np.log(p_hat[hits]) - math.log(self.pd(key))
+            self.rates.count(key, t_all[seen], got[seen])
         if contested is not None:
             trial &= ~contested
         trial[hits] = True

@@ -171,6 +171,8 @@ class Tracker:
         there, which then needs one hit fewer (defaults False, None; :mod:`fusion.active.births`).
     snr_evidence, birth_evidence : bool, optional
         SNR likelihood ratio in the track score; births start at their features' ratio (`TrackScorer`).
+    track_pd_prior_pings : float, optional
+        Score each track with its own ``P_D`` per receiver (:mod:`fusion.active.track_pd`; default None: off).
     shadow : bool, optional
         Fuzzy mode, monostatic sensors (detections with ``own_x, own_y`` and no ``rcv_x,
         rcv_y``): hold tentative tracks behind a near confirmed track (default True;
@@ -220,6 +222,7 @@ class Tracker:
         intensity_leave_track_out: bool = False, hits_per_detection: bool = False,
         coast_gate_births: bool = False, successor_llr: float | None = None,
         snr_evidence: bool = False, birth_evidence: bool = False,
+        track_pd_prior_pings: float | None = None,
     ) -> None:
         check_tracker_options(mode=mode, speed_sigma_mps=speed_sigma_mps, accel_psd=accel_psd,
                               confirm=(confirm_hits, confirm_window), max_misses=max_misses,
@@ -248,6 +251,7 @@ class Tracker:
                                    clutter_intensity=clutter_intensity, score_evidence=score_evidence,
                                    leave_one_out=intensity_leave_one_out,
                                    leave_track_out=intensity_leave_track_out, snr_evidence=snr_evidence,
+                                   track_pd_prior_pings=track_pd_prior_pings,
                                    intensity=ClutterIntensity(bandwidth_m=intensity_bandwidth_m))
                        if mode == "fuzzy" and confirm_llr is not None else None)
         self.motion_test = MotionTest(probability=motion_probability,

@@ -182,6 +182,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--birth-evidence", action="store_true",
                    help="a new track starts at its detection's classifier-score likelihood ratio "
                         "(and SNR ratio with --snr-evidence) instead of 0 (default: off)")
+    p.add_argument("--track-pd-prior-pings", type=number(float, gt=0), default=None, metavar="PINGS",
+                   help="score each track with its own detection probability per receiver: a "
+                        "Beta prior of the receiver's P_D worth PINGS pings updated by the "
+                        "track's hits and misses (docs/tracking.md; default: off, the receiver's P_D)")
     p.add_argument("--no-pilot-speed", dest="pilot_speed", action="store_false",
                    help="the speed prior (when --speed-sigma-mps is not given) stays the one of "
                         "straight-line triplets of detections (default: the median speed of the "

@@ -83,6 +83,7 @@ class TrackOptions:
     successor_llr: float | None = None
     snr_evidence: bool = False
     birth_evidence: bool = False
+    track_pd_prior_pings: float | None = None
     shadow_test: bool = True
     shadow_extent_sigmas: float = 8.0
     motion_recent_half: bool = False
@@ -141,6 +142,7 @@ def tracker_from(opts: TrackOptions, st: TrackSettings, system: object | None) -
         hits_per_detection=opts.hits_per_detection,
         coast_gate_births=opts.coast_gate_births, successor_llr=opts.successor_llr,
         snr_evidence=opts.snr_evidence, birth_evidence=opts.birth_evidence,
+        track_pd_prior_pings=opts.track_pd_prior_pings,
         motion_recent=opts.motion_recent_half, shadow=opts.shadow_test,
         shadow_extent_sigmas=opts.shadow_extent_sigmas,
         reject_platform_fixed=not opts.keep_platform_fixed,
