@@ -47,7 +47,7 @@ from fusion.passive.smoothing import (
     rts_reference,
 )
 from fusion.passive.smoothing.settings import fit_smooth_settings
-from fusion.pipelines.bearing_smoothing import SHORT_LINK_Q_DEG2_PER_S3
+from fusion.pipelines.bearing_smoothing import LINK_PATH_ALPHA, SHORT_LINK_Q_DEG2_PER_S3
 from fusion.simulate.bearings import simulate_bearings
 
 #: Seeds of the association ablation used while developing it (issue 18) ...
@@ -165,8 +165,8 @@ def _smoother_from_data(t, z, association: str, st=None,
                         extend_ends: bool = False, relink_gate: float = 100.0,
                         crossing_gap_scans: int | None = 60, link_curvature: bool = True,
                         extend_starts: bool = False,
-                        short_link_q_deg2_per_s3: float = SHORT_LINK_Q_DEG2_PER_S3
-                        ) -> tuple[MultiTrackSmoother, object]:
+                        short_link_q_deg2_per_s3: float = SHORT_LINK_Q_DEG2_PER_S3,
+                        link_path_alpha: float = LINK_PATH_ALPHA) -> tuple[MultiTrackSmoother, object]:
     """The multi-track smoother as ``fusion smooth`` builds it: every setting fitted to the
     unlabelled rows (nothing from the truth; `st` those settings if already fitted); the
     clutter density of the association counted by the smoother itself from the detections
@@ -179,18 +179,20 @@ def _smoother_from_data(t, z, association: str, st=None,
         init_sigma_rate=np.radians(st.init_sigma_rate_deg_per_s), max_misses=st.max_misses,
         max_gap_scans=st.max_gap_scans, extend_ends=extend_ends, relink_gate=relink_gate,
         crossing_gap_scans=crossing_gap_scans, link_curvature=link_curvature,
-        extend_starts=extend_starts, short_link_q=short_link_q_deg2_per_s3 * np.radians(1.0) ** 2)
+        extend_starts=extend_starts, short_link_q=short_link_q_deg2_per_s3 * np.radians(1.0) ** 2,
+        link_path_alpha=link_path_alpha)
     return mts, st
 
 
 #: Variants of the association ablation.
 VARIANTS = ("weighted", "no-relink", "short-gaps", "no-curvature", "no-short-links", "ends",
-            "starts", "nearest", "nn", "jpda")
+            "starts", "no-path-test", "nearest", "nn", "jpda")
 
 
 def bench_association(seeds, within_s: float = 60.0, names=VARIANTS,
                       slow_deg_per_min: float = 6.0,
-                      short_link_q_deg2_per_s3: float = SHORT_LINK_Q_DEG2_PER_S3) -> dict:
+                      short_link_q_deg2_per_s3: float = SHORT_LINK_Q_DEG2_PER_S3,
+                      link_path_alpha: float = LINK_PATH_ALPHA) -> dict:
     """Weighted against nearest association, the plain nearest-neighbour tracker and Stone
     Soup's JPDA tracker (:mod:`_jpda`) on the same unlabelled bearings (settings fitted once
     per scenario, outside the timings): outcomes around each crossing (15-scan guard, 20-scan
@@ -234,7 +236,8 @@ def bench_association(seeds, within_s: float = 60.0, names=VARIANTS,
             else:  # "ends": weighted, tracks extended beyond their end segments;
                 # "no-relink": weighted, no second link assignment (relink_gate = link_gate);
                 # "short-gaps": weighted, links across crossings no longer than other links;
-                # "no-curvature": weighted, constant-rate links; "no-short-links": no short-chain
+                # "no-curvature": weighted, constant-rate links; "no-path-test": no link-path
+                # test; "no-short-links": no short-chain
                 # links; "starts": tracks extended before their first segment
                 mts, _ = _smoother_from_data(
                     t, z, "nearest" if name == "nearest" else "weighted", st,
@@ -242,7 +245,8 @@ def bench_association(seeds, within_s: float = 60.0, names=VARIANTS,
                     crossing_gap_scans=None if name == "short-gaps" else 60,
                     link_curvature=name != "no-curvature", extend_starts=name == "starts",
                     short_link_q_deg2_per_s3=0.0 if name == "no-short-links"
-                    else short_link_q_deg2_per_s3)
+                    else short_link_q_deg2_per_s3,
+                    link_path_alpha=0.0 if name == "no-path-test" else link_path_alpha)
                 res = mts.run(t, z)
                 if name == "weighted":
                     lam_counted = mts.used_clutter_density
@@ -365,6 +369,9 @@ def main(argv=None) -> int:
                     default=SHORT_LINK_Q_DEG2_PER_S3,
                     help="acceleration PSD of the short-chain links of the smoother's variants, "
                          f"deg^2/s^3 (default {SHORT_LINK_Q_DEG2_PER_S3:g}, as fusion smooth)")
+    ap.add_argument("--link-path-alpha", type=float, default=LINK_PATH_ALPHA,
+                    help="significance level of the link-path test of the smoother's variants "
+                         f"(default {LINK_PATH_ALPHA:g}, as fusion smooth; 0: off)")
     ap.add_argument("--variants", nargs="+", choices=VARIANTS, default=list(VARIANTS),
                     help="variants of the ablation (default all)")
     a = ap.parse_args(argv)
@@ -379,7 +386,8 @@ def main(argv=None) -> int:
         out = {"seed_set": label, **bench_association(seeds, names=names,
                                                            slow_deg_per_min=a.slow_deg_per_min,
                                                            short_link_q_deg2_per_s3=(
-                                                               a.short_link_accel_psd_deg2_per_s3))}
+                                                               a.short_link_accel_psd_deg2_per_s3),
+                                                           link_path_alpha=a.link_path_alpha)}
         print(json.dumps(out))
         return 0
     out = {}

@@ -31,6 +31,7 @@ from fusion.cli import MAX_SCANS_OPTION, emit, number
 from fusion.io import read_bearings, write_settings, write_table
 from fusion.passive.smoothing.multitrack import ASSOCIATIONS, END_DETECTIONS
 from fusion.pipelines.bearing_smoothing import (
+    LINK_PATH_ALPHA,
     SHORT_LINK_Q_DEG2_PER_S3,
     check_track_lengths,
     fit_smoothing,
@@ -76,6 +77,11 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="unknown-origin rows: a chain of segments too short to be kept is "
                         "offered a link to a later track start with this bearing acceleration "
                         f"PSD, deg^2/s^3 (default {SHORT_LINK_Q_DEG2_PER_S3:g}; 0: off)")
+    p.add_argument("--link-path-alpha", type=number(float, ge=0, le=0.5), default=LINK_PATH_ALPHA,
+                   help="unknown-origin rows: refuse a segment link whose gap has scans with "
+                        "no detection near the link's path that a target detected with the "
+                        "fitted P_D would miss with probability below this (default "
+                        f"{LINK_PATH_ALPHA:g}; 0: off)")
     p.add_argument("--end-detections", choices=END_DETECTIONS, default="own",
                    help="with --end-extension: extend a track's ends only over the detections "
                         "the initial tracker gave the track its end segment came from or left "
@@ -173,6 +179,7 @@ def run(args: argparse.Namespace) -> int:
                                  extend_ends=args.extend_ends,
                                  extend_starts=args.extend_starts,
                                  short_link_q_deg2_per_s3=args.short_link_q_deg2_per_s3,
+                                 link_path_alpha=args.link_path_alpha,
                                  end_detections=args.end_detections,
                                  link_gate=args.link_gate, relink_gate=args.relink_gate,
                                  crossing_gap_scans=args.crossing_gap_scans,
@@ -192,7 +199,8 @@ def run(args: argparse.Namespace) -> int:
              "link_gate": args.link_gate, "relink_gate": args.relink_gate,
              "crossing_gap_scans": args.crossing_gap_scans,
              "link_curvature": args.link_curvature, "start_extension": args.extend_starts,
-             "short_link_accel_psd_deg2_per_s3": args.short_link_q_deg2_per_s3}
+             "short_link_accel_psd_deg2_per_s3": args.short_link_q_deg2_per_s3,
+             "link_path_alpha": args.link_path_alpha}
     if counted is not None:
         assoc["association_clutter_density"] = float(counted)
     write_settings(args.out, {"command": "smooth", "tracks": len(tracks), "settings": st.as_dict(),

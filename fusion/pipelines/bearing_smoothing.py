@@ -29,6 +29,7 @@ from fusion.passive.smoothing.settings import SmoothSettings, fit_smooth_setting
 
 __all__ = [
     "OUTPUT_TIMES",
+    "LINK_PATH_ALPHA",
     "SHORT_LINK_Q_DEG2_PER_S3",
     "SmoothingResult",
     "check_track_lengths",
@@ -42,6 +43,13 @@ __all__ = [
 #: seeds, docs/smoothing.md "Late starts": 1e-4 too narrow, 3e-3 links wrongly, 3e-4 - 1e-3
 #: the same outcomes).
 SHORT_LINK_Q_DEG2_PER_S3 = 5e-4
+
+#: Significance level of the link-path test of ``fusion smooth`` (a link refused when the
+#: scans of its gap without a detection near its path are less probable than this for a
+#: target detected with ``P_D``; :mod:`fusion.passive.smoothing.linkpath`; tuning seeds
+#: 9200-9259, docs/smoothing.md "Links through empty scans": 1e-3 - 1e-6 refused true links
+#: across runs of misses, 1e-8 none).
+LINK_PATH_ALPHA = 1e-8
 
 #: Where the tracks are returned: the smoother's own state times, or a regular grid.
 OUTPUT_TIMES = ("states", "grid")
@@ -150,6 +158,7 @@ def smooth_bearings(
     link_curvature: bool = True,
     extend_starts: bool = False,
     short_link_q_deg2_per_s3: float = SHORT_LINK_Q_DEG2_PER_S3,
+    link_path_alpha: float = LINK_PATH_ALPHA,
     on_rows: Callable[[int], None] | None = None,
     **given: Any,
 ) -> SmoothingResult:
@@ -181,6 +190,8 @@ def smooth_bearings(
     short_link_q_deg2_per_s3 : float, keyword-only
         Acceleration PSD of the links of chains too short to be kept to later track starts,
         deg^2/s^3 (``--short-link-accel-psd-deg2-per-s3``; 0: none).
+    link_path_alpha : float, keyword-only
+        Significance level of the link-path test (``--link-path-alpha``; 0: none).
     on_rows : callable, keyword-only
         Progress callback of the smoothing (see
         :func:`fusion.passive.smoothing.table.smooth_bearings`).
@@ -219,7 +230,8 @@ def smooth_bearings(
                                link_gate=link_gate, relink_gate=relink_gate,
                                crossing_gap_scans=crossing_gap_scans,
                                link_curvature=link_curvature, extend_starts=extend_starts,
-                               short_link_q=short_link_q_deg2_per_s3 * np.radians(1.0) ** 2)
+                               short_link_q=short_link_q_deg2_per_s3 * np.radians(1.0) ** 2,
+                               link_path_alpha=link_path_alpha)
     bearing_deg = np.asarray(table["bearing_deg"], dtype=float)
     times = np.asarray(table["time"], dtype=float)
     tracks = smooth_rows(np.asarray(table["track_id"]), times, _radians(bearing_deg),

@@ -120,3 +120,38 @@ def test_pipeline_default_uses_the_short_chain_links(monkeypatch):
     assert seen[1]["short_link_q"] == pytest.approx(
         SHORT_LINK_Q_DEG2_PER_S3 * np.radians(1.0) ** 2)
     assert seen[0]["extend_starts"] and not seen[1]["extend_starts"]
+
+
+def test_a_track_wound_over_a_turn_by_its_initial_line_gets_a_wrapped_prior():
+    """A track made of clutter (a wrong short-chain link) has bearings spread over the circle;
+    its unwrapped initial line wandered 1.8 turns (tuning seed 9208, ``short_link_q`` 3e-3
+    deg^2/s^3) and the weak prior of its EM span was refused as "not radians". The prior's
+    bearing is wrapped; the graph puts it on the branch of the first state anyway."""
+    mts = MultiTrackSmoother(sigma_bearing=0.01, q=1e-10)
+    init = np.array([[-11.207468687466752, 0.0], [-11.2, 0.0]])
+    prior = mts._span_prior(init)
+    assert prior.bearing == pytest.approx(-11.207468687466752 + 4 * np.pi)
+    assert abs(prior.bearing) <= np.pi
+
+
+def test_the_seed_that_raised_at_a_wide_short_link_psd_runs():
+    from fusion.passive.smoothing.settings import fit_smooth_settings
+    from fusion.simulate.bearings import simulate_bearings
+
+    rng = np.random.default_rng(9208)  # the association benchmark's scenario of seed 9208
+    n_tracks, p_d, clutter = int(rng.integers(2, 7)), rng.uniform(0.7, 0.9), rng.uniform(0.5, 2)
+    sc = simulate_bearings(seed=9208, n_tracks=n_tracks, n_crossing_pairs=n_tracks // 2,
+                           n_wrap_crossings=1, n_near_miss_pairs=0, clutter_rate=clutter,
+                           p_detect=p_d, noise_deg=float(rng.uniform(0.3, 1.0)))
+    t, z = sc.time, np.radians(sc.bearing_deg)
+    st = fit_smooth_settings(np.full(t.size, -1), t, z)
+    deg2 = np.radians(1.0) ** 2
+    mts = MultiTrackSmoother(
+        sigma_bearing=np.radians(st.sigma_bearing_deg), q=st.q_deg2_per_s3 * deg2,
+        p_detect=st.p_detect, min_length=st.min_length,
+        init_sigma_rate=np.radians(st.init_sigma_rate_deg_per_s), max_misses=st.max_misses,
+        max_gap_scans=st.max_gap_scans, crossing_gap_scans=60, link_curvature=True,
+        short_link_q=3e-3 * deg2)
+    res = mts.run(t, z)
+    assert len(res.tracks) >= n_tracks
+    assert all(np.all(np.abs(tr.bearing) <= np.pi) for tr in res.tracks)

@@ -8,6 +8,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import linear_sum_assignment
@@ -23,7 +25,9 @@ def link_segments(ends: list[tuple], scan_times: FloatArray, *, q: float, link_g
                   max_gap_scans: int, relink_gate: float | None = None,
                   relink_allowed: NDArray[np.bool_] | None = None,
                   crossing_gap_scans: int | None = None,
-                  curvature: bool = False) -> list[list[int]]:
+                  curvature: bool = False,
+                  implausible: Callable[[NDArray[np.int64], NDArray[np.int64]],
+                                        NDArray[np.bool_]] | None = None) -> list[list[int]]:
     """Chain segments by one assignment of segment ends to later segment starts.
 
     With `relink_gate` (> `link_gate`), the ends and starts the first assignment left unlinked
@@ -36,7 +40,9 @@ def link_segments(ends: list[tuple], scan_times: FloatArray, *, q: float, link_g
     in both assignments: a slow crossing keeps two tracks ambiguous for longer than misses
     would. With `curvature`, the end state is propagated across the gap with the mean of the
     two segments' bearing accelerations (:func:`segment_accelerations`) and that mean's
-    variance is added to the link covariance."""
+    variance is added to the link covariance. `implausible(ei, si)` (optional) says which
+    gated links (ends ``ei``, starts ``si``) are refused whatever their distance
+    (:func:`~fusion.passive.smoothing.linkpath.implausible_links`)."""
     n = len(ends)
     if n == 0:
         return []
@@ -62,6 +68,11 @@ def link_segments(ends: list[tuple], scan_times: FloatArray, *, q: float, link_g
         d2_k, lndet_k = _link_distances(ends, ei, si, dtm[ei, si], q, acc, acc_var)
         d2[ei, si] = d2_k
         inside = d2_k <= widest
+        if implausible is not None and inside.any():
+            idx = np.flatnonzero(inside)
+            bad = implausible(ei[idx], si[idx])
+            d2[ei[idx[bad]], si[idx[bad]]] = np.inf
+            inside[idx[bad]] = False
         lndet[ei[inside], si[inside]] = lndet_k[inside]
     nxt = _assign(np.where(d2 <= link_gate, d2 + lndet, np.inf))
     if relink_gate is not None and relink_gate > link_gate:

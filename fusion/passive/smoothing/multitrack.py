@@ -31,12 +31,12 @@ from fusion.passive.smoothing.graph import (
     _Measurements,
     _Model,
     _solve,
-    _solve_cov,
 )
 from fusion.passive.smoothing.linking import crossing_clusters, link_segments
+from fusion.passive.smoothing.linkpath import short_segment_path_test, tracker_p_detect
 from fusion.passive.smoothing.nearest_neighbour import NearestNeighbourTracker
 from fusion.passive.smoothing.rescue import link_short_chains
-from fusion.passive.smoothing.segments import across_crossings, cut_segments
+from fusion.passive.smoothing.segments import across_crossings, cut_segments, segment_end_states
 from fusion.passive.smoothing.types import (
     MultiTrackResult,
     SmoothedTrack,
@@ -130,6 +130,12 @@ class MultiTrackSmoother:
     short_link_q : float, keyword-only
         Acceleration PSD of the links of chains shorter than `min_length` to later track
         starts, rad^2/s^3 (:mod:`~fusion.passive.smoothing.rescue`; default 0, <= q: none).
+    link_path_alpha : float, keyword-only
+        A link from or to a segment with fewer than `min_length` detections is refused when
+        the scans of its gap with no detection near its path have binomial tail probability
+        below this under the detection probability
+        (:mod:`~fusion.passive.smoothing.linkpath`; default 0: no test; ``fusion smooth``:
+        1e-8).
 
     Notes
     -----
@@ -197,6 +203,7 @@ class MultiTrackSmoother:
         end_detections: str = "own",
         extend_starts: bool = False,
         short_link_q: float = 0.0,
+        link_path_alpha: float = 0.0,
     ) -> None:
         self.model = _Model.checked(sigma_bearing=sigma_bearing, q=q, robust=robust,
                                     robust_k=robust_k, max_iterations=50)
@@ -232,6 +239,9 @@ class MultiTrackSmoother:
         self.min_length = int(min_length)
         self.extend_ends, self.extend_starts = bool(extend_ends), bool(extend_starts)
         self.short_link_q = check_positive("short_link_q", short_link_q, allow_zero=True)
+        if not 0.0 <= link_path_alpha < 1.0:
+            raise ValueError(f"link_path_alpha must be in [0, 1), got {link_path_alpha!r}")
+        self.link_path_alpha = float(link_path_alpha)
         if end_detections not in END_DETECTIONS:
             raise ValueError(f"end_detections must be one of {', '.join(END_DETECTIONS)}, got "
                              f"{end_detections!r}")
@@ -279,12 +289,14 @@ class MultiTrackSmoother:
                            self._failed_fits[0][2], len(self._failed_fits), self._n_fits, spans,
                            ", ..." if len(self._failed_fits) > 5 else "")
         across = across_crossings(self._ambiguous, tr, segments, ends)
+        sizes = np.array([s.size for s in segments], np.int64)
         chains = link_segments(
             ends, scan_times, q=self.model.q, link_gate=self.link_gate, relink_allowed=across,
             max_gap_scans=self.max_gap_scans, relink_gate=self.relink_gate,
-            crossing_gap_scans=self.crossing_gap_scans, curvature=self.link_curvature)
+            crossing_gap_scans=self.crossing_gap_scans, curvature=self.link_curvature,
+            implausible=self._path_test(ends, scan_times, scan_of, z, tr, sizes))
         chains = link_short_chains(  # short chains before a crossing: no late start
-            chains, np.array([s.size for s in segments], np.int64), ends, scan_times,
+            chains, sizes, ends, scan_times,
             q=self.model.q, min_length=self.min_length, gate=self.link_gate,
             q_link=self.short_link_q, max_gap_scans=self.max_gap_scans)
         # hard labels per track, drop short tracks
@@ -373,6 +385,13 @@ class MultiTrackSmoother:
             window_s=self._window_s(period), n_confirm=self.tracker.n_confirm)
         return segments
 
+    def _path_test(self, ends, scan_times, scan_of, z, tr: TrackerResult, sizes):
+        """:func:`~fusion.passive.smoothing.linkpath.short_segment_path_test` (None: off)."""
+        return None if self.link_path_alpha <= 0.0 else short_segment_path_test(
+            ends, sizes, self.min_length, scan_times, scan_of, z, q=self.model.q,
+            sigma=self.model.sigma_bearing, alpha=self.link_path_alpha,
+            p_detect=tracker_p_detect(tr) if self.p_detect is None else self.p_detect)
+
     def _eligible(self, tr: TrackerResult, seg: NDArray[np.int64],
                   tracked: NDArray[np.bool_]) -> NDArray[np.bool_]:
         """Detections an end of segment `seg` may be extended over (``end_detections``)."""
@@ -387,32 +406,12 @@ class MultiTrackSmoother:
 
     def _segment_ends(self, seg: NDArray[np.int64], z: FloatArray, scan_of: NDArray[np.int64],
                       scan_times: FloatArray) -> tuple:
-        """First and last scan of a segment with their states and marginal covariances."""
-        s0, s1 = int(scan_of[seg[0]]), int(scan_of[seg[-1]])
-        out = []
-        w = self.fit_scans
-        spans = [(s0, s1)] if s1 - s0 < 2 * w else [(s0, s0 + w - 1), (s1 - w + 1, s1)]
-        for a, b in spans:
-            sel = seg[(scan_of[seg] >= a) & (scan_of[seg] <= b)]
-            times_ab = scan_times[a: b + 1]
-            meas = _Measurements(state=(scan_of[sel] - a).astype(np.int64), bearing=z[sel])
-            x0 = _initial_states(times_ab, meas, None)
-            prior = TrackPrior(bearing=float(x0[0, 0]), rate=float(x0[0, 1]),
-                               sigma_bearing=10.0 * self.model.sigma_bearing,
-                               sigma_rate=self.tracker.init_sigma_rate)
-            self._n_fits += 1
-            try:
-                states, covs = _solve_cov(times_ab, meas, prior, self.model, x0,
-                                          (0, b - a))
-            except RuntimeError as err:  # gtsam: too few bearings for the scans spanned
-                # The segment's end keeps its initial line with weak covariances; counted and
-                # said once per run (a WARNING, see run), not hidden.
-                self._failed_fits.append((a, b, str(err)))
-                weak = np.diag([self.model.sigma_bearing**2, self.tracker.init_sigma_rate**2])
-                states, covs = x0, [weak, weak]
-            out.append((states, covs))
-        (st_a, cov_a), (st_b, cov_b) = out[0], out[-1]
-        return (s0, st_a[0], cov_a[0], s1, st_b[-1], cov_b[-1])
+        """:func:`~fusion.passive.smoothing.segments.segment_end_states` with this smoother's
+        model; failed fits are counted in ``self._failed_fits`` (said once per run)."""
+        self._n_fits += 1 if scan_of[seg[-1]] - scan_of[seg[0]] < 2 * self.fit_scans else 2
+        return segment_end_states(seg, z, scan_of, scan_times, fit_scans=self.fit_scans,
+                                  model=self.model, init_sigma_rate=self.tracker.init_sigma_rate,
+                                  failed=self._failed_fits)
 
     def _track_meas(self, m: int, s0: int, s1: int, z: FloatArray, scan_of: NDArray[np.int64],
                     labels: NDArray[np.int64], pair_det: NDArray[np.int64],
@@ -491,8 +490,10 @@ class MultiTrackSmoother:
         return it
 
     def _span_prior(self, init: FloatArray) -> TrackPrior:
-        """The weak prior on the first state of a member's span, centred on `init[0]`."""
-        return TrackPrior(bearing=float(init[0, 0]), rate=float(init[0, 1]),
+        """The weak prior on the first state of a member's span, centred on `init[0]`, its
+        bearing wrapped (the graph takes the first state's branch; a clutter track's line
+        may wind past 2 pi: seed 9208 with ``short_link_q`` 3e-3 deg^2/s^3)."""
+        return TrackPrior(bearing=float(wrap_angle(init[0, 0])), rate=float(init[0, 1]),
                           sigma_bearing=10.0 * self.model.sigma_bearing,
                           sigma_rate=self.tracker.init_sigma_rate)
 

@@ -2,7 +2,8 @@
 
 - :func:`cut_segments` -- the tracker's tracks cut where two of them are ambiguous (step 2 of
   :class:`~fusion.passive.smoothing.multitrack.MultiTrackSmoother`);
-- :func:`across_crossings` -- the (end, start) pairs of the second link assignment.
+- :func:`across_crossings` -- the (end, start) pairs of the second link assignment;
+- :func:`segment_end_states` -- each segment's end states for the links.
 """
 
 from __future__ import annotations
@@ -12,9 +13,10 @@ from numpy.typing import NDArray
 
 from fusion.geometry import wrap_angle
 from fusion.passive.crossing.timing import crossing_time
-from fusion.passive.smoothing.types import TrackerResult
+from fusion.passive.smoothing.graph import _initial_states, _Measurements, _solve_cov
+from fusion.passive.smoothing.types import TrackerResult, TrackPrior
 
-__all__ = ["across_crossings", "cut_segments"]
+__all__ = ["across_crossings", "cut_segments", "segment_end_states"]
 
 
 def cut_segments(tr: TrackerResult, scan_of: NDArray[np.int64], *, separation: float,
@@ -82,3 +84,34 @@ def across_crossings(ambiguous: NDArray[np.bool_], tr: TrackerResult,
     in_end = before[k[:, None], hi[None, :]] - before[k, lo][:, None]
     in_start = before[k[None, :], hi[None, :]] - before[k[None, :], lo[:, None]]
     return (hi[None, :] > lo[:, None] + 1) & ((in_end > 0) | (in_start > 0))
+
+
+def segment_end_states(seg: NDArray[np.int64], z: NDArray[np.float64],
+                       scan_of: NDArray[np.int64], scan_times: NDArray[np.float64], *,
+                       fit_scans: int, model, init_sigma_rate: float,
+                       failed: list) -> tuple:
+    """First and last scan of a segment with their states and marginal covariances (each end
+    fitted on its first / last `fit_scans` scans); a fit GTSAM refuses keeps its initial line
+    with weak covariances and is appended to `failed` as ``(a, b, message)``."""
+    s0, s1 = int(scan_of[seg[0]]), int(scan_of[seg[-1]])
+    out = []
+    w = fit_scans
+    spans = [(s0, s1)] if s1 - s0 < 2 * w else [(s0, s0 + w - 1), (s1 - w + 1, s1)]
+    for a, b in spans:
+        sel = seg[(scan_of[seg] >= a) & (scan_of[seg] <= b)]
+        times_ab = scan_times[a: b + 1]
+        meas = _Measurements(state=(scan_of[sel] - a).astype(np.int64), bearing=z[sel])
+        x0 = _initial_states(times_ab, meas, None)
+        prior = TrackPrior(bearing=float(wrap_angle(x0[0, 0])), rate=float(x0[0, 1]),
+                           sigma_bearing=10.0 * model.sigma_bearing, sigma_rate=init_sigma_rate)
+        try:
+            states, covs = _solve_cov(times_ab, meas, prior, model, x0, (0, b - a))
+        except RuntimeError as err:  # gtsam: too few bearings for the scans spanned
+            # The segment's end keeps its initial line with weak covariances; counted and
+            # said once per run (a WARNING of MultiTrackSmoother.run), not hidden.
+            failed.append((a, b, str(err)))
+            weak = np.diag([model.sigma_bearing**2, init_sigma_rate**2])
+            states, covs = x0, [weak, weak]
+        out.append((states, covs))
+    (st_a, cov_a), (st_b, cov_b) = out[0], out[-1]
+    return (s0, st_a[0], cov_a[0], s1, st_b[-1], cov_b[-1])

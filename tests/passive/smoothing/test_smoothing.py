@@ -381,7 +381,7 @@ def test_prior_bearing_wraps_regression():
 def test_failed_segment_fit_is_reported(monkeypatch, caplog):
     """A segment whose end fit fails keeps weak covariances and says so with a WARNING (regression:
     the RuntimeError used to be swallowed silently)."""
-    import fusion.passive.smoothing.multitrack as multitrack
+    import fusion.passive.smoothing.segments as segments
 
     calls = []
 
@@ -389,7 +389,7 @@ def test_failed_segment_fit_is_reported(monkeypatch, caplog):
         calls.append(1)
         raise RuntimeError("Indeterminant linear system")
 
-    monkeypatch.setattr(multitrack, "_solve_cov", fail)
+    monkeypatch.setattr(segments, "_solve_cov", fail)  # the segment-end fits
     t, z, _, _, _ = _crossing_scene(0)
     ms = MultiTrackSmoother(sigma_bearing=SIG, q=1e-9, clutter_density=0.2 / (2 * np.pi))
     with caplog.at_level(logging.WARNING, logger="fusion.passive.smoothing.multitrack"):
