@@ -158,6 +158,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    default=TRAIN_FALSE_ALARMS, metavar="P",
                    help="false-alarm probability of one (window, sensor pair) train search "
                         f"(default {TRAIN_FALSE_ALARMS:g})")
+    p.add_argument("--no-train-refine", action="store_true",
+                   help="train-integrated delays as read off the detection statistic (default: "
+                        "refined on the waveforms; docs/localization.md section 23)")
     p.add_argument("--strong-echoes-only", action="store_true",
                    help="count a sensor's bottom echo only at the full evidence threshold "
                         "(default: once one sensor shows one, weaker evidence on the others "
@@ -354,7 +357,7 @@ def _run_key(args: argparse.Namespace, audio: list) -> str:
         "options": {k: getattr(args, k) for k in (
             "window", "hop", "band", "min_centre_freq", "detect_threshold", "detect_false_alarms",
             "llr_threshold", "no_refine", "keep_aliases", "no_closure_support",
-            "no_train_integration", "train_false_alarms_per_pair",
+            "no_train_integration", "train_false_alarms_per_pair", "no_train_refine",
             "strong_echoes_only", "max_tdoa_rate", "method", "chunk",
             "surface_paths", "sea_floor_z",
             "candidates", "min_source_tdoas")},
@@ -420,7 +423,7 @@ def run(args: argparse.Namespace) -> int:
                                       rates=drift_grid(args.max_tdoa_rate)),
         validator=validator, refiner=not args.no_refine, hop_s=args.hop,
         alias_screen=not args.keep_aliases, closure_support=not args.no_closure_support,
-        train_integration=not args.no_train_integration,
+        train_integration=not args.no_train_integration, train_refine=not args.no_train_refine,
         train_false_alarms=args.train_false_alarms_per_pair)
     pipe, decided = _decided(args, ClickLocalization(front_end=front, localizer=localizer),
                              recordings[0][0], array)

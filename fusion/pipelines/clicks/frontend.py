@@ -151,6 +151,10 @@ class ClickFrontEnd:
         default True, ``docs/localization.md`` section 19).
     train_false_alarms : float, optional
         False-alarm probability of one (window, pair) train search.
+    train_refine : bool, optional
+        Refine each train-integrated delay on the waveforms (the train's cross-spectra summed,
+        :func:`fusion.clicks.train_refine.refine_train_delay`; default True,
+        ``docs/localization.md`` section 23).
     """
 
     def __init__(
@@ -169,6 +173,7 @@ class ClickFrontEnd:
         closure_support: bool = True,
         train_integration: bool = True,
         train_false_alarms: float = TRAIN_FALSE_ALARMS,
+        train_refine: bool = True,
     ) -> None:
         check_positive("hop_s", hop_s)
         check_positive("sigma_t_s", sigma_t_s)
@@ -199,6 +204,7 @@ class ClickFrontEnd:
         self.closure_support = bool(closure_support)
         self.train_integration = bool(train_integration)
         self.train_false_alarms = check_positive("train_false_alarms", train_false_alarms)
+        self.train_refine = bool(train_refine)
 
     @property
     def window_s(self) -> float:
@@ -312,7 +318,8 @@ class ClickFrontEnd:
                                  audio=audio, audio_t0_s=audio_t0_s, fs=fs,
                                  t_c_s=t0_s + 0.5 * self.window_s,
                                  max_rate=float(np.max(np.abs(self.correlator.rates))),
-                                 false_alarms=self.train_false_alarms)
+                                 false_alarms=self.train_false_alarms,
+                                 waveform_refine=self.train_refine)
 
     def _supported(self, out: list[WindowTdoa], alias: NDArray[np.bool_],
                    measured: Callable[[int, bool], WindowTdoa]) -> list[WindowTdoa]:
