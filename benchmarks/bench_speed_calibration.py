@@ -6,9 +6,10 @@ localize --sound-speed array``, the windows the speed step reads back), cached i
 would (:func:`fusion.pipelines.sound_speed.calibrate_speed`) and scores them as
 ``bench_localize_baseline.py`` does (same truth, same 10 m gate, fixes flagged unobservable or
 mirror-ambiguous left out). Variants: ``array`` (the file's speed), ``one`` (one speed,
-``--no-speed-gradient``), ``profile`` (the default: a speed linear in depth where the fixes tell
-it), ``positions`` (the profile with the sensors' positions refined from the fixes, prior
-``--sensor-position-sigma-m``, ``fusion localize --sensor-position-sigma-m``). The figures
+``--no-speed-gradient --sensor-position-sigma-m 0``), ``profile`` (a speed linear in depth where
+the fixes tell it, ``--sensor-position-sigma-m 0``), ``positions`` (the default since section 23
+of docs/localization.md: the profile with the sensors' positions refined from the fixes, prior
+``--sensor-position-sigma-m``). The figures
 equal ``bench_localize_baseline.py --methods project`` on the same seeds and
 options (checked on seeds 7900-7909, ``--vary-only sound-speed``, one whale).
 
@@ -36,7 +37,8 @@ from fusion.cli import main as fusion_main  # noqa: E402
 from fusion.metrics.localization import match_fixes  # noqa: E402
 from fusion.pipelines.sound_speed import calibrate_speed  # noqa: E402
 
-VARIANTS = {"array": None, "one": {"gradient": False}, "profile": {"gradient": True},
+VARIANTS = {"array": None, "one": {"gradient": False, "sensor_sigma_m": 0.0},
+            "profile": {"gradient": True, "sensor_sigma_m": 0.0},
             "positions": {"gradient": True, "sensor_sigma_m": None}}
 
 
@@ -93,7 +95,7 @@ def main(argv: list[str] | None = None) -> None:
         for seed in args.seeds:
             windows, sensors, c, truth = cached(args.cache_dir / f"{tag}_{seed}", seed, options)
             kw = None if VARIANTS[v] is None else {**VARIANTS[v]}
-            if kw is not None and "sensor_sigma_m" in kw:
+            if kw is not None and kw.get("sensor_sigma_m", 0.0) is None:
                 kw["sensor_sigma_m"] = args.sensor_position_sigma_m
             cal = None if kw is None else calibrate_speed(windows, sensors, c, **kw)
             found = 0

@@ -9,7 +9,8 @@ validate alike (``docs/localization.md`` sections 8, 13 and 18).
 
 from __future__ import annotations
 
-__all__ = ["DETECT_FALSE_ALARMS_PER_S", "LLR_THRESHOLD", "TRAIN_FALSE_ALARMS"]
+__all__ = ["DETECT_FALSE_ALARMS_PER_S", "LLR_THRESHOLD", "SENSOR_POSITION_SIGMA_M",
+           "TRAIN_FALSE_ALARMS"]
 
 #: Detection threshold as a noise false-alarm rate (``--detect-false-alarms-per-s``): the click
 #: detector's threshold is the level at which it finds this many clicks per channel-second in
@@ -29,3 +30,10 @@ LLR_THRESHOLD = 0.5
 #: False-alarm probability of one (window, pair) search of train integration
 #: (``--train-false-alarms-per-pair``, :mod:`fusion.clicks.train_integration`).
 TRAIN_FALSE_ALARMS = 1e-3
+
+#: Standard deviation of the array file's sensor positions per axis, m
+#: (``--sensor-position-sigma-m``; 0: the positions exact): an assumption of a range survey a
+#: few metres good (the simulator's ``--vary-only survey`` draws 1-3 m). The sensors' offsets
+#: are estimated from a recording's fixes and used only where they fit them significantly
+#: better and explain fixes left out of their fit (``docs/localization.md`` section 23).
+SENSOR_POSITION_SIGMA_M = 2.0

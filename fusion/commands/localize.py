@@ -61,7 +61,11 @@ import os
 from pathlib import Path
 
 from fusion.cli import emit, number, summary
-from fusion.click_defaults import DETECT_FALSE_ALARMS_PER_S, TRAIN_FALSE_ALARMS
+from fusion.click_defaults import (
+    DETECT_FALSE_ALARMS_PER_S,
+    SENSOR_POSITION_SIGMA_M,
+    TRAIN_FALSE_ALARMS,
+)
 
 #: Default of --max-tdoa-rate (fusion.clicks.scm.MAX_TDOA_RATE, not imported here: --help stays
 #: light).
@@ -199,12 +203,14 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "depth (a speed and its depth gradient, where the fixes tell it), "
                         "every fix re-solved along straight rays through it")
     p.add_argument("--sensor-position-sigma-m", dest="sensor_position_sigma",
-                   type=number(float, ge=0, le=100), default=0.0, metavar="M",
-                   help="standard deviation of the array file's sensor positions per axis, m: "
-                        "above 0 each sensor's offset is estimated with the sound speed from "
-                        "all fixes and used where it fits them significantly better (F test), "
-                        "every fix re-solved at the refined positions (printed, and written "
-                        "beside the output with their sigmas); 0 (default): positions exact")
+                   type=number(float, ge=0, le=100), default=SENSOR_POSITION_SIGMA_M, metavar="M",
+                   help="standard deviation of the array file's sensor positions per axis, m "
+                        f"(default {SENSOR_POSITION_SIGMA_M:g}, an assumed survey accuracy): "
+                        "each sensor's offset is estimated with the sound speed from all fixes "
+                        "and used where it fits them significantly better (F test on the "
+                        "offset parameters the fixes determine) and explains fixes left out "
+                        "of its fit, every fix re-solved at the refined positions (printed, and "
+                        "written beside the output with their sigmas); 0: positions exact")
     p.add_argument("--candidates", type=number(int, ge=1, le=MAX_CANDIDATES), default=None,
                    metavar="N", help="candidates per window, at most "
                    f"{MAX_CANDIDATES} (default 16 reading surface paths, 8 direct)")

@@ -44,11 +44,18 @@ from fusion.localization.sound_speed import (
     SoundSpeedEstimate,
     add_speed_prior,
     fix_residuals,
+    refit_fix,
 )
 
-__all__ = ["SensorPositionEstimate", "estimate_sensor_positions", "position_f", "shifted"]
+__all__ = ["SensorPositionEstimate", "estimate_sensor_positions", "held_out_chi2", "position_f",
+           "shifted"]
 
 _MIRROR = np.array([1.0, 1.0, -1.0])
+#: Folds of the held-out check (:func:`held_out_chi2`); fewer fixes: one fold each.
+HELD_OUT_FOLDS = 5
+#: Prior sigma of the offsets that pins them at the survey in the held-out check's
+#: comparison graph, m.
+PINNED_M = 1e-4
 
 
 def shifted(fix: FixTdoas, offsets: NDArray[np.float64]) -> FixTdoas:
@@ -80,12 +87,19 @@ class SensorPositionEstimate:
         The speed (or profile) and the fixes estimated jointly with the offsets.
     sigma_m : float
         The prior standard deviation of the offsets, m.
+    n_determined : float
+        How many of the ``3 n`` offset parameters the fixes determine: ``3 n - tr(C) / M^2``,
+        ``C`` the offsets' posterior covariance (the fixes and the speed free beside them, so
+        the directions they absorb -- the gauge, a whale's own position -- count nothing) and
+        ``M`` the prior sigma; each direction counts from 0 (the prior alone) to 1 (the data
+        alone).
     """
 
     offsets: NDArray[np.float64]
     sigmas: NDArray[np.float64]
     speed: SoundSpeedEstimate
     sigma_m: float
+    n_determined: float = float("nan")
 
     def positions(self, surveyed: NDArray[np.float64]) -> NDArray[np.float64]:
         """The refined positions, m."""
@@ -103,7 +117,8 @@ class SensorPositionEstimate:
 def estimate_sensor_positions(fixes: Sequence[FixTdoas], *, n_real: int, nominal_mps: float,
                               sigma_m: float, d_ref: float | None = None,
                               prior_sigma_mps: float = PRIOR_SIGMA_MPS,
-                              max_iterations: int = 100) -> SensorPositionEstimate:
+                              max_iterations: int = 100, covariance: bool = True
+                              ) -> SensorPositionEstimate:
     """The sensors' offsets, the speed and the fixes of `fixes` on one graph.
 
     Parameters
@@ -119,6 +134,9 @@ def estimate_sensor_positions(fixes: Sequence[FixTdoas], *, n_real: int, nominal
     d_ref : float, optional
         With it the speed is the linear profile ``[c_ref, g]`` about this depth (m), prior
         on ``g`` as :func:`fusion.localization.sound_speed.estimate_sound_speed`'s.
+    covariance : bool
+        False: the solution alone (sigmas NaN, ``n_determined`` NaN), as the held-out check
+        needs.
     """
     if not sigma_m > 0:
         raise ValueError("the sensor position sigma must be positive")
@@ -155,9 +173,19 @@ def estimate_sensor_positions(fixes: Sequence[FixTdoas], *, n_real: int, nominal
     m = sum(f.m for f in fixes)
     dof = max(1, m - 3 * len(fixes) - v.size)
     factor = max(1.0, chi2 / dof)
+    if not covariance:
+        nan = np.full((len(fixes), 3, 3), np.nan)
+        speed = SoundSpeedEstimate(
+            float(nominal_mps), prof.speed_mps, float("nan"), len(fixes), m, factor, positions,
+            nan, prof.gradient_per_s, float("nan"), prof.reference_depth_m, chi2)
+        return SensorPositionEstimate(offsets, np.full((n_real, 3), np.nan), speed,
+                                      float(sigma_m))
     keys = [ckey, *okeys, *(gtsam.symbol("x", k) for k in range(len(fixes)))]
-    cov_all = _covariance(graph, result, keys) * factor
+    raw = _covariance(graph, result, keys)
+    cov_all = raw * factor
     nc = v.size
+    n_det = float(3 * n_real - np.trace(raw[nc:nc + 3 * n_real, nc:nc + 3 * n_real])
+                  / sigma_m ** 2)
     csig = np.sqrt(np.diag(cov_all[:nc, :nc]))
     osig = np.sqrt(np.diag(cov_all)[nc:nc + 3 * n_real]).reshape(n_real, 3)
     x0 = nc + 3 * n_real
@@ -167,7 +195,7 @@ def estimate_sensor_positions(fixes: Sequence[FixTdoas], *, n_real: int, nominal
         float(nominal_mps), prof.speed_mps, float(csig[0]), len(fixes), m, factor, positions,
         cov, prof.gradient_per_s, float(csig[1]) if d_ref is not None else float("nan"),
         prof.reference_depth_m, chi2)
-    return SensorPositionEstimate(offsets, osig, speed, float(sigma_m))
+    return SensorPositionEstimate(offsets, osig, speed, float(sigma_m), n_det)
 
 
 def _covariance(graph: gtsam.NonlinearFactorGraph, values: gtsam.Values,
@@ -182,11 +210,52 @@ def _covariance(graph: gtsam.NonlinearFactorGraph, values: gtsam.Values,
 
 def position_f(est: SensorPositionEstimate, without: SoundSpeedEstimate) -> float:
     """F statistic of the offsets: the drop of the chi-square from `without` (the same
-    fixes and speed model, surveyed positions) per offset parameter, over the residual
-    variance with the offsets (at least 1: the TDOA sigmas' own scale)."""
-    q = est.offsets.size
-    dof = max(1, est.speed.n_tdoas - 3 * est.speed.n_fixes - q)
+    fixes and speed model, surveyed positions) per offset parameter the fixes determine
+    (:attr:`SensorPositionEstimate.n_determined`; ``3 n`` when it was not computed), over the
+    residual variance with the offsets (at least 1: the TDOA sigmas' own scale).
+
+    Counting every offset as a parameter (``3 n``) divided the drop by 15 for five sensors
+    where the fixes of one whale determine 1-2 combinations (the rest is the gauge, the
+    whale's own positions and the prior)."""
+    q = est.n_determined if np.isfinite(est.n_determined) else float(est.offsets.size)
+    q = max(q, 1e-3)
+    dof = max(1.0, est.speed.n_tdoas - 3 * est.speed.n_fixes - q)
     return (without.chi2 - est.speed.chi2) / q / max(est.speed.chi2 / dof, 1.0)
+
+
+def held_out_chi2(fixes: Sequence[FixTdoas], *, n_real: int, nominal_mps: float,
+                  sigma_m: float, d_ref: float | None = None, folds: int = HELD_OUT_FOLDS
+                  ) -> tuple[float, float]:
+    """The offsets checked on fixes they were not fitted to: ``(with, without)``.
+
+    The fixes (in recording order) are dealt into ``min(folds, len(fixes))`` folds; for each
+    fold the speed model (one speed, or the linear profile about `d_ref`) is fitted on the
+    other folds twice -- with offsets (prior `sigma_m`) and with them pinned at the survey
+    (prior :data:`PINNED_M`) -- and every fix of the fold is re-solved (its own position free)
+    at each; the sums of their whitened chi-squares are returned. A sensor's survey error is
+    shared by every fix, so offsets fitted to some fixes explain the others' delays too;
+    offsets that absorbed what one fix's delays alone hold (a whale that moved within its
+    window, a misread path, noise) do not.
+    """
+    k_folds = min(int(folds), len(fixes))
+    if k_folds < 2:
+        raise ValueError("the held-out check needs at least two fixes")
+    with_, without = 0.0, 0.0
+    for k in range(k_folds):
+        train = [f for q, f in enumerate(fixes) if q % k_folds != k]
+        test = [f for q, f in enumerate(fixes) if q % k_folds == k]
+        for sig, free in ((sigma_m, True), (PINNED_M, False)):
+            est = estimate_sensor_positions(train, n_real=n_real, nominal_mps=nominal_mps,
+                                            sigma_m=sig, d_ref=d_ref, covariance=False)
+            for f in test:
+                moved = shifted(f, est.offsets) if free else f
+                p, _ = refit_fix(moved, est.speed.profile)
+                chi2 = _chi2([moved], p[None, :], est.speed.profile)
+                if free:
+                    with_ += chi2
+                else:
+                    without += chi2
+    return with_, without
 
 
 def _optimize(graph: gtsam.NonlinearFactorGraph, values: gtsam.Values,

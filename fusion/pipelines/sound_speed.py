@@ -17,11 +17,13 @@ sensors' depths and its gradient, :class:`fusion.localization.sound_speed.Linear
 the fixes tell the gradient, every fix re-solved along straight rays through it; ``fusion
 localize --no-speed-gradient`` estimates one speed (the ablation).
 
-With ``fusion localize --sensor-position-sigma-m M`` the sensors' offsets from their surveyed
+With ``fusion localize --sensor-position-sigma-m M`` (default 2 m) the sensors' offsets from their surveyed
 positions are estimated with the chosen speed model on the same fixes
 (:func:`fusion.localization.sensor_positions.estimate_sensor_positions`) and used where they fit
-them significantly better (an F test against the surveyed positions, :data:`MIN_POSITION_F`);
-every fix is then re-solved at the refined positions (docs/localization.md section 22).
+them significantly better (an F test against the surveyed positions on the offset parameters
+the fixes determine, :data:`MIN_POSITION_F`) and explain fixes left out of their fit (a
+held-out check, :data:`MAX_HELD_OUT_RATIO`); every fix is then re-solved at the refined
+positions (docs/localization.md sections 22-23).
 """
 
 from __future__ import annotations
@@ -32,10 +34,12 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from fusion.click_defaults import SENSOR_POSITION_SIGMA_M
 from fusion.localization.retime import emission_shift
 from fusion.localization.sensor_positions import (
     SensorPositionEstimate,
     estimate_sensor_positions,
+    held_out_chi2,
     position_f,
 )
 from fusion.localization.sound_speed import (
@@ -84,9 +88,15 @@ MIN_GRADIENT_F = 9.0
 #: its bar; candidates of sparse trains were 0-400 us off, often under 100 us, on seeds 7703,
 #: 7800, 7803).
 RECRUIT_SIGMA_S = 50e-6
-#: Smallest F statistic of the sensor offsets (chi-square drop per offset parameter over the
-#: residual variance) at which the refined positions replace the surveyed ones.
-MIN_POSITION_F = 3.0
+#: Smallest F statistic of the sensor offsets (chi-square drop per offset parameter the fixes
+#: determine, over the residual variance) at which the refined positions replace the surveyed
+#: ones: 9, three sigmas, as the gradient's.
+MIN_POSITION_F = 9.0
+#: Largest held-out chi-square ratio (offsets fitted without a fix, over surveyed positions)
+#: at which the refined positions are used: the fixes left out must fit at least twice as
+#: well (survey errors on the tuning seeds: 0.000-0.02; recruited far delays a survey error
+#: did not bend: 339; no survey error, nothing recruited: 0.7-0.98).
+MAX_HELD_OUT_RATIO = 0.5
 
 
 def fix_tdoas(window: dict, source: dict, sensors: ArrayLike, c: float,
@@ -253,7 +263,7 @@ def _far_candidates(window: dict, src: dict, fix: FixTdoas, sensors: NDArray[np.
 
 def calibrate_speed(windows: Iterable[dict], sensors: ArrayLike, nominal_mps: float,
                     *, recruit_far: bool = True, gradient: bool = True,
-                    sensor_sigma_m: float = 0.0) -> SpeedCalibration:
+                    sensor_sigma_m: float = SENSOR_POSITION_SIGMA_M) -> SpeedCalibration:
     """Estimate the speed shared by the fixes of written windows (see the module docstring).
 
     Parameters
@@ -275,7 +285,9 @@ def calibrate_speed(windows: Iterable[dict], sensors: ArrayLike, nominal_mps: fl
     sensor_sigma_m : float
         Standard deviation of the array file's sensor positions per axis, m: above 0 the
         sensors' offsets are estimated with the speed on one graph and used where they fit the
-        fixes significantly better (:func:`_refined`); 0: the file's positions are exact.
+        fixes significantly better and explain fixes left out of their fit (:func:`_refined`;
+        default :data:`fusion.click_defaults.SENSOR_POSITION_SIGMA_M`, ``fusion localize``'s);
+        0: the file's positions are exact.
     """
     s = np.asarray(sensors, dtype=float)
     fixes = []
@@ -324,7 +336,7 @@ def calibrate_speed(windows: Iterable[dict], sensors: ArrayLike, nominal_mps: fl
         refined = _refined(used, s, nominal_mps, sensor_sigma_m, est) if sensor_sigma_m > 0 \
             else None
         if refined is not None and not isinstance(refined, str):
-            (refined, f_pos), why = refined, None
+            (refined, f_pos, held), why = refined, None
             est = refined.speed
         if why is not None:
             return SpeedCalibration(nominal_mps, None, (
@@ -341,7 +353,9 @@ def calibrate_speed(windows: Iterable[dict], sensors: ArrayLike, nominal_mps: fl
         return SpeedCalibration(nominal_mps, est, (
             f"sound speed: {_described(est)} and sensor positions estimated together from "
             f"{est.n_tdoas} TDOAs of {est.n_fixes} fixes (they fit them better than the "
-            f"array file's: F = {f_pos:.3g} >= {MIN_POSITION_F:g}); every fix re-solved at them; "
+            f"array file's: F = {f_pos:.3g} >= {MIN_POSITION_F:g} with {refined.n_determined:.2g} "
+            f"offset parameters determined; fixes left out fit them too: held-out chi-square "
+            f"ratio {held:.2g} <= {MAX_HELD_OUT_RATIO:g}); every fix re-solved at them; "
             + _positions_line(refined, s)), refined.positions(s), refined.to_dict(s))
     return SpeedCalibration(nominal_mps, est, (
         f"sound speed: {_described(est)} estimated from "
@@ -416,10 +430,13 @@ def _described(est: SoundSpeedEstimate) -> str:
 
 def _refined(fixes: list[FixTdoas], sensors: NDArray[np.float64], nominal_mps: float,
              sigma_m: float, without: SoundSpeedEstimate
-             ) -> tuple[SensorPositionEstimate, float] | str:
+             ) -> tuple[SensorPositionEstimate, float, float] | str:
     """The sensors' offsets estimated with the speed model of `without` on its fixes, or why
     the surveyed positions are kept: the offsets do not fit the fixes better than the survey
-    (F below :data:`MIN_POSITION_F`: a whale that barely moves leaves them unobservable),
+    (F below :data:`MIN_POSITION_F`, counting the offset parameters the fixes determine: a
+    whale that barely moves leaves them unobservable), or offsets fitted without a fix do
+    not explain its delays (:func:`fusion.localization.sensor_positions.held_out_chi2` above
+    :data:`MAX_HELD_OUT_RATIO`: not an error every fix shares),
     or the speed estimated with them is more than :data:`MAX_CHANGE` from the file's."""
     grad = bool(np.isfinite(without.gradient_sigma_per_s))
     try:
@@ -432,13 +449,25 @@ def _refined(fixes: list[FixTdoas], sensors: NDArray[np.float64], nominal_mps: f
     if not f >= MIN_POSITION_F:
         return (f"sensor positions: the array file's (offsets of up to "
                 f"{np.max(np.abs(est.offsets)):.2g} m fit the fixes no better: "
-                f"F = {f:.3g} < {MIN_POSITION_F:g}; the fixes do not tell them)")
+                f"F = {f:.3g} < {MIN_POSITION_F:g} with {est.n_determined:.2g} offset "
+                "parameters determined; the fixes do not tell them)")
+    try:
+        with_, surveyed = held_out_chi2(fixes, n_real=len(sensors), nominal_mps=nominal_mps,
+                                        sigma_m=sigma_m,
+                                        d_ref=without.reference_depth_m if grad else None)
+    except (ValueError, RuntimeError) as e:
+        return f"sensor positions: the array file's (held-out check failed: {e})"
+    ratio = with_ / max(surveyed, 1e-300)
+    if not ratio <= MAX_HELD_OUT_RATIO:
+        return (f"sensor positions: the array file's (offsets fitted without a fix explain "
+                f"it no better: held-out chi-square {surveyed:.3g} -> {with_:.3g}, ratio "
+                f"{ratio:.3g} > {MAX_HELD_OUT_RATIO:g}; not a survey error shared by the fixes)")
     # only the change is checked: with the sensors free, the speed trades against the array's
     # scale (a wide sigma the fixes' covariances hold), so its sigma says nothing of the fixes
     if abs(est.speed.speed_mps - nominal_mps) > MAX_CHANGE * nominal_mps:
         return (f"sensor positions: the array file's (with them the fixes point to "
                 f"{est.speed.speed_mps:.1f} m/s, more than {100 * MAX_CHANGE:g} % from it)")
-    return est, f
+    return est, f, ratio
 
 
 def _positions_line(est: SensorPositionEstimate, surveyed: NDArray[np.float64]) -> str:

@@ -139,15 +139,20 @@ def test_fixes_that_disagree_keep_the_file_speed():
     point to is too uncertain to use; the file's speed is kept and the line says why."""
     windows = [_window(p, 1500.0, 1500.0, 2.0 * k) for k, p in enumerate(TRUE)]
     wrong = SENSORS + np.random.default_rng(1).normal(0.0, 3.0, SENSORS.shape)
-    cal = calibrate_speed(windows, wrong, 1500.0)  # points to 1,541 m/s: 2.8 % off
+    # the positions exact (--sensor-position-sigma-m 0): the fixes point to 1,541 m/s, 2.8 % off
+    cal = calibrate_speed(windows, wrong, 1500.0, sensor_sigma_m=0.0)
     assert cal.estimate is None and cal.speed_mps == 1500.0
     assert "more than 1.5 % from it" in cal.note and "sensor positions off" in cal.note
     assert cal.apply(windows[0]) is windows[0]
+    # by default the sensors' offsets are estimated beside the speed, which comes back
+    refined = calibrate_speed(windows, wrong, 1500.0)
+    assert "sensor positions estimated together" in refined.note
+    assert abs(refined.speed_mps - 1500.0) < 3.0
     # fixes spread over the array whose delays disagree with any one speed: the sigma tells
     spread = [_window(p, 1500.0, 1500.0, 2.0 * k) for k, p in enumerate(
         [[800.0, 600, -900], [-1200, 1500, -700], [1300, -400, -1100], [-900, -1500, -800]])]
     jitter = SENSORS + np.random.default_rng(5).normal(0.0, 8.0, SENSORS.shape)
-    assert calibrate_speed(spread, jitter, 1500.0).estimate is None
+    assert calibrate_speed(spread, jitter, 1500.0, sensor_sigma_m=0.0).estimate is None
 
 
 def _four_sensor_window(p_true, c_true, c_file, t0, rng):
