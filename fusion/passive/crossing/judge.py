@@ -148,6 +148,7 @@ def ladder_hits(det: Any, t: float, ids: NDArray[np.int64]) -> _Hits:
     admitted = np.ones(ids.size, bool)  # tracks whose longer windows fit as well
     var_prev = dof_prev = np.zeros(ids.size)
     n = ids.size
+    need = det.window_need
     for level, (fit, J) in enumerate(zip(det.fits, det.windows, strict=True)):
         model = det._models(fit, ids, t, curves=level < det.curve_windows)
         st, cs, _ = model
@@ -155,7 +156,7 @@ def ladder_hits(det: Any, t: float, ids: NDArray[np.int64]) -> _Hits:
         judged.append(_Judged(n))
         var = st.residual_var if cs is None else cs.residual_var
         dof = st.n - 2.0 if cs is None else cs.dof
-        use = st.n >= J
+        use = st.n >= need[level]  # full, or filled beyond `window_fill` (longer windows)
         if level > 0 and det.ladder_alpha is not None:  # it must fit as well as the last
             with np.errstate(invalid="ignore"):
                 admitted &= ~(var > f_ratio_quantile(det.ladder_alpha, dof, dof_prev) * var_prev)
