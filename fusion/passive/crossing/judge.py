@@ -47,10 +47,17 @@ def judge_pairs(
     gates = det.allowance_gate_level is not None and \
         span_s >= (1 << det.allowance_gate_level) * det.J * det.K * (1 - 1e-9)
     prune = det.max_interval_s if only_resolved else None
+    # only the verdict wanted below the gate: it comes from the intervals without the
+    # allowances, which only widen -- so they are not computed (the same verdicts)
+    verdict_only = only_resolved and not gates and det.extrapolation_scale <= 1.0
+    if verdict_only:
+        man_p, far_p = None, False
+    else:
+        man_p, far_p = man, det.far_side
     # below the gate resolved as without the allowances, which only widen (`gate_width`)
     tau, low, high, ok, *gate = pair_intervals(
-        ia, ib, st.value, st, level=det.level, curvature=qs, manoeuvre=man,
-        far_side=det.far_side, own_width=not gates and (man is not None or det.far_side),
+        ia, ib, st.value, st, level=det.level, curvature=qs, manoeuvre=man_p,
+        far_side=far_p, own_width=not gates and (man_p is not None or far_p),
         max_width_s=prune)
     gate_width = gate[0] if gate else None
     k = det.extrapolation_scale
@@ -70,7 +77,7 @@ def judge_pairs(
                 ia[c], ib[c], cs, q=q, back_s=back_s, reach_s=reach_s,
                 ahead_var_scale=k)
             lc0, hc0 = lc, hc
-            if man is not None and det.curve_manoeuvre:  # the curves' rate wander too
+            if man is not None and det.curve_manoeuvre and not verdict_only:  # rate wander too
                 qc = (man[0][ia[c]] + man[0][ib[c]])[:, None]
                 ext = CURVE_ALLOWANCE_REACHES * reach_s
                 _, lw, hw, okw, _ = curved_pair_intervals(
