@@ -39,6 +39,7 @@ from fusion.passive.crossing.settings import (
     DEFAULT_MANOEUVRE_MEMORY_WINDOWS,
     DEFAULT_MANOEUVRE_SCALE,
     DEFAULT_N_WINDOWS,
+    DEFAULT_WINDOW_FILL,
     DEFAULT_WINDOW_S,
     MAX_SAMPLES_PER_WINDOW,
     MIN_SAMPLES_PER_WINDOW,
@@ -178,6 +179,11 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="pairs judged on curves get no --manoeuvre-scale allowance (before; by "
                         "default it widens their predictions' intervals, the curves' own "
                         "interval still deciding and confirming)")
+    p.add_argument("--window-fill", type=number(float, gt=0, le=1), default=DEFAULT_WINDOW_FILL,
+                   metavar="F",
+                   help="a longer window of the ladder takes part once it holds more than F of "
+                        "its samples (a track younger than the window, or restarted by a gap; "
+                        f"default {DEFAULT_WINDOW_FILL:g}; 1: only full windows, before)")
     p.add_argument("--confirm-rule", choices=("overlap", "count"), default="overlap",
                    help="overlap (default): each of the --confirm samples in a row must hit with "
                         "a t_cross interval that overlaps the one before (a prediction that "
@@ -238,7 +244,7 @@ def _options(args: argparse.Namespace) -> dict:
             "allowance_gate_level": (None if args.allowance_gates_from == 0
                                      else args.allowance_gates_from - 1),
             "manoeuvre_memory_windows": args.manoeuvre_memory_windows,
-            "curve_manoeuvre": args.curve_manoeuvre}
+            "curve_manoeuvre": args.curve_manoeuvre, "window_fill": args.window_fill}
 
 
 def _check_spans(args: argparse.Namespace, st: CrossingSettings, spans_s: np.ndarray) -> None:

@@ -118,6 +118,11 @@ class CrossingDetector:
         bound, which is recomputed (default False; :func:`~.pairs.pair_intervals`).
     curve_manoeuvre : bool, optional
         Pairs on curves carry the manoeuvre allowance too, widening only (default False).
+    window_fill : float, optional
+        A window of the ladder beyond the shortest takes part once it holds more than this
+        fraction of its samples (default 1: only full windows; 0.5: as soon as it holds more
+        than the window below it, e.g. a track younger than the window or restarted by a gap).
+        The shortest window is always used full.
     split_repeats : bool, optional
         A crossing whose bearing difference changes sign the other way from the pair's
         current event is the pair's next crossing, however close in time (default True;
@@ -192,6 +197,7 @@ class CrossingDetector:
         allowance_gate_level: int | None = 0,
         confirm_lead_windows: float | None = None,
         curve_manoeuvre: bool = False,
+        window_fill: float = 1.0,
     ) -> None:
         if int(J) != J or J < 3:
             raise ValueError(f"J (samples per window) must be an integer > 2, got {J!r}")
@@ -250,6 +256,9 @@ class CrossingDetector:
         self.manoeuvre_scale = float(manoeuvre_scale) if self.level is not None else 0.0
         self.far_side = bool(far_side)
         self.curve_manoeuvre = bool(curve_manoeuvre)
+        if not (np.isfinite(window_fill) and 0.0 < window_fill <= 1.0):
+            raise ValueError(f"window_fill must lie in (0, 1], got {window_fill!r}")
+        self.window_fill = float(window_fill)
         g = allowance_gate_level
         if g is not None and (int(g) != g or g < 0):
             raise ValueError(f"allowance_gate_level must be an integer >= 0 or None, got {g!r}")
@@ -280,6 +289,13 @@ class CrossingDetector:
         self._manoeuvre = ManoeuvreIntensity(self.manoeuvre_scale, self.manoeuvre_memory_s,
                                              self.K) if self.manoeuvre_scale > 0 else None
         self.manoeuvre_q = None  # the tracks' rate-wander intensities of this step, rad^2/s^3
+
+    @property
+    def window_need(self) -> tuple[int, ...]:
+        """Samples each window of the ladder must hold to take part (`window_fill`)."""
+        return tuple(w if (k == 0 or self.window_fill >= 1.0)
+                     else max(self.J, int(np.floor(self.window_fill * w)) + 1)
+                     for k, w in enumerate(self.windows))
 
     @property
     def fit(self) -> SlidingLineFit:

@@ -47,10 +47,17 @@ def judge_pairs(
     gates = det.allowance_gate_level is not None and \
         span_s >= (1 << det.allowance_gate_level) * det.J * det.K * (1 - 1e-9)
     prune = det.max_interval_s if only_resolved else None
+    # only the verdict wanted below the gate: it comes from the intervals without the
+    # allowances, which only widen -- so they are not computed (the same verdicts)
+    verdict_only = only_resolved and not gates and det.extrapolation_scale <= 1.0
+    if verdict_only:
+        man_p, far_p = None, False
+    else:
+        man_p, far_p = man, det.far_side
     # below the gate resolved as without the allowances, which only widen (`gate_width`)
     tau, low, high, ok, *gate = pair_intervals(
-        ia, ib, st.value, st, level=det.level, curvature=qs, manoeuvre=man,
-        far_side=det.far_side, own_width=not gates and (man is not None or det.far_side),
+        ia, ib, st.value, st, level=det.level, curvature=qs, manoeuvre=man_p,
+        far_side=far_p, own_width=not gates and (man_p is not None or far_p),
         max_width_s=prune)
     gate_width = gate[0] if gate else None
     k = det.extrapolation_scale
@@ -70,7 +77,7 @@ def judge_pairs(
                 ia[c], ib[c], cs, q=q, back_s=back_s, reach_s=reach_s,
                 ahead_var_scale=k)
             lc0, hc0 = lc, hc
-            if man is not None and det.curve_manoeuvre:  # the curves' rate wander too
+            if man is not None and det.curve_manoeuvre and not verdict_only:  # rate wander too
                 qc = (man[0][ia[c]] + man[0][ib[c]])[:, None]
                 ext = CURVE_ALLOWANCE_REACHES * reach_s
                 _, lw, hw, okw, _ = curved_pair_intervals(
@@ -148,6 +155,7 @@ def ladder_hits(det: Any, t: float, ids: NDArray[np.int64]) -> _Hits:
     admitted = np.ones(ids.size, bool)  # tracks whose longer windows fit as well
     var_prev = dof_prev = np.zeros(ids.size)
     n = ids.size
+    need = det.window_need
     for level, (fit, J) in enumerate(zip(det.fits, det.windows, strict=True)):
         model = det._models(fit, ids, t, curves=level < det.curve_windows)
         st, cs, _ = model
@@ -155,7 +163,7 @@ def ladder_hits(det: Any, t: float, ids: NDArray[np.int64]) -> _Hits:
         judged.append(_Judged(n))
         var = st.residual_var if cs is None else cs.residual_var
         dof = st.n - 2.0 if cs is None else cs.dof
-        use = st.n >= J
+        use = st.n >= need[level]  # full, or filled beyond `window_fill` (longer windows)
         if level > 0 and det.ladder_alpha is not None:  # it must fit as well as the last
             with np.errstate(invalid="ignore"):
                 admitted &= ~(var > f_ratio_quantile(det.ladder_alpha, dof, dof_prev) * var_prev)

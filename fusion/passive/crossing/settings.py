@@ -34,6 +34,7 @@ __all__ = [
     "DEFAULT_MANOEUVRE_MEMORY_WINDOWS",
     "DEFAULT_N_WINDOWS",
     "DEFAULT_REVISE",
+    "DEFAULT_WINDOW_FILL",
     "DEFAULT_WINDOW_S",
     "MAX_SAMPLES_PER_WINDOW",
     "MIN_SAMPLES_PER_WINDOW",
@@ -95,6 +96,9 @@ class CrossingSettings:
     curve_manoeuvre : bool
         Pairs judged on curves carry the manoeuvre allowance too (it only widens their
         intervals).
+    window_fill : float
+        A longer window of the ladder takes part once it holds more than this fraction of its
+        samples (1: only full windows).
     manoeuvre_memory_s : float or None
         Time constant over which a track's rate changes are forgotten, s (None: the
         detector's default).
@@ -126,6 +130,7 @@ class CrossingSettings:
     allowance_gate_level: int | None = 0
     manoeuvre_memory_s: float | None = None
     curve_manoeuvre: bool = False
+    window_fill: float = 1.0
     adjusted: tuple[str, ...] = ()
 
     def detector_options(self) -> dict[str, Any]:
@@ -139,13 +144,16 @@ class CrossingSettings:
                 "manoeuvre_scale": self.manoeuvre_scale, "far_side": self.far_side,
                 "allowance_gate_level": self.allowance_gate_level,
                 "manoeuvre_memory_s": self.manoeuvre_memory_s,
-                "curve_manoeuvre": self.curve_manoeuvre}
+                "curve_manoeuvre": self.curve_manoeuvre, "window_fill": self.window_fill}
 
     def describe(self) -> str:
         """One line saying what was chosen."""
         longest = self.J * 2 ** (self.n_windows - 1) * self.period_s
         return (f"K={self.period_s:.4g} s (data step {self.data_step_s:.4g} s), windows "
-                f"{self.window_s:.4g}-{longest:.4g} s (J={self.J}, {self.n_windows} windows), "
+                f"{self.window_s:.4g}-{longest:.4g} s (J={self.J}, {self.n_windows} windows"
+                + ("" if self.window_fill >= 1.0 or self.n_windows == 1 else
+                   f", longer ones used once more than {self.window_fill:g} full")
+                + "), "
                 f"predictions up to {self.lead_windows:g} window ahead, horizon "
                 f"{self.horizon_s:.4g} s, {self.confirm} sample(s) to confirm"
                 + (" (intervals overlapping)" if self.confirm_overlap else "")
@@ -210,6 +218,9 @@ DEFAULT_MANOEUVRE_MEMORY_WINDOWS = 10.0
 #: Default: curved pairs' predictions carry the manoeuvre allowance too (issue 19, 2026-12-03
 #: late afternoon).
 DEFAULT_CURVE_MANOEUVRE = True
+#: Default fill beyond which a longer window of the ladder takes part (issue 19, 2026-12-03
+#: evening: slow crossings; 1.0 before).
+DEFAULT_WINDOW_FILL = 0.5
 #: Default: confirming samples counted within the prediction reach only (None).
 DEFAULT_CONFIRM_LEAD = None
 #: Default number of samples in a row that confirm an alert.
@@ -286,6 +297,7 @@ def crossing_settings_from_steps(
     allowance_gate_level: int | None = DEFAULT_ALLOWANCE_GATE_LEVEL,
     manoeuvre_memory_windows: float = DEFAULT_MANOEUVRE_MEMORY_WINDOWS,
     curve_manoeuvre: bool = DEFAULT_CURVE_MANOEUVRE,
+    window_fill: float = DEFAULT_WINDOW_FILL,
 ) -> CrossingSettings:
     """:func:`crossing_settings` from the two numbers it takes of the data.
 
@@ -309,7 +321,7 @@ def crossing_settings_from_steps(
         :data:`MIN_SAMPLES_PER_WINDOW`).
     n_windows, lead_windows, confirm, level, curve_alpha, \
 ladder_alpha, revise, confirm_overlap, calibrate, curvature, confirm_lead_windows, \
-manoeuvre_scale, far_side, allowance_gate_level, curve_manoeuvre
+manoeuvre_scale, far_side, allowance_gate_level, curve_manoeuvre, window_fill
         As in :class:`fusion.passive.crossing.CrossingDetector`.
     manoeuvre_memory_windows : float, optional
         Memory of a track's rate-wander intensity, in spans of the shortest window.
@@ -325,6 +337,8 @@ manoeuvre_scale, far_side, allowance_gate_level, curve_manoeuvre
     """
     step = float(step_s)
     track_span = float(track_span_s)
+    if not (np.isfinite(window_fill) and 0.0 < window_fill <= 1.0):
+        raise ValueError(f"window_fill must lie in (0, 1], got {window_fill!r}")
     if not (np.isfinite(manoeuvre_memory_windows) and manoeuvre_memory_windows > 0):
         raise ValueError(f"manoeuvre_memory_windows must be > 0, got {manoeuvre_memory_windows!r}")
     for name, v in (("window_s", window_s), ("horizon_s", horizon_s), ("period_s", period_s)):
@@ -366,4 +380,5 @@ manoeuvre_scale, far_side, allowance_gate_level, curve_manoeuvre
                             else int(allowance_gate_level),
                             manoeuvre_memory_s=float(manoeuvre_memory_windows) * window,
                             curve_manoeuvre=bool(curve_manoeuvre),
+                            window_fill=float(window_fill),
                             adjusted=tuple(adjusted))
