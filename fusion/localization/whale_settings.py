@@ -37,6 +37,8 @@ def whale_localizer(
     bottom_z: float | None = None,
     max_candidates: int = WHALE_MAX_CANDIDATES,
     min_tdoas: float = WHALE_MIN_TDOAS,
+    min_redundant_tdoas: int = 1,
+    echo_ghost_lag_s: float = 0.03,
 ) -> MultiSourceLocalizer:
     """The localizer for whale clicks on hydrophones below the sea surface.
 
@@ -60,6 +62,12 @@ def whale_localizer(
         set of TDOAs fits some position by chance far more often than along direct paths
         alone, and sources of 4 or 5 TDOAs were mostly such chance fits on the tuning seeds
         of ``benchmarks/bench_localize_e2e.py``; a whale heard along its echoes holds 6-30.
+    min_redundant_tdoas : int, keyword-only
+        Held TDOAs a source needs beyond the three unknowns of its position
+        (:attr:`CompetitionSettings.min_redundant_tdoas`, default 1).
+    echo_ghost_lag_s : float, keyword-only
+        Longest echo lag of the echo-ghost test, s
+        (:attr:`CompetitionSettings.echo_ghost_lag_s`, default 0.03; 0: off).
 
     Returns
     -------
@@ -68,13 +76,16 @@ def whale_localizer(
     if surface_z is None:
         region = SearchRegion() if bottom_z is None else SearchRegion(
             water_column=(float(bottom_z), 0.0))
-        return MultiSourceLocalizer(method=method, region=region)
+        return MultiSourceLocalizer(method=method, region=region, competition=CompetitionSettings(
+            min_redundant_tdoas=min_redundant_tdoas, echo_ghost_lag_s=echo_ghost_lag_s))
     region = SearchRegion() if bottom_z is None else SearchRegion(
         water_column=(float(bottom_z), float(surface_z)))
     return MultiSourceLocalizer(method=method, region=region, surface_z=surface_z,
                                 finder=CandidateFinder(max_candidates=max_candidates),
                                 min_tdoas=min_tdoas,
-                                competition=CompetitionSettings(min_weight=min_tdoas))
+                                competition=CompetitionSettings(
+                                    min_weight=min_tdoas, min_redundant_tdoas=min_redundant_tdoas,
+                                    echo_ghost_lag_s=echo_ghost_lag_s))
 
 
 @dataclass(frozen=True)
@@ -104,6 +115,12 @@ class LocalizerSettings:
     min_source_tdoas : float or None
         Smallest total TDOA weight of a source. None: 5.5 with surface paths
         (:data:`WHALE_MIN_TDOAS`), the localizer's 3.5 with direct paths.
+    min_redundant_tdoas : int
+        Held TDOAs a source needs beyond the three unknowns of its position (default 1, 0:
+        off; :attr:`CompetitionSettings.min_redundant_tdoas`).
+    echo_ghost_lag_s : float
+        Longest echo lag of the echo-ghost test, s (default 0.03, 0: off;
+        :attr:`CompetitionSettings.echo_ghost_lag_s`).
     """
 
     method: str = "competition"
@@ -111,6 +128,8 @@ class LocalizerSettings:
     sea_floor_z: float | None = None
     max_candidates: int | None = None
     min_source_tdoas: float | None = None
+    min_redundant_tdoas: int = 1
+    echo_ghost_lag_s: float = 0.03
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
@@ -171,13 +190,18 @@ class LocalizerSettings:
                 max_candidates=(WHALE_MAX_CANDIDATES if self.max_candidates is None
                                 else self.max_candidates),
                 min_tdoas=(WHALE_MIN_TDOAS if self.min_source_tdoas is None
-                           else self.min_source_tdoas))
-        opts: dict = {}
+                           else self.min_source_tdoas),
+                min_redundant_tdoas=self.min_redundant_tdoas,
+                echo_ghost_lag_s=self.echo_ghost_lag_s)
+        ghosts = {"min_redundant_tdoas": self.min_redundant_tdoas,
+                  "echo_ghost_lag_s": self.echo_ghost_lag_s}
+        opts: dict = {"competition": CompetitionSettings(**ghosts)}
         if self.max_candidates is not None:
             opts["finder"] = CandidateFinder(max_candidates=self.max_candidates)
         if self.min_source_tdoas is not None:
             opts["min_tdoas"] = self.min_source_tdoas
-            opts["competition"] = CompetitionSettings(min_weight=self.min_source_tdoas)
+            opts["competition"] = CompetitionSettings(min_weight=self.min_source_tdoas,
+                                                      **ghosts)
         region = SearchRegion() if self.sea_floor_z is None else SearchRegion(
             water_column=(float(self.sea_floor_z), SEA_SURFACE_Z))
         return MultiSourceLocalizer(method=self.method, region=region, **opts)

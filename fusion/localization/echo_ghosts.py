@@ -1,0 +1,203 @@
+"""Candidates made of another candidate's clicks heard late: the echo-ghost test.
+
+On hydrophones standing a few metres above the sea floor each click also arrives along the
+bottom-reflected path, ``l_i`` later at sensor ``i`` (0.2-30 ms, the same for every click of a
+whale over a window). A delay measured between the echo at sensor ``i`` and the direct click
+at ``j`` is the whale's direct delay plus ``l_i``; between the direct click at ``i`` and the
+echo at ``j``, minus ``l_j``; between two echoes, plus ``l_i - l_j``. A set of such delays can
+fit a position of its own: a second source a few tens to hundreds of metres from the whale.
+
+The test asks whether a candidate ``G``'s held delays are those of another candidate ``S``
+moved by echo lags: every residual ``tau_m - d_m(S)`` is, within its tolerance, ``0``, ``l_i``,
+``-l_j`` or ``l_i - l_j`` with lags ``0 < l <= max_lag_s`` on at most ``max_lags`` sensors.
+Two lags are fewer parameters than the three of a new source's position, so the echo reading
+is the simpler explanation; a distinct whale's residuals are ``delta_i - delta_j`` with a
+``delta`` on every sensor it is heard on (at least four for a fix), which two lags explain
+only when its range differences to the other sensors equal ``S``'s to within the tolerance.
+The lags are positive (an echo arrives after its click), so the test has a direction: the
+echoes' candidate is the ghost, whichever holds more TDOAs. A candidate whose residuals are
+all zero duplicates ``S`` and is dropped only when it holds less.
+
+Notes
+-----
+*Localization of Short Duration Periodic Signals*, step 32 and paragraph [0028]: reflected
+arrivals are told from source arrivals by their delay after a stronger arrival (the text's
+"threshold time"); here the same reading is applied to delays a candidate holds.
+"""
+
+from __future__ import annotations
+
+from itertools import combinations
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+__all__ = ["echo_explained", "echo_ghosts", "surface_alternatives"]
+
+
+def _candidate_lags(r: NDArray, pairs: NDArray, max_lag_s: float, tol: NDArray
+                    ) -> list[tuple[int, float]]:
+    """(sensor, lag) values a single echo would give: ``r = l_i`` or ``r = -l_j``."""
+    out: list[tuple[int, float]] = []
+    for (i, j), rm, tm in zip(pairs, r, tol, strict=True):
+        if tm < rm <= max_lag_s:
+            out.append((int(i), float(rm)))
+        if tm < -rm <= max_lag_s:
+            out.append((int(j), float(-rm)))
+    return out
+
+
+def _explains(r: NDArray, pairs: NDArray, tol: NDArray, lags: dict[int, float]) -> bool:
+    li = np.array([lags.get(int(i), 0.0) for i in pairs[:, 0]])
+    lj = np.array([lags.get(int(j), 0.0) for j in pairs[:, 1]])
+    hyp = np.stack([np.zeros_like(r), li, -lj, li - lj])  # dd, echo at i, echo at j, both
+    return bool(np.all(np.min(np.abs(hyp - r[None, :]), axis=0) <= tol))
+
+
+def echo_explained(residuals: ArrayLike, pairs: ArrayLike, tolerances: ArrayLike, *,
+                   max_lag_s: float, max_lags: int = 2,
+                   explained: ArrayLike | None = None) -> tuple[bool, int]:
+    """Whether residuals ``tau_m - d_m(S)`` of a candidate's delays are echo lags of ``S``.
+
+    Parameters
+    ----------
+    residuals : array_like, shape (k,)
+        Measured delay minus the other candidate's predicted delay, s.
+    pairs : array_like of int, shape (k, 2)
+        Sensor pair ``(i, j)`` of each delay (``tau = t_i - t_j``).
+    tolerances : array_like, shape (k,)
+        Largest |misfit| of each delay, s.
+    max_lag_s : float, keyword-only
+        Longest echo lag, s.
+    max_lags : int, keyword-only
+        Most sensors with an echo lag (default 2, fewer than a position's three unknowns).
+    explained : array_like of bool, shape (k,), optional, keyword-only
+        Delays already explained otherwise (along a surface path); the others must be.
+
+    Returns
+    -------
+    (bool, int)
+        Explained, and the number of lags used (0: the delays are the other's own).
+
+    Examples
+    --------
+    >>> pairs = [(0, 1), (0, 3), (1, 2), (2, 3)]
+    >>> echo_explained([4e-3, 4e-3, -2e-3, 2e-3], pairs, [1e-6] * 4, max_lag_s=0.03)
+    (True, 2)
+    >>> echo_explained([4e-3, 1e-3, -2e-3, 2e-3], pairs, [1e-6] * 4, max_lag_s=0.03)
+    (False, 0)
+    """
+    r = np.asarray(residuals, dtype=float).reshape(-1)
+    p = np.asarray(pairs, dtype=np.intp).reshape(-1, 2)
+    tol = np.asarray(tolerances, dtype=float).reshape(-1)
+    if r.size == 0 or p.shape[0] != r.size or tol.size != r.size:
+        return False, 0
+    if explained is not None:
+        rest = ~np.asarray(explained, dtype=bool).reshape(-1)
+        if not np.any(rest):
+            return True, 0
+        r, p, tol = r[rest], p[rest], tol[rest]
+    if _explains(r, p, tol, {}):
+        return True, 0
+    cands = _candidate_lags(r, p, float(max_lag_s), tol)
+    for n in range(1, int(max_lags) + 1):
+        for combo in combinations(cands, n):
+            sensors = [s for s, _ in combo]
+            if len(set(sensors)) < n:
+                continue
+            if _explains(r, p, tol, dict(combo)):
+                return True, n
+    return False, 0
+
+
+def echo_ghosts(taus: ArrayLike, sigmas: ArrayLike, pairs: ArrayLike, predicted: ArrayLike,
+                held: ArrayLike, *, max_lag_s: float, n_sigmas: float = 3.0,
+                max_lags: int = 2, reflected: ArrayLike | None = None,
+                inverted: ArrayLike | None = None, slip_s: float = 0.0) -> NDArray[np.bool_]:
+    """Which candidates are echo ghosts (or duplicates) of another candidate.
+
+    Parameters
+    ----------
+    taus, sigmas : array_like, shape (M,)
+        The window's delays and their sigmas, s.
+    pairs : array_like of int, shape (M, 2)
+        Their sensor pairs.
+    predicted : array_like, shape (K, M)
+        Each candidate's predicted delays, s.
+    held : array_like of bool, shape (K, M)
+        The delays each candidate holds (weight > 0.5).
+    max_lag_s : float, keyword-only
+        Longest echo lag, s.
+    n_sigmas : float, keyword-only
+        Tolerance in sigmas of ``hypot(sigma_m, rms)``, ``rms`` the other candidate's own
+        residual RMS over the delays it holds (its model error: sound speed, positions).
+    max_lags : int, keyword-only
+        See :func:`echo_explained`.
+    reflected : array_like, shape (K, M, A), optional, keyword-only
+        Each candidate's delays along ``A`` other path pairs of each column (surface
+        reflections, :func:`surface_alternatives`): a delay one of them explains needs no lag.
+    inverted : array_like of bool, shape (M, A), optional, keyword-only
+        Path pairs with one surface reflection: the echo is sign-inverted, and a delay
+        measured on the largest positive correlation lies half a carrier period off the
+        path's delay; their tolerance grows by `slip_s`.
+    slip_s : float, keyword-only
+        Half a carrier period of the lowest click frequency, s.
+
+    Returns
+    -------
+    ndarray of bool, shape (K,)
+        True for a candidate explained by another one that is not itself a ghost.
+    """
+    tau = np.asarray(taus, dtype=float)
+    sig = np.asarray(sigmas, dtype=float)
+    p = np.asarray(pairs, dtype=np.intp)
+    d = np.atleast_2d(np.asarray(predicted, dtype=float))
+    h = np.atleast_2d(np.asarray(held, dtype=bool))
+    k = d.shape[0]
+    count = h.sum(axis=1)
+    rms = np.array([float(np.sqrt(np.mean((d[s, h[s]] - tau[h[s]]) ** 2))) if count[s] else 0.0
+                    for s in range(k)])
+    ghost = np.zeros(k, dtype=bool)
+    for g in np.argsort(count, kind="stable"):  # weakest first: a ghost explains nothing
+        for s in range(k):
+            if s == g or ghost[s] or count[s] == 0 or count[g] == 0:
+                continue
+            cols = h[g]
+            tol = n_sigmas * np.hypot(sig[cols], rms[s])
+            other = None
+            if reflected is not None:
+                alt = np.asarray(reflected, dtype=float)[s][cols]  # (k, A)
+                extra = (slip_s * np.asarray(inverted, dtype=bool)[cols]
+                         if inverted is not None else 0.0)
+                other = np.any(np.abs(alt - tau[cols, None]) <= tol[:, None] + extra, axis=1)
+            ok, n_lags = echo_explained(tau[cols] - d[s, cols], p[cols], tol,
+                                        max_lag_s=max_lag_s, max_lags=max_lags,
+                                        explained=other)
+            if ok and (n_lags > 0 or count[g] < count[s]):
+                ghost[g] = True
+                break
+    return ghost
+
+
+def surface_alternatives(positions: ArrayLike, sensors: ArrayLike, pairs: ArrayLike, c: float,
+                         surface_z: float) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+    """Each position's delays of each column as it stands and with one of its two sensors
+    swapped for its surface image (``z -> 2 z_s - z``; an image sensor's image is the real one).
+
+    Returns
+    -------
+    (ndarray, ndarray)
+        Delays ``(K, M, 3)``, s (as it stands, first sensor swapped, second swapped), and
+        ``(M, 3)`` whether that pair has exactly one sensor above the surface (one reflection:
+        the echo is sign-inverted).
+    """
+    x = np.atleast_2d(np.asarray(positions, dtype=float))
+    s = np.asarray(sensors, dtype=float)
+    i, j = np.asarray(pairs, dtype=np.intp).T
+    image = s * np.array([1.0, 1.0, -1.0]) + np.array([0.0, 0.0, 2.0 * surface_z])
+    r = np.linalg.norm(x[:, None, :] - s[None, :, :], axis=2) / c  # (K, n)
+    ri = np.linalg.norm(x[:, None, :] - image[None, :, :], axis=2) / c
+    out = np.stack([r[:, i] - r[:, j], ri[:, i] - r[:, j], r[:, i] - ri[:, j]], axis=2)
+    up = s[:, 2] > surface_z  # image sensors
+    mixed = np.stack([up[i] != up[j], (~up[i]) != up[j], up[i] != (~up[j])], axis=1)
+    return out, mixed
