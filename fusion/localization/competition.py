@@ -31,7 +31,9 @@ flat, ``w_km = 1/K`` (eq. 19), and each iteration alternates
     rest lost to clutter on the way; their association with the kept ones gives it away.)
 (e) **echo ghosts** (after the last iteration): a survivor whose held delays are another
     survivor's moved by bottom-echo lags on at most two sensors, or read along its surface
-    paths (a sign-inverted echo up to half a carrier period, ``polarity_slip_s``), is dropped
+    paths (a sign-inverted echo up to half a carrier period, ``polarity_slip_s``), is dropped,
+    and so is one that hears a sensor only through its surface echo
+    (``drop_echo_only_sensors``: the direct click is louder and earlier than its echo)
     (:mod:`fusion.localization.echo_ghosts`; ``echo_ghost_lag_s`` 0 switches it off).
 
 The delay scale of (a) and (b) starts at the candidate grid's smoothing and shrinks by
@@ -63,7 +65,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from factors.tdoa import weighted_tdoa_vector_factor
 from fusion.localization.competition_settings import CompetitionSettings
-from fusion.localization.echo_ghosts import echo_ghosts, surface_alternatives
+from fusion.localization.echo_ghosts import echo_ghosts, echo_only_sensors, surface_alternatives
 from fusion.localization.ownership import (
     association_weights,
     cap_per_pair,
@@ -424,6 +426,12 @@ def compete(
         if np.any(ghost):
             _LOG.debug("competition: %d echo ghosts dropped", int(ghost.sum()))
             idx = idx[~ghost]
+    if cfg.drop_echo_only_sensors and surface_z is not None and idx.size:
+        alias = echo_only_sensors(tdoas.sensors, pairs, w[idx] > 0.5, surface_z)
+        if np.any(alias):
+            _LOG.debug("competition: %d candidates hearing a sensor only by its echo dropped",
+                       int(alias.sum()))
+            idx = idx[~alias]
     clutter = (1.0 - _group_total(w[idx].sum(axis=0), group, n_groups)[group] if idx.size
                else np.ones(m))
     _LOG.debug("competition: %d of %d candidates survive after %d iterations (converged %s)",

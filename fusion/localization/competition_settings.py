@@ -68,6 +68,9 @@ class CompetitionSettings:
         edge of beaked-whale clicks): how far from a surface path's delay the echo-ghost test
         accepts a delay between a click and its sign-inverted surface echo (measured on the
         largest positive correlation, it lands on a side lobe half a period away).
+    drop_echo_only_sensors : bool
+        With surface paths, drop a survivor that reads some sensor only along its surface echo
+        (:func:`fusion.localization.echo_ghosts.echo_only_sensors`; default True).
     """
 
     clutter_fraction: float = 0.1
@@ -87,6 +90,7 @@ class CompetitionSettings:
     min_redundant_tdoas: int = 1
     echo_ghost_lag_s: float = 0.03
     polarity_slip_s: float = 25e-6
+    drop_echo_only_sensors: bool = True
 
     def __post_init__(self) -> None:
         for name in ("clutter_fraction", "anneal_factor"):

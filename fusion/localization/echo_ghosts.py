@@ -32,7 +32,7 @@ from itertools import combinations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ["echo_explained", "echo_ghosts", "surface_alternatives"]
+__all__ = ["echo_explained", "echo_ghosts", "echo_only_sensors", "surface_alternatives"]
 
 
 def _candidate_lags(r: NDArray, pairs: NDArray, max_lag_s: float, tol: NDArray
@@ -201,3 +201,60 @@ def surface_alternatives(positions: ArrayLike, sensors: ArrayLike, pairs: ArrayL
     up = s[:, 2] > surface_z  # image sensors
     mixed = np.stack([up[i] != up[j], (~up[i]) != up[j], up[i] != (~up[j])], axis=1)
     return out, mixed
+
+
+def echo_only_sensors(sensors: ArrayLike, pairs: ArrayLike, held: ArrayLike,
+                      surface_z: float) -> NDArray[np.bool_]:
+    """Which candidates hear some sensor only through its surface echo.
+
+    A click's surface echo at a sensor follows the direct click there, weaker (a reflection
+    coefficient of magnitude at most one, a longer path): where a whale's echo made a delay,
+    its direct click did too. A candidate that reads a sensor on its surface image in every
+    delay it holds and never on the sensor itself contradicts that; it is the alias of a
+    source whose direct delays are read with some sensors swapped for their images
+    (``(0, 1)`` as direct-surface, ``(1, 2)`` as surface-direct, ...), which on a
+    near-planar array fits the direct delays of a whale hundreds of metres away.
+
+    Parameters
+    ----------
+    sensors : array_like, shape (N, 3)
+        The columns' sensors: the real ones below the surface, their images above it.
+    pairs : array_like of int, shape (M, 2)
+        Each column's sensor pair (indices into `sensors`).
+    held : array_like of bool, shape (K, M)
+        The columns each candidate holds.
+    surface_z : float
+        Height of the sea surface, m.
+
+    Returns
+    -------
+    ndarray of bool, shape (K,)
+
+    Examples
+    --------
+    >>> s = np.array([[0.0, 0, -1000], [1000, 0, -1000], [0, 0, 1000], [1000, 0, 1000]])
+    >>> pairs = np.array([[0, 1], [0, 3], [2, 1]])  # direct, direct-surface, surface-direct
+    >>> echo_only_sensors(s, pairs, [[True, True, False], [False, True, False]], 0.0).tolist()
+    [False, True]
+    """
+    s = np.asarray(sensors, dtype=float)
+    p = np.asarray(pairs, dtype=np.intp)
+    h = np.atleast_2d(np.asarray(held, dtype=bool))
+    up = s[:, 2] > surface_z
+    real = np.flatnonzero(~up)
+    image = np.flatnonzero(up)
+    if image.size == 0:
+        return np.zeros(h.shape[0], dtype=bool)
+    # the real sensor of each image: the real one at its mirror position
+    mirror = s[image] * np.array([1.0, 1.0, -1.0]) + np.array([0.0, 0.0, 2.0 * surface_z])
+    twin = real[np.argmin(np.linalg.norm(mirror[:, None, :] - s[real][None, :, :], axis=2),
+                          axis=1)]
+    owner = np.arange(s.shape[0])
+    owner[image] = twin
+    out = np.zeros(h.shape[0], dtype=bool)
+    for k in range(h.shape[0]):
+        used = p[h[k]].reshape(-1)
+        direct = set(owner[used[~up[used]]].tolist())
+        echoed = set(owner[used[up[used]]].tolist())
+        out[k] = bool(echoed - direct)
+    return out

@@ -39,6 +39,7 @@ def whale_localizer(
     min_tdoas: float = WHALE_MIN_TDOAS,
     min_redundant_tdoas: int = 1,
     echo_ghost_lag_s: float = 0.03,
+    drop_echo_only_sensors: bool = True,
 ) -> MultiSourceLocalizer:
     """The localizer for whale clicks on hydrophones below the sea surface.
 
@@ -68,6 +69,9 @@ def whale_localizer(
     echo_ghost_lag_s : float, keyword-only
         Longest echo lag of the echo-ghost test, s
         (:attr:`CompetitionSettings.echo_ghost_lag_s`, default 0.03; 0: off).
+    drop_echo_only_sensors : bool, keyword-only
+        Drop a source that hears a sensor only through its surface echo
+        (:attr:`CompetitionSettings.drop_echo_only_sensors`, default True).
 
     Returns
     -------
@@ -85,7 +89,8 @@ def whale_localizer(
                                 min_tdoas=min_tdoas,
                                 competition=CompetitionSettings(
                                     min_weight=min_tdoas, min_redundant_tdoas=min_redundant_tdoas,
-                                    echo_ghost_lag_s=echo_ghost_lag_s))
+                                    echo_ghost_lag_s=echo_ghost_lag_s,
+                                    drop_echo_only_sensors=drop_echo_only_sensors))
 
 
 @dataclass(frozen=True)
@@ -121,6 +126,9 @@ class LocalizerSettings:
     echo_ghost_lag_s : float
         Longest echo lag of the echo-ghost test, s (default 0.03, 0: off;
         :attr:`CompetitionSettings.echo_ghost_lag_s`).
+    drop_echo_only_sensors : bool
+        Drop a source that hears a sensor only through its surface echo (default True;
+        :attr:`CompetitionSettings.drop_echo_only_sensors`).
     """
 
     method: str = "competition"
@@ -130,6 +138,7 @@ class LocalizerSettings:
     min_source_tdoas: float | None = None
     min_redundant_tdoas: int = 1
     echo_ghost_lag_s: float = 0.03
+    drop_echo_only_sensors: bool = True
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
@@ -192,9 +201,11 @@ class LocalizerSettings:
                 min_tdoas=(WHALE_MIN_TDOAS if self.min_source_tdoas is None
                            else self.min_source_tdoas),
                 min_redundant_tdoas=self.min_redundant_tdoas,
-                echo_ghost_lag_s=self.echo_ghost_lag_s)
+                echo_ghost_lag_s=self.echo_ghost_lag_s,
+                drop_echo_only_sensors=self.drop_echo_only_sensors)
         ghosts = {"min_redundant_tdoas": self.min_redundant_tdoas,
-                  "echo_ghost_lag_s": self.echo_ghost_lag_s}
+                  "echo_ghost_lag_s": self.echo_ghost_lag_s,
+                  "drop_echo_only_sensors": self.drop_echo_only_sensors}
         opts: dict = {"competition": CompetitionSettings(**ghosts)}
         if self.max_candidates is not None:
             opts["finder"] = CandidateFinder(max_candidates=self.max_candidates)

@@ -7,7 +7,13 @@ import pytest
 
 from factors.tdoa import predicted_tdoas, solve_source
 from fusion.localization.competition import CompetitionSettings, compete
-from fusion.localization.echo_ghosts import echo_explained, echo_ghosts, surface_alternatives
+from fusion.localization.echo_ghosts import (
+    echo_explained,
+    echo_ghosts,
+    echo_only_sensors,
+    surface_alternatives,
+)
+from fusion.localization.surface_paths import surface_paths
 from fusion.localization.surfaces import WindowTdoas
 from fusion.simulate.tdoa_sets import all_pairs
 
@@ -104,3 +110,36 @@ def test_a_slipped_surface_echo_ghost_is_explained_along_the_surface_paths():
     assert echo_ghosts(taus, sig, pairs, pred, held, slip_s=25e-6, **kw).tolist() == [False, True]
     # without the slip the delays are 60 sigma off every path: not explained
     assert not echo_ghosts(taus, sig, pairs, pred, held, slip_s=0.0, **kw).any()
+
+
+def test_a_source_hearing_a_sensor_only_by_its_echo_is_an_alias():
+    # seed 8009's alias: the whale's ten direct delays read with sensors 1 and 4 swapped for
+    # their surface images fit a position 820 m away; sensors 1 and 4 are heard by echo only
+    pairs = all_pairs(5)
+    t = WindowTdoas(SENSORS, pairs, predicted_tdoas(WHALE, SENSORS, pairs, c=C),
+                    np.full(10, SIGMA), c=C)
+    wide = surface_paths(t, 0.0)
+    alias = np.zeros(40, dtype=bool)
+    image = {1, 4}
+    for m, (i, j) in enumerate(pairs):  # the column reading sensor 1 and 4 as images
+        h = {(False, False): 0, (True, True): 1, (False, True): 2, (True, False): 3}[
+            (int(i) in image, int(j) in image)]
+        alias[h * 10 + m] = True
+    truth = np.zeros(40, dtype=bool)
+    truth[:10] = True
+    truth[2 * 10 + 3] = True  # and a direct-surface delay of sensor 4: heard both ways
+    held = np.vstack([truth, alias])
+    assert echo_only_sensors(wide.tdoas.sensors, wide.tdoas.pairs, held, 0.0).tolist() == [
+        False, True]
+    # the competition: delays that a position fits read with sensors 1 and 4 as images
+    x = WHALE + np.array([300.0, -200.0, 150.0])
+    cols = np.flatnonzero(alias)[np.argsort(np.flatnonzero(alias) % 10)]  # by measurement
+    t2 = WindowTdoas(SENSORS, pairs, wide.tdoas.predicted(x)[cols], np.full(10, SIGMA), c=C)
+    wide2 = surface_paths(t2, 0.0)
+    kw = {"start_scale_s": 1e-4, "weights": alias[None, :].astype(float), "settled": [True],
+          "groups": wide2.measured, "surface_z": 0.0}
+    off = compete(wide2.tdoas, x[None, :], **kw,
+                  settings=CompetitionSettings(drop_echo_only_sensors=False))
+    on = compete(wide2.tdoas, x[None, :], **kw, settings=CompetitionSettings())
+    assert off.positions.shape[0] == 1
+    assert on.positions.shape[0] == 0
