@@ -419,7 +419,7 @@ def compete(
         sea = surface_z if surface_z is not None else (
             SEA_SURFACE_Z if np.all(np.asarray(tdoas.sensors)[:, 2] < SEA_SURFACE_Z) else None)
         alt = ({} if sea is None else dict(zip(
-            ("reflected", "inverted"),
+            ("reflected", "reflected_pairs", "inverted", "image_keys"),
             surface_alternatives(x[idx], tdoas.sensors, pairs, tdoas.c, sea), strict=True)))
         ghost = echo_ghosts(tdoas.taus, sig, pairs, tdoas.predicted(x[idx]), w[idx] > 0.5,
                             max_lag_s=cfg.echo_ghost_lag_s, slip_s=cfg.polarity_slip_s, **alt)

@@ -35,44 +35,55 @@ from numpy.typing import ArrayLike, NDArray
 __all__ = ["echo_explained", "echo_ghosts", "echo_only_sensors", "surface_alternatives"]
 
 
-def _candidate_lags(r: NDArray, pairs: NDArray, max_lag_s: float, tol: NDArray
-                    ) -> list[tuple[int, float]]:
-    """(sensor, lag) values a single echo would give: ``r = l_i`` or ``r = -l_j``."""
-    out: list[tuple[int, float]] = []
-    for (i, j), rm, tm in zip(pairs, r, tol, strict=True):
-        if tm < rm <= max_lag_s:
-            out.append((int(i), float(rm)))
-        if tm < -rm <= max_lag_s:
-            out.append((int(j), float(-rm)))
-    return out
+def _candidate_lags(r: NDArray, pairs: NDArray, max_lag_s: float, tol: NDArray,
+                    signed: NDArray[np.bool_] | None = None) -> list[tuple[int, float]]:
+    """(sensor, lag) values a single echo would give: ``r = l_i`` or ``r = -l_j``.
+
+    `r`, `tol`: (k, A); `pairs`: (k, A, 2), one column per reading of each delay. A sensor
+    index with ``signed[index]`` takes a lag of either sign.
+    """
+    out: set[tuple[int, float]] = set()
+    for rm, pm, tm in zip(r.reshape(-1), pairs.reshape(-1, 2), tol.reshape(-1), strict=True):
+        for key, lag in ((int(pm[0]), float(rm)), (int(pm[1]), float(-rm))):
+            free = signed is not None and key < signed.size and bool(signed[key])
+            if tm < (abs(lag) if free else lag) <= max_lag_s:
+                out.add((key, lag))
+    return sorted(out)
 
 
 def _explains(r: NDArray, pairs: NDArray, tol: NDArray, lags: dict[int, float]) -> bool:
-    li = np.array([lags.get(int(i), 0.0) for i in pairs[:, 0]])
-    lj = np.array([lags.get(int(j), 0.0) for j in pairs[:, 1]])
+    """Whether every delay has a reading (column of `r`) that the lags explain."""
+    li = np.vectorize(lambda i: lags.get(int(i), 0.0), otypes=[float])(pairs[..., 0])
+    lj = np.vectorize(lambda j: lags.get(int(j), 0.0), otypes=[float])(pairs[..., 1])
     hyp = np.stack([np.zeros_like(r), li, -lj, li - lj])  # dd, echo at i, echo at j, both
-    return bool(np.all(np.min(np.abs(hyp - r[None, :]), axis=0) <= tol))
+    ok = np.min(np.abs(hyp - r[None]), axis=0) <= tol  # (k, A)
+    return bool(np.all(np.any(ok, axis=1)))
 
 
 def echo_explained(residuals: ArrayLike, pairs: ArrayLike, tolerances: ArrayLike, *,
                    max_lag_s: float, max_lags: int = 2,
-                   explained: ArrayLike | None = None) -> tuple[bool, int]:
+                   signed: ArrayLike | None = None) -> tuple[bool, int]:
     """Whether residuals ``tau_m - d_m(S)`` of a candidate's delays are echo lags of ``S``.
 
     Parameters
     ----------
-    residuals : array_like, shape (k,)
-        Measured delay minus the other candidate's predicted delay, s.
-    pairs : array_like of int, shape (k, 2)
-        Sensor pair ``(i, j)`` of each delay (``tau = t_i - t_j``).
-    tolerances : array_like, shape (k,)
-        Largest |misfit| of each delay, s.
+    residuals : array_like, shape (k,) or (k, A)
+        Measured delay minus the other candidate's predicted delay, s; with ``A`` columns,
+        one per reading of the delay (the direct paths, a surface path, ...): a delay is
+        explained when one of its readings is.
+    pairs : array_like of int, shape (k, 2) or (k, A, 2)
+        Sensor pair ``(i, j)`` of each reading (``tau = t_i - t_j``); one lag per index (a
+        surface image has its own index, its own lag).
+    tolerances : array_like, shape (k,) or (k, A)
+        Largest |misfit| of each reading, s.
     max_lag_s : float, keyword-only
         Longest echo lag, s.
     max_lags : int, keyword-only
         Most sensors with an echo lag (default 2, fewer than a position's three unknowns).
-    explained : array_like of bool, shape (k,), optional, keyword-only
-        Delays already explained otherwise (along a surface path); the others must be.
+    signed : array_like of bool, optional, keyword-only
+        Per sensor index: its lag may have either sign (a surface image: the delay along a
+        reflected path is predicted with the direct path's sound speed, and the effective
+        speed along the longer path through the upper water differs by up to about 1 %).
 
     Returns
     -------
@@ -87,23 +98,22 @@ def echo_explained(residuals: ArrayLike, pairs: ArrayLike, tolerances: ArrayLike
     >>> echo_explained([4e-3, 1e-3, -2e-3, 2e-3], pairs, [1e-6] * 4, max_lag_s=0.03)
     (False, 0)
     """
-    r = np.asarray(residuals, dtype=float).reshape(-1)
-    p = np.asarray(pairs, dtype=np.intp).reshape(-1, 2)
-    tol = np.asarray(tolerances, dtype=float).reshape(-1)
-    if r.size == 0 or p.shape[0] != r.size or tol.size != r.size:
+    r = np.asarray(residuals, dtype=float)
+    r = r[:, None] if r.ndim == 1 else r
+    k, n_alt = r.shape
+    p = np.asarray(pairs, dtype=np.intp).reshape(k, -1, 2)
+    if p.shape[1] != n_alt:
+        p = np.broadcast_to(p, (k, n_alt, 2))
+    tol = np.broadcast_to(np.asarray(tolerances, dtype=float).reshape(k, -1), (k, n_alt))
+    if k == 0:
         return False, 0
-    if explained is not None:
-        rest = ~np.asarray(explained, dtype=bool).reshape(-1)
-        if not np.any(rest):
-            return True, 0
-        r, p, tol = r[rest], p[rest], tol[rest]
     if _explains(r, p, tol, {}):
         return True, 0
-    cands = _candidate_lags(r, p, float(max_lag_s), tol)
+    cands = _candidate_lags(r, p, float(max_lag_s), tol,
+                            None if signed is None else np.asarray(signed, dtype=bool))
     for n in range(1, int(max_lags) + 1):
         for combo in combinations(cands, n):
-            sensors = [s for s, _ in combo]
-            if len(set(sensors)) < n:
+            if len({s for s, _ in combo}) < n:
                 continue
             if _explains(r, p, tol, dict(combo)):
                 return True, n
@@ -113,7 +123,8 @@ def echo_explained(residuals: ArrayLike, pairs: ArrayLike, tolerances: ArrayLike
 def echo_ghosts(taus: ArrayLike, sigmas: ArrayLike, pairs: ArrayLike, predicted: ArrayLike,
                 held: ArrayLike, *, max_lag_s: float, n_sigmas: float = 3.0,
                 max_lags: int = 2, reflected: ArrayLike | None = None,
-                inverted: ArrayLike | None = None, slip_s: float = 0.0) -> NDArray[np.bool_]:
+                reflected_pairs: ArrayLike | None = None, inverted: ArrayLike | None = None,
+                slip_s: float = 0.0, image_keys: ArrayLike | None = None) -> NDArray[np.bool_]:
     """Which candidates are echo ghosts (or duplicates) of another candidate.
 
     Parameters
@@ -134,14 +145,20 @@ def echo_ghosts(taus: ArrayLike, sigmas: ArrayLike, pairs: ArrayLike, predicted:
     max_lags : int, keyword-only
         See :func:`echo_explained`.
     reflected : array_like, shape (K, M, A), optional, keyword-only
-        Each candidate's delays along ``A`` other path pairs of each column (surface
-        reflections, :func:`surface_alternatives`): a delay one of them explains needs no lag.
+        Each candidate's delays along ``A`` readings of each column (as it stands and with a
+        surface reflection, :func:`surface_alternatives`); a delay is explained when one of
+        its readings is, with or without echo lags.
+    reflected_pairs : array_like of int, shape (M, A, 2), optional, keyword-only
+        The sensor pair of each reading (an image sensor has its own index: its own lag).
     inverted : array_like of bool, shape (M, A), optional, keyword-only
         Path pairs with one surface reflection: the echo is sign-inverted, and a delay
         measured on the largest positive correlation lies half a carrier period off the
         path's delay; their tolerance grows by `slip_s`.
     slip_s : float, keyword-only
         Half a carrier period of the lowest click frequency, s.
+    image_keys : array_like of bool, optional, keyword-only
+        Per sensor index of `reflected_pairs`: a surface image (its lag may have either sign,
+        see :func:`echo_explained`).
 
     Returns
     -------
@@ -164,15 +181,16 @@ def echo_ghosts(taus: ArrayLike, sigmas: ArrayLike, pairs: ArrayLike, predicted:
                 continue
             cols = h[g]
             tol = n_sigmas * np.hypot(sig[cols], rms[s])
-            other = None
-            if reflected is not None:
-                alt = np.asarray(reflected, dtype=float)[s][cols]  # (k, A)
+            if reflected is None or reflected_pairs is None:
+                r, rp, rt = tau[cols] - d[s, cols], p[cols], tol
+            else:
+                r = tau[cols, None] - np.asarray(reflected, dtype=float)[s][cols]  # (k, A)
+                rp = np.asarray(reflected_pairs, dtype=np.intp)[cols]
                 extra = (slip_s * np.asarray(inverted, dtype=bool)[cols]
                          if inverted is not None else 0.0)
-                other = np.any(np.abs(alt - tau[cols, None]) <= tol[:, None] + extra, axis=1)
-            ok, n_lags = echo_explained(tau[cols] - d[s, cols], p[cols], tol,
-                                        max_lag_s=max_lag_s, max_lags=max_lags,
-                                        explained=other)
+                rt = tol[:, None] + extra
+            ok, n_lags = echo_explained(r, rp, rt, max_lag_s=max_lag_s, max_lags=max_lags,
+                                        signed=image_keys)
             if ok and (n_lags > 0 or count[g] < count[s]):
                 ghost[g] = True
                 break
@@ -180,16 +198,19 @@ def echo_ghosts(taus: ArrayLike, sigmas: ArrayLike, pairs: ArrayLike, predicted:
 
 
 def surface_alternatives(positions: ArrayLike, sensors: ArrayLike, pairs: ArrayLike, c: float,
-                         surface_z: float) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+                         surface_z: float
+                         ) -> tuple[NDArray[np.float64], NDArray[np.intp], NDArray[np.bool_],
+                                    NDArray[np.bool_]]:
     """Each position's delays of each column as it stands and with one of its two sensors
     swapped for its surface image (``z -> 2 z_s - z``; an image sensor's image is the real one).
 
     Returns
     -------
-    (ndarray, ndarray)
-        Delays ``(K, M, 3)``, s (as it stands, first sensor swapped, second swapped), and
-        ``(M, 3)`` whether that pair has exactly one sensor above the surface (one reflection:
-        the echo is sign-inverted).
+    (ndarray, ndarray, ndarray, ndarray)
+        Delays ``(K, M, 3)``, s (as it stands, first sensor swapped, second swapped); their
+        pairs ``(M, 3, 2)``, a swapped sensor ``k`` numbered ``N + k``; ``(M, 3)`` whether
+        that pair has exactly one sensor above the surface (one reflection: the echo is
+        sign-inverted); and ``(2 N,)`` whether each sensor index is above the surface.
     """
     x = np.atleast_2d(np.asarray(positions, dtype=float))
     s = np.asarray(sensors, dtype=float)
@@ -200,7 +221,10 @@ def surface_alternatives(positions: ArrayLike, sensors: ArrayLike, pairs: ArrayL
     out = np.stack([r[:, i] - r[:, j], ri[:, i] - r[:, j], r[:, i] - ri[:, j]], axis=2)
     up = s[:, 2] > surface_z  # image sensors
     mixed = np.stack([up[i] != up[j], (~up[i]) != up[j], up[i] != (~up[j])], axis=1)
-    return out, mixed
+    n = s.shape[0]
+    alt_pairs = np.stack([np.column_stack([i, j]), np.column_stack([i + n, j]),
+                          np.column_stack([i, j + n])], axis=1)
+    return out, alt_pairs, mixed, np.concatenate([up, ~up])
 
 
 def echo_only_sensors(sensors: ArrayLike, pairs: ArrayLike, held: ArrayLike,

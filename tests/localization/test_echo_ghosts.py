@@ -98,14 +98,15 @@ def test_a_slipped_surface_echo_ghost_is_explained_along_the_surface_paths():
     whales = np.vstack([WHALE, WHALE + 900.0])  # the whale and the ghost's position
     ghost_pairs = np.array([[0, 3], [1, 3], [2, 3], [0, 4]])
     pairs = np.vstack([ghost_pairs, all_pairs(5)[:6]])
-    alt, inverted = surface_alternatives(whales, SENSORS, pairs, C, 0.0)
+    alt, alt_pairs, inverted, _ = surface_alternatives(whales, SENSORS, pairs, C, 0.0)
     taus = np.concatenate([alt[0, :4, 2] + 12.5e-6,  # direct at i, echo at j, slipped
                            predicted_tdoas(WHALE, SENSORS, pairs[4:], c=C)])
     held = np.zeros((2, 10), dtype=bool)
     held[0, 4:] = held[1, :4] = True  # the whale holds six direct delays, the ghost four
     pred = np.vstack([predicted_tdoas(x, SENSORS, pairs, c=C) for x in whales])
     assert inverted[:, 2].all() and not inverted[:, 0].any()
-    kw = {"max_lag_s": 0.03, "reflected": alt, "inverted": inverted}
+    kw = {"max_lag_s": 0.03, "reflected": alt, "inverted": inverted,
+          "reflected_pairs": alt_pairs}
     sig = np.full(10, SIGMA)
     assert echo_ghosts(taus, sig, pairs, pred, held, slip_s=25e-6, **kw).tolist() == [False, True]
     # without the slip the delays are 60 sigma off every path: not explained
