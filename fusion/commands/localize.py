@@ -216,10 +216,11 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="longest bottom-echo lag, s, of the echo-ghost test: a source whose "
                         "TDOAs are another's moved by echo lags on at most two sensors is "
                         "dropped (default 0.03; 0: off)")
-    p.add_argument("--keep-echo-only-sources", action="store_true",
-                   help="keep a source that hears some sensor only through its surface echo "
-                        "(by default it is dropped: the direct click is louder and earlier "
-                        "than its echo, so an echo heard means a direct click heard)")
+    p.add_argument("--drop-echo-only-sources", action="store_true",
+                   help="drop a source that hears some sensor only through its surface echo "
+                        "(the direct click is louder and earlier than its echo; off by "
+                        "default: it also drops true fixes when the array file's sound speed "
+                        "is off)")
     p.add_argument("--events", type=Path, default=None,
                    help="CSV t_start,t_end[,f_low,f_high] of events found by another detector: "
                         "localize each event from band-passed waveform cross-correlation "
@@ -370,7 +371,7 @@ def _run_key(args: argparse.Namespace, audio: list) -> str:
             "strong_echoes_only", "max_tdoa_rate", "method", "chunk",
             "surface_paths", "sea_floor_z",
             "candidates", "min_source_tdoas", "min_redundant_tdoas",
-            "echo_ghost_lag_s", "keep_echo_only_sources")},
+            "echo_ghost_lag_s", "drop_echo_only_sources")},
     })
 
 

@@ -70,7 +70,9 @@ class CompetitionSettings:
         largest positive correlation, it lands on a side lobe half a period away).
     drop_echo_only_sensors : bool
         With surface paths, drop a survivor that reads some sensor only along its surface echo
-        (:func:`fusion.localization.echo_ghosts.echo_only_sensors`; default True).
+        (:func:`fusion.localization.echo_ghosts.echo_only_sensors`). Default False: on
+        tuning seed 8003 of ``--vary-only sound-speed`` (array file's speed 0.5 % off) the true
+        whale's surface-path fixes read a sensor by its echo alone and were lost.
     """
 
     clutter_fraction: float = 0.1
@@ -90,7 +92,7 @@ class CompetitionSettings:
     min_redundant_tdoas: int = 1
     echo_ghost_lag_s: float = 0.03
     polarity_slip_s: float = 25e-6
-    drop_echo_only_sensors: bool = True
+    drop_echo_only_sensors: bool = False
 
     def __post_init__(self) -> None:
         for name in ("clutter_fraction", "anneal_factor"):

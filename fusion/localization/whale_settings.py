@@ -39,7 +39,7 @@ def whale_localizer(
     min_tdoas: float = WHALE_MIN_TDOAS,
     min_redundant_tdoas: int = 1,
     echo_ghost_lag_s: float = 0.03,
-    drop_echo_only_sensors: bool = True,
+    drop_echo_only_sensors: bool = False,
 ) -> MultiSourceLocalizer:
     """The localizer for whale clicks on hydrophones below the sea surface.
 
@@ -71,7 +71,7 @@ def whale_localizer(
         (:attr:`CompetitionSettings.echo_ghost_lag_s`, default 0.03; 0: off).
     drop_echo_only_sensors : bool, keyword-only
         Drop a source that hears a sensor only through its surface echo
-        (:attr:`CompetitionSettings.drop_echo_only_sensors`, default True).
+        (:attr:`CompetitionSettings.drop_echo_only_sensors`, default False).
 
     Returns
     -------
@@ -127,7 +127,7 @@ class LocalizerSettings:
         Longest echo lag of the echo-ghost test, s (default 0.03, 0: off;
         :attr:`CompetitionSettings.echo_ghost_lag_s`).
     drop_echo_only_sensors : bool
-        Drop a source that hears a sensor only through its surface echo (default True;
+        Drop a source that hears a sensor only through its surface echo (default False;
         :attr:`CompetitionSettings.drop_echo_only_sensors`).
     """
 
@@ -138,7 +138,7 @@ class LocalizerSettings:
     min_source_tdoas: float | None = None
     min_redundant_tdoas: int = 1
     echo_ghost_lag_s: float = 0.03
-    drop_echo_only_sensors: bool = True
+    drop_echo_only_sensors: bool = False
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:

@@ -91,8 +91,8 @@ def settings_from_args(args: object) -> LocalizerSettings:
                              min_source_tdoas=args.min_source_tdoas,
                              min_redundant_tdoas=getattr(args, "min_redundant_tdoas", 1),
                              echo_ghost_lag_s=getattr(args, "echo_ghost_lag_s", 0.03),
-                             drop_echo_only_sensors=not getattr(args, "keep_echo_only_sources",
-                                                                False))
+                             drop_echo_only_sensors=getattr(args, "drop_echo_only_sources",
+                                                            False))
 
 
 class ClickLocalization:

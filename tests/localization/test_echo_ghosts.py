@@ -139,8 +139,8 @@ def test_a_source_hearing_a_sensor_only_by_its_echo_is_an_alias():
     wide2 = surface_paths(t2, 0.0)
     kw = {"start_scale_s": 1e-4, "weights": alias[None, :].astype(float), "settled": [True],
           "groups": wide2.measured, "surface_z": 0.0}
-    off = compete(wide2.tdoas, x[None, :], **kw,
-                  settings=CompetitionSettings(drop_echo_only_sensors=False))
-    on = compete(wide2.tdoas, x[None, :], **kw, settings=CompetitionSettings())
+    off = compete(wide2.tdoas, x[None, :], **kw, settings=CompetitionSettings())  # default off
+    on = compete(wide2.tdoas, x[None, :], **kw,
+                 settings=CompetitionSettings(drop_echo_only_sensors=True))
     assert off.positions.shape[0] == 1
     assert on.positions.shape[0] == 0
