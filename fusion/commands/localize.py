@@ -208,14 +208,15 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--min-source-tdoas", type=number(float, gt=0), default=None, metavar="W",
                    help="smallest total TDOA weight of a source (default 5.5 reading surface "
                         "paths, 3.5 direct)")
-    p.add_argument("--min-redundant-tdoas", type=number(int, ge=0), default=1, metavar="N",
+    p.add_argument("--min-redundant-tdoas", type=number(int, ge=0), default=0, metavar="N",
                    help="TDOAs a source needs beyond the three unknowns of its position "
-                        "(default 1: three TDOAs fit some position exactly, so a fix on three "
-                        "cannot be tested; 0: off)")
-    p.add_argument("--echo-ghost-lag-s", type=number(float, ge=0), default=0.03, metavar="S",
+                        "(1: three TDOAs fit some position exactly, so a fix on three cannot "
+                        "be tested; default 0, off: it starved the sound-speed estimate of "
+                        "three-whale recordings)")
+    p.add_argument("--echo-ghost-lag-s", type=number(float, ge=0), default=0.0, metavar="S",
                    help="longest bottom-echo lag, s, of the echo-ghost test: a source whose "
                         "TDOAs are another's moved by echo lags on at most two sensors is "
-                        "dropped (default 0.03; 0: off)")
+                        "dropped (e.g. 0.03, the front end's longest echo lag; default 0: off)")
     p.add_argument("--drop-echo-only-sources", action="store_true",
                    help="drop a source that hears some sensor only through its surface echo "
                         "(the direct click is louder and earlier than its echo; off by "

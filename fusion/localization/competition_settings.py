@@ -54,15 +54,18 @@ class CompetitionSettings:
         Residual gate, in TDOA sigmas, of the growth step.
     min_redundant_tdoas : int
         Held TDOAs (weight > 0.5, associated) a candidate needs beyond the three unknowns of
-        its position (default 1; 0 switches the test off). Three TDOAs on three independent
-        pairs fit some position exactly, so a fix on three has no residual left to test:
-        ``min_weight`` alone let three held TDOAs plus small weights on many others pass
+        its position (default 0: off; 1 is the test, off for the reason of section 23). Three
+        TDOAs on three independent pairs fit some position exactly, so a fix on three has no
+        residual left to test: ``min_weight`` alone let three held TDOAs plus small weights
+        on many others pass
         (``docs/localization.md`` section 23).
     echo_ghost_lag_s : float
         Longest bottom-echo lag, s, of the echo-ghost test run on the survivors
         (:func:`fusion.localization.echo_ghosts.echo_ghosts`: a candidate whose delays are
-        another's moved by echo lags on at most two sensors is dropped). Default 0.03, the
-        longest lag the front end takes as an echo (:class:`fusion.clicks.echoes`); 0: off.
+        another's moved by echo lags on at most two sensors is dropped). 0.03 is the longest
+        lag the front end takes as an echo (:class:`fusion.clicks.echoes`). Default 0: off
+        (with the redundancy test, both off: on three whales they starved the sound-speed
+        estimate of fixes, ``docs/localization.md`` section 23).
     polarity_slip_s : float
         Half a carrier period of the lowest click frequency, s (default 25e-6: 20 kHz, the low
         edge of beaked-whale clicks): how far from a surface path's delay the echo-ghost test
@@ -89,8 +92,8 @@ class CompetitionSettings:
     tol: float = 1e-2
     min_alpha_link: float = 3.0
     gate_sigmas: float = 3.0
-    min_redundant_tdoas: int = 1
-    echo_ghost_lag_s: float = 0.03
+    min_redundant_tdoas: int = 0
+    echo_ghost_lag_s: float = 0.0
     polarity_slip_s: float = 25e-6
     drop_echo_only_sensors: bool = False
 

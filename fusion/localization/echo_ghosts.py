@@ -189,6 +189,9 @@ def echo_ghosts(taus: ArrayLike, sigmas: ArrayLike, pairs: ArrayLike, predicted:
                 extra = (slip_s * np.asarray(inverted, dtype=bool)[cols]
                          if inverted is not None else 0.0)
                 rt = tol[:, None] + extra
+            star = np.bincount(p[cols].reshape(-1)).max(initial=0) == int(cols.sum())
+            if star:  # one sensor's delays shifted alike: its timing (speed, position), left
+                continue  # to the speed estimate (section 16), not an echo
             ok, n_lags = echo_explained(r, rp, rt, max_lag_s=max_lag_s, max_lags=max_lags,
                                         signed=image_keys)
             if ok and (n_lags > 0 or count[g] < count[s]):

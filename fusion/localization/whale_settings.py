@@ -37,8 +37,8 @@ def whale_localizer(
     bottom_z: float | None = None,
     max_candidates: int = WHALE_MAX_CANDIDATES,
     min_tdoas: float = WHALE_MIN_TDOAS,
-    min_redundant_tdoas: int = 1,
-    echo_ghost_lag_s: float = 0.03,
+    min_redundant_tdoas: int = 0,
+    echo_ghost_lag_s: float = 0.0,
     drop_echo_only_sensors: bool = False,
 ) -> MultiSourceLocalizer:
     """The localizer for whale clicks on hydrophones below the sea surface.
@@ -65,10 +65,10 @@ def whale_localizer(
         of ``benchmarks/bench_localize_e2e.py``; a whale heard along its echoes holds 6-30.
     min_redundant_tdoas : int, keyword-only
         Held TDOAs a source needs beyond the three unknowns of its position
-        (:attr:`CompetitionSettings.min_redundant_tdoas`, default 1).
+        (:attr:`CompetitionSettings.min_redundant_tdoas`, default 0: off).
     echo_ghost_lag_s : float, keyword-only
         Longest echo lag of the echo-ghost test, s
-        (:attr:`CompetitionSettings.echo_ghost_lag_s`, default 0.03; 0: off).
+        (:attr:`CompetitionSettings.echo_ghost_lag_s`, default 0: off).
     drop_echo_only_sensors : bool, keyword-only
         Drop a source that hears a sensor only through its surface echo
         (:attr:`CompetitionSettings.drop_echo_only_sensors`, default False).
@@ -121,10 +121,10 @@ class LocalizerSettings:
         Smallest total TDOA weight of a source. None: 5.5 with surface paths
         (:data:`WHALE_MIN_TDOAS`), the localizer's 3.5 with direct paths.
     min_redundant_tdoas : int
-        Held TDOAs a source needs beyond the three unknowns of its position (default 1, 0:
+        Held TDOAs a source needs beyond the three unknowns of its position (default 0:
         off; :attr:`CompetitionSettings.min_redundant_tdoas`).
     echo_ghost_lag_s : float
-        Longest echo lag of the echo-ghost test, s (default 0.03, 0: off;
+        Longest echo lag of the echo-ghost test, s (default 0: off;
         :attr:`CompetitionSettings.echo_ghost_lag_s`).
     drop_echo_only_sensors : bool
         Drop a source that hears a sensor only through its surface echo (default False;
@@ -136,8 +136,8 @@ class LocalizerSettings:
     sea_floor_z: float | None = None
     max_candidates: int | None = None
     min_source_tdoas: float | None = None
-    min_redundant_tdoas: int = 1
-    echo_ghost_lag_s: float = 0.03
+    min_redundant_tdoas: int = 0
+    echo_ghost_lag_s: float = 0.0
     drop_echo_only_sensors: bool = False
 
     def __post_init__(self) -> None:

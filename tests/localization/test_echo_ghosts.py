@@ -85,8 +85,8 @@ def test_echo_ghost_is_dropped_by_the_competition_and_kept_without_the_test():
     w = np.zeros((2, 14))
     w[0, :10] = w[1, 10:] = 1.0  # each settled on its own delays (a later round)
     kw = {"start_scale_s": 1e-4, "weights": w, "settled": [True, True]}
-    off = compete(t, starts, settings=CompetitionSettings(echo_ghost_lag_s=0), **kw)
-    on = compete(t, starts, settings=CompetitionSettings(), **kw)
+    off = compete(t, starts, settings=CompetitionSettings(), **kw)  # default: off
+    on = compete(t, starts, settings=CompetitionSettings(echo_ghost_lag_s=0.03), **kw)
     assert off.positions.shape[0] == 2
     assert on.positions.shape[0] == 1
     assert np.linalg.norm(on.positions[0] - WHALE) < 0.5

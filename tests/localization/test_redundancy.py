@@ -38,22 +38,25 @@ def test_three_tdoas_fit_any_position_exactly():
 def test_three_held_tdoas_do_not_hold_a_source():
     pairs, w = three_held_and_crumbs()
     assert w.sum() >= CompetitionSettings().min_weight
-    assert not holds_a_source(w, pairs, None, CompetitionSettings())
-    assert holds_a_source(w, pairs, None, CompetitionSettings(min_redundant_tdoas=0))
+    on = CompetitionSettings(min_redundant_tdoas=1)
+    assert not holds_a_source(w, pairs, None, on)
+    assert holds_a_source(w, pairs, None, CompetitionSettings())  # default: off
     w[3] = 1.0  # a fourth held TDOA: one degree of freedom left to test the fix
-    assert holds_a_source(w, pairs, None, CompetitionSettings())
+    assert holds_a_source(w, pairs, None, on)
 
 
 def test_the_option_reaches_every_localizer():
-    assert CompetitionSettings().min_redundant_tdoas == 1
-    for settings in (LocalizerSettings(), LocalizerSettings(min_source_tdoas=4.0)):
+    assert CompetitionSettings().min_redundant_tdoas == 0
+    for kw in ({}, {"min_source_tdoas": 4.0}):
+        settings = LocalizerSettings(min_redundant_tdoas=1, echo_ghost_lag_s=0.03, **kw)
         for loc in settings.localizers(SENSORS):
             assert isinstance(loc, MultiSourceLocalizer)
             assert loc.competition.min_redundant_tdoas == 1
-    off = LocalizerSettings(min_redundant_tdoas=0)
+            assert loc.competition.echo_ghost_lag_s == 0.03
+    off = LocalizerSettings()
     assert all(loc.competition.min_redundant_tdoas == 0 for loc in off.localizers(SENSORS))
     assert whale_localizer(min_redundant_tdoas=2).competition.min_redundant_tdoas == 2
-    assert whale_localizer(surface_z=None).competition.min_redundant_tdoas == 1
+    assert whale_localizer(surface_z=None, min_redundant_tdoas=1).competition.min_redundant_tdoas == 1
 
 
 def test_bad_value_is_refused():
