@@ -217,6 +217,20 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--min-source-tdoas", type=number(float, gt=0), default=None, metavar="W",
                    help="smallest total TDOA weight of a source (default 5.5 reading surface "
                         "paths, 3.5 direct)")
+    p.add_argument("--min-redundant-tdoas", type=number(int, ge=0), default=0, metavar="N",
+                   help="TDOAs a source needs beyond the three unknowns of its position "
+                        "(1: three TDOAs fit some position exactly, so a fix on three cannot "
+                        "be tested; default 0, off: it starved the sound-speed estimate of "
+                        "three-whale recordings)")
+    p.add_argument("--echo-ghost-lag-s", type=number(float, ge=0), default=0.0, metavar="S",
+                   help="longest bottom-echo lag, s, of the echo-ghost test: a source whose "
+                        "TDOAs are another's moved by echo lags on at most two sensors is "
+                        "dropped (e.g. 0.03, the front end's longest echo lag; default 0: off)")
+    p.add_argument("--drop-echo-only-sources", action="store_true",
+                   help="drop a source that hears some sensor only through its surface echo "
+                        "(the direct click is louder and earlier than its echo; off by "
+                        "default: it also drops true fixes when the array file's sound speed "
+                        "is off)")
     p.add_argument("--events", type=Path, default=None,
                    help="CSV t_start,t_end[,f_low,f_high] of events found by another detector: "
                         "localize each event from band-passed waveform cross-correlation "
@@ -366,7 +380,8 @@ def _run_key(args: argparse.Namespace, audio: list) -> str:
             "no_train_integration", "train_false_alarms_per_pair", "no_train_refine",
             "strong_echoes_only", "max_tdoa_rate", "method", "chunk",
             "surface_paths", "sea_floor_z",
-            "candidates", "min_source_tdoas")},
+            "candidates", "min_source_tdoas", "min_redundant_tdoas",
+            "echo_ghost_lag_s", "drop_echo_only_sources")},
     })
 
 

@@ -29,6 +29,12 @@ flat, ``w_km = 1/K`` (eq. 19), and each iteration alternates
     keeps them and the iterations resume. (A candidate that starts far from
     its source can settle on a subset of the source's TDOAs that fits a ghost position, the
     rest lost to clutter on the way; their association with the kept ones gives it away.)
+(e) **echo ghosts** (after the last iteration): a survivor whose held delays are another
+    survivor's moved by bottom-echo lags on at most two sensors, or read along its surface
+    paths (a sign-inverted echo up to half a carrier period, ``polarity_slip_s``), is dropped,
+    and so is one that hears a sensor only through its surface echo
+    (``drop_echo_only_sensors``: the direct click is louder and earlier than its echo)
+    (:mod:`fusion.localization.echo_ghosts`; ``echo_ghost_lag_s`` 0 switches it off).
 
 The delay scale of (a) and (b) starts at the candidate grid's smoothing and shrinks by
 ``anneal_factor`` per iteration to the TDOA sigmas (a deterministic annealing: a candidate a
@@ -59,6 +65,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from factors.tdoa import weighted_tdoa_vector_factor
 from fusion.localization.competition_settings import CompetitionSettings
+from fusion.localization.echo_ghosts import echo_ghosts, echo_only_sensors, surface_alternatives
 from fusion.localization.ownership import (
     association_weights,
     cap_per_pair,
@@ -68,6 +75,7 @@ from fusion.localization.ownership import (
     same_source,
     supported_weights,
 )
+from fusion.localization.surface_paths import SEA_SURFACE_Z
 from fusion.localization.window_tdoas import WindowTdoas
 
 __all__ = [
@@ -407,6 +415,23 @@ def compete(
                 converged = True
                 break
     idx = np.flatnonzero(alive)
+    if cfg.echo_ghost_lag_s > 0 and idx.size > 1:  # (e) candidates made of echoes of another
+        sea = surface_z if surface_z is not None else (
+            SEA_SURFACE_Z if np.all(np.asarray(tdoas.sensors)[:, 2] < SEA_SURFACE_Z) else None)
+        alt = ({} if sea is None else dict(zip(
+            ("reflected", "reflected_pairs", "inverted", "image_keys"),
+            surface_alternatives(x[idx], tdoas.sensors, pairs, tdoas.c, sea), strict=True)))
+        ghost = echo_ghosts(tdoas.taus, sig, pairs, tdoas.predicted(x[idx]), w[idx] > 0.5,
+                            max_lag_s=cfg.echo_ghost_lag_s, slip_s=cfg.polarity_slip_s, **alt)
+        if np.any(ghost):
+            _LOG.debug("competition: %d echo ghosts dropped", int(ghost.sum()))
+            idx = idx[~ghost]
+    if cfg.drop_echo_only_sensors and surface_z is not None and idx.size:
+        alias = echo_only_sensors(tdoas.sensors, pairs, w[idx] > 0.5, surface_z)
+        if np.any(alias):
+            _LOG.debug("competition: %d candidates hearing a sensor only by its echo dropped",
+                       int(alias.sum()))
+            idx = idx[~alias]
     clutter = (1.0 - _group_total(w[idx].sum(axis=0), group, n_groups)[group] if idx.size
                else np.ones(m))
     _LOG.debug("competition: %d of %d candidates survive after %d iterations (converged %s)",

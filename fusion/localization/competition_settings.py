@@ -52,6 +52,30 @@ class CompetitionSettings:
         ``1 - exp(-3/4) = 0.53`` in eq. 21).
     gate_sigmas : float
         Residual gate, in TDOA sigmas, of the growth step.
+    min_redundant_tdoas : int
+        Held TDOAs (weight > 0.5, associated) a candidate needs beyond the three unknowns of
+        its position (default 0: off; 1 is the test, off for the reason of section 23). Three
+        TDOAs on three independent pairs fit some position exactly, so a fix on three has no
+        residual left to test: ``min_weight`` alone let three held TDOAs plus small weights
+        on many others pass
+        (``docs/localization.md`` section 23).
+    echo_ghost_lag_s : float
+        Longest bottom-echo lag, s, of the echo-ghost test run on the survivors
+        (:func:`fusion.localization.echo_ghosts.echo_ghosts`: a candidate whose delays are
+        another's moved by echo lags on at most two sensors is dropped). 0.03 is the longest
+        lag the front end takes as an echo (:class:`fusion.clicks.echoes`). Default 0: off
+        (with the redundancy test, both off: on three whales they starved the sound-speed
+        estimate of fixes, ``docs/localization.md`` section 23).
+    polarity_slip_s : float
+        Half a carrier period of the lowest click frequency, s (default 25e-6: 20 kHz, the low
+        edge of beaked-whale clicks): how far from a surface path's delay the echo-ghost test
+        accepts a delay between a click and its sign-inverted surface echo (measured on the
+        largest positive correlation, it lands on a side lobe half a period away).
+    drop_echo_only_sensors : bool
+        With surface paths, drop a survivor that reads some sensor only along its surface echo
+        (:func:`fusion.localization.echo_ghosts.echo_only_sensors`). Default False: on
+        tuning seed 8003 of ``--vary-only sound-speed`` (array file's speed 0.5 % off) the true
+        whale's surface-path fixes read a sensor by its echo alone and were lost.
     """
 
     clutter_fraction: float = 0.1
@@ -68,6 +92,10 @@ class CompetitionSettings:
     tol: float = 1e-2
     min_alpha_link: float = 3.0
     gate_sigmas: float = 3.0
+    min_redundant_tdoas: int = 0
+    echo_ghost_lag_s: float = 0.0
+    polarity_slip_s: float = 25e-6
+    drop_echo_only_sensors: bool = False
 
     def __post_init__(self) -> None:
         for name in ("clutter_fraction", "anneal_factor"):
@@ -84,6 +112,13 @@ class CompetitionSettings:
             raise ValueError(f"min_alpha_link must be >= 0, got {self.min_alpha_link!r}")
         if not self.min_weight >= 0.0:
             raise ValueError(f"min_weight must be >= 0, got {self.min_weight!r}")
+        if not (np.isfinite(self.echo_ghost_lag_s) and self.echo_ghost_lag_s >= 0.0):
+            raise ValueError(f"echo_ghost_lag_s must be >= 0, got {self.echo_ghost_lag_s!r}")
+        if not (np.isfinite(self.polarity_slip_s) and self.polarity_slip_s >= 0.0):
+            raise ValueError(f"polarity_slip_s must be >= 0, got {self.polarity_slip_s!r}")
+        if int(self.min_redundant_tdoas) != self.min_redundant_tdoas or self.min_redundant_tdoas < 0:
+            raise ValueError(f"min_redundant_tdoas must be an integer >= 0, "
+                             f"got {self.min_redundant_tdoas!r}")
         for name in ("max_iterations", "min_independent", "solver_iterations"):
             v = getattr(self, name)
             if int(v) != v or v < 1:

@@ -129,12 +129,23 @@ def supported_weights(w: NDArray[np.float64], alpha: NDArray[np.float64] | None,
     return np.where(linked, w, 0.0)
 
 
+#: Unknowns of a source position (x, y, z).
+POSITION_UNKNOWNS = 3
+
+
 def holds_a_source(w: NDArray[np.float64], pairs: NDArray[np.intp],
                    alpha: NDArray[np.float64] | None, cfg: CompetitionSettings) -> bool:
-    """Whether weights `w` hold enough associated TDOAs to fix a source (the drop rule)."""
+    """Whether weights `w` hold enough associated TDOAs to fix a source (the drop rule).
+
+    Enough weight (``min_weight``), TDOAs of weight > 0.5 spanning ``min_independent``
+    independent pairs, and at least ``3 + min_redundant_tdoas`` of them: a position has three
+    unknowns, so a fix on three TDOAs fits them exactly whatever made them.
+    """
     ws = supported_weights(w, alpha, cfg.min_alpha_link)
+    held = ws > 0.5
     return bool(ws.sum() >= cfg.min_weight
-                and independent_pairs(pairs, ws > 0.5) >= cfg.min_independent)
+                and int(held.sum()) >= POSITION_UNKNOWNS + cfg.min_redundant_tdoas
+                and independent_pairs(pairs, held) >= cfg.min_independent)
 
 
 def same_source(

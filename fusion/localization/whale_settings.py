@@ -37,6 +37,9 @@ def whale_localizer(
     bottom_z: float | None = None,
     max_candidates: int = WHALE_MAX_CANDIDATES,
     min_tdoas: float = WHALE_MIN_TDOAS,
+    min_redundant_tdoas: int = 0,
+    echo_ghost_lag_s: float = 0.0,
+    drop_echo_only_sensors: bool = False,
 ) -> MultiSourceLocalizer:
     """The localizer for whale clicks on hydrophones below the sea surface.
 
@@ -60,6 +63,15 @@ def whale_localizer(
         set of TDOAs fits some position by chance far more often than along direct paths
         alone, and sources of 4 or 5 TDOAs were mostly such chance fits on the tuning seeds
         of ``benchmarks/bench_localize_e2e.py``; a whale heard along its echoes holds 6-30.
+    min_redundant_tdoas : int, keyword-only
+        Held TDOAs a source needs beyond the three unknowns of its position
+        (:attr:`CompetitionSettings.min_redundant_tdoas`, default 0: off).
+    echo_ghost_lag_s : float, keyword-only
+        Longest echo lag of the echo-ghost test, s
+        (:attr:`CompetitionSettings.echo_ghost_lag_s`, default 0: off).
+    drop_echo_only_sensors : bool, keyword-only
+        Drop a source that hears a sensor only through its surface echo
+        (:attr:`CompetitionSettings.drop_echo_only_sensors`, default False).
 
     Returns
     -------
@@ -68,13 +80,17 @@ def whale_localizer(
     if surface_z is None:
         region = SearchRegion() if bottom_z is None else SearchRegion(
             water_column=(float(bottom_z), 0.0))
-        return MultiSourceLocalizer(method=method, region=region)
+        return MultiSourceLocalizer(method=method, region=region, competition=CompetitionSettings(
+            min_redundant_tdoas=min_redundant_tdoas, echo_ghost_lag_s=echo_ghost_lag_s))
     region = SearchRegion() if bottom_z is None else SearchRegion(
         water_column=(float(bottom_z), float(surface_z)))
     return MultiSourceLocalizer(method=method, region=region, surface_z=surface_z,
                                 finder=CandidateFinder(max_candidates=max_candidates),
                                 min_tdoas=min_tdoas,
-                                competition=CompetitionSettings(min_weight=min_tdoas))
+                                competition=CompetitionSettings(
+                                    min_weight=min_tdoas, min_redundant_tdoas=min_redundant_tdoas,
+                                    echo_ghost_lag_s=echo_ghost_lag_s,
+                                    drop_echo_only_sensors=drop_echo_only_sensors))
 
 
 @dataclass(frozen=True)
@@ -104,6 +120,15 @@ class LocalizerSettings:
     min_source_tdoas : float or None
         Smallest total TDOA weight of a source. None: 5.5 with surface paths
         (:data:`WHALE_MIN_TDOAS`), the localizer's 3.5 with direct paths.
+    min_redundant_tdoas : int
+        Held TDOAs a source needs beyond the three unknowns of its position (default 0:
+        off; :attr:`CompetitionSettings.min_redundant_tdoas`).
+    echo_ghost_lag_s : float
+        Longest echo lag of the echo-ghost test, s (default 0: off;
+        :attr:`CompetitionSettings.echo_ghost_lag_s`).
+    drop_echo_only_sensors : bool
+        Drop a source that hears a sensor only through its surface echo (default False;
+        :attr:`CompetitionSettings.drop_echo_only_sensors`).
     """
 
     method: str = "competition"
@@ -111,6 +136,9 @@ class LocalizerSettings:
     sea_floor_z: float | None = None
     max_candidates: int | None = None
     min_source_tdoas: float | None = None
+    min_redundant_tdoas: int = 0
+    echo_ghost_lag_s: float = 0.0
+    drop_echo_only_sensors: bool = False
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
@@ -171,13 +199,20 @@ class LocalizerSettings:
                 max_candidates=(WHALE_MAX_CANDIDATES if self.max_candidates is None
                                 else self.max_candidates),
                 min_tdoas=(WHALE_MIN_TDOAS if self.min_source_tdoas is None
-                           else self.min_source_tdoas))
-        opts: dict = {}
+                           else self.min_source_tdoas),
+                min_redundant_tdoas=self.min_redundant_tdoas,
+                echo_ghost_lag_s=self.echo_ghost_lag_s,
+                drop_echo_only_sensors=self.drop_echo_only_sensors)
+        ghosts = {"min_redundant_tdoas": self.min_redundant_tdoas,
+                  "echo_ghost_lag_s": self.echo_ghost_lag_s,
+                  "drop_echo_only_sensors": self.drop_echo_only_sensors}
+        opts: dict = {"competition": CompetitionSettings(**ghosts)}
         if self.max_candidates is not None:
             opts["finder"] = CandidateFinder(max_candidates=self.max_candidates)
         if self.min_source_tdoas is not None:
             opts["min_tdoas"] = self.min_source_tdoas
-            opts["competition"] = CompetitionSettings(min_weight=self.min_source_tdoas)
+            opts["competition"] = CompetitionSettings(min_weight=self.min_source_tdoas,
+                                                      **ghosts)
         region = SearchRegion() if self.sea_floor_z is None else SearchRegion(
             water_column=(float(self.sea_floor_z), SEA_SURFACE_Z))
         return MultiSourceLocalizer(method=self.method, region=region, **opts)

@@ -88,7 +88,11 @@ def settings_from_args(args: object) -> LocalizerSettings:
     """:class:`LocalizerSettings` of ``fusion localize``'s options (an argparse namespace)."""
     return LocalizerSettings(method=args.method, surface_paths=args.surface_paths,
                              sea_floor_z=args.sea_floor_z, max_candidates=args.candidates,
-                             min_source_tdoas=args.min_source_tdoas)
+                             min_source_tdoas=args.min_source_tdoas,
+                             min_redundant_tdoas=getattr(args, "min_redundant_tdoas", 0),
+                             echo_ghost_lag_s=getattr(args, "echo_ghost_lag_s", 0.0),
+                             drop_echo_only_sensors=getattr(args, "drop_echo_only_sources",
+                                                            False))
 
 
 class ClickLocalization:
