@@ -24,7 +24,8 @@ Scenarios: the design was chosen on the five shared scenarios (2, 3, 5, 16, 17),
 the simulated multistatic tuning seeds of ``bench_active.py`` (:data:`TUNING_SCENARIOS`); no
 held-out recorded scenario is available here, so these figures are not held-out figures. Usage::
 
-    python benchmarks/bench_autoferry_radar.py [--data DIR] [--sensor radar|lidar] [--match-m 50] [--track-args "..."]
+    python benchmarks/bench_autoferry_radar.py [--data DIR] [--sensor radar|lidar] [--match-m 50] \
+        [--track-args "..."]
 """
 
 from __future__ import annotations

@@ -77,7 +77,8 @@ TUNING_SEEDS = list(range(0, 20))
 REPORT_SEEDS = list(range(10370, 10390))
 #: Manoeuvring traffic (``--traffic``): seeds the design was looked at on, and report seeds.
 TRAFFIC_TUNING_SEEDS = list(range(0, 15))  # 5-14 added for the curved-pair allowance
-TRAFFIC_REPORT_SEEDS = list(range(10360, 10370))  # 10330-10339, 10300-10309, 9950-9959, 9900-9909, 9600-9609 before
+#: 10330-10339, 10300-10309, 9950-9959, 9900-9909, 9600-9609 were traffic report seeds before.
+TRAFFIC_REPORT_SEEDS = list(range(10360, 10370))
 
 #: Rate-difference bins of the breakdown, deg/min.
 RATE_BINS = (0.3, 1.0, 5.0, np.inf)

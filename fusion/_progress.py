@@ -11,7 +11,7 @@ import sys
 from collections.abc import Callable, Iterable, Iterator
 from typing import Any, TypeVar
 
-__all__ = ["RowShare", "progress", "track_progress"]
+__all__ = ["RowShare", "WindowProgress", "progress", "track_progress"]
 
 T = TypeVar("T")
 
@@ -110,3 +110,29 @@ class RowShare:
     def rest(self) -> None:
         """Hand out every row left."""
         self.give(self.left)
+
+
+class WindowProgress:
+    """The bar of ``fusion localize``: windows localized, and the stage that runs.
+
+    In this process the bar moves per window and names the stage (measuring: clicks, TDOAs,
+    validation; localizing); on workers it moves per chunk as each part is stored.
+    """
+
+    def __init__(self, bar, *, in_process: bool) -> None:
+        self.bar, self.counted = bar, 0
+        self.bar.set_description("localize" if in_process else "localize (chunks on workers)")
+
+    def window(self, stage: str) -> None:
+        """One window passed `stage` (:func:`fusion.pipelines.clicks.chunks.chunk_windows`)."""
+        if stage == "localizing":
+            self.bar.set_description("localize: localizing", refresh=False)
+            self.bar.update(1)
+            self.counted += 1
+        else:
+            self.bar.set_description(f"localize: {stage}")
+
+    def chunk_done(self, task) -> None:
+        """A chunk's part is stored (or was, by an earlier run): its windows not yet counted."""
+        self.bar.update(task.stop_window - task.first_window - self.counted)
+        self.counted = 0

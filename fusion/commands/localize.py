@@ -281,21 +281,16 @@ class _AudioPaths(argparse.Action):
         setattr(namespace, self.dest, values)
         namespace.out_is_dir = len(values) == 1 and Path(values[0]).is_dir()
         if namespace.out_is_dir:  # declared to the output guard (fusion.cli.check_paths)
-            namespace.out_files = (*(f"{p.stem}.json" for p in _audio_files(Path(values[0]))),
+            from fusion.io.audio import audio_files_of
+
+            namespace.out_files = (*(f"{p.stem}.json" for p in audio_files_of(Path(values[0]))),
                                    "localize.settings.json")
-
-
-def _audio_files(folder: Path) -> list[Path]:
-    """The recordings of a folder ``--audio``, by name."""
-    return sorted(p for p in folder.iterdir() if p.is_file() and p.suffix.lower() in _SUFFIXES)
-
-
-_SUFFIXES = (".wav", ".flac")
 
 
 def _recordings(args: argparse.Namespace, n_sensors: int) -> list:
     """(AudioSource, output path) of each recording to localize."""
     from fusion.io import check_audio_files
+    from fusion.io.audio import audio_files_of
     from fusion.pipelines.clicks.chunks import AudioSource
 
     def open_audio(paths: list, n: int) -> AudioSource:  # the checks live in fusion.io
@@ -304,7 +299,7 @@ def _recordings(args: argparse.Namespace, n_sensors: int) -> list:
     if not getattr(args, "out_is_dir", False):
         return [(open_audio(list(args.audio), n_sensors), args.out)]
     folder = Path(args.audio[0])
-    files = _audio_files(folder)
+    files = audio_files_of(folder)
     if not files:
         raise ValueError(f"--audio {folder}: no .wav or .flac recordings in the folder")
     stems = [p.stem for p in files]
@@ -316,32 +311,6 @@ def _recordings(args: argparse.Namespace, n_sensors: int) -> list:
 
 #: Audio per chunk, s, unless --chunk-s says otherwise.
 CHUNK_S = 60.0
-
-
-class _WindowProgress:
-    """The bar of ``fusion localize``: windows localized, and the stage that runs.
-
-    In this process the bar moves per window and names the stage (measuring: clicks, TDOAs,
-    validation; localizing); on workers it moves per chunk as each part is stored.
-    """
-
-    def __init__(self, bar, *, in_process: bool) -> None:
-        self.bar, self.counted = bar, 0
-        self.bar.set_description("localize" if in_process else "localize (chunks on workers)")
-
-    def window(self, stage: str) -> None:
-        """One window passed `stage` (:func:`fusion.pipelines.clicks.chunks.chunk_windows`)."""
-        if stage == "localizing":
-            self.bar.set_description("localize: localizing", refresh=False)
-            self.bar.update(1)
-            self.counted += 1
-        else:
-            self.bar.set_description(f"localize: {stage}")
-
-    def chunk_done(self, task) -> None:
-        """A chunk's part is stored (or was, by an earlier run): its windows not yet counted."""
-        self.bar.update(task.stop_window - task.first_window - self.counted)
-        self.counted = 0
 
 
 def _default_chunk_s(recordings: list, pipe, workers: int | None) -> float:
@@ -395,6 +364,7 @@ def run(args: argparse.Namespace) -> int:
 
         return run_events(args)
     from fusion._output import STDOUT, atomic_output, output_lock, private_folder
+    from fusion._progress import WindowProgress
     from fusion.clicks.band import DEFAULT_BAND_HZ
     from fusion.clicks.detect import ClickDetector
     from fusion.clicks.replica import load_replica
@@ -485,7 +455,7 @@ def run(args: argparse.Namespace) -> int:
         missing = {name(t) for t in tasks} - store.names()
         client = (stack.enter_context(task_runner(workers=args.workers, scheduler=args.scheduler))
                   if missing else None)  # nothing left to compute: no cluster
-        shown = _WindowProgress(bar, in_process=client is None)
+        shown = WindowProgress(bar, in_process=client is None)
         shared = (pipe, array) if client is not None else (pipe, array, shown.window)
         run_tasks(localize_chunk, shared, tasks, names=name, store=store, client=client,
                   on_done=shown.chunk_done)

@@ -23,8 +23,8 @@ from numpy.typing import ArrayLike, NDArray
 from fusion._output import atomic_output
 from fusion.io._files import MAX_AUDIO_SAMPLES, PathLike, _check_file
 
-__all__ = ["AudioFiles", "check_audio_files", "iter_audio_blocks", "read_audio", "read_audio_files",
-           "write_audio"]
+__all__ = ["AUDIO_SUFFIXES", "AudioFiles", "audio_files_of", "check_audio_files",
+           "iter_audio_blocks", "read_audio", "read_audio_files", "write_audio"]
 
 logger = logging.getLogger(__name__)
 
@@ -315,3 +315,13 @@ def write_audio(path: PathLike, samples: ArrayLike, fs: float, *, subtype: str |
             raise OSError(errno.EIO, f"audio could not be written (libsndfile: {_sf_message(e)}; "
                           "is the disk full?)", str(p)) from None
     return p
+
+
+#: Suffixes of the recordings a folder ``--audio`` holds.
+AUDIO_SUFFIXES = (".wav", ".flac")
+
+
+def audio_files_of(folder: Path) -> list[Path]:
+    """The recordings (``.wav``, ``.flac``, any case) directly in `folder`, by name."""
+    return sorted(p for p in Path(folder).iterdir()
+                  if p.is_file() and p.suffix.lower() in AUDIO_SUFFIXES)

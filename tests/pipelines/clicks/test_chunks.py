@@ -437,7 +437,7 @@ def test_local_pool_stops_its_workers_when_a_task_fails(tmp_path):
 def test_chunk_reports_each_window_per_stage_without_changing_its_part(recording):
     """In this process a chunk reports every window it measures (its neighbours too) and every
     window it localizes; its part is the same text as without the report."""
-    from fusion.commands.localize import _WindowProgress
+    from fusion._progress import WindowProgress as _WindowProgress
 
     pipe = ClickLocalization()
     sensors = read_array(recording / "array.json")
