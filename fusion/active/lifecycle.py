@@ -35,7 +35,9 @@ Choices where the paper is silent
   slow sonar target is held only until it has moved significantly. With a fast update rate and
   small position errors (the Autoferry radar: scans seconds apart, 10-m errors) slow boats take
   many scans to move significantly and are held that long, which costs coverage there (see
-  RESULTS).
+  RESULTS). The motion test's speed floor is derived from the position error
+  (:func:`fusion.active.motion.still_speed_mps`), so that a fixed sonar-sized floor does not add
+  to that wait on a radar.
 """
 
 from __future__ import annotations

@@ -16,11 +16,51 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.stats import chi2
 
-__all__ = ["MOTION_MIN_DETECTIONS", "MotionTest", "motion_statistic"]
+__all__ = ["MOTION_MIN_DETECTIONS", "STILL_WANDER_S", "MotionTest", "motion_statistic", "still_speed_mps"]
 
 #: Detections a tentative track needs before its motion test may decide (with two, the
 #: least-squares velocity has no residual and one bad association decides).
 MOTION_MIN_DETECTIONS = 3
+
+#: Time over which a still object's apparent position may wander by its own position error, s
+#: (the speed floor of the motion test is ``position_sigma_m / STILL_WANDER_S``): 0.5 m/s at
+#: the 125-m errors of the simulated multistatic sonar, ~0.01 m/s at a harbour radar's 3 m.
+STILL_WANDER_S = 250.0
+
+
+def still_speed_mps(position_sigma_m: float, wander_s: float = STILL_WANDER_S) -> float:
+    """Speeds that count as standing still, from the position error: ``sigma / wander_s``.
+
+    A still object's returns do not stand exactly still: a sea-floor feature seen from changing
+    bistatic geometry, a moored boat swinging on its line, drift slowly by up to about their own
+    position error. Stated as a speed, that wander scales with the sensor's error, so a fixed
+    speed floor that suits sonar errors of 100-170 m (0.5 m/s) is 40-100 times what a 2-4 m
+    radar or lidar needs, and there it holds a real 1-m/s boat for tens of scans
+    (``docs/tracking.md``, "Speed floor of the motion test from the position error").
+
+    Parameters
+    ----------
+    position_sigma_m : float
+        Position error per axis, m (> 0).
+    wander_s : float, optional
+        Time over which a still object wanders by ``position_sigma_m``, s (> 0; default
+        :data:`STILL_WANDER_S`).
+
+    Returns
+    -------
+    float
+        m/s.
+
+    Examples
+    --------
+    >>> still_speed_mps(125.0), round(still_speed_mps(3.3), 4)
+    (0.5, 0.0132)
+    """
+    if not (np.isfinite(position_sigma_m) and position_sigma_m > 0):
+        raise ValueError(f"position_sigma_m must be > 0, got {position_sigma_m!r}")
+    if not (np.isfinite(wander_s) and wander_s > 0):
+        raise ValueError(f"still wander time must be > 0 s, got {wander_s!r}")
+    return float(position_sigma_m) / float(wander_s)
 
 
 def motion_statistic(

@@ -41,7 +41,7 @@ from fusion.active.bistatic import MeasurementModel
 from fusion.active.clutter import ClutterIntensity, ClutterMapBase, DensityClutterMap
 from fusion.active.kalman import cv_model, gate_threshold, kf_predict, kf_update, pair_statistics
 from fusion.active.lifecycle import Lifecycle, coast_misses, hotspot_drop, next_lifecycle, stationary_hold
-from fusion.active.motion import MotionTest
+from fusion.active.motion import STILL_WANDER_S, MotionTest, still_speed_mps
 from fusion.active.noise import NoiseEstimator
 from fusion.active.ping_scan import PingScan, ping_result, score_gate
 from fusion.active.platform import PlatformTest, sensor_positions
@@ -109,7 +109,12 @@ class Tracker:
         Confidence of the motion test (stationary hold and hotspot drop), default 0.999, in
         (0, 1); see :func:`fusion.active.motion.motion_statistic`. Fuzzy mode only.
     min_speed_mps : float, optional
-        Speeds up to this count as standing still in the motion test, m/s (default 0.5).
+        Speeds up to this count as standing still in the motion test, m/s (default None:
+        ``position_sigma_m / still_wander_s``, :func:`fusion.active.motion.still_speed_mps`).
+    still_wander_s : float, optional
+        Time over which a still object's apparent position wanders by ``position_sigma_m``, s
+        (default :data:`fusion.active.motion.STILL_WANDER_S`, 250); used when
+        ``min_speed_mps`` is None.
     hold_stationary : bool, optional
         Fuzzy mode: a track whose own detections do not move significantly stays tentative
         (default True; :func:`fusion.active.lifecycle.stationary_hold`).
@@ -209,7 +214,8 @@ class Tracker:
         detection_probability: float | None = None,
         clutter_intensity: float | None = None,
         score_evidence: bool = True,
-        min_speed_mps: float = 0.5,
+        min_speed_mps: float | None = None,
+        still_wander_s: float = STILL_WANDER_S,
         hotspot_drop: bool = False,
         reject_platform_fixed: bool = True,
         confirmed_edge_likelihood: float | None = 0.1,
@@ -254,6 +260,9 @@ class Tracker:
                                    track_pd_prior_pings=track_pd_prior_pings,
                                    intensity=ClutterIntensity(bandwidth_m=intensity_bandwidth_m))
                        if mode == "fuzzy" and confirm_llr is not None else None)
+        if min_speed_mps is None:
+            min_speed_mps = still_speed_mps(position_sigma_m, still_wander_s)
+        self.min_speed_mps = float(min_speed_mps)
         self.motion_test = MotionTest(probability=motion_probability,
                                       min_speed_mps=min_speed_mps, recent=motion_recent)
         self.shadow_test = (ShadowTest(position_sigma_m=position_sigma_m, extent_sigmas=shadow_extent_sigmas)

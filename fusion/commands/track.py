@@ -212,9 +212,13 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="fuzzy mode: the motion test also fits a straight line to the later "
                         "half of a tentative track's detections, so that a target that turned "
                         "back is seen to move (default: one line through all of them)")
-    p.add_argument("--min-speed-mps", dest="min_speed", type=number(float, ge=0), default=0.5,
+    p.add_argument("--min-speed-mps", dest="min_speed", type=number(float, ge=0), default=None,
                    help="speeds up to this count as standing still in the motion test, m/s "
-                        "(default 0.5)")
+                        "(default: the position sigma / --still-wander-s, e.g. 0.5 at 125-m "
+                        "sonar errors, 0.01 at 3-m radar errors)")
+    p.add_argument("--still-wander-s", type=number(float, gt=0), default=250.0,
+                   help="time over which a still object's apparent position wanders by its "
+                        "position sigma, s; sets the default --min-speed-mps (default 250)")
     p.add_argument("--motion-probability", type=number(float, gt=0, le=0.999999), default=0.999,
                    help="confidence of the motion test (default 0.999)")
     p.add_argument("--gate-probability", type=number(float, gt=0, le=0.999999), default=0.99,
@@ -298,8 +302,12 @@ class _Summary:
         held = sum(h >= m for h in self.hits.values())
         why = []
         if not args.confirm_stationary and args.mode == "fuzzy":
+            from fusion.active.motion import still_speed_mps
+
+            floor = (args.min_speed if args.min_speed is not None
+                     else still_speed_mps(st.position_sigma_m, args.still_wander_s))
             why.append(f"their detections did not move faster than --min-speed-mps "
-                       f"{args.min_speed:g} m/s significantly (stationary hold; "
+                       f"{floor:.3g} m/s significantly (stationary hold; "
                        "--confirm-stationary)")
             if not args.keep_platform_fixed:
                 why.append("they stood still relative to the moving sensor (platform-fixed; "

@@ -87,7 +87,8 @@ class TrackOptions:
     shadow_test: bool = True
     shadow_extent_sigmas: float = 8.0
     motion_recent_half: bool = False
-    min_speed_mps: float = 0.5
+    min_speed_mps: float | None = None
+    still_wander_s: float = 250.0
     motion_probability: float = 0.999
     gate_probability: float = 0.99
     min_rank: float | None = None
@@ -127,6 +128,7 @@ def tracker_from(opts: TrackOptions, st: TrackSettings, system: object | None) -
         delete_llr=opts.delete_llr, score_evidence=opts.score_evidence,
         detection_probability=opts.detection_probability,
         clutter_intensity=opts.clutter_density, min_speed_mps=opts.min_speed_mps,
+        still_wander_s=opts.still_wander_s,
         motion_probability=opts.motion_probability, gate_probability=opts.gate_probability,
         accel_psd=st.accel_psd, speed_sigma_mps=st.speed_sigma_mps,
         init_exclusion_m=st.init_exclusion_m, hotspot_drop=opts.hotspot_drop,
@@ -184,7 +186,9 @@ def build_tracker(prefix: Sequence[Ping], opts: TrackOptions,
 
             logging.getLogger("fusion.active.fuzzy").setLevel(logging.ERROR)
 
-            pilot = pilot_speed_prior(list(prefix), tracker, min_speed_mps=opts.min_speed_mps)
+            pilot = pilot_speed_prior(
+                list(prefix), tracker,
+                **({} if opts.min_speed_mps is None else {"min_speed_mps": opts.min_speed_mps}))
             if pilot.speed_sigma_mps is not None:
                 st = st.with_track_speed(pilot.speed_sigma_mps, len(pilot.speeds_mps))
                 tracker = tracker_from(opts, st, system)
