@@ -61,6 +61,8 @@ __all__ = [
     "coast_misses",
     "hotspot_drop",
     "next_lifecycle",
+    "HoldTests",
+    "hold_tests",
     "stationary_hold",
     "track_status",
 ]
@@ -302,3 +304,50 @@ def stationary_hold(
         if not hold[i] and shadowed is not None:
             hold[i] = bool(shadowed[i])
     return hold
+
+
+@dataclass(frozen=True)
+class HoldTests:
+    """The tests that keep a tentative track tentative (:func:`stationary_hold`): the motion
+    test of its own detections, the platform test (None: off) and the shadow test (None: off),
+    with the speed below which an object counts as standing still, m/s."""
+
+    min_speed_mps: float
+    motion: MotionTest
+    platform: PlatformTest | None
+    shadow: object | None
+
+
+def hold_tests(*, fuzzy: bool, position_sigma_m: float, motion_probability: float,
+               min_speed_mps: float | None, still_wander_s: float, motion_recent: bool,
+               reject_platform_fixed: bool, shadow: bool,
+               shadow_extent_sigmas: float) -> HoldTests:
+    """The hold tests of a tracker from its settings (:class:`fusion.active.tracker.Tracker`).
+
+    `min_speed_mps` None: ``position_sigma_m / still_wander_s``
+    (:func:`fusion.active.motion.still_speed_mps`). The platform and shadow tests exist in fuzzy
+    mode only.
+
+    Examples
+    --------
+    >>> t = hold_tests(fuzzy=True, position_sigma_m=125.0, motion_probability=0.999,
+    ...                min_speed_mps=None, still_wander_s=250.0, motion_recent=False,
+    ...                reject_platform_fixed=True, shadow=False, shadow_extent_sigmas=8.0)
+    >>> t.min_speed_mps, t.platform is not None, t.shadow is None
+    (0.5, True, True)
+    """
+    from fusion.active.motion import still_speed_mps
+    from fusion.active.platform import PlatformTest
+    from fusion.active.shadow import ShadowTest
+
+    if min_speed_mps is None:
+        min_speed_mps = still_speed_mps(position_sigma_m, still_wander_s)
+    speed = float(min_speed_mps)
+    return HoldTests(
+        min_speed_mps=speed,
+        motion=MotionTest(probability=motion_probability, min_speed_mps=speed,
+                          recent=motion_recent),
+        platform=(PlatformTest(probability=motion_probability, min_speed_mps=speed)
+                  if fuzzy and reject_platform_fixed else None),
+        shadow=(ShadowTest(position_sigma_m=position_sigma_m, extent_sigmas=shadow_extent_sigmas)
+                if fuzzy and shadow else None))

@@ -40,12 +40,18 @@ from fusion.active.births import birth_blockers, start_tracks, successor_flags
 from fusion.active.bistatic import MeasurementModel
 from fusion.active.clutter import ClutterIntensity, ClutterMapBase, DensityClutterMap
 from fusion.active.kalman import cv_model, gate_threshold, kf_predict, kf_update, pair_statistics
-from fusion.active.lifecycle import Lifecycle, coast_misses, hotspot_drop, next_lifecycle, stationary_hold
-from fusion.active.motion import STILL_WANDER_S, MotionTest, still_speed_mps
+from fusion.active.lifecycle import (
+    Lifecycle,
+    coast_misses,
+    hold_tests,
+    hotspot_drop,
+    next_lifecycle,
+    stationary_hold,
+)
+from fusion.active.motion import STILL_WANDER_S
 from fusion.active.noise import NoiseEstimator
 from fusion.active.ping_scan import PingScan, ping_result, score_gate
-from fusion.active.platform import PlatformTest, sensor_positions
-from fusion.active.shadow import ShadowTest
+from fusion.active.platform import sensor_positions
 from fusion.active.track_score import TrackScorer
 from fusion.active.types import (
     Columns,
@@ -108,13 +114,10 @@ class Tracker:
     motion_probability : float, optional
         Confidence of the motion test (stationary hold and hotspot drop), default 0.999, in
         (0, 1); see :func:`fusion.active.motion.motion_statistic`. Fuzzy mode only.
-    min_speed_mps : float, optional
-        Speeds up to this count as standing still in the motion test, m/s (default None:
-        ``position_sigma_m / still_wander_s``, :func:`fusion.active.motion.still_speed_mps`).
-    still_wander_s : float, optional
-        Time over which a still object's apparent position wanders by ``position_sigma_m``, s
-        (default :data:`fusion.active.motion.STILL_WANDER_S`, 250); used when
-        ``min_speed_mps`` is None.
+    min_speed_mps, still_wander_s : float, optional
+        Speeds up to `min_speed_mps` count as standing still in the motion test, m/s (default
+        None: ``position_sigma_m / still_wander_s``, `still_wander_s` default 250 s;
+        :func:`fusion.active.lifecycle.hold_tests`).
     hold_stationary : bool, optional
         Fuzzy mode: a track whose own detections do not move significantly stays tentative
         (default True; :func:`fusion.active.lifecycle.stationary_hold`).
@@ -166,18 +169,13 @@ class Tracker:
         ``P_D`` also learnt from tentative tracks at `confirm_llr` (default True; False: confirmed alone).
     coast_probability : float, optional
         Confirmed tracks coast for `lifecycle.coast_misses` misses (default 0.01; None: `max_misses`).
-    intensity_leave_one_out, intensity_leave_track_out : bool, optional
-        The clutter intensity at a hit leaves out the hit's own kernel, or that and the track's
-        own earlier detections (defaults False; `TrackScorer`).
-    hits_per_detection : bool, optional
-        Each detection counts towards `confirm_hits` (default False: each ping with one).
-    coast_gate_births, successor_llr : bool and float, optional
-        Births in coasting confirmed tracks' gates, and the starting score of a track born
-        there, which then needs one hit fewer (defaults False, None; :mod:`fusion.active.births`).
-    snr_evidence, birth_evidence : bool, optional
-        SNR likelihood ratio in the track score; births start at their features' ratio (`TrackScorer`).
-    track_pd_prior_pings : float, optional
-        Score each track with its own ``P_D`` per receiver (:mod:`fusion.active.track_pd`; default None: off).
+    intensity_leave_one_out, intensity_leave_track_out, hits_per_detection : bool, optional
+    coast_gate_births, successor_llr, snr_evidence, birth_evidence, track_pd_prior_pings : optional
+        Alternatives measured and kept off (defaults False / None; ``docs/tracking.md``): the
+        clutter intensity at a hit leaves out the hit's kernel or the track's own detections
+        (`TrackScorer`); each detection counts a hit; births in coasting tracks' gates with a
+        starting score (:mod:`fusion.active.births`); SNR in the score and births at their
+        features' ratio; each track's own ``P_D`` (:mod:`fusion.active.track_pd`).
     shadow : bool, optional
         Fuzzy mode, monostatic sensors (detections with ``own_x, own_y`` and no ``rcv_x,
         rcv_y``): hold tentative tracks behind a near confirmed track (default True;
@@ -260,15 +258,13 @@ class Tracker:
                                    track_pd_prior_pings=track_pd_prior_pings,
                                    intensity=ClutterIntensity(bandwidth_m=intensity_bandwidth_m))
                        if mode == "fuzzy" and confirm_llr is not None else None)
-        if min_speed_mps is None:
-            min_speed_mps = still_speed_mps(position_sigma_m, still_wander_s)
-        self.min_speed_mps = float(min_speed_mps)
-        self.motion_test = MotionTest(probability=motion_probability,
-                                      min_speed_mps=min_speed_mps, recent=motion_recent)
-        self.shadow_test = (ShadowTest(position_sigma_m=position_sigma_m, extent_sigmas=shadow_extent_sigmas)
-                            if mode == "fuzzy" and shadow else None)
-        self.platform_test = (PlatformTest(probability=motion_probability, min_speed_mps=min_speed_mps)
-                              if mode == "fuzzy" and reject_platform_fixed else None)
+        holds = hold_tests(fuzzy=mode == "fuzzy", position_sigma_m=position_sigma_m,
+                           motion_probability=motion_probability, min_speed_mps=min_speed_mps,
+                           still_wander_s=still_wander_s, motion_recent=motion_recent,
+                           reject_platform_fixed=reject_platform_fixed, shadow=shadow,
+                           shadow_extent_sigmas=shadow_extent_sigmas)
+        self.min_speed_mps, self.motion_test = holds.min_speed_mps, holds.motion
+        self.shadow_test, self.platform_test = holds.shadow, holds.platform
         self.accel_psd = float(accel_psd)
         self.speed_sigma_mps = float(speed_sigma_mps)
         self.gate = gate_threshold(gate_probability)
@@ -322,17 +318,8 @@ class Tracker:
         return self.measurement_model.covariances(ping)
 
     def step(self, ping: Ping) -> PingResult:
-        """Process one ping: predict, rank, associate, update, manage tracks.
-
-        Parameters
-        ----------
-        ping : Ping
-            Detections of the event; events must come in increasing time.
-
-        Returns
-        -------
-        PingResult
-        """
+        """Process one ping (events in increasing time): predict, rank, associate, update,
+        manage tracks; the ping's :class:`PingResult`."""
         if self._time is not None and ping.time < self._time:
             raise ValueError(f"event {ping.event}: time {ping.time} goes back before {self._time}")
         dt = 0.0 if self._time is None else ping.time - self._time
