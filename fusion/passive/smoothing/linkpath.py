@@ -73,12 +73,14 @@ def path_misses(end: tuple, start: tuple, scan_times: FloatArray, scan_ptr: NDAr
     var = (sigma**2 + q * tau**3 * (big_t - tau) ** 3 / (3.0 * big_t**3)
            + np.einsum("in,ij,jn->n", ge, pe, ge) + np.einsum("in,ij,jn->n", gs, ps, gs))
     half = PATH_K_SIGMA * np.sqrt(var)
-    misses = 0
-    for k, c, h in zip(inner, path, half, strict=True):
-        zk = z_sorted[scan_ptr[k]: scan_ptr[k + 1]]
-        if zk.size == 0 or np.min(np.abs(wrap_angle(zk - c))) > h:
-            misses += 1
-    return misses, int(inner.size)
+    # Every detection of the gap's scans at once: a scan is missed when none lies within
+    # `half` of the path there (an empty scan included).
+    lo, cnt = scan_ptr[inner], scan_ptr[inner + 1] - scan_ptr[inner]
+    row = np.repeat(np.arange(inner.size), cnt)
+    det = np.repeat(lo - np.cumsum(cnt) + cnt, cnt) + np.arange(row.size)
+    near = np.abs(wrap_angle(z_sorted[det] - path[row])) <= half[row]
+    misses = inner.size - np.count_nonzero(np.bincount(row[near], minlength=inner.size))
+    return int(misses), int(inner.size)
 
 
 def implausible_links(ends: list[tuple], ei: NDArray[np.int64], si: NDArray[np.int64],
