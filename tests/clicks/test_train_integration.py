@@ -7,9 +7,8 @@ import pytest
 
 from fusion.clicks.detect import ClickDetector
 from fusion.clicks.train_integration import train_delay
-from fusion.simulate.clicks import ClickWaveform
+from tests.clicks.click_trains import FS, two_channel_train
 
-FS = 96_000.0
 TAU_S = 0.61237  # t_weak - t_strong at the window centre
 RATE = 4e-4
 T_C = 6.0
@@ -19,19 +18,8 @@ def _two_sensors(weak_amplitude: float, seed: int = 5):
     """12 s of white noise (std 1) on two channels; 28 clicks with jittered intervals at
     amplitude 6 on channel 0 and `weak_amplitude` on channel 1, TAU_S later, drifting at
     RATE. Returns the audio and the weak channel's true arrival times."""
-    rng = np.random.default_rng(seed)
-    n = int(12.0 * FS)
-    t = np.arange(n) / FS
-    emit = 0.3 + np.cumsum(rng.uniform(0.3, 0.45, 40))
-    emit = emit[emit < 11.0]
-    x = rng.standard_normal((n, 2))
-    click = ClickWaveform()
-    weak = emit + TAU_S + RATE * (emit - T_C)
-    for ch, a, times in ((0, 6.0, emit), (1, weak_amplitude, weak)):
-        for at in times:
-            i0 = int(at * FS) - 100
-            if i0 + 200 < n:
-                x[i0:i0 + 200, ch] += a * click.evaluate(t[i0:i0 + 200] - at)
+    x, _, weak = two_channel_train(weak_amplitude, lambda emit: emit + TAU_S + RATE * (emit - T_C),
+                                   seed)
     return x, weak
 
 

@@ -6,9 +6,8 @@ import numpy as np
 import pytest
 
 from fusion.clicks.train_refine import refine_train_delay
-from fusion.simulate.clicks import ClickWaveform
+from tests.clicks.click_trains import FS, two_channel_train
 
-FS = 96_000.0
 T_C = 6.0
 
 
@@ -16,20 +15,11 @@ def _train(weak_amplitude: float, tau: float, rate: float, accel: float = 0.0, s
     """12 s of white noise (std 1) on two channels; ~28 clicks at amplitude 6 on channel 0
     and `weak_amplitude` on channel 1, ``tau + rate u + accel u^2 / 2`` later (``u`` from
     T_C). Returns the audio and channel 0's click times."""
-    rng = np.random.default_rng(seed)
-    n = int(12.0 * FS)
-    t = np.arange(n) / FS
-    emit = 0.3 + np.cumsum(rng.uniform(0.3, 0.45, 40))
-    emit = emit[emit < 11.0]
-    u = emit - T_C
-    weak = emit + tau + rate * u + 0.5 * accel * u * u
-    x = rng.standard_normal((n, 2))
-    click = ClickWaveform()
-    for ch, a, times in ((0, 6.0, emit), (1, weak_amplitude, weak)):
-        for at in times:
-            i0 = int(at * FS) - 100
-            if i0 + 200 < n:
-                x[i0:i0 + 200, ch] += a * click.evaluate(t[i0:i0 + 200] - at)
+    def weak(emit):
+        u = emit - T_C
+        return emit + tau + rate * u + 0.5 * accel * u * u
+
+    x, emit, _ = two_channel_train(weak_amplitude, weak, seed)
     return x, emit
 
 
