@@ -36,6 +36,7 @@ __all__ = [
     "bearing_rate_from_beam_rate",
     "compass_bearing_deg",
     "propagation_delay",
+    "surface_image",
     "tdoa",
     "wrap_angle",
     "wrap_deg",
@@ -369,6 +370,18 @@ class SensorArray:
     def pairs(self) -> list[tuple[int, int]]:
         """All sensor pairs ``(i, j)`` with ``i < j``, in lexicographic order."""
         return list(combinations(range(self.n_sensors), 2))
+
+
+def surface_image(points: ArrayLike, surface_z: float) -> NDArray[np.float64]:
+    """Mirror image(s) of point(s) in the sea surface ``z = surface_z`` (z up):
+    ``(x, y, 2 z_s - z)``, the image method of a surface-reflected path.
+
+    Examples
+    --------
+    >>> surface_image([[10.0, 20.0, -1000.0]], 0.0).tolist()
+    [[10.0, 20.0, 1000.0]]
+    """
+    return np.asarray(points, dtype=float) * [1.0, 1.0, -1.0] + [0.0, 0.0, 2.0 * surface_z]
 
 
 def propagation_delay(source: ArrayLike, sensors: ArrayLike, c: float) -> NDArray[np.float64]:

@@ -64,6 +64,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from factors.tdoa import weighted_tdoa_vector_factor
+from fusion.geometry import surface_image
 from fusion.localization.competition_settings import CompetitionSettings
 from fusion.localization.echo_ghosts import echo_ghosts, echo_only_sensors, surface_alternatives
 from fusion.localization.ownership import (
@@ -342,7 +343,7 @@ def compete(
                     continue
                 image = x[k] - 2.0 * float((x[k] - centre) @ normal) * normal
                 if surface_z is not None and x[k, 2] > surface_z:  # its surface image
-                    image = x[k] * np.array([1.0, 1.0, -1.0]) + np.array([0, 0, 2.0 * surface_z])
+                    image = surface_image(x[k], surface_z)
                 if not mirrored[k] and z_range[0] <= image[2] <= z_range[1]:
                     _LOG.debug("iteration %d: candidate %d (z = %.1f m) to its mirror image", it,
                                k, x[k, 2])

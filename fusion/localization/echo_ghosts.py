@@ -32,6 +32,8 @@ from itertools import combinations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from fusion.geometry import surface_image
+
 __all__ = ["echo_explained", "echo_ghosts", "echo_only_sensors", "surface_alternatives"]
 
 
@@ -218,7 +220,7 @@ def surface_alternatives(positions: ArrayLike, sensors: ArrayLike, pairs: ArrayL
     x = np.atleast_2d(np.asarray(positions, dtype=float))
     s = np.asarray(sensors, dtype=float)
     i, j = np.asarray(pairs, dtype=np.intp).T
-    image = s * np.array([1.0, 1.0, -1.0]) + np.array([0.0, 0.0, 2.0 * surface_z])
+    image = surface_image(s, surface_z)
     r = np.linalg.norm(x[:, None, :] - s[None, :, :], axis=2) / c  # (K, n)
     ri = np.linalg.norm(x[:, None, :] - image[None, :, :], axis=2) / c
     out = np.stack([r[:, i] - r[:, j], ri[:, i] - r[:, j], r[:, i] - ri[:, j]], axis=2)
@@ -273,7 +275,7 @@ def echo_only_sensors(sensors: ArrayLike, pairs: ArrayLike, held: ArrayLike,
     if image.size == 0:
         return np.zeros(h.shape[0], dtype=bool)
     # the real sensor of each image: the real one at its mirror position
-    mirror = s[image] * np.array([1.0, 1.0, -1.0]) + np.array([0.0, 0.0, 2.0 * surface_z])
+    mirror = surface_image(s[image], surface_z)
     twin = real[np.argmin(np.linalg.norm(mirror[:, None, :] - s[real][None, :, :], axis=2),
                           axis=1)]
     owner = np.arange(s.shape[0])

@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from fusion.geometry import surface_image
 from fusion.localization.source_fix import LocalizationOutput
 
 __all__ = ["emission_shift", "retime_owned"]
@@ -56,7 +57,7 @@ def emission_shift(rates: ArrayLike, first_sensors: ArrayLike, reflected: ArrayL
     if np.any(refl):
         if surface_z is None:
             raise ValueError("a reflected delay needs the surface height")
-        image = s[i[refl]] * [1.0, 1.0, -1.0] + [0.0, 0.0, 2.0 * surface_z]
+        image = surface_image(s[i[refl]], surface_z)
         first = first.copy()
         first[refl] = np.linalg.norm(image - p, axis=1) / c
     return np.asarray(rates, dtype=float) * (first - r.mean())

@@ -43,6 +43,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from factors.tdoa.factors import weighted_tdoa_vector_factor
 from factors.tdoa.gradient import gradient_tdoa_factor, travel_times
+from fusion.geometry import surface_image
 from fusion.types import frozen_array
 
 __all__ = [
@@ -125,7 +126,7 @@ def path_sensors(sensors: ArrayLike, pairs: ArrayLike, paths: ArrayLike, surface
     """
     s = np.asarray(sensors, dtype=float)
     n = s.shape[0]
-    image = s * [1.0, 1.0, -1.0] + [0.0, 0.0, 2.0 * surface_z]
+    image = surface_image(s, surface_z)
     q = np.array(pairs, dtype=np.intp).reshape(-1, 2).copy()
     h = np.asarray(paths, dtype=np.intp).reshape(-1)
     if h.shape[0] != q.shape[0] or np.any((h < 0) | (h > 3)):

@@ -29,6 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from fusion.geometry import surface_image
 from fusion.localization.window_tdoas import WindowTdoas
 from fusion.types import frozen_array
 
@@ -111,7 +112,7 @@ def surface_paths(tdoas: WindowTdoas, surface_z: float) -> PathTdoas:
     if not np.all(s[:, 2] < zs):
         raise ValueError(f"every sensor must lie below the surface z = {zs:g} m")
     n, m = s.shape[0], tdoas.m
-    images = s * np.array([1.0, 1.0, -1.0]) + np.array([0.0, 0.0, 2.0 * zs])
+    images = surface_image(s, zs)
     i, j = np.asarray(tdoas.pairs).T
     # the columns of path pair h: sensor i (or its image), sensor j (or its image)
     first = np.concatenate([i, i + n, i, i + n])
