@@ -178,7 +178,7 @@ class TrackScorer:
         # Per track (in the tracker's order): receiver -> rows (update, x, y) of its detections
         # that went into that receiver's intensity estimate (used with leave_track_out).
         self._own: list[dict[Hashable, list[tuple[float, float, float]]]] = []
-        if getattr(self, "rates", None) is not None:
+        if self.rates is not None:
             self.rates.reset()
 
     def own_rows(self, tracks: NDArray[np.int64], key: Hashable) -> list[NDArray[np.float64]] | None:

@@ -33,6 +33,8 @@ import numpy as np
 import scipy.fft
 from numpy.typing import ArrayLike
 
+from fusion.clicks._scm_grid import parabolic
+
 __all__ = ["TrainRefinement", "refine_train_delay"]
 
 
@@ -117,7 +119,7 @@ def refine_train_delay(
     ok = (np.minimum(ai, ak) >= 0) & (np.maximum(ai, ak) + 2 * h <= x.shape[0])
     if ok.sum() < 4:
         return None
-    ai, ak, u, tk, ti = ai[ok], ak[ok], u[ok], tk[ok], ti[ok]
+    ai, ak, u = ai[ok], ak[ok], u[ok]
     nfft = scipy.fft.next_fast_len(4 * h, real=True)
     f = np.fft.rfftfreq(nfft, 1.0 / fs)
     band = np.flatnonzero((f >= band_hz[0]) & (f <= band_hz[1]) & (f > 0))
@@ -162,7 +164,7 @@ def refine_train_delay(
     if j in (0, dd.size - 1):
         return None
     rng = np.random.default_rng(seed)
-    aq, dq = np.searchsorted(accs, grid[q][1]), np.searchsorted(drs, grid[q][0])
+    aq, dq = divmod(int(q), drs.size)  # grid is curvature-major
     null = []
     for _ in range(16):
         sg = rng.choice([-1.0, 1.0], u.size)
@@ -180,10 +182,7 @@ def refine_train_delay(
     jr = lo + int(np.argmax(re[lo:hi]))
     corr = float(dd[jr])
     if 0 < jr < dd.size - 1:
-        y0, y1, y2 = re[jr - 1], re[jr], re[jr + 1]
-        den = y0 - 2.0 * y1 + y2
-        if den < 0:
-            corr += float(np.clip(0.5 * (y0 - y2) / den, -0.5, 0.5)) * 1e-6
+        corr += float(parabolic(re[jr - 1], re[jr], re[jr + 1])[0]) * 1e-6
     sigma = max(1.0 / (w_rms * snr), 0.2e-6)
     return TrainRefinement(delay_s=float(delay_s + corr), rate=float(rate + grid[q][0]),
                            sigma_s=float(sigma), snr=snr, n_clicks=int(u.size))
