@@ -7,7 +7,7 @@ would (:func:`fusion.pipelines.sound_speed.calibrate_speed`) and scores them as
 ``bench_localize_baseline.py`` does (same truth, same 10 m gate, fixes flagged unobservable or
 mirror-ambiguous left out). Variants: ``array`` (the file's speed), ``one`` (one speed,
 ``--no-speed-gradient --sensor-position-sigma-m 0``), ``profile`` (a speed linear in depth where
-the fixes tell it, ``--sensor-position-sigma-m 0``), ``positions`` (the default since section 23
+the fixes tell it, ``--sensor-position-sigma-m 0``), ``positions`` (the default since section 24
 of docs/localization.md: the profile with the sensors' positions refined from the fixes, prior
 ``--sensor-position-sigma-m``). The figures
 equal ``bench_localize_baseline.py --methods project`` on the same seeds and

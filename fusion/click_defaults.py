@@ -35,5 +35,5 @@ TRAIN_FALSE_ALARMS = 1e-3
 #: (``--sensor-position-sigma-m``; 0: the positions exact): an assumption of a range survey a
 #: few metres good (the simulator's ``--vary-only survey`` draws 1-3 m). The sensors' offsets
 #: are estimated from a recording's fixes and used only where they fit them significantly
-#: better and explain fixes left out of their fit (``docs/localization.md`` section 23).
+#: better and explain fixes left out of their fit (``docs/localization.md`` section 24).
 SENSOR_POSITION_SIGMA_M = 2.0

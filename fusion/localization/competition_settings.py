@@ -54,18 +54,18 @@ class CompetitionSettings:
         Residual gate, in TDOA sigmas, of the growth step.
     min_redundant_tdoas : int
         Held TDOAs (weight > 0.5, associated) a candidate needs beyond the three unknowns of
-        its position (default 0: off; 1 is the test, off for the reason of section 23). Three
+        its position (default 0: off; 1 is the test, off for the reason of section 25). Three
         TDOAs on three independent pairs fit some position exactly, so a fix on three has no
         residual left to test: ``min_weight`` alone let three held TDOAs plus small weights
         on many others pass
-        (``docs/localization.md`` section 23).
+        (``docs/localization.md`` section 25).
     echo_ghost_lag_s : float
         Longest bottom-echo lag, s, of the echo-ghost test run on the survivors
         (:func:`fusion.localization.echo_ghosts.echo_ghosts`: a candidate whose delays are
         another's moved by echo lags on at most two sensors is dropped). 0.03 is the longest
         lag the front end takes as an echo (:class:`fusion.clicks.echoes`). Default 0: off
         (with the redundancy test, both off: on three whales they starved the sound-speed
-        estimate of fixes, ``docs/localization.md`` section 23).
+        estimate of fixes, ``docs/localization.md`` section 25).
     polarity_slip_s : float
         Half a carrier period of the lowest click frequency, s (default 25e-6: 20 kHz, the low
         edge of beaked-whale clicks): how far from a surface path's delay the echo-ghost test

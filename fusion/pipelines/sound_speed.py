@@ -23,7 +23,7 @@ positions are estimated with the chosen speed model on the same fixes
 them significantly better (an F test against the surveyed positions on the offset parameters
 the fixes determine, :data:`MIN_POSITION_F`) and explain fixes left out of their fit (a
 held-out check, :data:`MAX_HELD_OUT_RATIO`); every fix is then re-solved at the refined
-positions (docs/localization.md sections 22-23).
+positions (docs/localization.md sections 22 and 24).
 """
 
 from __future__ import annotations

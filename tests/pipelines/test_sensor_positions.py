@@ -5,7 +5,7 @@ held-out check refuses.
 
 (A whale that moves a few metres with survey errors passes both checks; over survey errors
 drawn from the prior its fixes' mean error halves but the median grows: docs/localization.md
-section 23 says so.)"""
+section 24 says so.)"""
 
 import numpy as np
 
